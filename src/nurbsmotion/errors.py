@@ -1,0 +1,58 @@
+"""Typed errors raised by nurbsmotion.
+
+Every error names the offending value, so that a user who gave a bad knot vector, a
+negative weight or an unreachable constraint can find it without a traceback from numpy.
+All derive from :class:`NurbsmotionError`; those about a bad input also derive from
+:class:`ValueError`.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "NurbsmotionError",
+    "InvalidCurveError",
+    "InvalidMachineError",
+    "PathFileError",
+    "InfeasibleError",
+]
+
+
+class NurbsmotionError(Exception):
+    """Base class of every error nurbsmotion raises on purpose."""
+
+
+class InvalidCurveError(NurbsmotionError, ValueError):
+    """A NURBS curve definition is invalid (knots, weights, control points, degree)."""
+
+
+class InvalidMachineError(NurbsmotionError, ValueError):
+    """A machine definition (axes, gains, drive limit, sample period) is invalid."""
+
+
+class PathFileError(NurbsmotionError, ValueError):
+    """A path or machine file cannot be read: missing, malformed, or a bad field.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong, naming the field.
+    source : str, optional
+        The file name.
+    line : int, optional
+        1-based line number, where the format gives one.
+    """
+
+    def __init__(self, message: str, source: str | None = None, line: int | None = None):
+        self.source = source
+        self.line = line
+        where = ""
+        if source is not None:
+            where = f"{source}"
+            if line is not None:
+                where += f", line {line}"
+            where += ": "
+        super().__init__(where + message)
+
+
+class InfeasibleError(NurbsmotionError, ValueError):
+    """A requested motion cannot be executed within the machine's limits."""

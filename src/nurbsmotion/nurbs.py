@@ -1,0 +1,569 @@
+"""NURBS curves: the value object every other stage of nurbsmotion reads.
+
+A :class:`NurbsCurve` knows nothing of time, feeds or servos. It evaluates points and exact
+rational derivatives, and (through :mod:`nurbsmotion.geometry`) arc length, tangent,
+curvature and sharp corners.
+
+Conventions
+-----------
+- Knot vectors are *clamped* (the first and the last ``p + 1`` knots are equal); unclamped
+  (periodic, floating) knot vectors are rejected with :class:`InvalidCurveError`, since a
+  toolpath must start and end on its end control points.
+- Any non-decreasing knot values are accepted, and the domain is normalised to ``[0, 1]``:
+  the stored :attr:`NurbsCurve.knots` are ``(t - t[0]) / (t[-1] - t[0])``, and every method
+  takes the normalised parameter ``u``. The original end values are kept in
+  :attr:`NurbsCurve.domain`.
+- Interior knots may repeat up to the degree ``p``. Multiplicity ``p`` makes the curve only
+  C0 there: a possible *sharp corner*. Derivatives at such a knot are one-sided, from the
+  right by default (the span the motion moves into, SPEC section 5), from the left with
+  ``side="left"``.
+
+Glossary
+--------
+p : degree; n : number of control points; u : curve parameter in [0, 1];
+P : control points ``(n, n_axes)``; w : weights ``(n,)``;
+C(u) : curve point; C^(k)(u) : k-th derivative with respect to u.
+
+References
+----------
+Piegl & Tiller, *The NURBS Book*, 2nd ed., Springer 1997: A4.2 (rational derivatives),
+A7.1 (circular arcs).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from importlib import resources
+from typing import Any
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.special import comb
+
+from .errors import InvalidCurveError
+
+__all__ = [
+    "NurbsCurve",
+    "make_line",
+    "make_polyline",
+    "make_arc",
+    "make_circle",
+    "make_die_bonder_pi",
+    "make_butterfly",
+    "builtin_path",
+    "BUILTIN_PATHS",
+]
+
+MAX_ORDER = 3
+"""Highest derivative order :meth:`NurbsCurve.__call__` evaluates (3 is jerk)."""
+
+
+def _as_float_array(value: Any, name: str, ndim: int) -> np.ndarray:
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidCurveError(f"{name} must be numeric, got {value!r:.80}") from exc
+    if arr.ndim != ndim:
+        shape = "(n,)" if ndim == 1 else "(n, n_axes)"
+        raise InvalidCurveError(f"{name} must have shape {shape}, got shape {arr.shape}")
+    return arr
+
+
+def _first_bad(mask: np.ndarray) -> int:
+    return int(np.flatnonzero(mask)[0])
+
+
+class NurbsCurve:
+    """A clamped non-uniform rational B-spline curve in any number of axes.
+
+    Parameters
+    ----------
+    degree : int
+        Polynomial degree ``p >= 1``.
+    knots : array_like, shape (n + p + 1,)
+        Clamped, non-decreasing knot vector. Normalised to ``[0, 1]`` on construction.
+    control_points : array_like, shape (n, n_axes)
+        Control points, ``n >= p + 1``, ``n_axes >= 1`` [path units].
+    weights : array_like, shape (n,), optional
+        Positive finite weights; all ones (a non-rational B-spline) when omitted.
+    name : str, optional
+        A label carried into files and reports.
+    units : str, optional
+        Length unit of the control points (``"pulse"``, ``"mm"``, ...).
+
+    Raises
+    ------
+    InvalidCurveError
+        On any invalid input, naming the offending value.
+
+    Examples
+    --------
+    >>> from nurbsmotion import make_circle
+    >>> c = make_circle(radius=2.0)
+    >>> c([0.0, 0.25]).round(12)
+    array([[2., 0.],
+           [0., 2.]])
+    """
+
+    def __init__(
+        self,
+        degree: int,
+        knots: Any,
+        control_points: Any,
+        weights: Any = None,
+        *,
+        name: str | None = None,
+        units: str | None = None,
+    ):
+        if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
+            if isinstance(degree, float) and degree.is_integer():
+                degree = int(degree)
+            else:
+                raise InvalidCurveError(f"degree must be an integer >= 1, got {degree!r}")
+        p = int(degree)
+        if p < 1:
+            raise InvalidCurveError(f"degree must be an integer >= 1, got {p}")
+
+        P = _as_float_array(control_points, "control_points", 2)
+        n, n_axes = P.shape
+        if n_axes < 1:
+            raise InvalidCurveError("control_points must have at least one axis (column)")
+        if n < p + 1:
+            raise InvalidCurveError(
+                f"a degree-{p} curve needs at least p + 1 = {p + 1} control points, got {n}"
+            )
+        if not np.all(np.isfinite(P)):
+            i = _first_bad(~np.all(np.isfinite(P), axis=1))
+            raise InvalidCurveError(f"control point {i} is not finite: {P[i].tolist()}")
+
+        if weights is None:
+            w = np.ones(n)
+        else:
+            w = _as_float_array(weights, "weights", 1)
+            if w.shape != (n,):
+                raise InvalidCurveError(
+                    f"weights has {w.size} entries, expected {n} (one per control point)"
+                )
+            if not np.all(np.isfinite(w)):
+                i = _first_bad(~np.isfinite(w))
+                raise InvalidCurveError(f"weight {i} is not finite: {w[i]}")
+            if np.any(w <= 0):
+                i = _first_bad(w <= 0)
+                raise InvalidCurveError(f"weight {i} is {w[i]:g}; weights must be > 0")
+
+        t = _as_float_array(knots, "knots", 1)
+        if t.size != n + p + 1:
+            raise InvalidCurveError(
+                f"knot vector has {t.size} entries, expected {n + p + 1} = n + p + 1 "
+                f"(n = {n} control points, p = {p})"
+            )
+        if not np.all(np.isfinite(t)):
+            i = _first_bad(~np.isfinite(t))
+            raise InvalidCurveError(f"knot {i} is not finite: {t[i]}")
+        if np.any(np.diff(t) < 0):
+            i = _first_bad(np.diff(t) < 0)
+            raise InvalidCurveError(
+                f"knots must be non-decreasing, but knot {i + 1} = {t[i + 1]:g} "
+                f"< knot {i} = {t[i]:g}"
+            )
+        if not (np.all(t[: p + 1] == t[0]) and np.all(t[-p - 1 :] == t[-1])):
+            raise InvalidCurveError(
+                f"knot vector is not clamped: the first and last p + 1 = {p + 1} knots must "
+                f"be equal, got start {t[: p + 1].tolist()} and end {t[-p - 1 :].tolist()} "
+                "(unclamped knot vectors are not supported)"
+            )
+        if t[-1] == t[0]:
+            raise InvalidCurveError(f"knot vector spans an empty domain [{t[0]:g}, {t[-1]:g}]")
+        interior, counts = np.unique(t[p + 1 : -p - 1], return_counts=True)
+        if np.any(counts > p):
+            i = _first_bad(counts > p)
+            raise InvalidCurveError(
+                f"interior knot {interior[i]:g} has multiplicity {counts[i]}, "
+                f"more than the degree {p}"
+            )
+
+        domain = (float(t[0]), float(t[-1]))
+        t = (t - t[0]) / (t[-1] - t[0])
+        for arr in (t, P, w):
+            arr.flags.writeable = False
+        self.degree = p
+        self.knots = t
+        self.control_points = P
+        self.weights = w
+        self.domain = domain
+        self.name = name
+        self.units = units
+
+        homogeneous = np.hstack([P * w[:, None], w[:, None]])
+        self._spline = BSpline(t, homogeneous, p, extrapolate=True)
+        # The mirrored curve evaluated at 1 - u gives left-sided values at breakpoints.
+        self._mirror = BSpline(1.0 - t[::-1], homogeneous[::-1], p, extrapolate=True)
+        self._geometry = None
+        self._check_not_degenerate()
+
+    # ------------------------------------------------------------------ basic facts
+    @property
+    def n_axes(self) -> int:
+        """Number of axes (columns of the control points)."""
+        return self.control_points.shape[1]
+
+    @property
+    def n_control_points(self) -> int:
+        """Number of control points ``n``."""
+        return self.control_points.shape[0]
+
+    @property
+    def breakpoints(self) -> np.ndarray:
+        """Distinct knot values in ``[0, 1]``, shape (n_spans + 1,)."""
+        return np.unique(self.knots)
+
+    def knot_multiplicity(self, u: float) -> int:
+        """Number of knots equal to ``u``."""
+        return int(np.count_nonzero(self.knots == u))
+
+    def __repr__(self) -> str:
+        label = f" {self.name!r}" if self.name else ""
+        return (
+            f"<NurbsCurve{label}: degree {self.degree}, {self.n_control_points} control "
+            f"points, {self.n_axes} axes, {len(self.breakpoints) - 1} spans>"
+        )
+
+    def to_dict(self) -> dict:
+        """Plain-Python description (degree, knots, control_points, weights, name, units)."""
+        out: dict[str, Any] = {
+            "degree": self.degree,
+            "knots": self.knots.tolist(),
+            "control_points": self.control_points.tolist(),
+            "weights": self.weights.tolist(),
+        }
+        if self.name is not None:
+            out["name"] = self.name
+        if self.units is not None:
+            out["units"] = self.units
+        return out
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, NurbsCurve):
+            return NotImplemented
+        return (
+            self.degree == other.degree
+            and np.array_equal(self.knots, other.knots)
+            and np.array_equal(self.control_points, other.control_points)
+            and np.array_equal(self.weights, other.weights)
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+    # ------------------------------------------------------------------ evaluation
+    def _check_parameter(self, u: Any) -> np.ndarray:
+        uu = np.asarray(u, dtype=float)
+        if not np.all(np.isfinite(uu)):
+            raise ValueError(f"curve parameter must be finite, got {uu[~np.isfinite(uu)][:3]}")
+        if np.any((uu < 0.0) | (uu > 1.0)):
+            bad = uu[(uu < 0.0) | (uu > 1.0)]
+            raise ValueError(f"curve parameter must lie in [0, 1], got {bad.flat[0]!r}")
+        return uu
+
+    def derivatives(self, u: Any, max_order: int = 2, side: str = "right") -> np.ndarray:
+        """Point and derivatives up to ``max_order`` at once (The NURBS Book, A4.2).
+
+        Parameters
+        ----------
+        u : float or array_like
+            Curve parameter(s) in ``[0, 1]``.
+        max_order : int
+            Highest derivative order, 0 to 3.
+        side : {"right", "left"}
+            Which one-sided derivative to take at a knot where the curve is not smooth.
+
+        Returns
+        -------
+        ndarray, shape (max_order + 1,) + shape(u) + (n_axes,)
+            ``out[k]`` is the k-th derivative with respect to ``u`` [path units].
+        """
+        if not 0 <= max_order <= MAX_ORDER:
+            raise ValueError(f"derivative order must be 0..{MAX_ORDER}, got {max_order}")
+        if side not in ("right", "left"):
+            raise ValueError(f"side must be 'right' or 'left', got {side!r}")
+        uu = self._check_parameter(u)
+        if side == "right":
+            hom = [self._spline(uu, nu=k) for k in range(max_order + 1)]
+        else:
+            hom = [(-1) ** k * self._mirror(1.0 - uu, nu=k) for k in range(max_order + 1)]
+        A = [h[..., :-1] for h in hom]
+        wd = [h[..., -1:] for h in hom]
+        out = np.empty((max_order + 1,) + uu.shape + (self.n_axes,))
+        for k in range(max_order + 1):
+            v = A[k].copy()
+            for i in range(1, k + 1):
+                v -= comb(k, i, exact=True) * wd[i] * out[k - i]
+            out[k] = v / wd[0]
+        return out
+
+    def __call__(self, u: Any, order: int = 0, side: str = "right") -> np.ndarray:
+        """Evaluate the curve or its ``order``-th derivative with respect to ``u``.
+
+        Parameters
+        ----------
+        u : float or array_like, shape (m,)
+            Curve parameter(s) in ``[0, 1]``.
+        order : int
+            Derivative order, 0 (point) to 3 (for jerk).
+        side : {"right", "left"}
+            One-sided derivative at a knot of full multiplicity.
+
+        Returns
+        -------
+        ndarray, shape (m, n_axes) (or (n_axes,) for a scalar ``u``)
+            Points [path units] or derivatives [path units / unit u^order].
+        """
+        return self.derivatives(u, order, side)[order]
+
+    # ------------------------------------------------------------------ geometry
+    @property
+    def geometry(self):
+        """Cached :class:`nurbsmotion.geometry.CurveGeometry` (arc length table etc.)."""
+        if self._geometry is None:
+            from .geometry import CurveGeometry
+
+            self._geometry = CurveGeometry(self)
+        return self._geometry
+
+    @property
+    def length(self) -> float:
+        """Total arc length [path units]."""
+        return self.geometry.length
+
+    def arc_length(self, u: Any) -> np.ndarray:
+        """Arc length ``s(u)`` from the start [path units], to 1e-9 relative or better."""
+        return self.geometry.arc_length(u)
+
+    def parameter_at(self, s: Any) -> np.ndarray:
+        """Inverse arc length ``u(s)``; ``s`` in ``[0, length]`` [path units]."""
+        return self.geometry.parameter_at(s)
+
+    def tangent(self, u: Any, side: str = "right") -> np.ndarray:
+        """Unit tangent, shape ``shape(u) + (n_axes,)``."""
+        d1 = self(u, 1, side)
+        return d1 / np.linalg.norm(d1, axis=-1, keepdims=True)
+
+    def curvature(self, u: Any, side: str = "right") -> np.ndarray:
+        """Curvature ``|C' x C''| / |C'|^3`` in any dimension [1 / path unit]."""
+        d = self.derivatives(u, 2, side)
+        return curvature_from_derivatives(d[1], d[2])
+
+    def sharp_corners(self, angle_tolerance: float = 1e-6) -> np.ndarray:
+        """Parameters of interior knots where the tangent direction jumps.
+
+        Parameters
+        ----------
+        angle_tolerance : float
+            Smallest turning angle counted as a corner [rad].
+
+        Returns
+        -------
+        ndarray, shape (n_corners,)
+            Sorted corner parameters in ``(0, 1)``.
+        """
+        return self.geometry.sharp_corners(angle_tolerance)
+
+    def turning_angle(self, u: Any) -> np.ndarray:
+        """Angle between the left and right tangents at ``u`` [rad] (0 where smooth)."""
+        cos = np.sum(self.tangent(u, "left") * self.tangent(u, "right"), axis=-1)
+        return np.arccos(np.clip(cos, -1.0, 1.0))
+
+    def reversed(self) -> "NurbsCurve":
+        """The same curve traversed from end to start."""
+        return NurbsCurve(
+            self.degree,
+            1.0 - self.knots[::-1],
+            self.control_points[::-1],
+            self.weights[::-1],
+            name=self.name,
+            units=self.units,
+        )
+
+    def scaled(self, factor: float, units: str | None = None) -> "NurbsCurve":
+        """The curve with every coordinate multiplied by ``factor`` (e.g. mm to pulses)."""
+        if not (np.isfinite(factor) and factor > 0):
+            raise InvalidCurveError(f"scale factor must be finite and > 0, got {factor!r}")
+        return NurbsCurve(
+            self.degree,
+            self.knots,
+            self.control_points * factor,
+            self.weights,
+            name=self.name,
+            units=units if units is not None else self.units,
+        )
+
+    # ------------------------------------------------------------------ validation
+    def _check_not_degenerate(self) -> None:
+        P = self.control_points
+        scale = float(np.max(np.ptp(P, axis=0)))
+        if scale == 0.0:
+            raise InvalidCurveError(
+                f"degenerate curve: all {len(P)} control points coincide at {P[0].tolist()} "
+                "(zero length)"
+            )
+        # |C'(u)| is sampled at both ends and inside every span (one-sided at the ends), so
+        # that a Taylor step V*Ts/|C'| never divides by zero. A zero of C' strictly inside a
+        # span between samples (a cusp) is not guaranteed to be found.
+        bp = self.breakpoints
+        frac = np.linspace(0.0, 1.0, 17)
+        for a, b in zip(bp[:-1], bp[1:]):
+            uu = a + (b - a) * frac
+            speed = np.linalg.norm(self(uu[:-1], 1, "right"), axis=-1)
+            speed = np.append(speed, np.linalg.norm(self(uu[-1], 1, "left")))
+            if np.min(speed) <= 1e-9 * scale:
+                i = int(np.argmin(speed))
+                raise InvalidCurveError(
+                    f"degenerate curve: C'(u) = 0 at u = {uu[i]:.6g} (span [{a:.6g}, {b:.6g}]), "
+                    "so the curve has no tangent there and a Taylor step would divide by "
+                    "zero; check for repeated control points"
+                )
+
+
+def curvature_from_derivatives(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    """Curvature from first and second derivatives, in any dimension.
+
+    ``kappa = sqrt(|d1|^2 |d2|^2 - (d1 . d2)^2) / |d1|^3``.
+    """
+    n1 = np.sum(d1 * d1, axis=-1)
+    cross2 = np.maximum(n1 * np.sum(d2 * d2, axis=-1) - np.sum(d1 * d2, axis=-1) ** 2, 0.0)
+    return np.sqrt(cross2) / n1**1.5
+
+
+# ---------------------------------------------------------------------- factories
+def make_line(start: Any, end: Any, *, name: str | None = None, units: str | None = None):
+    """Straight segment from ``start`` to ``end`` (degree 1), shape (n_axes,) each."""
+    return make_polyline([start, end], name=name, units=units)
+
+
+def make_polyline(points: Any, *, name: str | None = None, units: str | None = None):
+    """Degree-1 curve through ``points`` (shape (m, n_axes)), knots by chord length.
+
+    Every interior vertex is a knot of full multiplicity, i.e. a sharp corner unless the
+    neighbouring segments are collinear.
+    """
+    P = _as_float_array(points, "points", 2)
+    if len(P) < 2:
+        raise InvalidCurveError(f"a polyline needs at least 2 points, got {len(P)}")
+    if not np.all(np.isfinite(P)):
+        raise InvalidCurveError(f"polyline points must be finite, got {P.tolist()}")
+    chord = np.linalg.norm(np.diff(P, axis=0), axis=1)
+    if np.any(chord == 0):
+        i = _first_bad(chord == 0)
+        raise InvalidCurveError(
+            f"degenerate curve: polyline points {i} and {i + 1} coincide at {P[i].tolist()}"
+        )
+    s = np.concatenate([[0.0], np.cumsum(chord)])
+    knots = np.concatenate([[0.0], s / s[-1], [1.0]])
+    knots[-2] = 1.0
+    return NurbsCurve(1, knots, P, name=name, units=units)
+
+
+def make_arc(
+    center: Any,
+    radius: float,
+    start_angle: float,
+    end_angle: float,
+    *,
+    name: str | None = None,
+    units: str | None = None,
+) -> NurbsCurve:
+    """Exact circular arc in the plane as a rational quadratic (The NURBS Book, A7.1).
+
+    Parameters
+    ----------
+    center : array_like, shape (2,)
+        Centre [path units].
+    radius : float
+        Radius > 0 [path units].
+    start_angle, end_angle : float
+        Angles from the +x axis [rad]. ``end_angle < start_angle`` runs clockwise. The
+        sweep ``|end - start|`` must be in ``(0, 2 pi]``.
+
+    Notes
+    -----
+    The arc is split into ``ceil(sweep / (pi/2))`` equal pieces, each a rational quadratic
+    with middle weight ``cos(half-sweep)``; interior knots are double, where the pieces
+    join with equal tangents (the curve is C1 there, not a corner).
+    """
+    c = _as_float_array(center, "center", 1)
+    if c.shape != (2,):
+        raise InvalidCurveError(f"arc center must have 2 coordinates, got {c.tolist()}")
+    if not (np.isfinite(radius) and radius > 0):
+        raise InvalidCurveError(f"arc radius must be finite and > 0, got {radius!r}")
+    sweep = float(end_angle) - float(start_angle)
+    if not (np.isfinite(sweep) and 0 < abs(sweep) <= 2 * math.pi + 1e-12):
+        raise InvalidCurveError(
+            f"arc sweep must be in (0, 2 pi] in magnitude, got {sweep!r} rad "
+            f"(from {start_angle!r} to {end_angle!r})"
+        )
+    sweep = math.copysign(min(abs(sweep), 2 * math.pi), sweep)
+    n_pieces = max(1, math.ceil(abs(sweep) / (math.pi / 2) - 1e-12))
+    d = sweep / n_pieces
+    w_mid = math.cos(d / 2)
+    points = []
+    weights = []
+    for i in range(n_pieces):
+        a0 = start_angle + i * d
+        am = a0 + d / 2
+        if i == 0:
+            points.append(c + radius * np.array([math.cos(a0), math.sin(a0)]))
+            weights.append(1.0)
+        points.append(c + radius / w_mid * np.array([math.cos(am), math.sin(am)]))
+        weights.append(w_mid)
+        a1 = start_angle + (i + 1) * d
+        points.append(c + radius * np.array([math.cos(a1), math.sin(a1)]))
+        weights.append(1.0)
+    interior = np.repeat(np.arange(1, n_pieces) / n_pieces, 2)
+    knots = np.concatenate([[0.0] * 3, interior, [1.0] * 3])
+    return NurbsCurve(2, knots, points, weights, name=name, units=units)
+
+
+def make_circle(
+    radius: float,
+    center: Any = (0.0, 0.0),
+    start_angle: float = 0.0,
+    *,
+    clockwise: bool = False,
+    name: str | None = None,
+    units: str | None = None,
+) -> NurbsCurve:
+    """Exact full circle (rational quadratic, 9 control points), starting at ``start_angle``."""
+    sweep = -2 * math.pi if clockwise else 2 * math.pi
+    return make_arc(
+        center, radius, start_angle, start_angle + sweep, name=name or "circle", units=units
+    )
+
+
+BUILTIN_PATHS = {"die-bonder-pi": "die_bonder_pi.json", "butterfly": "butterfly.json"}
+"""Built-in benchmark paths (SPEC section 8) by name, and their package data files."""
+
+
+def builtin_path(name: str) -> NurbsCurve:
+    """A built-in benchmark path by name (see :data:`BUILTIN_PATHS`)."""
+    if name not in BUILTIN_PATHS:
+        raise KeyError(f"no built-in path {name!r}; choose from {sorted(BUILTIN_PATHS)}")
+    text = resources.files(__package__).joinpath("paths", "data", BUILTIN_PATHS[name]).read_text()
+    data = json.loads(text)
+    return NurbsCurve(
+        data["degree"],
+        data["knots"],
+        data["control_points"],
+        data.get("weights"),
+        name=data.get("name", name),
+        units=data.get("units"),
+    )
+
+
+def make_die_bonder_pi() -> NurbsCurve:
+    """The die-bonder Pi move of SPEC section 8 [pulse]: cubic, two sharp corners, ~103.1 mm."""
+    return builtin_path("die-bonder-pi")
+
+
+def make_butterfly() -> NurbsCurve:
+    """The butterfly benchmark [mm]: cubic, closed, 51 control points, ~382.86 mm."""
+    return builtin_path("butterfly")
