@@ -1,0 +1,43 @@
+"""Interpolators: one module each, all steppers with ``step(state) -> Setpoint``.
+
+- ``uniform``: fixed parameter step (eq. 1.1);
+- ``taylor1`` / ``taylor2``: constant (or parameter-dependent) feed, eq. 3.2 / 3.1;
+- ``paper``: the saturation-aware interpolation of Yeh & Sun (2008), reading the loop state.
+"""
+
+from .base import (Feed, Interpolator, LoopState, Setpoint, SetpointSeries, Status,
+                   interpolate, taylor_increment)
+from .paper import PaperInterpolator
+from .taylor import TaylorInterpolator, UniformInterpolator
+
+__all__ = ["Feed", "Interpolator", "LoopState", "Setpoint", "SetpointSeries", "Status",
+           "interpolate", "taylor_increment", "PaperInterpolator", "TaylorInterpolator",
+           "UniformInterpolator", "OPEN_LOOP_METHODS", "LOOP_METHODS", "make_open_loop",
+           "make_interpolator"]
+
+OPEN_LOOP_METHODS = ("uniform", "taylor1", "taylor2")
+"""Interpolators that need no loop state."""
+
+LOOP_METHODS = ("taylor1", "taylor2", "paper")
+"""Interpolators offered in the servo loop (``nurbsmotion run --interpolator``)."""
+
+
+def make_open_loop(method: str, curve, sample_period: float, feed: Feed) -> Interpolator:
+    """An open-loop interpolator by name (one of :data:`OPEN_LOOP_METHODS`)."""
+    if method == "uniform":
+        return UniformInterpolator.for_feed(curve, sample_period, feed)
+    if method in ("taylor1", "taylor2"):
+        return TaylorInterpolator(curve, sample_period, feed, order=int(method[-1]))
+    raise ValueError(f"unknown interpolation method {method!r}; choose from {OPEN_LOOP_METHODS}")
+
+
+def make_interpolator(method: str, curve, machine, feed: float) -> Interpolator:
+    """A servo-loop interpolator by name (one of :data:`LOOP_METHODS`).
+
+    ``curve`` is in pulses and ``feed`` in pulse/s; the sample period is the machine's.
+    """
+    if method == "paper":
+        return PaperInterpolator(curve, machine, feed)
+    if method in LOOP_METHODS:
+        return make_open_loop(method, curve, machine.sample_period, feed)
+    raise ValueError(f"unknown interpolator {method!r}; choose from {LOOP_METHODS}")

@@ -1,0 +1,222 @@
+"""The closed loop: interpolator, control law, saturation and plant, one sample at a time.
+
+At sample k (t = k*Ts), in this order (SPEC sections 1 and 4):
+
+1. the plant's position tha[k] is measured, and the speed wa[k] (encoder differencing,
+   or the true motor speed);
+2. the interpolator reads that :class:`~nurbsmotion.interpolators.LoopState` and returns
+   the setpoint thd[k] (sample 0 is the path's start, the loop starts at rest there);
+3. the control law gives u[k]; the actuator applies clip(u[k], -Umax, Umax) over
+   [k*Ts, (k+1)*Ts), and the plant advances exactly (zero-order hold).
+
+After the setpoint reaches the end, the loop goes on holding it for ``settle_time`` so the
+stop and its transient are part of the trace.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .control import ControlLaw
+from .errors import InfeasibleError
+from .interpolators import Interpolator, LoopState, Status
+from .machine import Machine
+from .nurbs import NurbsCurve
+from .servo import ServoPlant
+
+__all__ = ["Trace", "simulate", "to_pulses"]
+
+
+def to_pulses(curve: NurbsCurve, machine: Machine) -> NurbsCurve:
+    """The path in the machine's pulses (a path in ``"mm"`` is scaled by pulses per mm)."""
+    factor = machine.pulses_per_unit(curve.units)
+    if factor == 1.0:
+        return curve
+    return curve.scaled(factor, units="pulse")
+
+
+@dataclass(frozen=True, eq=False)
+class Trace:
+    """Everything the loop did, one row per sample k (t = k*Ts).
+
+    Attributes
+    ----------
+    t : ndarray, shape (n_samples,)
+        Sample times [s].
+    u : ndarray, shape (n_samples,)
+        Curve parameter of the setpoint.
+    position_command : ndarray, shape (n_samples, n_axes)
+        thd[k] [pulse].
+    position : ndarray, shape (n_samples, n_axes)
+        tha[k], measured before u[k] is applied [pulse].
+    speed_command : ndarray, shape (n_samples, n_axes)
+        wd[k] [rad/s].
+    speed : ndarray, shape (n_samples, n_axes)
+        wa[k] as the controller measured it [rad/s].
+    drive : ndarray, shape (n_samples, n_axes)
+        u[k] before clipping [V].
+    drive_applied : ndarray, shape (n_samples, n_axes)
+        u[k] after clipping [V].
+    feed : ndarray, shape (n_samples,)
+        Feed the interpolator commanded for the step into sample k [pulse/s].
+    speed_bounds : ndarray, shape (n_samples, n_axes, 2) or None
+        ``[wmin, wmax]`` of eq. 3.6 [rad/s] where the interpolator computes them
+        (NaN at samples where it did not).
+    finished_index : int
+        First sample whose setpoint is the path's end.
+    curve : NurbsCurve
+        The path [pulse].
+    machine : Machine
+        The machine model.
+    interpolator : str
+        Name of the interpolator.
+    """
+
+    t: np.ndarray
+    u: np.ndarray
+    position_command: np.ndarray
+    position: np.ndarray
+    speed_command: np.ndarray
+    speed: np.ndarray
+    drive: np.ndarray
+    drive_applied: np.ndarray
+    feed: np.ndarray
+    speed_bounds: np.ndarray | None
+    finished_index: int
+    curve: NurbsCurve
+    machine: Machine
+    interpolator: str
+
+    @property
+    def cycle_time(self) -> float:
+        """Time at which the setpoint first reaches the path's end [s]."""
+        return float(self.t[self.finished_index])
+
+    def metrics(self):
+        """The SPEC section 9 figures (:class:`nurbsmotion.metrics.Metrics`)."""
+        from .metrics import trace_metrics
+
+        return trace_metrics(self)
+
+    def plot(self, out_dir, **kwargs):
+        """Write the run's figures as PNG files (see :func:`nurbsmotion.plots.plot_trace`)."""
+        from .plots import plot_trace
+
+        return plot_trace(self, out_dir, **kwargs)
+
+
+def simulate(
+    interpolator: Interpolator,
+    machine: Machine,
+    *,
+    plant: ServoPlant | None = None,
+    settle_time: float = 0.05,
+    max_samples: int | None = None,
+) -> Trace:
+    """Run the closed loop from the path's start until ``settle_time`` after its end.
+
+    Parameters
+    ----------
+    interpolator : Interpolator
+        Any stepper; its curve must be in pulses (see :func:`to_pulses`).
+    machine : Machine
+        Gains, Umax and Ts of the controller (and the model of the plant).
+    plant : ServoPlant, optional
+        The true plant, when it differs from the model (e.g. tau and Kc off by 20 %);
+        ``ServoPlant.of_machine(machine, start)`` by default.
+    settle_time : float
+        How long to go on holding the end point after the setpoint reaches it [s].
+    max_samples : int, optional
+        Safety limit; by default ten times the samples a constant-feed run would take at
+        the slowest axis's full-drive speed, plus ten seconds.
+
+    Returns
+    -------
+    Trace
+
+    Raises
+    ------
+    InfeasibleError
+        If the interpolator cannot advance, or the end is not reached in ``max_samples``.
+    """
+    curve = interpolator.curve
+    machine.check_path(curve.n_axes)
+    Ts = machine.sample_period
+    if abs(interpolator.sample_period - Ts) > 1e-15 * Ts:
+        raise ValueError(f"interpolator sample period {interpolator.sample_period} s differs "
+                         f"from the machine's {Ts} s")
+    if not (math.isfinite(settle_time) and settle_time >= 0):
+        raise ValueError(f"settle_time must be finite and >= 0, got {settle_time!r}")
+    start = curve(0.0)
+    if plant is None:
+        plant = ServoPlant.of_machine(machine, start)
+    if max_samples is None:
+        slowest = float(np.min(machine.max_axis_speed)) if math.isfinite(machine.max_drive) \
+            else 1e300
+        max_samples = int(10 * curve.length / max(slowest, 1e-300) / Ts + 10 / Ts) + 10
+    n_settle = int(round(settle_time / Ts))
+    law = ControlLaw(machine)
+    encoder = machine.speed_measurement == "encoder"
+    Ke_Ts = machine.Ke * Ts
+
+    interpolator.reset()
+    thd_prev = start.copy()
+    wd_prev = np.zeros(machine.n_axes)
+    tha_prev = plant.position.copy()
+    rows_u, rows = [], []
+    bounds_rows: list = []
+    any_bounds = False
+    finished_index = None
+    k = 0
+    while True:
+        tha = plant.position.copy()
+        wa = (tha - tha_prev) / Ke_Ts if encoder else plant.speed.copy()
+        if k == 0:
+            u_k, thd, feed, bounds = 0.0, start, 0.0, None
+        else:
+            sp = interpolator.step(LoopState(k, thd_prev, wd_prev, tha, wa))
+            u_k, thd, feed, bounds = sp.u, sp.position, sp.feed, sp.speed_bounds
+            if sp.status is Status.FINISHED and finished_index is None:
+                finished_index = k
+        drive, wd = law.drive(thd, thd_prev, wd_prev, tha, wa)
+        applied = plant.saturate(drive)
+        rows_u.append((u_k, feed))
+        rows.append((thd, tha, wd, wa, drive, applied))
+        bounds_rows.append(bounds)
+        any_bounds |= bounds is not None
+        plant.step(applied)
+        thd_prev, wd_prev, tha_prev = thd, wd, tha
+        if finished_index is not None and k >= finished_index + n_settle:
+            break
+        k += 1
+        if k >= max_samples:
+            raise InfeasibleError(
+                f"{interpolator.name}: the path's end was not reached within {max_samples} "
+                f"samples ({max_samples * Ts:g} s; u = {u_k:.6g})"
+            )
+
+    cols = [np.array(c) for c in zip(*rows)]
+    u_arr, feed_arr = np.array(rows_u).T
+    speed_bounds = None
+    if any_bounds:
+        nan = np.full((machine.n_axes, 2), np.nan)
+        speed_bounds = np.array([nan if b is None else b for b in bounds_rows])
+    return Trace(
+        t=np.arange(len(u_arr)) * Ts,
+        u=u_arr,
+        position_command=cols[0],
+        position=cols[1],
+        speed_command=cols[2],
+        speed=cols[3],
+        drive=cols[4],
+        drive_applied=cols[5],
+        feed=feed_arr,
+        speed_bounds=speed_bounds,
+        finished_index=int(finished_index),
+        curve=curve,
+        machine=machine,
+        interpolator=interpolator.name,
+    )

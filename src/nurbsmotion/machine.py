@@ -1,0 +1,343 @@
+"""Machine description: servo axes, controller gains, drive limit, sample period.
+
+A :class:`Machine` is a value object: named :class:`Axis` entries (plant and gains, SPEC
+sections 3-4), the drive limit ``max_drive`` (Umax), the ``sample_period`` (Ts) shared by
+interpolation and control, the control law and how speed is measured, and the length of one
+encoder pulse so that paths drawn in mm can run on it. It knows nothing of NURBS.
+
+Built-in preset ``die-bonder``: Table 1 of Yeh & Sun (2008), Umax = 10 V, Ts = 1 ms,
+1 pulse = 1 um. Users bring their own identified axes in a TOML or JSON machine file
+(:func:`load_machine`); see ``examples/die_bonder.toml``.
+
+Glossary (SPEC section 2)
+-------------------------
+tau : time constant [s]; Kc : electrical gain [(rad/s)/V]; Ke : mechanical gain
+[pulse/rad]; Kp : position gain [V/pulse]; Kd : speed gain [V/(rad/s)];
+Umax : drive limit [V]; Ts : sample period [s].
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import InvalidMachineError, PathFileError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["Axis", "Machine", "CONTROLLERS", "SPEED_MEASUREMENTS", "LENGTH_UNITS_UM",
+           "die_bonder", "builtin_machine", "BUILTIN_MACHINES", "load_machine"]
+
+CONTROLLERS = ("pd+", "pd")
+"""Control laws: PD+ (eq. 2.12 / 3.3, the default) and plain PD (eq. 2.4)."""
+
+SPEED_MEASUREMENTS = ("encoder", "true")
+"""Speed used by the controller: encoder differencing (default) or the true motor speed."""
+
+LENGTH_UNITS_UM = {"um": 1.0, "mm": 1e3, "cm": 1e4, "m": 1e6, "in": 25_400.0, "inch": 25_400.0}
+"""Length units a path may be drawn in, in micrometres."""
+
+
+def _positive(value: Any, name: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InvalidMachineError(f"{name} must be a number, got {value!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise InvalidMachineError(f"{name} must be finite and > 0, got {value!r}")
+    return v
+
+
+def _non_negative(value: Any, name: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InvalidMachineError(f"{name} must be a number, got {value!r}") from None
+    if not (math.isfinite(v) and v >= 0):
+        raise InvalidMachineError(f"{name} must be finite and >= 0, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One servo axis: first-order speed loop plus integrator, and its PD gains.
+
+    Parameters
+    ----------
+    name : str
+        Axis label (``"x"``, ``"y"``, ...), used in file columns and summaries.
+    time_constant : float
+        tau [s], > 0.
+    electrical_gain : float
+        Kc [(rad/s)/V], > 0.
+    mechanical_gain : float
+        Ke [pulse/rad], > 0.
+    position_gain : float
+        Kp [V/pulse], >= 0.
+    speed_gain : float
+        Kd [V/(rad/s)], >= 0.
+    """
+
+    name: str
+    time_constant: float
+    electrical_gain: float
+    mechanical_gain: float
+    position_gain: float
+    speed_gain: float
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise InvalidMachineError(
+                f"axis name must be a short identifier such as 'x', got {self.name!r}"
+            )
+        where = f"axis {self.name!r}: "
+        for f in ("time_constant", "electrical_gain", "mechanical_gain"):
+            object.__setattr__(self, f, _positive(getattr(self, f), where + f))
+        for f in ("position_gain", "speed_gain"):
+            object.__setattr__(self, f, _non_negative(getattr(self, f), where + f))
+
+
+@dataclass(frozen=True)
+class Machine:
+    """A multi-axis motion system with a saturating drive.
+
+    Parameters
+    ----------
+    axes : tuple of Axis
+        One entry per path axis, in the path's column order.
+    max_drive : float
+        Umax [V], > 0; ``math.inf`` for an ideal, unsaturated drive.
+    sample_period : float
+        Ts [s], > 0, shared by the interpolator and the controller.
+    controller : {"pd+", "pd"}
+        Control law (SPEC section 4).
+    speed_measurement : {"encoder", "true"}
+        ``"encoder"``: speed by differencing positions (SPEC eq. 3.3); ``"true"``: the
+        simulated motor speed.
+    pulse_length_um : float
+        Length of one encoder pulse [um], to convert paths drawn in mm, m or inch.
+    name : str
+        Label carried into summaries.
+
+    Raises
+    ------
+    InvalidMachineError
+        Naming the bad field.
+    """
+
+    axes: tuple[Axis, ...]
+    max_drive: float
+    sample_period: float
+    controller: str = "pd+"
+    speed_measurement: str = "encoder"
+    pulse_length_um: float = 1.0
+    name: str = "custom"
+    _arrays: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        axes = tuple(self.axes)
+        if not axes or not all(isinstance(a, Axis) for a in axes):
+            raise InvalidMachineError("a machine needs at least one Axis in 'axes'")
+        names = [a.name for a in axes]
+        if len(set(names)) != len(names):
+            raise InvalidMachineError(f"axis names must be unique, got {names}")
+        object.__setattr__(self, "axes", axes)
+        if self.max_drive != math.inf:  # an ideal drive (no saturation) is allowed
+            object.__setattr__(self, "max_drive", _positive(self.max_drive, "max_drive"))
+        object.__setattr__(self, "sample_period", _positive(self.sample_period, "sample_period"))
+        object.__setattr__(
+            self, "pulse_length_um", _positive(self.pulse_length_um, "pulse_length_um")
+        )
+        if self.controller not in CONTROLLERS:
+            raise InvalidMachineError(
+                f"controller must be one of {CONTROLLERS}, got {self.controller!r}"
+            )
+        if self.speed_measurement not in SPEED_MEASUREMENTS:
+            raise InvalidMachineError(
+                f"speed_measurement must be one of {SPEED_MEASUREMENTS}, "
+                f"got {self.speed_measurement!r}"
+            )
+
+    @property
+    def n_axes(self) -> int:
+        return len(self.axes)
+
+    @property
+    def axis_names(self) -> tuple[str, ...]:
+        return tuple(a.name for a in self.axes)
+
+    def _column(self, attr: str) -> np.ndarray:
+        if attr not in self._arrays:
+            arr = np.array([getattr(a, attr) for a in self.axes])
+            arr.flags.writeable = False
+            self._arrays[attr] = arr
+        return self._arrays[attr]
+
+    @property
+    def tau(self) -> np.ndarray:
+        """Time constants, shape (n_axes,) [s]."""
+        return self._column("time_constant")
+
+    @property
+    def Kc(self) -> np.ndarray:
+        """Electrical gains, shape (n_axes,) [(rad/s)/V]."""
+        return self._column("electrical_gain")
+
+    @property
+    def Ke(self) -> np.ndarray:
+        """Mechanical gains, shape (n_axes,) [pulse/rad]."""
+        return self._column("mechanical_gain")
+
+    @property
+    def Kp(self) -> np.ndarray:
+        """Position gains, shape (n_axes,) [V/pulse]."""
+        return self._column("position_gain")
+
+    @property
+    def Kd(self) -> np.ndarray:
+        """Speed gains, shape (n_axes,) [V/(rad/s)]."""
+        return self._column("speed_gain")
+
+    @property
+    def max_axis_speed(self) -> np.ndarray:
+        """Steady speed at full drive, Umax*Kc*Ke, shape (n_axes,) [pulse/s]."""
+        return self.max_drive * self.Kc * self.Ke
+
+    def pulses_per_unit(self, units: str | None) -> float:
+        """Pulses per path length unit: 1 for ``"pulse"`` (or no unit), else by
+        :data:`LENGTH_UNITS_UM` and ``pulse_length_um``."""
+        if units is None or units == "pulse":
+            return 1.0
+        if units not in LENGTH_UNITS_UM:
+            raise InvalidMachineError(
+                f"path unit {units!r} is unknown; use 'pulse' or one of {sorted(LENGTH_UNITS_UM)}"
+            )
+        return LENGTH_UNITS_UM[units] / self.pulse_length_um
+
+    def check_path(self, n_axes: int) -> None:
+        """Raise :class:`InvalidMachineError` unless the path has one column per axis."""
+        if n_axes != self.n_axes:
+            raise InvalidMachineError(
+                f"the path has {n_axes} axes but machine {self.name!r} has {self.n_axes} "
+                f"({', '.join(self.axis_names)})"
+            )
+
+    def with_options(self, **changes: Any) -> "Machine":
+        """A copy with some fields replaced (validated again)."""
+        return replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        """Plain-Python form, the schema of a machine file."""
+        return {
+            "name": self.name,
+            "max_drive": self.max_drive,
+            "sample_period": self.sample_period,
+            "controller": self.controller,
+            "speed_measurement": self.speed_measurement,
+            "pulse_length_um": self.pulse_length_um,
+            "axes": [
+                {k: getattr(a, k) for k in Axis.__dataclass_fields__} for a in self.axes
+            ],
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict, source: str | None = None) -> "Machine":
+        """Build from the machine-file schema; errors name the field (and the file)."""
+        if not isinstance(data, dict):
+            raise PathFileError("a machine file must hold a table/object", source)
+        known = set(cls.__dataclass_fields__) - {"_arrays"}
+        unknown = set(data) - known
+        if unknown:
+            raise PathFileError(
+                f"unknown machine field(s) {sorted(unknown)}; expected {sorted(known)}", source
+            )
+        for key in ("axes", "max_drive", "sample_period"):
+            if key not in data:
+                raise PathFileError(f"machine field {key!r} is missing", source)
+        if not isinstance(data["axes"], list):
+            raise PathFileError("machine field 'axes' must be a list of axis tables", source)
+        axis_fields = set(Axis.__dataclass_fields__)
+        axes = []
+        for i, entry in enumerate(data["axes"]):
+            if not isinstance(entry, dict) or set(entry) != axis_fields:
+                got = sorted(entry) if isinstance(entry, dict) else entry
+                raise PathFileError(
+                    f"axes[{i}] must have exactly the fields {sorted(axis_fields)}, got {got}",
+                    source,
+                )
+            try:
+                axes.append(Axis(**entry))
+            except InvalidMachineError as exc:
+                raise PathFileError(f"axes[{i}]: {exc}", source) from None
+        try:
+            return cls(**{**data, "axes": tuple(axes)})
+        except InvalidMachineError as exc:
+            raise PathFileError(str(exc), source) from None
+
+
+def die_bonder(**changes: Any) -> Machine:
+    """The die-bonder of Yeh & Sun (2008), Table 1 (SPEC section 3).
+
+    Umax = 10 V, Ts = 1 ms, PD+ with encoder differencing, 1 pulse = 1 um. Keyword
+    arguments replace fields (e.g. ``max_drive=math.inf``).
+    """
+    m = Machine(
+        axes=(
+            Axis("x", 0.31, 2506.17, 1591.5494, 0.0136, 0.03),
+            Axis("y", 0.135, 3156.23, 1591.5494, 0.00577, 0.028),
+        ),
+        max_drive=10.0,
+        sample_period=1e-3,
+        name="die-bonder",
+    )
+    return m.with_options(**changes) if changes else m
+
+
+BUILTIN_MACHINES = {"die-bonder": die_bonder}
+
+
+def builtin_machine(name: str) -> Machine:
+    if name not in BUILTIN_MACHINES:
+        raise KeyError(f"no built-in machine {name!r}; choose from {sorted(BUILTIN_MACHINES)}")
+    return BUILTIN_MACHINES[name]()
+
+
+def load_machine(spec: str | Path) -> Machine:
+    """A built-in machine by name, or a machine file (``.toml`` or ``.json``).
+
+    Raises
+    ------
+    PathFileError
+        Missing or malformed file, naming the field (and for TOML and JSON the line).
+    """
+    if isinstance(spec, str) and spec in BUILTIN_MACHINES:
+        return builtin_machine(spec)
+    path = Path(spec)
+    if not path.is_file():
+        raise PathFileError(
+            f"no such machine file, and not a built-in machine ({', '.join(BUILTIN_MACHINES)})",
+            str(spec),
+        )
+    text = path.read_text()
+    if path.suffix.lower() == ".toml":
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise PathFileError(f"invalid TOML: {exc}", str(path)) from None
+    elif path.suffix.lower() == ".json":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise PathFileError(f"invalid JSON: {exc.msg}", str(path), exc.lineno) from None
+    else:
+        raise PathFileError("machine files must end in .toml or .json", str(path))
+    return Machine.from_dict(data, str(path))
