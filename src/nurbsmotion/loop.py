@@ -22,12 +22,12 @@ import numpy as np
 
 from .control import ControlLaw
 from .errors import InfeasibleError
-from .interpolators import Interpolator, LoopState, Status
+from .interpolators import Interpolator, LoopState, Status, make_interpolator
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .servo import ServoPlant
 
-__all__ = ["Trace", "simulate", "to_pulses"]
+__all__ = ["Trace", "simulate", "run", "to_pulses"]
 
 
 def to_pulses(curve: NurbsCurve, machine: Machine) -> NurbsCurve:
@@ -220,3 +220,24 @@ def simulate(
         machine=machine,
         interpolator=interpolator.name,
     )
+
+
+def run(curve: NurbsCurve, machine: Machine, feed: float, interpolator: str = "paper",
+        **simulate_options) -> Trace:
+    """Run a path on a machine with a named interpolator.
+
+    Parameters
+    ----------
+    curve : NurbsCurve
+        The path, in any unit the machine knows (converted with :func:`to_pulses`).
+    machine : Machine
+    feed : float
+        Commanded feed F [pulse/s].
+    interpolator : str
+        One of :data:`nurbsmotion.interpolators.LOOP_METHODS`.
+    **simulate_options
+        Passed to :func:`simulate` (``plant``, ``settle_time``, ``max_samples``).
+    """
+    path = to_pulses(curve, machine)
+    return simulate(make_interpolator(interpolator, path, machine, feed), machine,
+                    **simulate_options)

@@ -4,7 +4,9 @@
 - following error per axis thd[k] - tha[k], max |.| and RMS;
 - contour error: distance from tha[k] to the nearest point of the *curve* (not to the
   setpoint), max and RMS, accurate to far better than 0.01 pulse;
-- drive use per axis: max |u[k]|/Umax before clipping, and the samples with |u[k]| > Umax;
+- drive use per axis: max |u[k]|/Umax before clipping, and the samples with |u[k]| > Umax
+  (by more than :data:`SATURATION_TOLERANCE`, far below one step of a 16-bit DAC, so that
+  an interpolator that drives exactly at the limit is not counted for rounding errors);
 - feedrate fluctuation ``(|thd[k] - thd[k-1]|/Ts - Vcmd[k]) / Vcmd[k]``, max |.| and RMS.
 
 All figures are taken over every sample of the trace, the settling tail included.
@@ -20,7 +22,11 @@ from scipy.spatial import cKDTree
 from .interpolators.base import feed_fluctuation
 from .nurbs import NurbsCurve
 
-__all__ = ["Metrics", "trace_metrics", "contour_error", "nearest_parameter"]
+__all__ = ["Metrics", "trace_metrics", "contour_error", "nearest_parameter",
+           "SATURATION_TOLERANCE"]
+
+SATURATION_TOLERANCE = 1e-6
+"""Relative excess over Umax below which a sample is not counted as saturated."""
 
 
 @dataclass(frozen=True)
@@ -40,7 +46,7 @@ class Metrics:
     max_drive_ratio : dict of str to float
         max |u|/Umax per axis, before clipping (0 for an unlimited drive).
     saturated_samples : dict of str to int
-        Samples with |u| > Umax per axis.
+        Samples with |u| > Umax (1 + SATURATION_TOLERANCE) per axis.
     feed_fluctuation_max, feed_fluctuation_rms : float
         Relative (1 = 100 %).
     """
@@ -129,7 +135,8 @@ def trace_metrics(trace) -> Metrics:
     contour = contour_error(trace.curve, trace.position)
     umax = trace.machine.max_drive
     ratio = np.max(np.abs(trace.drive), axis=0) / umax
-    saturated = np.count_nonzero(np.abs(trace.drive) > umax, axis=0)
+    saturated = np.count_nonzero(np.abs(trace.drive) > umax * (1 + SATURATION_TOLERANCE),
+                                 axis=0)
     fl_max, fl_rms = feed_fluctuation(trace.position_command, trace.feed,
                                       trace.machine.sample_period, trace.finished_index)
 

@@ -97,7 +97,7 @@ def _feed_function(feed: Feed) -> Callable[[float], tuple[float, float]]:
         def f(u: float) -> tuple[float, float]:
             V = float(feed(u))
             if not (math.isfinite(V) and V > 0):
-                raise InfeasibleError(f"the feed function returned {V!r} at u = {u!r}; "
+                raise InfeasibleError(f"the feed function returned {V!r} at u = {u:.9g}; "
                                       "a feed must be finite and > 0")
             h = 1e-6
             a, b = max(u - h, 0.0), min(u + h, 1.0)

@@ -38,8 +38,10 @@ class PaperInterpolator(Interpolator):
     feed : float
         Commanded feed F [pulse/s].
     order : {1, 2}
-        1 (the paper, eq. 3.2) or 2 (eq. 3.1 with the tangential acceleration term,
-        A = (Vm[k] - Vm[k-1])/Ts).
+        Parameter step with Vm: 1 is eq. 3.2, as section 3.4 of the paper states; 2 is
+        eq. 3.1, the speed-controlled interpolator the paper builds on [25], which also
+        accounts for the change of |C'(u)| within the step. Vm is a per-sample value with
+        no profile behind it, so the tangential acceleration term is zero.
     """
 
     name = "paper"
@@ -56,10 +58,6 @@ class PaperInterpolator(Interpolator):
         self.machine = machine
         self.law = ControlLaw(machine)
         super().__init__(curve, machine.sample_period)
-
-    def reset(self) -> None:
-        super().reset()
-        self._last_feed = 0.0
 
     def _plan_step(self, state: LoopState | None):
         if state is None:
@@ -79,6 +77,4 @@ class PaperInterpolator(Interpolator):
                           np.where(wd < wmin, np.abs(wmin * Ke / tangent), V))
         vm = np.where(tangent == 0.0, V, vm)
         Vm = float(np.min(vm))
-        A = (Vm - self._last_feed) / self.sample_period
-        self._last_feed = Vm
-        return Vm, A, bounds, d  # the base class steps with eq. 3.8-3.9
+        return Vm, 0.0, bounds, d  # the base class steps with eq. 3.8-3.9

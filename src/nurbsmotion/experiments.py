@@ -1,0 +1,83 @@
+"""The paper's experiment on built-in defaults (``nurbsmotion reproduce``).
+
+The die-bonder Pi move at F = 0.2, 0.5 and 1.0 m/s and the butterfly at 0.05, 0.1 and
+0.2 m/s on the die-bonder preset, each with constant-feed Taylor interpolation (first
+order, eq. 3.2: the interpolator the paper's algorithm reduces to when nothing saturates)
+and with the paper's saturation-aware algorithm. Writes the analogues of the paper's
+Fig. 5-7 for every path and feed, and a Markdown and a JSON table of the SPEC section 9
+figures of every run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from .loop import Trace, run
+from .machine import Machine, die_bonder
+from .nurbs import builtin_path
+from .report import check_writable, markdown_table, summary, write_json
+
+__all__ = ["PAPER_EXPERIMENT", "ExperimentResult", "reproduce"]
+
+PAPER_EXPERIMENT = {
+    "die-bonder-pi": (0.2, 0.5, 1.0),
+    "butterfly": (0.05, 0.1, 0.2),
+}
+"""Built-in path name -> commanded feeds [m/s]."""
+
+PAPER_INTERPOLATORS = ("taylor1", "paper")
+
+
+@dataclass(frozen=True)
+class ExperimentResult:
+    """Rows of the table (one ``summary.json`` dict per run, plus ``feed_m_s``), the
+    traces by (path, feed [m/s], interpolator), and the files written."""
+
+    rows: list
+    traces: dict
+    files: list
+
+
+def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
+              interpolators=PAPER_INTERPOLATORS, overwrite: bool = False,
+              figures: bool = True) -> ExperimentResult:
+    """Run the experiment and write ``table.md``, ``table.json`` and the figures.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        Output folder (created). Existing outputs are not overwritten unless
+        ``overwrite``.
+    machine : Machine, optional
+        The die-bonder preset by default.
+    experiment : dict, optional
+        Path name -> feeds [m/s]; :data:`PAPER_EXPERIMENT` by default.
+    interpolators : sequence of str
+        Interpolators to compare.
+    """
+    machine = machine or die_bonder()
+    experiment = experiment or PAPER_EXPERIMENT
+    out = Path(out_dir)
+    check_writable([out / "table.md", out / "table.json"], overwrite)
+    out.mkdir(parents=True, exist_ok=True)
+    pulses_per_m = machine.pulses_per_unit("m")
+    rows, traces, files = [], {}, []
+    for name, feeds in experiment.items():
+        curve = builtin_path(name)
+        for feed_m_s in feeds:
+            group: dict[str, Trace] = {}
+            for method in interpolators:
+                tr = run(curve, machine, feed_m_s * pulses_per_m, method)
+                group[method] = traces[(name, feed_m_s, method)] = tr
+                row = summary(tr.metrics(), interpolator=method, feed=feed_m_s * pulses_per_m,
+                              machine=machine.name, path=name)
+                rows.append({"path": name, "feed_m_s": feed_m_s, **row})
+            if figures:
+                from .plots import plot_comparison
+
+                files += plot_comparison(group, out, f"{name}_{feed_m_s:g}ms")
+    files.append(write_json(rows, out / "table.json"))
+    (out / "table.md").write_text(markdown_table(rows))
+    files.append(out / "table.md")
+    return ExperimentResult(rows, traces, files)
