@@ -14,6 +14,7 @@ __all__ = [
     "InvalidMachineError",
     "PathFileError",
     "InfeasibleError",
+    "OutputExistsError",
 ]
 
 
@@ -56,3 +57,7 @@ class PathFileError(NurbsmotionError, ValueError):
 
 class InfeasibleError(NurbsmotionError, ValueError):
     """A requested motion cannot be executed within the machine's limits."""
+
+
+class OutputExistsError(NurbsmotionError, FileExistsError):
+    """An output file already exists and overwriting it was not asked for."""

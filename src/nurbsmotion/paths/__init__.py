@@ -1,0 +1,16 @@
+"""Path files: built-in benchmarks, JSON/TOML path files, G-code and DXF import/export.
+
+``resolve_path(spec)`` is the one entry point the command line needs: a built-in name
+(``"die-bonder-pi"``, ``"butterfly"``) or a file, dispatched by its ending (``.json``,
+``.toml``, ``.ngc``/``.nc``/``.gcode``, ``.dxf``).
+"""
+
+from .files import PATH_FILE_SUFFIXES, curve_from_dict, load_path, resolve_path, save_path
+
+__all__ = [
+    "load_path",
+    "save_path",
+    "resolve_path",
+    "curve_from_dict",
+    "PATH_FILE_SUFFIXES",
+]

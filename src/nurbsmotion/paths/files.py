@@ -1,0 +1,373 @@
+"""JSON and TOML path files, and the dispatch from a file name or built-in name to a curve.
+
+File format
+-----------
+A path file holds one NURBS curve, the fields of :meth:`NurbsCurve.to_dict`:
+
+=================  ===========================  =============================================
+field              type                         meaning
+=================  ===========================  =============================================
+``degree``         integer >= 1                 polynomial degree p
+``knots``          list of n + p + 1 numbers    clamped, non-decreasing (normalised to [0, 1])
+``control_points`` list of n lists of numbers   one row per point, one column per axis
+``weights``        list of n numbers, optional  positive; all 1 when omitted
+``name``           string, optional             label carried into reports
+``units``          string, optional             length unit of the control points
+``source``,        string, optional             free text, ignored by the reader
+``description``
+=================  ===========================  =============================================
+
+The JSON form is the one of ``paths/data/die_bonder_pi.json``; the TOML form has the same
+keys at the top level. Any other key is an error (it is most likely a misspelt field).
+Numbers are written with Python's shortest round-trip ``repr``, so load and save
+round-trip exactly, bit for bit.
+
+Every problem raises one :class:`~nurbsmotion.errors.PathFileError` that names the file,
+the field and, where it can be found, the line.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+
+from .._io import check_input_file, write_output
+from ..errors import InvalidCurveError, PathFileError
+from ..nurbs import BUILTIN_PATHS, NurbsCurve, builtin_path
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = [
+    "load_path",
+    "save_path",
+    "resolve_path",
+    "curve_from_dict",
+    "PATH_FILE_SUFFIXES",
+    "MAX_PATH_FILE_BYTES",
+]
+
+MAX_PATH_FILE_BYTES = 32_000_000
+"""Largest JSON/TOML path file read [byte]; a 10^5-point path takes about 5 MB."""
+
+_GCODE_SUFFIXES = (".ngc", ".nc", ".gcode")
+PATH_FILE_SUFFIXES = (".json", ".toml", ".dxf") + _GCODE_SUFFIXES
+"""File name endings :func:`load_path` and :func:`resolve_path` understand."""
+
+_REQUIRED = ("degree", "knots", "control_points")
+_OPTIONAL = ("weights", "name", "units", "source", "description")
+
+
+# ---------------------------------------------------------------------- schema
+def _line_of(text: str | None, field: str, toml: bool) -> int | None:
+    """1-based line where ``field`` is defined in ``text`` (None if not found)."""
+    if text is None:
+        return None
+    field = field.split("[")[0]
+    pattern = rf"^\s*{re.escape(field)}\s*=" if toml else rf'"{re.escape(field)}"\s*:'
+    match = re.search(pattern, text, flags=re.MULTILINE)
+    return text.count("\n", 0, match.start()) + 1 if match else None
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _numbers(value: Any, field: str) -> list[float]:
+    if not isinstance(value, list):
+        raise _FieldError(field, f"must be a list of numbers, got {type(value).__name__}")
+    for i, x in enumerate(value):
+        if not _is_number(x):
+            raise _FieldError(field, f"entry {i} is {x!r} ({type(x).__name__}); expected a number")
+        if not math.isfinite(x):
+            raise _FieldError(field, f"entry {i} is {x!r}; expected a finite number")
+    return [float(x) for x in value]
+
+
+class _FieldError(Exception):
+    def __init__(self, field: str, message: str):
+        super().__init__(f"field {field!r} {message}")
+        self.field = field
+
+
+def _check_fields(data: Any) -> dict:
+    if not isinstance(data, dict):
+        raise _FieldError("<top level>", f"must be a table/object of fields, got {type(data).__name__}")
+    for key in data:
+        if key not in _REQUIRED + _OPTIONAL:
+            raise _FieldError(
+                key, f"is not a path-file field; expected {', '.join(_REQUIRED + _OPTIONAL)}"
+            )
+    for key in _REQUIRED:
+        if key not in data:
+            raise _FieldError(key, "is missing (required: degree, knots, control_points)")
+    degree = data["degree"]
+    if not (isinstance(degree, int) and not isinstance(degree, bool)):
+        raise _FieldError("degree", f"must be an integer, got {degree!r}")
+    points = data["control_points"]
+    if not isinstance(points, list) or not points:
+        raise _FieldError("control_points", "must be a non-empty list of [x, y, ...] rows")
+    rows = [_numbers(row, f"control_points[{i}]") for i, row in enumerate(points)]
+    if len({len(r) for r in rows}) != 1:
+        lengths = [len(r) for r in rows]
+        i = next(i for i, n in enumerate(lengths) if n != lengths[0])
+        raise _FieldError(
+            "control_points",
+            f"rows must all have the same number of axes: row 0 has {lengths[0]}, row {i} has "
+            f"{lengths[i]}",
+        )
+    out = {"degree": degree, "knots": _numbers(data["knots"], "knots"), "control_points": rows}
+    if "weights" in data:
+        out["weights"] = _numbers(data["weights"], "weights")
+    for key in ("name", "units", "source", "description"):
+        if key in data and not isinstance(data[key], str):
+            raise _FieldError(key, f"must be a string, got {data[key]!r}")
+    return out | {k: data[k] for k in ("name", "units") if k in data}
+
+
+def curve_from_dict(
+    data: Any, source: str | None = None, text: str | None = None, toml: bool = False
+) -> NurbsCurve:
+    """Build a curve from a parsed path file, raising :class:`PathFileError` on any fault.
+
+    Parameters
+    ----------
+    data : dict
+        Parsed JSON/TOML (see the module docstring for the fields).
+    source : str, optional
+        File name for the messages.
+    text, toml : optional
+        The file's text and whether it is TOML, used to find the line of a bad field.
+    """
+    try:
+        fields = _check_fields(data)
+    except _FieldError as exc:
+        raise PathFileError(str(exc), source=source, line=_line_of(text, exc.field, toml)) from None
+    try:
+        return NurbsCurve(
+            fields["degree"],
+            fields["knots"],
+            fields["control_points"],
+            fields.get("weights"),
+            name=fields.get("name"),
+            units=fields.get("units"),
+        )
+    except InvalidCurveError as exc:
+        raise PathFileError(f"invalid curve: {exc}", source=source) from None
+
+
+# ---------------------------------------------------------------------- JSON / TOML
+def _reject_constant(name: str):
+    raise ValueError(f"{name} is not a number a path file may hold")
+
+
+def _read_json(path: Path) -> NurbsCurve:
+    text = _read_text(path)
+    try:
+        data = json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise PathFileError(f"not valid JSON: {exc.msg} (column {exc.colno})", str(path), exc.lineno) from None
+    except ValueError as exc:
+        raise PathFileError(f"not valid JSON: {exc}", source=str(path)) from None
+    return curve_from_dict(data, str(path), text, toml=False)
+
+
+def _read_toml(path: Path) -> NurbsCurve:
+    text = _read_text(path)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        match = re.search(r"line (\d+)", str(exc))
+        line = int(match.group(1)) if match else None
+        message = re.sub(r"\s*\(at line \d+, column \d+\)|\s*\(at end of document\)", "", str(exc))
+        raise PathFileError(f"not valid TOML: {message}", str(path), line) from None
+    return curve_from_dict(data, str(path), text, toml=True)
+
+
+def _read_text(path: Path) -> str:
+    check_input_file(path, MAX_PATH_FILE_BYTES)
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        line = path.read_bytes()[: exc.start].count(b"\n") + 1
+        raise PathFileError("not a UTF-8 text file", str(path), line) from None
+
+
+def _file_dict(curve: NurbsCurve) -> dict:
+    d = curve.to_dict()
+    order = ("name", "units", "degree", "control_points", "weights", "knots")
+    return {k: d[k] for k in order if k in d}
+
+
+def _toml_text(d: dict) -> str:
+    """TOML with one control point per line (tomli_w would put every number on its own)."""
+    lines = []
+    for key, value in d.items():
+        if isinstance(value, str):
+            lines.append(tomli_w.dumps({key: value}).strip())
+        elif key == "degree":
+            lines.append(f"degree = {value}")
+        elif key == "control_points":
+            rows = "".join(f"    [{', '.join(map(repr, row))}],\n" for row in value)
+            lines.append(f"control_points = [\n{rows}]")
+        else:
+            lines.append(f"{key} = [{', '.join(map(repr, value))}]")
+    return "\n".join(lines) + "\n"
+
+
+def save_path(curve: NurbsCurve, file: str | os.PathLike, *, overwrite: bool = False) -> Path:
+    """Write ``curve`` to a JSON, TOML or DXF path file, chosen by the file's ending.
+
+    Parameters
+    ----------
+    curve : NurbsCurve
+        The path.
+    file : str or path-like
+        ``*.json``, ``*.toml`` or ``*.dxf``. (A G-code program needs a feed: use
+        :func:`nurbsmotion.paths.save_gcode`.)
+    overwrite : bool
+        Replace an existing file; by default an existing file is an error.
+
+    Returns
+    -------
+    Path
+        The written file. Loading it with :func:`load_path` gives back an equal curve
+        (exactly for JSON and TOML, to 1e-9 for DXF).
+
+    Raises
+    ------
+    OutputExistsError
+        If the file exists and ``overwrite`` is false.
+    PathFileError
+        For an unsupported ending.
+    """
+    path = Path(file)
+    suffix = path.suffix.lower()
+    if suffix == ".json":
+        text = json.dumps(_file_dict(curve), indent=1) + "\n"
+        return write_output(path, lambda f: f.write(text), overwrite=overwrite)
+    if suffix == ".toml":
+        text = _toml_text(_file_dict(curve))
+        return write_output(path, lambda f: f.write(text), overwrite=overwrite)
+    if suffix == ".dxf":
+        from .dxf import save_dxf
+
+        return save_dxf(curve, path, overwrite=overwrite)
+    if suffix in _GCODE_SUFFIXES:
+        raise PathFileError(
+            "a G-code program needs a feed; write it with "
+            "nurbsmotion.paths.save_gcode(curve, file, feed=...)",
+            source=str(path),
+        )
+    raise PathFileError(
+        f"unknown path file ending {suffix!r}; use .json, .toml or .dxf", source=str(path)
+    )
+
+
+# ---------------------------------------------------------------------- dispatch
+_CONTOUR_SELECTOR = re.compile(r"^(?P<file>.+)#(?P<index>\d+)$")
+
+
+def load_path(file: str | os.PathLike) -> NurbsCurve:
+    """Read one path from a file, dispatching on its ending.
+
+    Parameters
+    ----------
+    file : str or path-like
+        ``*.json`` or ``*.toml`` (the formats of this module), ``*.ngc``, ``*.nc``,
+        ``*.gcode`` (G-code, see :mod:`nurbsmotion.paths.gcode`) or ``*.dxf``
+        (see :mod:`nurbsmotion.paths.dxf`). A G-code or DXF file may hold several
+        separate contours (cut apart by rapid moves, Z moves, or gaps); then append
+        ``#k`` to the name to choose the k-th (1-based), e.g. ``"butterfly.ngc#2"``.
+
+    Returns
+    -------
+    NurbsCurve
+
+    Raises
+    ------
+    PathFileError
+        One clear message naming the file (and line or entity) for a missing file, a
+        syntax error, a bad field, an invalid curve, or an ambiguous multi-contour file.
+    """
+    spec = os.fspath(file)
+    index = None
+    match = _CONTOUR_SELECTOR.match(spec)
+    if match and not Path(spec).exists():
+        spec, index = match.group("file"), int(match.group("index"))
+    path = Path(spec)
+    suffix = path.suffix.lower()
+    if suffix in (".json", ".toml"):
+        if index is not None and index != 1:
+            raise PathFileError(f"holds one path; there is no contour #{index}", str(path))
+        return _read_json(path) if suffix == ".json" else _read_toml(path)
+    if suffix in _GCODE_SUFFIXES:
+        from .gcode import load_gcode
+
+        contours = [c.curve for c in load_gcode(path).contours]
+    elif suffix == ".dxf":
+        from .dxf import load_dxf
+
+        contours = list(load_dxf(path))
+    else:
+        raise PathFileError(
+            f"unknown path file ending {suffix!r}; expected one of "
+            f"{', '.join(PATH_FILE_SUFFIXES)} or a built-in name ({', '.join(BUILTIN_PATHS)})",
+            source=str(path),
+        )
+    return _choose_contour(contours, index, str(path))
+
+
+def _choose_contour(contours: list[NurbsCurve], index: int | None, source: str) -> NurbsCurve:
+    if index is None:
+        if len(contours) == 1:
+            return contours[0]
+        lengths = ", ".join(f"#{i + 1}: {c.length:.6g}" for i, c in enumerate(contours))
+        raise PathFileError(
+            f"holds {len(contours)} separate contours (lengths {lengths}); choose one by "
+            f"appending #k to the file name, e.g. {source}#1",
+            source=source,
+        )
+    if not 1 <= index <= len(contours):
+        raise PathFileError(
+            f"contour #{index} does not exist; the file holds {len(contours)} (#1 to "
+            f"#{len(contours)})",
+            source=source,
+        )
+    return contours[index - 1]
+
+
+def resolve_path(spec: str) -> NurbsCurve:
+    """A path from a built-in name (``"die-bonder-pi"``, ``"butterfly"``) or a file name.
+
+    This is what the command line calls for its ``PATH`` argument. A built-in name wins
+    over a file of the same name only when no such file exists.
+
+    Parameters
+    ----------
+    spec : str
+        Built-in name, or a file name as for :func:`load_path` (``file.ngc#2`` picks a
+        contour).
+
+    Raises
+    ------
+    PathFileError
+        If ``spec`` is neither a built-in name nor a readable path file.
+    """
+    if spec in BUILTIN_PATHS and not Path(spec).exists():
+        return builtin_path(spec)
+    if not Path(spec).suffix and not _CONTOUR_SELECTOR.match(spec):
+        raise PathFileError(
+            f"{spec!r} is neither a built-in path ({', '.join(BUILTIN_PATHS)}) nor a file "
+            f"name with an ending ({', '.join(PATH_FILE_SUFFIXES)})"
+        )
+    return load_path(spec)
