@@ -19,6 +19,8 @@ from typing import Iterable
 
 import numpy as np
 
+from .errors import OutputExistsError
+
 __all__ = ["SUMMARY_KEYS", "trace_columns", "write_trace_csv", "summary", "write_json",
            "markdown_table", "check_writable"]
 
@@ -31,12 +33,12 @@ SUMMARY_KEYS = (
 
 
 def check_writable(paths: Iterable[Path], overwrite: bool) -> None:
-    """Raise :class:`FileExistsError` naming the first existing output unless ``overwrite``."""
+    """Raise :class:`OutputExistsError` naming the first existing output unless ``overwrite``."""
     if overwrite:
         return
     for p in paths:
         if Path(p).exists():
-            raise FileExistsError(f"{p} exists; choose another output folder or pass --overwrite")
+            raise OutputExistsError(f"{p} exists; choose another output folder or pass --overwrite")
 
 
 def trace_columns(trace) -> tuple[list[str], np.ndarray]:
