@@ -99,9 +99,13 @@ def test_join_tangent_arc_and_line_is_smooth_and_proportional():
     v = np.linspace(0, 1, 201)
     np.testing.assert_allclose(j(u_junction * v), arc(v), atol=1e-12 * 20)
     np.testing.assert_allclose(j(u_junction + (1 - u_junction) * v), line(v), atol=1e-12 * 20)
-    # comparable parametrisation speed on both sides: |C'| = total length on each piece
-    speed = np.linalg.norm(j([u_junction / 2, (1 + u_junction) / 2], 1), axis=1)
-    np.testing.assert_allclose(speed, L_arc + L_line, rtol=1e-12)
+    # comparable parametrisation speed on both sides: the mean of |C'| over each piece is
+    # the total length; the line's is constant, the rational arc's varies a little
+    total = L_arc + L_line
+    line_speed = np.linalg.norm(j(u_junction + (1 - u_junction) * v, 1), axis=1)
+    np.testing.assert_allclose(line_speed, total, rtol=1e-12)
+    arc_speed = np.linalg.norm(j(u_junction * v[:-1], 1), axis=1)
+    assert 0.8 * total < arc_speed.min() < arc_speed.max() < 1.25 * total
 
 
 def test_join_reports_corner_at_right_angle():
