@@ -46,7 +46,7 @@ from scipy.interpolate import BSpline, make_interp_spline
 from .errors import InvalidCurveError
 from .nurbs import NurbsCurve
 
-__all__ = ["elevate_degree", "bezier_segments", "join", "DEFAULT_JOIN_TOLERANCE"]
+__all__ = ["elevate_degree", "bezier_segments", "join", "join_with_edges", "DEFAULT_JOIN_TOLERANCE"]
 
 DEFAULT_JOIN_TOLERANCE = 1e-9
 """Largest gap between pieces accepted by :func:`join`, relative to the path size."""
@@ -132,6 +132,7 @@ def join(
     *,
     tolerance: float = DEFAULT_JOIN_TOLERANCE,
     name: str | None = None,
+    units: str | None = None,
 ) -> NurbsCurve:
     """Chain curves whose ends meet into one clamped NURBS (see the module docstring).
 
@@ -145,6 +146,8 @@ def join(
         relative to the path size (the largest extent of all control points over any axis).
     name : str, optional
         Name of the joined path.
+    units : str, optional
+        Units of the joined path; by default the pieces' common units.
 
     Returns
     -------
@@ -159,6 +162,26 @@ def join(
         If there are no pieces, axes or units differ, or two consecutive pieces do not
         meet (naming both pieces, their end points and the gap).
     """
+    return join_with_edges(curves, tolerance=tolerance, name=name, units=units)[0]
+
+
+def join_with_edges(
+    curves: Iterable[NurbsCurve],
+    *,
+    tolerance: float = DEFAULT_JOIN_TOLERANCE,
+    name: str | None = None,
+    units: str | None = None,
+) -> tuple[NurbsCurve, np.ndarray]:
+    """:func:`join`, also returning where each piece starts.
+
+    Returns
+    -------
+    curve : NurbsCurve
+        As :func:`join`.
+    edges : ndarray, shape (n_pieces + 1,)
+        Parameter of the joined curve where piece k starts (``edges[k]``) and ends
+        (``edges[k + 1]``); ``edges[0] = 0``, ``edges[-1] = 1``.
+    """
     pieces = list(curves)
     if not pieces:
         raise InvalidCurveError("cannot join an empty list of curves")
@@ -171,10 +194,10 @@ def join(
             f"cannot join curves with different numbers of axes: {_label(pieces, 0)} has "
             f"{pieces[0].n_axes}, {_label(pieces, i)} has {pieces[i].n_axes}"
         )
-    units = {c.units for c in pieces} - {None}
-    if len(units) > 1:
-        raise InvalidCurveError(f"cannot join curves in different units: {sorted(units)}")
-    unit = units.pop() if units else None
+    piece_units = {c.units for c in pieces} - {None}
+    if len(piece_units) > 1:
+        raise InvalidCurveError(f"cannot join curves in different units: {sorted(piece_units)}")
+    unit = units if units is not None else (piece_units.pop() if piece_units else None)
 
     all_points = np.vstack([c.control_points for c in pieces])
     size = float(np.max(np.ptp(all_points, axis=0)))
@@ -189,7 +212,8 @@ def join(
             )
     if len(pieces) == 1:
         c = pieces[0]
-        return NurbsCurve(c.degree, c.knots, c.control_points, c.weights, name=name, units=unit)
+        curve = NurbsCurve(c.degree, c.knots, c.control_points, c.weights, name=name, units=unit)
+        return curve, np.array([0.0, 1.0])
 
     p = max(c.degree for c in pieces)
     pieces = [elevate_degree(c, p) for c in pieces]
@@ -209,7 +233,7 @@ def join(
         if k < len(pieces) - 1:
             knots.append(np.full(p, b))
     knots.append(np.ones(p + 1))
-    return NurbsCurve(
+    curve = NurbsCurve(
         p,
         np.concatenate(knots),
         np.vstack(points),
@@ -217,3 +241,4 @@ def join(
         name=name,
         units=unit,
     )
+    return curve, edges
