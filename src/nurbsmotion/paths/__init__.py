@@ -6,6 +6,7 @@
 """
 
 from .files import PATH_FILE_SUFFIXES, curve_from_dict, load_path, resolve_path, save_path
+from .dxf import DxfWarning, load_dxf, save_dxf
 from .gcode import GcodeContour, GcodeProgram, GcodeWarning, load_gcode, save_gcode
 
 __all__ = [
@@ -19,4 +20,7 @@ __all__ = [
     "GcodeProgram",
     "GcodeContour",
     "GcodeWarning",
+    "load_dxf",
+    "save_dxf",
+    "DxfWarning",
 ]
