@@ -16,5 +16,7 @@ from .nurbs import (
     make_line,
     make_polyline,
 )
+from .joining import elevate_degree, join
+from .paths import load_path, resolve_path, save_path
 
 __version__ = "0.1.0"

@@ -6,6 +6,8 @@
 """
 
 from .files import PATH_FILE_SUFFIXES, curve_from_dict, load_path, resolve_path, save_path
+from .dxf import DxfWarning, load_dxf, save_dxf
+from .gcode import GcodeContour, GcodeProgram, GcodeWarning, load_gcode, save_gcode
 
 __all__ = [
     "load_path",
@@ -13,4 +15,12 @@ __all__ = [
     "resolve_path",
     "curve_from_dict",
     "PATH_FILE_SUFFIXES",
+    "load_gcode",
+    "save_gcode",
+    "GcodeProgram",
+    "GcodeContour",
+    "GcodeWarning",
+    "load_dxf",
+    "save_dxf",
+    "DxfWarning",
 ]

@@ -1,0 +1,111 @@
+"""Setpoint export: CSV/NPZ read back exactly, PVT against an analytic motion, G-code motion."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.interpolate import CubicHermiteSpline
+
+from nurbsmotion import builtin_path
+from nurbsmotion.errors import OutputExistsError
+from nurbsmotion.export import (
+    ExportError,
+    SetpointArrays,
+    pvt_table,
+    save_motion_gcode,
+    save_pvt,
+    save_setpoints,
+)
+from nurbsmotion.paths.gcode import load_gcode
+
+TS = 1e-3  # [s]
+
+
+def circle_motion(n=400, radius=10.0, omega=2 * math.pi):
+    """Setpoints of a circle at constant angular speed: x = r cos(wt), y = r sin(wt)."""
+    t = np.arange(n) * TS
+    pos = radius * np.c_[np.cos(omega * t), np.sin(omega * t)]
+    return SimpleNamespace(t=t, u=t / t[-1], position=pos, feed=np.full(n, radius * omega), axis_names=("x", "y"))
+
+
+def test_csv_reads_back_bit_for_bit(tmp_path):
+    sp = circle_motion()
+    file = save_setpoints(sp, tmp_path / "setpoints.csv")
+    assert file.read_text().splitlines()[0] == "t,u,x,y"
+    data = np.loadtxt(file, delimiter=",", skiprows=1)
+    np.testing.assert_array_equal(data[:, 0], sp.t)
+    np.testing.assert_array_equal(data[:, 1], sp.u)
+    np.testing.assert_array_equal(data[:, 2:], sp.position)
+
+
+def test_npz_reads_back(tmp_path):
+    sp = circle_motion()
+    file = save_setpoints(sp, tmp_path / "setpoints.npz")
+    with np.load(file) as data:
+        np.testing.assert_array_equal(data["position"], sp.position)
+        np.testing.assert_array_equal(data["feed"], sp.feed)
+        assert tuple(data["axis_names"]) == ("x", "y")
+
+
+def test_writers_never_clobber_and_validate_first(tmp_path):
+    target = tmp_path / "setpoints.csv"
+    target.write_text("old")
+    with pytest.raises(OutputExistsError):
+        save_setpoints(circle_motion(), target)
+    assert target.read_text() == "old"
+    bad = SimpleNamespace(t=[0.0, 0.001, 0.001], u=[0, 0.5, 1], position=np.zeros((3, 2)))
+    with pytest.raises(ExportError, match=r"t\[2\] = 0.001 <= t\[1\]"):
+        save_setpoints(bad, tmp_path / "bad.csv")
+    with pytest.raises(ExportError, match=r"position must have shape \(2, n_axes\)"):
+        SetpointArrays([0, 1], [0, 1], np.zeros((3, 2)))
+    with pytest.raises(ExportError, match="unknown setpoint file ending"):
+        save_setpoints(circle_motion(), tmp_path / "s.xlsx")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["setpoints.csv"]
+
+
+def test_pvt_matches_analytic_motion_and_its_hermite_reconstruction(tmp_path):
+    sp = circle_motion(n=1001)  # one full turn in 1 s
+    table = pvt_table(sp, period=0.01)
+    np.testing.assert_allclose(np.diff(table.t), 0.01, rtol=1e-9)
+    w, r = 2 * math.pi, 10.0
+    exact_v = r * w * np.c_[-np.sin(w * table.t), np.cos(w * table.t)]
+    interior = slice(2, -2)  # not-a-knot ends are less accurate
+    np.testing.assert_allclose(table.velocity[interior], exact_v[interior], atol=1e-6 * r * w)
+    # the controller's cubic Hermite segments between PVT rows follow the true circle
+    hermite = CubicHermiteSpline(table.t, table.position, table.velocity, axis=0)
+    tt = np.linspace(0.05, 0.95, 997)
+    exact = r * np.c_[np.cos(w * tt), np.sin(w * tt)]
+    assert np.max(np.abs(hermite(tt) - exact)) < 1e-6 * r
+    x = table.axis("x")
+    assert x.shape == (len(table.t), 3)
+    file = save_pvt(table, tmp_path / "pvt.csv")
+    assert file.read_text().splitlines()[0] == "t,x,x_velocity,y,y_velocity"
+
+
+def test_motion_gcode_reads_back_as_the_setpoints_with_timing(tmp_path):
+    curve = builtin_path("butterfly")
+    u = np.linspace(0, 1, 300)
+    pos = curve(u)
+    hold = np.vstack([pos, pos[-1:], pos[-1:]])  # the end is held: no extra lines
+    sp = SetpointArrays(np.arange(302) * TS, np.r_[u, 1, 1], hold)
+    file = save_motion_gcode(sp, tmp_path / "motion.ngc")
+    (contour,) = load_gcode(file).contours
+    c = contour.curve
+    assert c.degree == 1 and len(contour.lines) == 299
+    size = np.max(np.ptp(pos, axis=0))
+    np.testing.assert_allclose(c(contour.piece_edges), pos, rtol=0, atol=1e-9 * size)
+    # each G1's F makes it last one sample period: length / (F / 60) = Ts
+    lengths = np.linalg.norm(np.diff(pos, axis=0), axis=1)
+    np.testing.assert_allclose(lengths / contour.feed, TS, rtol=1e-10)
+
+
+def test_motion_gcode_scales_pulses_and_rejects_bad_axes(tmp_path):
+    sp = SetpointArrays([0, 1e-3, 2e-3], [0, 0.5, 1], [[0, 0], [1000, 0], [1000, 0]])
+    file = save_motion_gcode(sp, tmp_path / "m.ngc", scale=1e-3)
+    assert "G1 X1 Y0 F60000" in file.read_text()
+    with pytest.raises(ExportError, match="not G-code axis letters"):
+        save_motion_gcode(SetpointArrays([0, 1], [0, 1], [[0, 0], [1, 1]], axis_names=("x", "q")), tmp_path / "n.ngc")
+    assert not (tmp_path / "n.ngc").exists()
