@@ -139,3 +139,27 @@ def test_reproduce_writes_tables_and_figures(tmp_path):
     assert 0 < pi1["paper"]["max_drive_ratio"]["x"] < pi1["taylor1"]["max_drive_ratio"]["x"]
     assert "| die-bonder-pi | 1 | paper |" in (tmp_path / "table.md").read_text()
     assert len(list(tmp_path.glob("*.png"))) == 18
+
+
+def test_run_exports_the_commanded_setpoints_in_path_units(tmp_path):
+    """The butterfly is drawn in mm: exported setpoints are in mm, G-code too."""
+    assert main(["run", "butterfly", "--feed", "0.1m/s", "--interpolator", "taylor2",
+                 "--out", str(tmp_path), "--no-figures", "--export", "csv", "--export",
+                 "npz", "--export", "pvt", "--export", "gcode"]) == 0
+    header, trace = read_csv(tmp_path / "trace.csv")
+    _, sp = read_csv(tmp_path / "setpoints.csv")
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert len(sp) == summary["steps"] + 1
+    np.testing.assert_allclose(sp[:, 2:] * 1000, trace[: len(sp), [2, 6]], rtol=1e-15)
+    npz = np.load(tmp_path / "setpoints.npz")
+    np.testing.assert_array_equal(npz["position"], sp[:, 2:])
+    assert (tmp_path / "pvt.csv").read_text().startswith("t,x,x_velocity,y,y_velocity")
+    gcode = (tmp_path / "motion.ngc").read_text()
+    assert "G21" in gcode and "G1 X54.59" in gcode
+
+
+def test_run_reads_a_gcode_contour(tmp_path):
+    assert main(["run", "examples/butterfly.ngc#1", "--feed", "0.05m/s", "--out",
+                 str(tmp_path), "--no-figures"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["path"] == "examples/butterfly.ngc#1" and summary["feed"] == 5e4

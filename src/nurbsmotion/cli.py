@@ -82,19 +82,18 @@ def _load_path(spec: str):
 
 
 def _cmd_interpolate(args) -> int:
+    from .export import SetpointArrays, save_setpoints
     from .report import check_writable
 
     curve = _load_path(args.path)
     feed = _feed_in_path_units(args.feed, curve)
     out = Path(args.out)
-    csv = out / "setpoints.csv"
-    check_writable([csv, out / "setpoints.png"], args.overwrite)
+    check_writable([out / "setpoints.csv", out / "setpoints.png"], args.overwrite)
     series = interpolate(make_open_loop(args.method, curve, args.sample_period, feed))
     out.mkdir(parents=True, exist_ok=True)
     names = _axis_names(curve.n_axes)
-    data = np.column_stack([series.t, series.u, series.position])
-    np.savetxt(csv, data, delimiter=",", header=",".join(["t", "u", *names]), comments="",
-               fmt="%.17g")
+    save_setpoints(SetpointArrays(series.t, series.u, series.position, series.feed, names),
+                   out / "setpoints.csv", overwrite=args.overwrite)
     from .plots import plot_setpoints
 
     plot_setpoints(series, out, axis_names=names)
@@ -118,9 +117,13 @@ def _cmd_run(args) -> int:
     feed = _feed_in_pulses(args.feed, machine, curve)
     out = Path(args.out)
     check_writable([out / "trace.csv", out / "summary.json"], args.overwrite)
+    exports = {fmt: out / EXPORT_FILES[fmt] for fmt in args.export or ()}
+    check_writable(exports.values(), args.overwrite)
     trace = run(curve, machine, feed, args.interpolator)
     out.mkdir(parents=True, exist_ok=True)
     write_trace_csv(trace, out / "trace.csv")
+    if exports:
+        _export_setpoints(trace, curve, machine, exports, args)
     metrics = trace.metrics()
     data = summary(metrics, interpolator=args.interpolator, feed=feed, machine=machine.name,
                    path=args.path)
@@ -132,6 +135,29 @@ def _cmd_run(args) -> int:
           f"{metrics.cycle_time_s:.4g} s, max contour error {metrics.max_contour_error:.4g} "
           f"pulse, {sat} saturated sample{'s' if sat != 1 else ''} -> {out}")
     return 0
+
+
+EXPORT_FILES = {"csv": "setpoints.csv", "npz": "setpoints.npz", "pvt": "pvt.csv",
+                "gcode": "motion.ngc"}
+"""``run --export`` formats and the files they write."""
+
+
+def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None:
+    """The commanded setpoints of a run, in the path's own units (G-code: in mm)."""
+    from .export import SetpointArrays, pvt_table, save_motion_gcode, save_pvt, save_setpoints
+
+    scale = machine.pulses_per_unit(curve.units)
+    end = trace.finished_index + 1
+    sp = SetpointArrays(trace.t[:end], trace.u[:end], trace.position_command[:end] / scale,
+                        trace.feed[:end] / scale, machine.axis_names)
+    for fmt, file in files.items():
+        if fmt in ("csv", "npz"):
+            save_setpoints(sp, file, overwrite=args.overwrite)
+        elif fmt == "pvt":
+            save_pvt(pvt_table(sp, args.pvt_period), file, overwrite=args.overwrite)
+        else:  # G-code is in mm whatever the path's units
+            save_motion_gcode(sp, file, units="mm", overwrite=args.overwrite,
+                              scale=scale / machine.pulses_per_unit("mm"))
 
 
 def _cmd_reproduce(args) -> int:
@@ -173,6 +199,12 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="output folder")
     r.add_argument("--overwrite", action="store_true", help="replace existing output files")
     r.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    r.add_argument("--export", action="append", choices=sorted(EXPORT_FILES),
+                   help="also write the commanded setpoints (up to the end point, in the "
+                   "path's units): csv, npz, pvt (position-velocity-time table), gcode "
+                   "(LinuxCNC G1 per sample); repeat for several")
+    r.add_argument("--pvt-period", type=float, default=0.01,
+                   help="period of the PVT table [s] (default 0.01)")
     r.set_defaults(func=_cmd_run)
 
     e = sub.add_parser("reproduce", help="the paper's experiment on built-in defaults")
