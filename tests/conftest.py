@@ -23,7 +23,7 @@ from __future__ import annotations
 import os
 
 import numpy as np
-from hypothesis import HealthCheck, assume, settings
+from hypothesis import HealthCheck, assume, note, settings
 from hypothesis import strategies as st
 
 from nurbsmotion import InvalidCurveError, NurbsCurve
@@ -83,6 +83,8 @@ def curves(draw, max_degree: int = 5, max_axes: int = 4, rational: bool = True):
         w = np.array(draw(st.lists(st.floats(0.2, 5.0), min_size=n, max_size=n)))
     else:
         w = None
+    note(f"curve: NurbsCurve({p}, {knots.tolist()}, {P.tolist()}, "
+         f"{None if w is None else w.tolist()})")
     try:
         return NurbsCurve(p, knots, P, w)
     except InvalidCurveError as exc:

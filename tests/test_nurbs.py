@@ -267,6 +267,7 @@ def test_knot_domain_is_normalised_and_kept():
     assert on_27.domain == (2.0, 7.0)
     assert on_01.domain == (0.0, 1.0)
     np.testing.assert_allclose(on_27.knots, knots01, rtol=0, atol=EXACT)
+    assert on_27 == on_01  # these knots map to [0, 1] without rounding
     u = np.linspace(0, 1, 101)
     for order in range(4):
         np.testing.assert_allclose(
