@@ -36,14 +36,14 @@ def speed_minima(curve: NurbsCurve, a: float, b: float) -> list[float]:
     integrate to 1e-13, so the reference splits there too."""
     u = np.linspace(a, b, 2001)
     speed = np.linalg.norm(curve(u, 1), axis=-1)
-    inner = np.flatnonzero((speed[1:-1] <= speed[:-2]) & (speed[1:-1] <= speed[2:])) + 1
-    return [
+    inner = np.flatnonzero((speed[1:-1] < speed[:-2]) & (speed[1:-1] <= speed[2:])) + 1
+    return sorted(
         minimize_scalar(
             lambda x: float(np.linalg.norm(curve(x, 1))), bounds=(u[i - 1], u[i + 1]),
             method="bounded", options={"xatol": 1e-14},
         ).x
         for i in inner
-    ]
+    )
 
 
 def quad_length(curve: NurbsCurve, a: float = 0.0, b: float = 1.0) -> float:
