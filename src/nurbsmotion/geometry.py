@@ -5,8 +5,9 @@
 
 Arc length is integrated with 10-point Gauss-Legendre quadrature on an adaptive partition
 of every knot span (a piece is split until the rule and the rule on its two halves agree to
-1e-13 of the total length), so ``s(u)`` is accurate to well below 1e-9 relative. The
-inverse ``u(s)`` is found by safeguarded Newton iteration inside the bracketing piece.
+1e-13 of the total length and C' does not reverse inside it), so ``s(u)`` is accurate to
+well below 1e-9 relative. The inverse ``u(s)`` is found by safeguarded Newton iteration
+inside the bracketing piece.
 
 Glossary
 --------
