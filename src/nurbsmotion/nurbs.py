@@ -175,6 +175,14 @@ class NurbsCurve:
             )
         if t[-1] == t[0]:
             raise InvalidCurveError(f"knot vector spans an empty domain [{t[0]:g}, {t[-1]:g}]")
+        for end in (t[0], t[-1]):
+            # More than p + 1 end knots would make the end basis function vanish, so the
+            # curve would not start (end) on its first (last) control point.
+            m = int(np.count_nonzero(t == end))
+            if m > p + 1:
+                raise InvalidCurveError(
+                    f"end knot {end:g} has multiplicity {m}, more than p + 1 = {p + 1}"
+                )
         interior, counts = np.unique(t[p + 1 : -p - 1], return_counts=True)
         if np.any(counts > p):
             i = _first_bad(counts > p)
@@ -262,7 +270,7 @@ class NurbsCurve:
             raise ValueError(f"curve parameter must be finite, got {uu[~np.isfinite(uu)][:3]}")
         if np.any((uu < 0.0) | (uu > 1.0)):
             bad = uu[(uu < 0.0) | (uu > 1.0)]
-            raise ValueError(f"curve parameter must lie in [0, 1], got {bad.flat[0]!r}")
+            raise ValueError(f"curve parameter must lie in [0, 1], got {float(bad.flat[0])!r}")
         return uu
 
     def derivatives(self, u: Any, max_order: int = 2, side: str = "right") -> np.ndarray:
