@@ -62,6 +62,17 @@ def random_clamped_knots(rng: np.random.Generator, degree: int, max_interior: in
     return clamped_knots(degree, interior, mult)
 
 
+def random_points(rng: np.random.Generator, n: int, n_axes: int, spread: float = 10.0):
+    """Random control points, shape (n, n_axes), in [-spread, spread]. With one axis they
+    increase (positive steps): a one-axis path that reverses has C'(u) = 0 there, which
+    the constructor rejects (variation diminishing keeps a monotone polygon's curve
+    monotone)."""
+    if n_axes == 1:
+        steps = rng.uniform(0.2, 1.0, size=(n, 1))
+        return -spread + 2 * spread * np.cumsum(steps, axis=0) / np.sum(steps)
+    return rng.uniform(-spread, spread, size=(n, n_axes))
+
+
 @st.composite
 def curves(draw, max_degree: int = 5, max_axes: int = 4, rational: bool = True):
     """Valid clamped NURBS curves: degree 1..5, 1..4 axes, weights in [0.2, 5], interior
@@ -78,8 +89,12 @@ def curves(draw, max_degree: int = 5, max_axes: int = 4, rational: bool = True):
     knots = clamped_knots(p, np.array(interior) / 40.0, mult)
     n = len(knots) - p - 1
     coords = st.integers(-20, 20).map(float)
-    P = np.array(draw(st.lists(st.lists(coords, min_size=n_axes, max_size=n_axes),
-                               min_size=n, max_size=n)))
+    if n_axes == 1:  # monotone, see random_points
+        P = np.cumsum(draw(st.lists(st.integers(1, 9).map(float), min_size=n, max_size=n)))
+        P = P[:, None] - 20.0
+    else:
+        P = np.array(draw(st.lists(st.lists(coords, min_size=n_axes, max_size=n_axes),
+                                   min_size=n, max_size=n)))
     if rational:
         w = np.array(draw(st.lists(st.floats(0.2, 5.0), min_size=n, max_size=n)))
     else:

@@ -19,6 +19,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 from conftest import EXACT, TIGHT, curves
 from nurbsmotion import (
+    InvalidCurveError,
     NurbsCurve,
     builtin_path,
     make_arc,
@@ -121,38 +122,25 @@ def test_parameter_at_inverts_arc_length(curve, u):
     np.testing.assert_allclose(curve.parameter_at(s), u, rtol=0, atol=TIGHT)
 
 
-def test_arc_length_through_a_reversal_regression():
-    # Regression: this 1-axis curve reverses (C' = 0, |C'| has a kink) at u = 0.15037...,
-    # just beyond the last Gauss node of its table piece. The whole and the halved rule
-    # agreed on a value 2.7e-9 short, so the table stopped refining: length 1.3e-9 off.
-    curve = NurbsCurve(
-        2, [0, 0, 0, 0.35, 1, 1, 1], [[1.0], [0.0], [1.0], [0.0]], [0.2, 1.0, 1.5, 1.0]
-    )
-    # Reference: quad split where x'(u) changes sign, so each piece is smooth.
-    cuts = [0.0]
-    for a, b in zip(curve.breakpoints[:-1], curve.breakpoints[1:]):
-        cuts += [brentq(lambda u: curve(u, 1)[0], a + 1e-3, b - 1e-3, xtol=1e-15), b]
-    reference = sum(
-        quad(lambda u: abs(curve(u, 1)[0]), lo, hi, epsabs=0.0, epsrel=1e-13)[0]
-        for lo, hi in zip(cuts[:-1], cuts[1:])
-    )
-    assert curve.length == pytest.approx(reference, rel=1e-12)
-    assert curve.length == pytest.approx(quad_length(curve), rel=1e-12)
-
-
-@pytest.mark.xfail(strict=True, reason="known: a reversal narrower than the Gauss node "
-                   "spacing is not seen, see CurveGeometry (found by hypothesis)")
-def test_arc_length_through_a_narrow_reversal():
-    # x(u) rises to -7.90103034 at u = 0.41245, falls 1.09e-5 to u = 0.42136, then rises
-    # to 4: length 13 + 2 * 1.087e-5. No Gauss node of the table falls in the 0.009-wide
-    # dip, so neither the halving test nor the reversal test sees it (length 13.0).
-    curve = NurbsCurve(
-        4, [0, 0, 0, 0, 0, 1, 1, 1, 1, 1], [[-9.0], [-6.0], [-9.0], [-9.0], [4.0]],
-        [4.5, 2.04296875, 1.078125, 3.8984375, 1.201171875],
-    )
-    x = curve(extrema_cuts(curve))[:, 0]
-    assert np.sum(np.abs(np.diff(x))) == pytest.approx(13.0 + 2 * 1.0871132e-5, rel=1e-9)
-    assert curve.length == pytest.approx(np.sum(np.abs(np.diff(x))), rel=TIGHT)
+@pytest.mark.parametrize(
+    "degree, knots, points, weights, where",
+    [
+        # reverses (C' = 0) at u = 0.15037..., just beyond the last Gauss node of its table
+        # piece: once measured 1.3e-9 short, now rejected at construction
+        (2, [0, 0, 0, 0.35, 1, 1, 1], [[1.0], [0.0], [1.0], [0.0]], [0.2, 1.0, 1.5, 1.0],
+         r"u = 0\.1503"),
+        # a 0.009-wide reversal between u = 0.41245 and 0.42136 (found by hypothesis), once
+        # missed by the arc-length table (13.0 instead of 13.0000217)
+        (4, [0, 0, 0, 0, 0, 1, 1, 1, 1, 1], [[-9.0], [-6.0], [-9.0], [-9.0], [4.0]],
+         [4.5, 2.04296875, 1.078125, 3.8984375, 1.201171875], r"u = 0\.41(24|25)"),
+    ],
+)
+def test_a_path_that_reverses_is_rejected(degree, knots, points, weights, where):
+    """A reversal has C'(u) = 0: no tangent, and a Taylor step would divide by zero. The
+    constructor finds the zeros exactly (roots of the derivative's numerator per span),
+    however narrow the reversal."""
+    with pytest.raises(InvalidCurveError, match="degenerate curve: C'\\(u\\) = 0 at " + where):
+        NurbsCurve(degree, knots, points, weights)
 
 
 def test_arc_length_and_inverse_shapes():

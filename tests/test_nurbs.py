@@ -30,6 +30,7 @@ from conftest import (
     clamped_knots,
     curves,
     random_clamped_knots,
+    random_points,
     span_interiors,
 )
 from nurbsmotion import (
@@ -46,7 +47,7 @@ from nurbsmotion.errors import NurbsmotionError
 def random_curve(rng: np.random.Generator, degree: int, n_axes: int, rational: bool = True):
     knots = random_clamped_knots(rng, degree)
     n = len(knots) - degree - 1
-    P = rng.uniform(-10.0, 10.0, size=(n, n_axes))
+    P = random_points(rng, n, n_axes)
     w = rng.uniform(0.2, 5.0, size=n) if rational else None
     return NurbsCurve(degree, knots, P, w)
 
@@ -63,7 +64,7 @@ def test_unit_weights_equal_scipy_bspline(degree, n_axes, sweep):
     rng = np.random.default_rng([degree, n_axes, sweep])
     knots = random_clamped_knots(rng, degree)
     n = len(knots) - degree - 1
-    P = rng.uniform(-10.0, 10.0, size=(n, n_axes))
+    P = random_points(rng, n, n_axes)
     curve = NurbsCurve(degree, knots, P)
     oracle = BSpline(knots, P, degree)
     u = np.concatenate([rng.uniform(0.0, 1.0, 50), [0.0, 1.0]])

@@ -27,6 +27,8 @@ def random_curve(rng: np.random.Generator, n_axes: int = 2) -> NurbsCurve:
     points = rng.normal(scale=[1e4, 1e-3, 7.0][:n_axes], size=(n, n_axes)) + np.cumsum(
         np.ones((n, n_axes)), axis=0
     )
+    if n_axes == 1:  # a one-axis path must not reverse (C' = 0 is rejected)
+        points = np.cumsum(np.abs(points), axis=0)
     weights = rng.uniform(0.2, 5.0, n) / 3.0
     return NurbsCurve(p, knots, points, weights, name="random π", units="mm")
 

@@ -414,21 +414,38 @@ class NurbsCurve:
                 f"degenerate curve: all {len(P)} control points coincide at {P[0].tolist()} "
                 "(zero length)"
             )
-        # |C'(u)| is sampled at both ends and inside every span (one-sided at the ends), so
-        # that a Taylor step V*Ts/|C'| never divides by zero. A zero of C' strictly inside a
-        # span between samples (a cusp) is not guaranteed to be found.
+        # C'(u) = 0 somewhere (a reversal or a cusp) leaves the curve without a tangent and
+        # makes the Taylor step V*Ts/|C'| divide by zero. On each span the numerator of
+        # C' = (A' w - A w') / w^2 is a polynomial of degree 2p - 2 per axis (A, w: the
+        # homogeneous spline): interpolate it exactly at Chebyshev nodes, take the real
+        # roots of every axis that is not identically zero, and check |C'| there and at
+        # the span's ends (one-sided).
+        p = self.degree
+        nodes = np.polynomial.chebyshev.chebpts1(2 * p - 1)
         bp = self.breakpoints
-        frac = np.linspace(0.0, 1.0, 17)
         for a, b in zip(bp[:-1], bp[1:]):
-            uu = a + (b - a) * frac
-            speed = np.linalg.norm(self(uu[:-1], 1, "right"), axis=-1)
-            speed = np.append(speed, np.linalg.norm(self(uu[-1], 1, "left")))
+            uu = 0.5 * (a + b) + 0.5 * (b - a) * nodes
+            h0, h1 = self._spline(uu, nu=0), self._spline(uu, nu=1)
+            numerator = h1[:, :-1] * h0[:, -1:] - h0[:, :-1] * h1[:, -1:]
+            coef = np.polynomial.chebyshev.chebfit(nodes, numerator, 2 * p - 2)  # (2p-1, axes)
+            candidates = [a, b]
+            big = np.max(np.abs(coef))
+            for j in range(coef.shape[1]):
+                if np.max(np.abs(coef[:, j])) > 1e-12 * big:
+                    r = np.polynomial.chebyshev.chebroots(coef[:, j])
+                    r = r.real[(np.abs(r.imag) < 1e-7) & (np.abs(r.real) <= 1.0)]
+                    candidates.extend(0.5 * (a + b) + 0.5 * (b - a) * r)
+            cand = np.clip(np.array(candidates), a, b)
+            inner = cand < b
+            speed = np.empty(cand.size)
+            speed[inner] = np.linalg.norm(self(cand[inner], 1, "right"), axis=-1)
+            speed[~inner] = np.linalg.norm(self(cand[~inner], 1, "left"), axis=-1)
             if np.min(speed) <= 1e-9 * scale:
                 i = int(np.argmin(speed))
                 raise InvalidCurveError(
-                    f"degenerate curve: C'(u) = 0 at u = {uu[i]:.6g} (span [{a:.6g}, {b:.6g}]), "
-                    "so the curve has no tangent there and a Taylor step would divide by "
-                    "zero; check for repeated control points"
+                    f"degenerate curve: C'(u) = 0 at u = {cand[i]:.6g} (span [{a:.6g}, "
+                    f"{b:.6g}]), so the curve has no tangent there (it stops or reverses) and "
+                    "a Taylor step would divide by zero; check for repeated control points"
                 )
 
 
