@@ -122,13 +122,14 @@ class _Limits:
     """Admissible tangential acceleration at the grid points of one piece."""
 
     def __init__(self, q1: np.ndarray, q2: np.ndarray, tau: np.ndarray, M: np.ndarray):
+        M = np.broadcast_to(M, q1.shape)  # per grid point and axis
         self.q1, self.q2, self.tau, self.M = q1, q2, tau, M
         eps = 1e-9
         self.active = np.abs(q1) > eps            # axes whose drive depends on sdd
         # Plain Python lists: the passes are sequential and evaluate a handful of axes.
         self._rows = [
             [(float(tau[j] * q1[i, j]), float(tau[j] * q2[i, j]), float(q1[i, j]),
-              float(M[j]), bool(self.active[i, j])) for j in range(len(tau))]
+              float(M[i, j]), bool(self.active[i, j])) for j in range(len(tau))]
             for i in range(len(q1))
         ]
 
@@ -175,8 +176,9 @@ class _Limits:
         return np.where(ok, top, lo)
 
 
-def _passes(lim: _Limits, ds: float, bmax: np.ndarray) -> np.ndarray:
-    """Backward then forward phase-plane pass on one piece; b = sd^2 at every point."""
+def _passes(lim: _Limits, lim_acc: _Limits, ds: float, bmax: np.ndarray) -> np.ndarray:
+    """Backward pass at the deceleration limit of ``lim``, then forward pass at the
+    acceleration limit of ``lim_acc``, on one piece; b = sd^2 at every point."""
     n = len(bmax)
     back = np.empty(n)
     back[-1] = 0.0
@@ -194,17 +196,18 @@ def _passes(lim: _Limits, ds: float, bmax: np.ndarray) -> np.ndarray:
     out[0] = 0.0
     for i in range(n - 1):
         bp = out[i]
-        a = lim.range(i, bp)[1]
+        a = lim_acc.range(i, bp)[1]
         b = bp + 2.0 * ds * a
         if b > bp:
-            a = min(a, lim.range(i + 1, b)[1])
+            a = min(a, lim_acc.range(i + 1, b)[1])
             b = bp + 2.0 * ds * a
         out[i + 1] = min(max(b, min(bp, bmax[i + 1])), back[i + 1])
     return out
 
 
 def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
-                  drive_fraction: float = 1.0, grid_size: int = 20_000,
+                  drive_fraction: float = 1.0, acceleration_fraction: float | None = None,
+                  drive_scale=None, grid_size: int = 20_000,
                   min_speed_ratio: float = 1e-6) -> SpeedProfile:
     """The fastest speed along ``curve`` that keeps the feedforward drive within bounds.
 
@@ -220,7 +223,14 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
     feed : float
         F [pulse/s], finite and > 0.
     drive_fraction : float
-        Fraction of Umax the profile may use, in (0, 1].
+        Fraction of Umax the profile may use, in (0, 1]: on the deceleration limit (the
+        backward pass) and on the maximum velocity curve.
+    acceleration_fraction : float, optional
+        Fraction of Umax on the acceleration limit (the forward pass), in (0, 1];
+        ``drive_fraction`` by default.
+    drive_scale : callable, optional
+        ``drive_scale(s) -> ndarray`` in (0, 1], a further factor on both fractions along
+        the path (s [pulse], shape (n,)); used by the planner to ease off locally.
     grid_size : int
         Arc-length grid points over the whole path (each piece gets its share by length,
         at least 50).
@@ -241,12 +251,14 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
     F = float(feed)
     if not (math.isfinite(F) and F > 0):
         raise InfeasibleError(f"feed must be finite and > 0, got {feed!r} pulse/s")
-    if not (0 < drive_fraction <= 1):
-        raise ValueError(f"drive_fraction must lie in (0, 1], got {drive_fraction!r}")
+    fa = drive_fraction if acceleration_fraction is None else acceleration_fraction
+    for name, f in (("drive_fraction", drive_fraction), ("acceleration_fraction", fa)):
+        if not (0 < f <= 1):
+            raise ValueError(f"{name} must lie in (0, 1], got {f!r}")
     if int(grid_size) < 10:
         raise ValueError(f"grid_size must be >= 10, got {grid_size!r}")
     machine.check_path(curve.n_axes)
-    M = drive_fraction * machine.max_drive * machine.Kc * machine.Ke
+    M = machine.max_drive * machine.Kc * machine.Ke
     tau = machine.tau
     L = curve.length
     ends = _piece_bounds(curve)
@@ -263,7 +275,9 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
         left = np.zeros(n, dtype=bool)
         left[-1] = True
         q1, q2 = _arc_derivatives(curve, u, left)
-        lim = _Limits(q1, q2, tau, M)
+        scale = np.ones(n) if drive_scale is None else np.asarray(drive_scale(s), float)
+        lim = _Limits(q1, q2, tau, drive_fraction * scale[:, None] * M)
+        lim_acc = lim if fa == drive_fraction else _Limits(q1, q2, tau, fa * scale[:, None] * M)
         vmax = lim.max_speed(F)
         inner = vmax[1:-1]
         if inner.size and np.min(inner) < min_speed_ratio * F:
@@ -274,7 +288,7 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
                 f"{drive_fraction:g} x Umax = {drive_fraction * machine.max_drive:g} V; "
                 "the curvature is too high for the drive"
             )
-        b = _passes(lim, (s1 - s0) / (n - 1), vmax**2)
+        b = _passes(lim, lim_acc, (s1 - s0) / (n - 1), vmax**2)
         pieces.append((s, u, np.sqrt(b)))
     return SpeedProfile(tuple(pieces), F, float(drive_fraction))
 
