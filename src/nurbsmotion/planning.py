@@ -313,6 +313,9 @@ def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,
     grid_size : int
         Arc-length grid points over the path.
     """
+    F = float(feed)
+    if not (math.isfinite(F) and F > 0):
+        raise InfeasibleError(f"feed must be finite and > 0, got {feed!r} pulse/s")
     if machine.max_drive == math.inf:
-        return curve.length / float(feed)
+        return curve.length / F
     return speed_profile(curve, machine, feed, grid_size=grid_size).duration
