@@ -2,23 +2,25 @@
 
 - ``uniform``: fixed parameter step (eq. 1.1);
 - ``taylor1`` / ``taylor2``: constant (or parameter-dependent) feed, eq. 3.2 / 3.1;
-- ``paper``: the saturation-aware interpolation of Yeh & Sun (2008), reading the loop state.
+- ``paper``: the saturation-aware interpolation of Yeh & Sun (2008), reading the loop state;
+- ``planned``: look-ahead, jerk-limited, drive-limited profile with a real-time safety layer.
 """
 
 from .base import (Feed, Interpolator, LoopState, Setpoint, SetpointSeries, Status,
                    interpolate, taylor_increment)
 from .paper import PaperInterpolator
+from .planned import PlannedInterpolator
 from .taylor import TaylorInterpolator, UniformInterpolator
 
 __all__ = ["Feed", "Interpolator", "LoopState", "Setpoint", "SetpointSeries", "Status",
-           "interpolate", "taylor_increment", "PaperInterpolator", "TaylorInterpolator",
+           "interpolate", "taylor_increment", "PaperInterpolator", "PlannedInterpolator", "TaylorInterpolator",
            "UniformInterpolator", "OPEN_LOOP_METHODS", "LOOP_METHODS", "make_open_loop",
            "make_interpolator"]
 
 OPEN_LOOP_METHODS = ("uniform", "taylor1", "taylor2")
 """Interpolators that need no loop state."""
 
-LOOP_METHODS = ("taylor1", "taylor2", "paper")
+LOOP_METHODS = ("taylor1", "taylor2", "paper", "planned")
 """Interpolators offered in the servo loop (``nurbsmotion run --interpolator``)."""
 
 
@@ -38,6 +40,8 @@ def make_interpolator(method: str, curve, machine, feed: float) -> Interpolator:
     """
     if method == "paper":
         return PaperInterpolator(curve, machine, feed)
+    if method == "planned":
+        return PlannedInterpolator(curve, machine, feed)
     if method in LOOP_METHODS:
         return make_open_loop(method, curve, machine.sample_period, feed)
     raise ValueError(f"unknown interpolator {method!r}; choose from {LOOP_METHODS}")
