@@ -132,11 +132,15 @@ def test_parse_feed(text, expected):
 def test_reproduce_writes_tables_and_figures(tmp_path):
     assert main(["reproduce", "--out", str(tmp_path)]) == 0
     rows = json.loads((tmp_path / "table.json").read_text())
-    assert len(rows) == 12
+    assert len(rows) == 18
     pi1 = {r["interpolator"]: r for r in rows
            if r["path"] == "die-bonder-pi" and r["feed_m_s"] == 1.0}
     assert pi1["taylor1"]["max_drive_ratio"]["x"] > 5
     assert 0 < pi1["paper"]["max_drive_ratio"]["x"] < pi1["taylor1"]["max_drive_ratio"]["x"]
+    assert pi1["planned"]["saturated_samples"] == {"x": 0, "y": 0}
+    assert pi1["planned"]["time_optimal_bound_s"] == pytest.approx(0.1153, abs=5e-4)
+    assert pi1["planned"]["cycle_time_ratio"] == pytest.approx(
+        pi1["planned"]["cycle_time_s"] / pi1["planned"]["time_optimal_bound_s"])
     assert "| die-bonder-pi | 1 | paper |" in (tmp_path / "table.md").read_text()
     assert len(list(tmp_path.glob("*.png"))) == 18
 
@@ -163,3 +167,12 @@ def test_run_reads_a_gcode_contour(tmp_path):
                  str(tmp_path), "--no-figures"]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["path"] == "examples/butterfly.ngc#1" and summary["feed"] == 5e4
+
+
+def test_bound_prints_the_time_optimal_bound(capsys):
+    """SPEC section 9: about 0.115 s for the Pi at 1 m/s."""
+    assert main(["bound", "die-bonder-pi", "--feed", "1m/s"]) == 0
+    assert float(capsys.readouterr().out) == pytest.approx(0.1153, abs=5e-4)
+    assert main(["bound", "examples/butterfly.toml", "--machine", "examples/die_bonder.toml",
+                 "--feed", "50mm/s"]) == 0
+    assert float(capsys.readouterr().out) == pytest.approx(382.86 / 50, rel=2e-3)

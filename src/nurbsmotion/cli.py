@@ -1,4 +1,4 @@
-"""Command-line interface: ``nurbsmotion interpolate | run | reproduce``.
+"""Command-line interface: ``nurbsmotion interpolate | run | bound | reproduce``.
 
 A thin layer over the library: it parses arguments, calls library functions, writes files
 and turns the library's typed errors into one line on stderr and a non-zero exit code.
@@ -17,6 +17,7 @@ import numpy as np
 from .errors import NurbsmotionError
 from .interpolators import LOOP_METHODS, OPEN_LOOP_METHODS, interpolate, make_open_loop
 from .machine import LENGTH_UNITS_UM, Machine, load_machine
+from .planning import time_optimal_bound
 
 __all__ = ["main", "parse_feed"]
 
@@ -107,6 +108,18 @@ def _axis_names(n: int) -> list[str]:
     return list("xyzabc"[:n]) if n <= 6 else [f"axis{i}" for i in range(n)]
 
 
+def _cmd_bound(args) -> int:
+    from .loop import to_pulses
+
+    curve = _load_path(args.path)
+    machine = load_machine(args.machine)
+    machine.check_path(curve.n_axes)
+    feed = _feed_in_pulses(args.feed, machine, curve)
+    bound = time_optimal_bound(to_pulses(curve, machine), machine, feed)
+    print(f"{bound:.6g}")
+    return 0
+
+
 def _cmd_run(args) -> int:
     from .loop import run
     from .report import summary, write_json, write_trace_csv, check_writable
@@ -125,14 +138,16 @@ def _cmd_run(args) -> int:
     if exports:
         _export_setpoints(trace, curve, machine, exports, args)
     metrics = trace.metrics()
+    bound = time_optimal_bound(trace.curve, machine, feed)
     data = summary(metrics, interpolator=args.interpolator, feed=feed, machine=machine.name,
-                   path=args.path)
+                   path=args.path, time_optimal_bound=bound)
     write_json(data, out / "summary.json")
     if not args.no_figures:
         trace.plot(out)
     sat = metrics.total_saturated_samples
     print(f"{args.interpolator} on {machine.name} at {feed:g} pulse/s: cycle time "
-          f"{metrics.cycle_time_s:.4g} s, max contour error {metrics.max_contour_error:.4g} "
+          f"{metrics.cycle_time_s:.4g} s ({metrics.cycle_time_s / bound:.3f} x the "
+          f"time-optimal bound), max contour error {metrics.max_contour_error:.4g} "
           f"pulse, {sat} saturated sample{'s' if sat != 1 else ''} -> {out}")
     return 0
 
@@ -206,6 +221,14 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--pvt-period", type=float, default=0.01,
                    help="period of the PVT table [s] (default 0.01)")
     r.set_defaults(func=_cmd_run)
+
+    b = sub.add_parser("bound", help="print the time-optimal bound of a path [s]: the "
+                       "least time at rest at both ends within the drive limits and the feed")
+    b.add_argument("path", help="path file or built-in name")
+    b.add_argument("--machine", default="die-bonder",
+                   help="built-in machine name or machine file (.toml/.json)")
+    b.add_argument("--feed", type=parse_feed, required=True, help=feed_help)
+    b.set_defaults(func=_cmd_bound)
 
     e = sub.add_parser("reproduce", help="the paper's experiment on built-in defaults")
     e.add_argument("--out", default="results", help="output folder (default: results)")

@@ -2,8 +2,8 @@
 
 The die-bonder Pi move at F = 0.2, 0.5 and 1.0 m/s and the butterfly at 0.05, 0.1 and
 0.2 m/s on the die-bonder preset, each with constant-feed Taylor interpolation (first
-order, eq. 3.2: the interpolator the paper's algorithm reduces to when nothing saturates)
-and with the paper's saturation-aware algorithm. Writes the analogues of the paper's
+order, eq. 3.2: the interpolator the paper's algorithm reduces to when nothing saturates),
+with the paper's saturation-aware algorithm, and with this project's look-ahead planner. Writes the analogues of the paper's
 Fig. 5-7 for every path and feed, and a Markdown and a JSON table of the SPEC section 9
 figures of every run.
 """
@@ -13,9 +13,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from .loop import Trace, run
+from .loop import Trace, run, to_pulses
 from .machine import Machine, die_bonder
 from .nurbs import builtin_path
+from .planning import time_optimal_bound
 from .report import check_writable, markdown_table, summary, write_json
 
 __all__ = ["PAPER_EXPERIMENT", "ExperimentResult", "reproduce"]
@@ -26,7 +27,8 @@ PAPER_EXPERIMENT = {
 }
 """Built-in path name -> commanded feeds [m/s]."""
 
-PAPER_INTERPOLATORS = ("taylor1", "paper")
+PAPER_INTERPOLATORS = ("taylor1", "paper", "planned")
+"""Constant feed, the paper's algorithm, and this project's look-ahead planner."""
 
 
 @dataclass(frozen=True)
@@ -66,12 +68,14 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
     for name, feeds in experiment.items():
         curve = builtin_path(name)
         for feed_m_s in feeds:
+            feed = feed_m_s * pulses_per_m
+            bound = time_optimal_bound(to_pulses(curve, machine), machine, feed)
             group: dict[str, Trace] = {}
             for method in interpolators:
-                tr = run(curve, machine, feed_m_s * pulses_per_m, method)
+                tr = run(curve, machine, feed, method)
                 group[method] = traces[(name, feed_m_s, method)] = tr
-                row = summary(tr.metrics(), interpolator=method, feed=feed_m_s * pulses_per_m,
-                              machine=machine.name, path=name)
+                row = summary(tr.metrics(), interpolator=method, feed=feed,
+                              machine=machine.name, path=name, time_optimal_bound=bound)
                 rows.append({"path": name, "feed_m_s": feed_m_s, **row})
             if figures:
                 from .plots import plot_comparison

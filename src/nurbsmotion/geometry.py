@@ -17,6 +17,7 @@ L : total length [path units].
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from typing import Any
 
 import numpy as np
@@ -24,6 +25,7 @@ import numpy as np
 __all__ = ["CurveGeometry"]
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(10)
+_CACHE_MIN_SIZE, _CACHE_ENTRIES = 1000, 16
 
 
 def _speed(curve, u: np.ndarray) -> np.ndarray:
@@ -98,6 +100,9 @@ class CurveGeometry:
         self._s = np.concatenate([[0.0], np.cumsum(np.concatenate(done_i)[order])])
         self.length = float(self._s[-1])
         self._corners: dict[float, np.ndarray] = {}
+        # Planners invert the same arc-length grids again and again (one per replanning
+        # pass): remember the last few large inversions.
+        self._inverse_cache: OrderedDict[tuple, np.ndarray] = OrderedDict()
 
     @property
     def n_pieces(self) -> int:
@@ -123,6 +128,20 @@ class CurveGeometry:
         ss = np.asarray(s, dtype=float)
         if not np.all(np.isfinite(ss)):
             raise ValueError("arc length must be finite")
+        key = None
+        if ss.size >= _CACHE_MIN_SIZE:
+            key = (ss.shape, ss.tobytes(), tol)
+            if key in self._inverse_cache:
+                self._inverse_cache.move_to_end(key)
+                return self._inverse_cache[key].copy()
+        u = self._parameter_at(ss, tol)
+        if key is not None:
+            self._inverse_cache[key] = u.copy()
+            if len(self._inverse_cache) > _CACHE_ENTRIES:
+                self._inverse_cache.popitem(last=False)
+        return u
+
+    def _parameter_at(self, ss: np.ndarray, tol: float):
         L = self.length
         if np.any((ss < 0) | (ss > L * (1 + 1e-12))):
             bad = ss[(ss < 0) | (ss > L * (1 + 1e-12))].flat[0]
@@ -133,16 +152,20 @@ class CurveGeometry:
         s_lo = self._s[j]
         frac = (flat - s_lo) / np.maximum(self._s[j + 1] - s_lo, 1e-300)
         u = lo + frac * (hi - lo)
+        active = np.arange(flat.size)  # Newton on the points not yet converged only
         for _ in range(60):
-            f = s_lo + _gauss(self.curve, self._u[j], u) - flat
+            ua, la, ha = u[active], lo[active], hi[active]
+            f = s_lo[active] + _gauss(self.curve, self._u[j[active]], ua) - flat[active]
             done = np.abs(f) <= tol * L
-            if np.all(done):
+            la = np.where(f < 0, ua, la)
+            ha = np.where(f > 0, ua, ha)
+            step = ua - f / _speed(self.curve, ua)
+            bisect = (step <= la) | (step >= ha) | ~np.isfinite(step)
+            u[active] = np.where(done, ua, np.where(bisect, 0.5 * (la + ha), step))
+            lo[active], hi[active] = la, ha
+            active = active[~done]
+            if active.size == 0:
                 break
-            lo = np.where(f < 0, u, lo)
-            hi = np.where(f > 0, u, hi)
-            step = u - f / _speed(self.curve, u)
-            bisect = (step <= lo) | (step >= hi) | ~np.isfinite(step)
-            u = np.where(done, u, np.where(bisect, 0.5 * (lo + hi), step))
         return u.reshape(ss.shape) if ss.ndim else float(u[0])
 
     def sharp_corners(self, angle_tolerance: float = 1e-6) -> np.ndarray:

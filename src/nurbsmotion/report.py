@@ -28,6 +28,7 @@ SUMMARY_KEYS = (
     "cycle_time_s", "steps", "max_following_error", "rms_following_error",
     "max_contour_error", "rms_contour_error", "max_drive_ratio", "saturated_samples",
     "feed_fluctuation_max", "feed_fluctuation_rms", "interpolator", "feed", "machine", "path",
+    "time_optimal_bound_s", "cycle_time_ratio",
 )
 """Keys of ``summary.json``, in order."""
 
@@ -63,13 +64,18 @@ def write_trace_csv(trace, path: Path) -> Path:
     return Path(path)
 
 
-def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str) -> dict:
+def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
+            time_optimal_bound: float) -> dict:
     """The ``summary.json`` dictionary (:data:`SUMMARY_KEYS`, in that order).
 
-    ``feed`` is the commanded feed in pulse/s.
+    ``feed`` is the commanded feed [pulse/s]; ``time_optimal_bound`` is the SPEC section 9
+    bound [s] (:func:`nurbsmotion.planning.time_optimal_bound`), and ``cycle_time_ratio``
+    the cycle time divided by it.
     """
     data = metrics.to_dict()
-    data.update(interpolator=interpolator, feed=float(feed), machine=machine, path=path)
+    data.update(interpolator=interpolator, feed=float(feed), machine=machine, path=path,
+                time_optimal_bound_s=float(time_optimal_bound),
+                cycle_time_ratio=metrics.cycle_time_s / time_optimal_bound)
     return {k: data[k] for k in SUMMARY_KEYS}
 
 
@@ -101,7 +107,8 @@ def _fmt(value, digits=3) -> str:
 
 TABLE_COLUMNS = (
     ("path", "path"), ("feed_m_s", "feed [m/s]"), ("interpolator", "interpolator"),
-    ("cycle_time_s", "cycle time [s]"), ("max_drive_ratio", "max drive / Umax"),
+    ("cycle_time_s", "cycle time [s]"), ("time_optimal_bound_s", "bound [s]"),
+    ("cycle_time_ratio", "cycle / bound"), ("max_drive_ratio", "max drive / Umax"),
     ("saturated_samples", "saturated samples"), ("max_contour_error", "max contour [pulse]"),
     ("rms_contour_error", "RMS contour [pulse]"), ("max_following_error",
                                                    "max following [pulse]"),
