@@ -134,3 +134,18 @@ def test_contour_error_at_a_sharp_corner():
     assert d[0] == pytest.approx(50.0, abs=0.01)
     assert d[1] == pytest.approx(100.0, abs=0.01)
     assert d[2] == pytest.approx(0.0, abs=0.01)
+
+
+def test_replay_of_a_parameter_sequence_equals_the_original_run():
+    m = die_bonder()
+    pi = nm.make_die_bonder_pi()
+    ref = simulate(TaylorInterpolator(pi, 1e-3, 5e5, 2), m)
+    from nurbsmotion.interpolators import ReplayInterpolator
+
+    replay = simulate(ReplayInterpolator(pi, 1e-3, ref.u[: ref.finished_index + 1]), m)
+    np.testing.assert_array_equal(replay.position_command, ref.position_command)
+    np.testing.assert_array_equal(replay.drive, ref.drive)
+    with pytest.raises(ValueError, match="parameters decrease at sample 2"):
+        ReplayInterpolator(pi, 1e-3, [0.0, 0.5, 0.4, 1.0])
+    with pytest.raises(ValueError, match="must start at 0 and end at 1"):
+        ReplayInterpolator(pi, 1e-3, [0.0, 0.5])

@@ -3,19 +3,21 @@
 - ``uniform``: fixed parameter step (eq. 1.1);
 - ``taylor1`` / ``taylor2``: constant (or parameter-dependent) feed, eq. 3.2 / 3.1;
 - ``paper``: the saturation-aware interpolation of Yeh & Sun (2008), reading the loop state;
-- ``planned``: look-ahead, jerk-limited, drive-limited profile with a real-time safety layer.
+- ``planned``: look-ahead, jerk-limited, drive-limited profile with a real-time safety layer;
+- ``replay``: a parameter sequence planned elsewhere, fed through the same loop.
 """
 
 from .base import (Feed, Interpolator, LoopState, Setpoint, SetpointSeries, Status,
                    interpolate, taylor_increment)
 from .paper import PaperInterpolator
+from .replay import ReplayInterpolator
 from .planned import PlannedInterpolator
 from .taylor import TaylorInterpolator, UniformInterpolator
 
 __all__ = ["Feed", "Interpolator", "LoopState", "Setpoint", "SetpointSeries", "Status",
-           "interpolate", "taylor_increment", "PaperInterpolator", "PlannedInterpolator", "TaylorInterpolator",
-           "UniformInterpolator", "OPEN_LOOP_METHODS", "LOOP_METHODS", "make_open_loop",
-           "make_interpolator"]
+           "interpolate", "taylor_increment", "PaperInterpolator", "PlannedInterpolator",
+           "ReplayInterpolator", "TaylorInterpolator", "UniformInterpolator",
+           "OPEN_LOOP_METHODS", "LOOP_METHODS", "make_open_loop", "make_interpolator"]
 
 OPEN_LOOP_METHODS = ("uniform", "taylor1", "taylor2")
 """Interpolators that need no loop state."""
