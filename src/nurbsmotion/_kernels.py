@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["find_span", "basis_derivatives", "rational_derivatives_at",
+__all__ = ["find_span", "workspace", "basis_derivatives", "rational_derivatives_into",
            "rational_derivatives"]
 
 
@@ -58,16 +58,22 @@ def find_span(n: int, p: int, U, u: float, left: bool) -> int:
 
 
 @njit(cache=True)
-def basis_derivatives(span: int, u: float, p: int, n_der: int, U, ders) -> None:
+def workspace(p: int, max_order: int, dim: int):
+    """Scratch arrays for :func:`basis_derivatives` and :func:`rational_derivatives_at`,
+    allocated once per batch (or per loop run) rather than per parameter."""
+    return (np.empty((max_order + 1, p + 1)), np.empty((p + 1, p + 1)), np.empty(p + 1),
+            np.empty(p + 1), np.empty((2, p + 1)), np.empty((max_order + 1, dim + 1)))
+
+
+@njit(cache=True)
+def basis_derivatives(span: int, u: float, p: int, n_der: int, U, ders, ndu, left, right,
+                      a) -> None:
     """Non-zero basis functions and their derivatives up to ``n_der`` (A2.3).
 
     Writes ``ders[k, j]`` for ``k = 0 .. n_der``, ``j = 0 .. p``; orders above ``p`` are 0.
-    ``ders`` must have shape at least ``(n_der + 1, p + 1)``.
+    ``ders`` must have shape at least ``(n_der + 1, p + 1)``; ``ndu`` (p+1, p+1), ``left``
+    and ``right`` (p+1,) and ``a`` (2, p+1) are scratch (see :func:`workspace`).
     """
-    ndu = np.empty((p + 1, p + 1))
-    left = np.empty(p + 1)
-    right = np.empty(p + 1)
-    a = np.empty((2, p + 1))
     ndu[0, 0] = 1.0
     for j in range(1, p + 1):
         left[j] = u - U[span + 1 - j]
@@ -113,62 +119,58 @@ def basis_derivatives(span: int, u: float, p: int, n_der: int, U, ders) -> None:
             ders[k, j] = 0.0
 
 
-@njit(cache=True)
-def _binomial(k: int, i: int) -> float:
-    out = 1.0
-    for m in range(1, i + 1):
-        out = out * (k - i + m) / m
-    return out
+_BINOMIAL = np.array([[1.0, 0.0, 0.0, 0.0],
+                      [1.0, 1.0, 0.0, 0.0],
+                      [1.0, 2.0, 1.0, 0.0],
+                      [1.0, 3.0, 3.0, 1.0]])
+"""Binomial coefficients C(k, i) for the orders A4.2 needs (up to 3, the jerk)."""
 
 
 @njit(cache=True)
-def rational_derivatives_at(U, Pw, p: int, u: float, max_order: int, left: bool, out) -> None:
-    """Point and derivatives of a NURBS curve at one parameter (A2.3 + A4.2).
+def rational_derivatives_into(U, Pw, p: int, us, max_order: int, left: bool, out,
+                              work) -> None:
+    """Points and derivatives of a NURBS curve at the parameters ``us`` (A2.3 + A4.2).
 
     Parameters
     ----------
     U : ndarray, shape (n + p + 1,)
     Pw : ndarray, shape (n, n_axes + 1)
         Homogeneous control points ``[w*P, w]``.
-    p, u, max_order, left
-        Degree, parameter, highest order, one-sided rule (see :func:`find_span`).
-    out : ndarray, shape (>= max_order + 1, n_axes)
-        Written: ``out[k]`` is ``C^(k)(u)``.
+    p, max_order, left
+        Degree, highest order (at most 3), one-sided rule (see :func:`find_span`).
+    us : ndarray, shape (m,)
+        Parameters.
+    out : ndarray, shape (>= max_order + 1, m, n_axes)
+        Written: ``out[k, i]`` is ``C^(k)(us[i])``.
+    work : tuple
+        Scratch from :func:`workspace` for at least this degree, order and axis count.
     """
+    ders, ndu, wl, wr, a, hom = work
     n = Pw.shape[0]
     dim = Pw.shape[1] - 1
-    span = find_span(n, p, U, u, left)
-    ders = np.empty((max_order + 1, p + 1))
-    basis_derivatives(span, u, p, max_order, U, ders)
-    hom = np.zeros((max_order + 1, dim + 1))
-    for k in range(max_order + 1):
-        for j in range(p + 1):
-            b = ders[k, j]
-            row = span - p + j
+    for i in range(us.shape[0]):
+        u = us[i]
+        span = find_span(n, p, U, u, left)
+        basis_derivatives(span, u, p, max_order, U, ders, ndu, wl, wr, a)
+        for k in range(max_order + 1):
             for c in range(dim + 1):
-                hom[k, c] += b * Pw[row, c]
-    w0 = hom[0, dim]
-    for k in range(max_order + 1):
-        for c in range(dim):
-            v = hom[k, c]
-            for i in range(1, k + 1):
-                v -= _binomial(k, i) * hom[i, dim] * out[k - i, c]
-            out[k, c] = v / w0
+                acc = 0.0
+                for j in range(p + 1):
+                    acc += ders[k, j] * Pw[span - p + j, c]
+                hom[k, c] = acc          # k-th derivative of [w*C, w]
+        w0 = hom[0, dim]
+        for k in range(max_order + 1):
+            for c in range(dim):
+                v = hom[k, c]
+                for m in range(1, k + 1):
+                    v -= _BINOMIAL[k, m] * hom[m, dim] * out[k - m, i, c]
+                out[k, i, c] = v / w0
 
 
 @njit(cache=True)
 def rational_derivatives(U, Pw, p: int, us, max_order: int, left: bool):
-    """:func:`rational_derivatives_at` for a batch ``us`` (shape (m,)).
-
-    Returns
-    -------
-    ndarray, shape (max_order + 1, m, n_axes)
-    """
-    m = us.shape[0]
-    dim = Pw.shape[1] - 1
-    out = np.empty((max_order + 1, m, dim))
-    one = np.empty((max_order + 1, dim))
-    for i in range(m):
-        rational_derivatives_at(U, Pw, p, us[i], max_order, left, one)
-        out[:, i, :] = one
+    """:func:`rational_derivatives_into` into a new array, shape (max_order + 1, m, n_axes)."""
+    out = np.empty((max_order + 1, us.shape[0], Pw.shape[1] - 1))
+    rational_derivatives_into(U, Pw, p, us, max_order, left, out,
+                              workspace(p, max_order, Pw.shape[1] - 1))
     return out

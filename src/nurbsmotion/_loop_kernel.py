@@ -33,7 +33,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._kernels import rational_derivatives_at
+from ._kernels import rational_derivatives_into, workspace
 
 KIND_CONSTANT = 0
 """Constant commanded feed: the ``taylor1`` / ``taylor2`` interpolators."""
@@ -47,6 +47,14 @@ DONE, FULL, CANNOT_ADVANCE, TOO_MANY_SAMPLES = 0, 1, 2, 3
 S_K, S_U, S_FINISHED, S_ERR_DU, S_ERR_FEED = 0, 1, 2, 3, 4
 # Rows of the per-axis state array ``ax``.
 A_THD, A_WD, A_THA, A_W, A_TH = 0, 1, 2, 3, 4
+
+
+@njit(cache=True)
+def _derivatives(U, Pw, p, u, max_order, d3, work):
+    """Right-sided ``C^(k)(u)`` into ``d3[k, 0, :]`` (``d3`` shape (3, 1, n_axes))."""
+    us = np.empty(1)
+    us[0] = u
+    rational_derivatives_into(U, Pw, p, us, max_order, False, d3, work)
 
 
 @njit(cache=True)
@@ -82,8 +90,10 @@ def _time_to_reach(target, d, order, V, A, T):
 
 
 @njit(cache=True)
-def _advance(U, Pw, p, breaks, order, u0, V, A, Ts, d):
-    """Parameter after one sample; ``d`` holds the derivatives at ``u0`` (overwritten)."""
+def _advance(U, Pw, p, breaks, order, u0, V, A, Ts, d3, work):
+    """Parameter after one sample; ``d3[:, 0]`` holds the derivatives at ``u0``
+    (overwritten)."""
+    d = d3[:, 0, :]
     u = u0
     remaining = Ts
     while True:
@@ -97,7 +107,7 @@ def _advance(U, Pw, p, breaks, order, u0, V, A, Ts, d):
         remaining = remaining - dt
         if remaining <= 0.0 or V <= 0.0:
             return u
-        rational_derivatives_at(U, Pw, p, u, order, False, d)
+        _derivatives(U, Pw, p, u, order, d3, work)
 
 
 @njit(cache=True)
@@ -155,7 +165,9 @@ def run_loop(U, Pw, p, breaks, kind, order, feed, law, start, end,
     """
     dim = start.shape[0]
     capacity = r_u.shape[0]
-    d = np.empty((3, dim))
+    d3 = np.empty((3, 1, dim))
+    d = d3[:, 0, :]
+    work = workspace(p, 2, dim)
     thd = np.empty(dim)
     tha = np.empty(dim)
     wa = np.empty(dim)
@@ -186,10 +198,10 @@ def run_loop(U, Pw, p, breaks, kind, order, feed, law, start, end,
             for j in range(dim):
                 thd[j] = end[j]
         else:
-            rational_derivatives_at(U, Pw, p, u, order, False, d)
+            _derivatives(U, Pw, p, u, order, d3, work)
             V, A = _plan_feed(kind, feed, d, thd_prev, wd_prev, tha, wa, law, bounds_row)
             has_bounds = kind == KIND_PAPER
-            u_new = _advance(U, Pw, p, breaks, order, u, V, A, Ts, d)
+            u_new = _advance(U, Pw, p, breaks, order, u, V, A, Ts, d3, work)
             du = u_new - u
             if not (du > 0 and math.isfinite(du)):
                 sc[S_K] = k
@@ -204,7 +216,7 @@ def run_loop(U, Pw, p, breaks, kind, order, feed, law, start, end,
                     thd[j] = end[j]
             else:
                 u = u_new
-                rational_derivatives_at(U, Pw, p, u, 0, False, d)
+                _derivatives(U, Pw, p, u, 0, d3, work)
                 for j in range(dim):
                     thd[j] = d[0, j]
             if u >= 1.0 and finished < 0:
