@@ -60,9 +60,11 @@ def find_span(n: int, p: int, U, u: float, left: bool) -> int:
 @njit(cache=True)
 def workspace(p: int, max_order: int, dim: int):
     """Scratch arrays for :func:`basis_derivatives` and :func:`rational_derivatives_at`,
-    allocated once per batch (or per loop run) rather than per parameter."""
+    allocated once per batch (or per loop run) rather than per parameter; the last one
+    holds a single parameter for callers that evaluate one at a time."""
     return (np.empty((max_order + 1, p + 1)), np.empty((p + 1, p + 1)), np.empty(p + 1),
-            np.empty(p + 1), np.empty((2, p + 1)), np.empty((max_order + 1, dim + 1)))
+            np.empty(p + 1), np.empty((2, p + 1)), np.empty((max_order + 1, dim + 1)),
+            np.empty(1))
 
 
 @njit(cache=True)
@@ -145,7 +147,7 @@ def rational_derivatives_into(U, Pw, p: int, us, max_order: int, left: bool, out
     work : tuple
         Scratch from :func:`workspace` for at least this degree, order and axis count.
     """
-    ders, ndu, wl, wr, a, hom = work
+    ders, ndu, wl, wr, a, hom, _ = work
     n = Pw.shape[0]
     dim = Pw.shape[1] - 1
     for i in range(us.shape[0]):

@@ -51,8 +51,9 @@ A_THD, A_WD, A_THA, A_W, A_TH = 0, 1, 2, 3, 4
 
 @njit(cache=True)
 def _derivatives(U, Pw, p, u, max_order, d3, work):
-    """Right-sided ``C^(k)(u)`` into ``d3[k, 0, :]`` (``d3`` shape (3, 1, n_axes))."""
-    us = np.empty(1)
+    """Right-sided ``C^(k)(u)`` into ``d3[k, 0, :]`` (``d3`` shape (3, 1, n_axes)); the
+    last scratch array of ``work`` holds the parameter."""
+    us = work[-1]
     us[0] = u
     rational_derivatives_into(U, Pw, p, us, max_order, False, d3, work)
 
