@@ -7,6 +7,7 @@ import platform
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -48,6 +49,17 @@ def run_python(code: str, **extra_env: str) -> tuple[float, str]:
     return wall, done.stdout
 
 
+def cold_and_warm(measure, repeats: int) -> tuple[list, list]:
+    """``measure(cache_dir)`` on an empty numba cache folder (cold), then again on the
+    same folder (warm), ``repeats`` times; the two lists of results."""
+    cold, warm = [], []
+    for _ in range(repeats):
+        with tempfile.TemporaryDirectory() as cache:
+            cold.append(measure(cache))
+            warm.append(measure(cache))
+    return cold, warm
+
+
 def machine_description() -> str:
     """One line: CPU model, core count, load, Python and library versions."""
     import numba
@@ -66,6 +78,15 @@ def machine_description() -> str:
     return (f"{cpu}, {os.cpu_count()} cores, load average {load} at the start; "
             f"Python {platform.python_version()}, numpy {numpy.__version__}, "
             f"scipy {scipy.__version__}, numba {numba.__version__}")
+
+
+def section(title: str, header: list[str], rows: list[list], note: str = "",
+            intro: str = "") -> str:
+    """A Markdown section (heading, optional intro, table, note), printed and returned."""
+    text = f"### {title}\n\n" + (intro + "\n\n" if intro else "") + table(header, rows)
+    text += ("\n\n" + note if note else "") + "\n"
+    print(text)
+    return text
 
 
 def table(header: list[str], rows: list[list]) -> str:

@@ -11,10 +11,9 @@ from __future__ import annotations
 
 import json
 import statistics
-import tempfile
 
 import _common  # noqa: F401  (puts src/ on the path)
-from _common import run_python, table
+from _common import cold_and_warm, run_python, section
 
 CHILD = r"""
 import json, time
@@ -39,11 +38,8 @@ STAGES = [("import", "`import nurbsmotion`"),
 
 
 def main(repeats: int = 3) -> str:
-    cold, warm = [], []
-    for _ in range(repeats):
-        with tempfile.TemporaryDirectory() as cache:
-            cold.append(json.loads(run_python(CHILD, NUMBA_CACHE_DIR=cache)[1]))
-            warm.append(json.loads(run_python(CHILD, NUMBA_CACHE_DIR=cache)[1]))
+    cold, warm = cold_and_warm(
+        lambda cache: json.loads(run_python(CHILD, NUMBA_CACHE_DIR=cache)[1]), repeats)
     rows = []
     for key, label in STAGES:
         c = statistics.median(r[key] for r in cold)
@@ -52,11 +48,9 @@ def main(repeats: int = 3) -> str:
     total_c = statistics.median(sum(r[k] for k, _ in STAGES) for r in cold)
     total_w = statistics.median(sum(r[k] for k, _ in STAGES) for r in warm)
     rows.append(["**total**", f"**{total_c:.2f}**", f"**{total_w:.2f}**"])
-    text = ("### Compile cost: empty numba cache (cold) against a filled one (warm)\n\n"
-            + table(["stage, fresh process", "cold [s]", "warm [s]"], rows)
-            + f"\n\nMedians of {repeats} process pairs.\n")
-    print(text)
-    return text
+    return section("Compile cost: empty numba cache (cold) against a filled one (warm)",
+                   ["stage, fresh process", "cold [s]", "warm [s]"], rows,
+                   f"Medians of {repeats} process pairs.")
 
 
 if __name__ == "__main__":

@@ -11,7 +11,7 @@ that also pays any compilation.
 from __future__ import annotations
 
 import _common  # noqa: F401  (puts src/ on the path)
-from _common import median_time, table
+from _common import median_time, section
 
 CASES = [("die-bonder-pi", 2e5), ("die-bonder-pi", 1e6), ("butterfly", 5e4),
          ("butterfly", 2e5)]
@@ -40,13 +40,12 @@ def main(repeats: int = 15, reference_repeats: int = 3) -> str:
         rows.append([name, f"{feed / 1e6:g}", n, f"{n / fast:,.0f}", f"{n / slow:,.0f}",
                      f"{slow / fast:.0f}x", f"{n * m.sample_period / fast:,.0f}x",
                      "yes" if same else "NO"])
-    text = ("### Closed loop, `paper` interpolator, samples per second\n\n" + table(
+    return section(
+        "Closed loop, `paper` interpolator, samples per second",
         ["path", "feed [m/s]", "samples", "compiled [samples/s]", "reference [samples/s]",
-         "compiled / reference", "faster than real time", "same trace (1e-12)"], rows)
-        + f"\n\nMedians of {repeats} (compiled) and {reference_repeats} (reference) runs "
-        "of `simulate()`, after one warm-up run.\n")
-    print(text)
-    return text
+         "compiled / reference", "faster than real time", "same trace (1e-12)"], rows,
+        f"Medians of {repeats} (compiled) and {reference_repeats} (reference) runs "
+        "of `simulate()`, after one warm-up run.")
 
 
 if __name__ == "__main__":

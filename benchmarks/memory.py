@@ -2,7 +2,9 @@
 
 The butterfly on the die-bonder at the feed that takes 600 s (its length / 600 s, about
 0.64 mm/s), ``paper`` interpolator, in a fresh process; peak resident set size from
-``resource.getrusage`` after the imports, after ``simulate()`` and after the metrics.
+``/proc/self/status`` (VmHWM; ``resource.getrusage`` elsewhere) after the imports, after
+``simulate()`` and after the metrics. VmHWM, not ``ru_maxrss``: on Linux ``ru_maxrss``
+survives ``exec`` and so reports the parent's peak when that was larger.
 
     python benchmarks/memory.py
 """
@@ -12,7 +14,7 @@ from __future__ import annotations
 import json
 
 import _common  # noqa: F401  (puts src/ on the path)
-from _common import run_python, table
+from _common import run_python, section
 
 CHILD = r"""
 import json, resource, time
@@ -22,6 +24,14 @@ from nurbsmotion.loop import simulate, to_pulses
 from nurbsmotion.machine import die_bonder
 
 def peak_mb():
+    # VmHWM starts afresh at exec; ru_maxrss may keep the forking parent's peak.
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 m = die_bonder()
@@ -49,12 +59,11 @@ def main() -> str:
     rows = [["after imports and a warm-up run", f"{r['before']:.0f}"],
             ["after `simulate()` (trace held)", f"**{r['loop']:.0f}**"],
             ["after `trace.metrics()` (contour error of every sample)", f"{r['metrics']:.0f}"]]
-    text = (f"### Memory: a {r['cycle']:.0f} s move, {r['samples']:,} samples with the trace\n\n"
-            f"Butterfly at {r['feed']:.0f} pulse/s, `paper`; the trace's arrays take "
-            f"{r['trace_mb']:.0f} MB; the loop ran in {r['loop_s']:.2f} s.\n\n"
-            + table(["peak RSS of the process", "[MB]"], rows) + "\n")
-    print(text)
-    return text
+    title = f"Memory: a {r['cycle']:.0f} s move, {r['samples']:,} samples with the trace"
+    return section(title,
+                   ["peak RSS of the process", "[MB]"], rows,
+                   intro=f"Butterfly at {r['feed']:.0f} pulse/s, `paper`; the trace's arrays "
+                   f"take {r['trace_mb']:.0f} MB; the loop ran in {r['loop_s']:.2f} s.")
 
 
 if __name__ == "__main__":

@@ -11,7 +11,7 @@ the same run, on the same seeded parameters; all three must agree within 1e-9 re
 from __future__ import annotations
 
 import _common  # noqa: F401  (puts src/ on the path)
-from _common import median_time, table
+from _common import median_time, section
 
 N_PARAMETERS = 1_000_000
 
@@ -64,14 +64,13 @@ def main(repeats: int = 7, geomdl_repeats: int = 3) -> str:
         rows.append([f"geomdl {__import__('geomdl').__version__}", f"{geo_t:.3f}",
                      f"{geo_t / u.size * 1e9:.0f}", f"**{geo_t / ours_t:.0f}x**",
                      f"{err:.1e} ({'within' if err <= 1e-9 else 'NOT within'} 1e-9)"])
-    text = (f"### Batch evaluation, point + 1st + 2nd derivative, cubic, 2 axes, "
-            f"{N_PARAMETERS:,} parameters (butterfly)\n\n" + table(
-                ["evaluator", "time [s]", "per parameter [ns]", "time / ours",
-                 "max relative difference to ours"], rows)
-            + f"\n\nMedians of {repeats} runs (ours, scipy) and {geomdl_repeats} (geomdl); "
-            "relative difference per derivative order, to the largest value of that order.\n")
-    print(text)
-    return text
+    return section(
+        f"Batch evaluation, point + 1st + 2nd derivative, cubic, 2 axes, {N_PARAMETERS:,} "
+        "parameters (butterfly)",
+        ["evaluator", "time [s]", "per parameter [ns]", "time / ours",
+         "max relative difference to ours"], rows,
+        f"Medians of {repeats} runs (ours, scipy) and {geomdl_repeats} (geomdl); relative "
+        "difference per derivative order, to the largest value of that order.")
 
 
 if __name__ == "__main__":

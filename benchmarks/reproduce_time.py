@@ -14,31 +14,27 @@ import tempfile
 from pathlib import Path
 
 import _common  # noqa: F401  (puts src/ on the path)
-from _common import run_python, table
+from _common import cold_and_warm, run_python, section
 
 
-def reproduce(out: Path, cache: str, figures: bool) -> float:
-    argv = ["reproduce", "--out", str(out)] + ([] if figures else ["--no-figures"])
-    code = f"from nurbsmotion.cli import main; raise SystemExit(main({argv!r}))"
-    return run_python(code, NUMBA_CACHE_DIR=cache, MPLBACKEND="Agg")[0]
+def reproduce(cache: str, figures: bool) -> float:
+    """Wall time [s] of one ``reproduce`` into a fresh output folder."""
+    with tempfile.TemporaryDirectory() as out:
+        argv = ["reproduce", "--out", str(Path(out) / "results")]
+        argv += [] if figures else ["--no-figures"]
+        code = f"from nurbsmotion.cli import main; raise SystemExit(main({argv!r}))"
+        return run_python(code, NUMBA_CACHE_DIR=cache, MPLBACKEND="Agg")[0]
 
 
 def main(repeats: int = 2) -> str:
     rows = []
     for figures in (False, True):
-        cold, warm = [], []
-        for _ in range(repeats):
-            with tempfile.TemporaryDirectory() as cache, \
-                    tempfile.TemporaryDirectory() as out:
-                cold.append(reproduce(Path(out) / "cold", cache, figures))
-                warm.append(reproduce(Path(out) / "warm", cache, figures))
+        cold, warm = cold_and_warm(lambda cache: reproduce(cache, figures), repeats)
         rows.append(["`nurbsmotion reproduce" + ("" if figures else " --no-figures") + "`",
                      f"{statistics.median(cold):.2f}", f"{statistics.median(warm):.2f}"])
-    text = ("### `nurbsmotion reproduce`: wall time of a fresh process\n\n"
-            + table(["command", "cold numba cache [s]", "warm numba cache [s]"], rows)
-            + f"\n\nMedians of {repeats} runs each.\n")
-    print(text)
-    return text
+    return section("`nurbsmotion reproduce`: wall time of a fresh process",
+                   ["command", "cold numba cache [s]", "warm numba cache [s]"], rows,
+                   f"Medians of {repeats} runs each.")
 
 
 if __name__ == "__main__":

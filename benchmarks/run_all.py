@@ -34,10 +34,10 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     sections = [
         loop_throughput.main(repeats=5 if q else 15, reference_repeats=1 if q else 3),
+        memory.main(),  # before geomdl's million-row lists grow this process
         nurbs_eval.main(repeats=3 if q else 7, geomdl_repeats=1 if q else 3),
         compile_cost.main(repeats=1 if q else 3),
         reproduce_time.main(repeats=1 if q else 2),
-        memory.main(),
     ]
     took = time.perf_counter() - t0
     command = "python benchmarks/run_all.py" + (" --quick" if q else "")

@@ -62,3 +62,15 @@ def test_derivatives_above_the_degree_are_zero_for_a_polyline():
     line = nm.make_polyline([[0.0, 0.0], [1.0, 2.0], [3.0, 2.0]])
     d = line.derivatives(np.linspace(0, 1, 7), 3)
     assert np.all(d[2] == 0.0) and np.all(d[3] == 0.0)
+
+
+def test_importing_the_package_compiles_nothing_and_loads_no_plotting():
+    """numba loads with the first evaluation, matplotlib only with the first figure."""
+    import subprocess
+    import sys
+
+    code = ("import sys, nurbsmotion; "
+            "print('matplotlib' in sys.modules, 'numba' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert out == ["False", "False"]

@@ -258,8 +258,10 @@ def _simulate_compiled(interpolator, machine, plant, start, n_settle, max_sample
     n_axes = curve.n_axes
     Ts = machine.sample_period
     interpolator.reset()
-    # A first guess of the rows; the kernel stops when they are full and is resumed.
-    capacity = int(min(max_samples, 1.2 * curve.length / (feed * Ts) + n_settle + 64))
+    # A first guess of the rows (capped, should a tiny feed promise an endless run); the
+    # kernel stops when they are full and is resumed on grown rows.
+    guess = min(1.2 * curve.length / (feed * Ts) + n_settle + 64, 1 << 22)
+    capacity = max(1, int(min(max_samples, guess)))
     record_bounds = kind == kern.KIND_PAPER
     rows = {
         "u": np.empty(capacity), "feed": np.empty(capacity),
