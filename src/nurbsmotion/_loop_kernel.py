@@ -14,9 +14,11 @@ the same floating-point expressions:
 3. the PD / PD+ law (eq. 3.3), clipping, and the exact zero-order-hold plant step.
 
 Feed planners are selected by ``kind``: :data:`KIND_CONSTANT` (``taylor1``/``taylor2``) and
-:data:`KIND_PAPER`. A planner that precomputes its feed as arrays (a speed profile over the
-parameter) plugs in as another kind reading those arrays in :func:`_plan_feed`; everything
-after the feed (the step, the law, the plant, the recording) is shared.
+:data:`KIND_PAPER`, each with its data in the 2-D array ``plan``. A planner that
+precomputes its feed as arrays (a speed profile V(u) with its tangential acceleration A(u))
+plugs in as another kind: its rows go in ``plan``, a branch of :func:`_plan_feed` returns
+``(V, A)`` from them, and everything after the feed (the piecewise Taylor step with the A
+term, the law, the plant, the recording) is shared.
 
 Glossary
 --------
@@ -112,12 +114,13 @@ def _advance(U, Pw, p, breaks, order, u0, V, A, Ts, d3, work):
 
 
 @njit(cache=True)
-def _plan_feed(kind, feed, d, thd_prev, wd_prev, tha, wa, law, bounds_row):
-    """Feed and tangential acceleration of the next step; the paper's bounds (eq. 3.6)
-    are written to ``bounds_row`` (shape (n_axes, 2)).
+def _plan_feed(kind, feed, d, thd_prev, wd_prev, tha, wa, plan, bounds_row):
+    """Feed V and tangential acceleration A of the next step from ``u`` (derivatives
+    ``d``); the paper's bounds (eq. 3.6) are written to ``bounds_row`` (shape (n_axes, 2)).
 
-    ``law`` rows (the interpolator's model): Kp, Kd, ka = tau/(Kc*Ts) (0 for PD),
-    Ksig (drive per unit speed command), Ke, Umax.
+    ``plan`` is the planner's data: unused for :data:`KIND_CONSTANT`; for
+    :data:`KIND_PAPER` the rows of the interpolator's model per axis: Kp, Kd,
+    ka = tau/(Kc*Ts) (0 for PD), Ksig (drive per unit speed command), Ke, Umax.
     """
     if kind == KIND_CONSTANT:
         return feed, 0.0
@@ -129,8 +132,8 @@ def _plan_feed(kind, feed, d, thd_prev, wd_prev, tha, wa, law, bounds_row):
     V = feed
     Vm = np.inf
     for j in range(dim):
-        Kp, Kd, ka, ksig, Ke, umax = law[0, j], law[1, j], law[2, j], law[3, j], \
-            law[4, j], law[5, j]
+        Kp, Kd, ka, ksig, Ke, umax = plan[0, j], plan[1, j], plan[2, j], plan[3, j], \
+            plan[4, j], plan[5, j]
         v = Kp * (thd_prev[j] - tha[j]) - Kd * wa[j] - ka * wd_prev[j]   # section 3.2
         wmin = (-umax - v) / ksig                                         # eq. 3.6
         wmax = (umax - v) / ksig
@@ -152,7 +155,7 @@ def _plan_feed(kind, feed, d, thd_prev, wd_prev, tha, wa, law, bounds_row):
 
 
 @njit(cache=True)
-def run_loop(U, Pw, p, breaks, kind, order, feed, law, start, end,
+def run_loop(U, Pw, p, breaks, kind, order, feed, plan, start, end,
              Kp, Kd, Kc, tau, Ke_Ts, Ts, feedforward, umax, Ad, Bd, encoder,
              n_settle, max_samples, sc, ax,
              r_u, r_feed, r_thd, r_tha, r_wd, r_wa, r_drive, r_applied, r_bounds,
@@ -200,7 +203,7 @@ def run_loop(U, Pw, p, breaks, kind, order, feed, law, start, end,
                 thd[j] = end[j]
         else:
             _derivatives(U, Pw, p, u, order, d3, work)
-            V, A = _plan_feed(kind, feed, d, thd_prev, wd_prev, tha, wa, law, bounds_row)
+            V, A = _plan_feed(kind, feed, d, thd_prev, wd_prev, tha, wa, plan, bounds_row)
             has_bounds = kind == KIND_PAPER
             u_new = _advance(U, Pw, p, breaks, order, u, V, A, Ts, d3, work)
             du = u_new - u

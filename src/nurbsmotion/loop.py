@@ -232,14 +232,15 @@ def simulate(
 
 
 def _compiled_feed(interpolator: Interpolator):
-    """``(kind, feed, law)`` of the compiled loop for this interpolator, or ``None``.
+    """``(kind, feed, plan)`` of the compiled loop for this interpolator, or ``None``
+    (see :mod:`nurbsmotion._loop_kernel`; a new kind of feed planner registers here).
 
     Only the exact classes qualify: a subclass may override the step.
     """
     from ._loop_kernel import KIND_CONSTANT, KIND_PAPER
 
     if type(interpolator) is TaylorInterpolator and interpolator._constant_feed is not None:
-        return KIND_CONSTANT, interpolator._constant_feed, np.zeros((6, interpolator.curve.n_axes))
+        return KIND_CONSTANT, interpolator._constant_feed, np.empty((0, 0))
     if type(interpolator) is PaperInterpolator:
         law = interpolator.law
         m = interpolator.machine
@@ -253,7 +254,7 @@ def _simulate_compiled(interpolator, machine, plant, start, n_settle, max_sample
     """:func:`simulate` through the compiled loop; the same trace as the reference."""
     from . import _loop_kernel as kern
 
-    kind, feed, law_rows = _compiled_feed(interpolator)
+    kind, feed, plan = _compiled_feed(interpolator)
     curve = interpolator.curve
     n_axes = curve.n_axes
     Ts = machine.sample_period
@@ -273,7 +274,7 @@ def _simulate_compiled(interpolator, machine, plant, start, n_settle, max_sample
     ax = np.vstack([start, np.zeros(n_axes), plant.position, plant.speed, plant.position])
     Ad, Bd = np.ascontiguousarray(plant._Ad), np.ascontiguousarray(plant._Bd)
     fixed = (curve.knots, curve._homogeneous, curve.degree, interpolator._breaks, kind,
-             interpolator.order, float(feed), law_rows, start, interpolator._end,
+             interpolator.order, float(feed), plan, start, interpolator._end,
              machine.Kp, machine.Kd, machine.Kc, machine.tau, machine.Ke * Ts, Ts,
              machine.controller == "pd+", float(plant.max_drive), Ad, Bd,
              machine.speed_measurement == "encoder", n_settle, int(max_samples))
