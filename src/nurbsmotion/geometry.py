@@ -78,6 +78,7 @@ class CurveGeometry:
         self._s = np.concatenate([[0.0], np.cumsum(np.concatenate(done_i)[order])])
         self.length = float(self._s[-1])
         self._corners: dict[float, np.ndarray] = {}
+        self._uniform: dict[int, np.ndarray] = {}
 
     @property
     def n_pieces(self) -> int:
@@ -124,6 +125,16 @@ class CurveGeometry:
             bisect = (step <= lo) | (step >= hi) | ~np.isfinite(step)
             u = np.where(done, u, np.where(bisect, 0.5 * (lo + hi), step))
         return u.reshape(ss.shape) if ss.ndim else float(u[0])
+
+    def uniform_parameters(self, n: int) -> np.ndarray:
+        """``u`` at ``n`` points equally spaced in arc length from 0 to L, shape (n,).
+
+        Cached per ``n``: the contour error of every run on this curve seeds its nearest
+        point search from the same grid, and inverting the arc length is the costly part.
+        """
+        if n not in self._uniform:
+            self._uniform[n] = self.parameter_at(np.linspace(0.0, self.length, n))
+        return self._uniform[n].copy()
 
     def sharp_corners(self, angle_tolerance: float = 1e-6) -> np.ndarray:
         """Interior breakpoints where the left and right tangents differ by more than
