@@ -66,10 +66,10 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
     pulses_per_m = machine.pulses_per_unit("m")
     rows, traces, files = [], {}, []
     for name, feeds in experiment.items():
-        curve = builtin_path(name)
+        curve = to_pulses(builtin_path(name), machine)  # once, so its geometry is reused
         for feed_m_s in feeds:
             feed = feed_m_s * pulses_per_m
-            bound = time_optimal_bound(to_pulses(curve, machine), machine, feed)
+            bound = time_optimal_bound(curve, machine, feed)
             group: dict[str, Trace] = {}
             for method in interpolators:
                 tr = run(curve, machine, feed, method)

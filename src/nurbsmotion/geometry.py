@@ -168,6 +168,14 @@ class CurveGeometry:
                 break
         return u.reshape(ss.shape) if ss.ndim else float(u[0])
 
+    def uniform_parameters(self, n: int) -> np.ndarray:
+        """``u`` at ``n`` points equally spaced in arc length from 0 to L, shape (n,).
+
+        Cached (as every large inversion is): the contour error of every run on this curve
+        seeds its nearest point search from the same grid.
+        """
+        return self.parameter_at(np.linspace(0.0, self.length, n))
+
     def sharp_corners(self, angle_tolerance: float = 1e-6) -> np.ndarray:
         """Interior breakpoints where the left and right tangents differ by more than
         ``angle_tolerance`` [rad]. Only knots of full multiplicity can be corners, since

@@ -22,7 +22,8 @@ import numpy as np
 
 from .control import ControlLaw
 from .errors import InfeasibleError
-from .interpolators import Interpolator, LoopState, Status, make_interpolator
+from .interpolators import (Interpolator, LoopState, PaperInterpolator, Status,
+                            TaylorInterpolator, make_interpolator)
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .servo import ServoPlant
@@ -115,6 +116,7 @@ def simulate(
     plant: ServoPlant | None = None,
     settle_time: float = 0.05,
     max_samples: int | None = None,
+    compiled: bool = True,
 ) -> Trace:
     """Run the closed loop from the path's start until ``settle_time`` after its end.
 
@@ -132,6 +134,11 @@ def simulate(
     max_samples : int, optional
         Safety limit; by default ten times the samples a constant-feed run would take at
         the slowest axis's full-drive speed, plus ten seconds.
+    compiled : bool
+        Run the compiled loop (:mod:`nurbsmotion._loop_kernel`) where the interpolator
+        has one: ``taylor1`` / ``taylor2`` at a constant feed and ``paper``. It gives the
+        same trace as the readable reference loop, which ``compiled=False`` (and any other
+        interpolator) runs.
 
     Returns
     -------
@@ -158,6 +165,8 @@ def simulate(
             else 1e300
         max_samples = int(10 * curve.length / max(slowest, 1e-300) / Ts + 10 / Ts) + 10
     n_settle = int(round(settle_time / Ts))
+    if compiled and _compiled_feed(interpolator) is not None:
+        return _simulate_compiled(interpolator, machine, plant, start, n_settle, max_samples)
     law = ControlLaw(machine)
     encoder = machine.speed_measurement == "encoder"
     Ke_Ts = machine.Ke * Ts
@@ -222,6 +231,95 @@ def simulate(
     )
 
 
+def _compiled_feed(interpolator: Interpolator):
+    """``(kind, feed, plan)`` of the compiled loop for this interpolator, or ``None``
+    (see :mod:`nurbsmotion._loop_kernel`; a new kind of feed planner registers here).
+
+    Only the exact classes qualify: a subclass may override the step.
+    """
+    from ._loop_kernel import KIND_CONSTANT, KIND_PAPER
+
+    if type(interpolator) is TaylorInterpolator and interpolator._constant_feed is not None:
+        return KIND_CONSTANT, interpolator._constant_feed, np.empty((0, 0))
+    if type(interpolator) is PaperInterpolator:
+        law = interpolator.law
+        m = interpolator.machine
+        rows = np.array([m.Kp, m.Kd, law._ka * np.ones(m.n_axes), law.drive_per_speed, m.Ke,
+                         np.full(m.n_axes, m.max_drive)], dtype=float)
+        return KIND_PAPER, interpolator.feed, rows
+    return None
+
+
+def _simulate_compiled(interpolator, machine, plant, start, n_settle, max_samples) -> Trace:
+    """:func:`simulate` through the compiled loop; the same trace as the reference."""
+    from . import _loop_kernel as kern
+
+    kind, feed, plan = _compiled_feed(interpolator)
+    curve = interpolator.curve
+    n_axes = curve.n_axes
+    Ts = machine.sample_period
+    interpolator.reset()
+    # A first guess of the rows (capped, should a tiny feed promise an endless run); the
+    # kernel stops when they are full and is resumed on grown rows.
+    guess = min(1.2 * curve.length / (feed * Ts) + n_settle + 64, 1 << 22)
+    capacity = max(1, int(min(max_samples, guess)))
+    record_bounds = kind == kern.KIND_PAPER
+    rows = {
+        "u": np.empty(capacity), "feed": np.empty(capacity),
+        **{name: np.empty((capacity, n_axes))
+           for name in ("thd", "tha", "wd", "wa", "drive", "applied")},
+        "bounds": np.empty((capacity if record_bounds else 0, n_axes, 2)),
+    }
+    sc = np.array([0.0, 0.0, -1.0, 0.0, 0.0])
+    ax = np.vstack([start, np.zeros(n_axes), plant.position, plant.speed, plant.position])
+    Ad, Bd = np.ascontiguousarray(plant._Ad), np.ascontiguousarray(plant._Bd)
+    fixed = (curve.knots, curve._homogeneous, curve.degree, interpolator._breaks, kind,
+             interpolator.order, float(feed), plan, start, interpolator._end,
+             machine.Kp, machine.Kd, machine.Kc, machine.tau, machine.Ke * Ts, Ts,
+             machine.controller == "pd+", float(plant.max_drive), Ad, Bd,
+             machine.speed_measurement == "encoder", n_settle, int(max_samples))
+    while True:
+        code = kern.run_loop(*fixed, sc, ax, *rows.values(), record_bounds)
+        if code != kern.FULL:
+            break
+        capacity = min(2 * capacity, int(max_samples) + 1)
+        for name, arr in rows.items():
+            if arr.shape[0] > 0:
+                arr.resize((capacity,) + arr.shape[1:], refcheck=False)
+    k, u = int(sc[kern.S_K]), float(sc[kern.S_U])
+    interpolator.u = u
+    if code == kern.CANNOT_ADVANCE:
+        raise InfeasibleError(
+            f"{interpolator.name} interpolator cannot advance from u = {u:.9g} "
+            f"(parameter step {float(sc[kern.S_ERR_DU])!r}, feed {float(sc[kern.S_ERR_FEED])!r})"
+        )
+    if code == kern.TOO_MANY_SAMPLES:
+        raise InfeasibleError(
+            f"{interpolator.name}: the path's end was not reached within {max_samples} "
+            f"samples ({max_samples * Ts:g} s; u = {u:.6g})"
+        )
+    plant.speed, plant.position = ax[kern.A_W].copy(), ax[kern.A_TH].copy()
+    for name, arr in rows.items():
+        if arr.shape[0] > 0:
+            arr.resize((k,) + arr.shape[1:], refcheck=False)
+    return Trace(
+        t=np.arange(k) * Ts,
+        u=rows["u"],
+        position_command=rows["thd"],
+        position=rows["tha"],
+        speed_command=rows["wd"],
+        speed=rows["wa"],
+        drive=rows["drive"],
+        drive_applied=rows["applied"],
+        feed=rows["feed"],
+        speed_bounds=rows["bounds"] if record_bounds else None,
+        finished_index=int(sc[kern.S_FINISHED]),
+        curve=curve,
+        machine=machine,
+        interpolator=interpolator.name,
+    )
+
+
 def run(curve: NurbsCurve, machine: Machine, feed: float, interpolator: str = "paper",
         **simulate_options) -> Trace:
     """Run a path on a machine with a named interpolator.
@@ -236,7 +334,8 @@ def run(curve: NurbsCurve, machine: Machine, feed: float, interpolator: str = "p
     interpolator : str
         One of :data:`nurbsmotion.interpolators.LOOP_METHODS`.
     **simulate_options
-        Passed to :func:`simulate` (``plant``, ``settle_time``, ``max_samples``).
+        Passed to :func:`simulate` (``plant``, ``settle_time``, ``max_samples``,
+        ``compiled``).
     """
     path = to_pulses(curve, machine)
     return simulate(make_interpolator(interpolator, path, machine, feed), machine,

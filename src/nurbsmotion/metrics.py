@@ -93,7 +93,7 @@ def nearest_parameter(curve: NurbsCurve, points: np.ndarray, grid_size: int = 20
         [path units]
     """
     pts = np.asarray(points, dtype=float)
-    grid = np.union1d(curve.parameter_at(np.linspace(0.0, curve.length, grid_size)),
+    grid = np.union1d(curve.geometry.uniform_parameters(grid_size),
                       curve.breakpoints)
     tree = cKDTree(curve(grid))
     _, j = tree.query(pts)

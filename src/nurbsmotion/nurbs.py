@@ -204,9 +204,9 @@ class NurbsCurve:
         self.units = units
 
         homogeneous = np.hstack([P * w[:, None], w[:, None]])
-        self._spline = BSpline(t, homogeneous, p, extrapolate=True)
-        # The mirrored curve evaluated at 1 - u gives left-sided values at breakpoints.
-        self._mirror = BSpline(1.0 - t[::-1], homogeneous[::-1], p, extrapolate=True)
+        homogeneous.flags.writeable = False
+        self._homogeneous = homogeneous  # [w*P, w], shape (n, n_axes + 1)
+        self._spline = self._mirror = None  # scipy reference, built on first use
         self._geometry = None
         self._check_not_degenerate()
 
@@ -276,6 +276,10 @@ class NurbsCurve:
     def derivatives(self, u: Any, max_order: int = 2, side: str = "right") -> np.ndarray:
         """Point and derivatives up to ``max_order`` at once (The NURBS Book, A4.2).
 
+        Evaluated by the compiled kernels of :mod:`nurbsmotion._kernels` (span search,
+        A2.3 basis derivatives, A4.2); :meth:`_derivatives_reference` is the independent
+        scipy route they are tested against.
+
         Parameters
         ----------
         u : float or array_like
@@ -290,11 +294,35 @@ class NurbsCurve:
         ndarray, shape (max_order + 1,) + shape(u) + (n_axes,)
             ``out[k]`` is the k-th derivative with respect to ``u`` [path units].
         """
+        uu = self._check_derivative_request(u, max_order, side)
+        from ._kernels import rational_derivatives
+
+        out = rational_derivatives(self.knots, self._homogeneous, self.degree,
+                                   np.ascontiguousarray(uu.ravel()), max_order, side == "left")
+        return out.reshape((max_order + 1,) + uu.shape + (self.n_axes,))
+
+    def _check_derivative_request(self, u: Any, max_order: int, side: str) -> np.ndarray:
         if not 0 <= max_order <= MAX_ORDER:
             raise ValueError(f"derivative order must be 0..{MAX_ORDER}, got {max_order}")
         if side not in ("right", "left"):
             raise ValueError(f"side must be 'right' or 'left', got {side!r}")
-        uu = self._check_parameter(u)
+        return self._check_parameter(u)
+
+    def _derivatives_reference(self, u: Any, max_order: int = 2,
+                               side: str = "right") -> np.ndarray:
+        """:meth:`derivatives` through scipy's ``BSpline`` in homogeneous coordinates.
+
+        The readable reference the compiled kernels are tested against; the left-sided
+        values come from the mirrored spline evaluated at ``1 - u``.
+        """
+        uu = self._check_derivative_request(u, max_order, side)
+        if self._spline is None:
+            homogeneous = self._homogeneous
+            t = self.knots
+            p = self.degree
+            self._spline = BSpline(t, homogeneous, p, extrapolate=True)
+            # The mirrored curve evaluated at 1 - u gives left-sided values at breakpoints.
+            self._mirror = BSpline(1.0 - t[::-1], homogeneous[::-1], p, extrapolate=True)
         if side == "right":
             hom = [self._spline(uu, nu=k) for k in range(max_order + 1)]
         else:

@@ -15,6 +15,8 @@ x = [w, theta] : state, motor speed [rad/s] and position [pulse]; u : drive [V].
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.linalg import expm
 
@@ -31,12 +33,22 @@ def zoh_matrices(time_constant: float, electrical_gain: float, mechanical_gain: 
     Bd : ndarray, shape (2,)
         For the state ``[w, theta]``.
     """
+    E = _zoh_exponential(float(time_constant), float(electrical_gain), float(mechanical_gain),
+                         float(sample_period))
+    return E[:2, :2].copy(), E[:2, 2].copy()
+
+
+@functools.lru_cache(maxsize=256)
+def _zoh_exponential(time_constant, electrical_gain, mechanical_gain, sample_period):
+    # Cached: a sweep builds the same plant for every run, and expm costs more than a
+    # short compiled run.
     M = np.zeros((3, 3))
     M[0, 0] = -1.0 / time_constant
     M[1, 0] = mechanical_gain
     M[0, 2] = electrical_gain / time_constant
     E = expm(M * sample_period)
-    return E[:2, :2], E[:2, 2]
+    E.flags.writeable = False
+    return E
 
 
 class ServoPlant:

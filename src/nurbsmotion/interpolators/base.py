@@ -109,6 +109,16 @@ def _feed_function(feed: Feed) -> Callable[[float], tuple[float, float]]:
     return lambda u: (V, 0.0)
 
 
+def dot(a: np.ndarray, b: np.ndarray) -> float:
+    """``<a, b>`` summed left to right in plain double precision.
+
+    Not ``a @ b``: BLAS may fuse or reorder the sum, and the compiled loop
+    (:mod:`nurbsmotion._loop_kernel`) must be able to reproduce the reference step bit for
+    bit, since the paper's feed amplifies a last-bit difference near saturation.
+    """
+    return float(sum(a * b))
+
+
 def taylor_increment(d1: np.ndarray, d2: np.ndarray | None, feed: float,
                      acceleration: float, duration: float) -> float:
     """Parameter step of the speed-controlled interpolator (eq. 3.1 / 3.2).
@@ -130,12 +140,12 @@ def taylor_increment(d1: np.ndarray, d2: np.ndarray | None, feed: float,
     duration : float
         T, the time the step covers [s] (Ts for a whole sample).
     """
-    n2 = float(d1 @ d1)
+    n2 = dot(d1, d1)
     n1 = math.sqrt(n2)
     first = feed * duration / n1
     if d2 is None:
         return first
-    second = 0.5 * (acceleration / n1 - feed * feed * float(d1 @ d2) / (n2 * n2))
+    second = 0.5 * (acceleration / n1 - feed * feed * dot(d1, d2) / (n2 * n2))
     du = first + second * duration**2
     return du if du > 0 else first
 

@@ -16,12 +16,14 @@ before a corner or the path's end; nothing bounds jerk or contour error.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..control import ControlLaw
 from ..machine import Machine
 from ..nurbs import NurbsCurve
-from .base import Interpolator, LoopState
+from .base import Interpolator, LoopState, dot
 
 __all__ = ["PaperInterpolator"]
 
@@ -67,7 +69,7 @@ class PaperInterpolator(Interpolator):
         d1 = d[1]
         Ke = self.machine.Ke
         V = self.feed
-        tangent = d1 / np.linalg.norm(d1)
+        tangent = d1 / math.sqrt(dot(d1, d1))
         bounds = self.law.speed_bounds(state.position_command_prev, state.speed_command_prev,
                                        state.position, state.speed)
         wmin, wmax = bounds[:, 0], bounds[:, 1]

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 from ..nurbs import NurbsCurve
-from .base import Feed, Interpolator, LoopState, _feed_function
+from .base import Feed, Interpolator, LoopState, _feed_function, dot
 
 __all__ = ["UniformInterpolator", "TaylorInterpolator"]
 
@@ -77,10 +77,12 @@ class TaylorInterpolator(Interpolator):
         self.order = order
         self.name = f"taylor{order}"
         self._feed = _feed_function(feed)
+        # A constant feed lets the compiled loop (nurbsmotion._loop_kernel) run this stepper.
+        self._constant_feed = None if callable(feed) else float(feed)
         super().__init__(curve, sample_period)
 
     def _plan_step(self, state: LoopState | None):
         d = self.curve.derivatives(self.u, self.order)
         V, dV_du = self._feed(self.u)
-        A = dV_du * V / math.sqrt(float(d[1] @ d[1]))  # dV/dt = dV/du * du/dt
+        A = dV_du * V / math.sqrt(dot(d[1], d[1]))  # dV/dt = dV/du * du/dt
         return V, A, None, d
