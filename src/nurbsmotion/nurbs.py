@@ -451,10 +451,10 @@ class NurbsCurve:
         p = self.degree
         nodes = np.polynomial.chebyshev.chebpts1(2 * p - 1)
         bp = self.breakpoints
+        weight = BSpline(self.knots, self.weights, p)
         for a, b in zip(bp[:-1], bp[1:]):
             uu = 0.5 * (a + b) + 0.5 * (b - a) * nodes
-            h0, h1 = self._spline(uu, nu=0), self._spline(uu, nu=1)
-            numerator = h1[:, :-1] * h0[:, -1:] - h0[:, :-1] * h1[:, -1:]
+            numerator = self(uu, 1) * weight(uu)[:, None] ** 2  # = A'w - Aw'
             coef = np.polynomial.chebyshev.chebfit(nodes, numerator, 2 * p - 2)  # (2p-1, axes)
             candidates = [a, b]
             big = np.max(np.abs(coef))
