@@ -149,3 +149,12 @@ def test_replay_of_a_parameter_sequence_equals_the_original_run():
         ReplayInterpolator(pi, 1e-3, [0.0, 0.5, 0.4, 1.0])
     with pytest.raises(ValueError, match="must start at 0 and end at 1"):
         ReplayInterpolator(pi, 1e-3, [0.0, 0.5])
+
+
+def test_a_ten_minute_move_runs_without_a_sample_limit():
+    """600,000 samples: the default safety limit scales with the commanded move."""
+    m = die_bonder()
+    curve = nm.make_butterfly().scaled(1000.0, units="pulse")
+    tr = run(curve, m, curve.length / 600.0, "paper", settle_time=0.0)
+    assert tr.finished_index == pytest.approx(600_000, abs=10)
+    assert tr.u[-1] == 1.0

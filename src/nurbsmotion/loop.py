@@ -132,8 +132,10 @@ def simulate(
     settle_time : float
         How long to go on holding the end point after the setpoint reaches it [s].
     max_samples : int, optional
-        Safety limit; by default ten times the samples a constant-feed run would take at
-        the slowest axis's full-drive speed, plus ten seconds.
+        Safety limit against a stalled interpolator; by default twenty times the
+        interpolator's :meth:`~nurbsmotion.interpolators.Interpolator.nominal_duration`
+        plus ten seconds (or, where it has none, ten times the time at the slowest
+        axis's full-drive speed plus ten seconds).
     compiled : bool
         Run the compiled loop (:mod:`nurbsmotion._loop_kernel`) where the interpolator
         has one: ``taylor1`` / ``taylor2`` at a constant feed and ``paper``. It gives the
@@ -161,9 +163,14 @@ def simulate(
     if plant is None:
         plant = ServoPlant.of_machine(machine, start)
     if max_samples is None:
-        slowest = float(np.min(machine.max_axis_speed)) if math.isfinite(machine.max_drive) \
-            else 1e300
-        max_samples = int(10 * curve.length / max(slowest, 1e-300) / Ts + 10 / Ts) + 10
+        duration = interpolator.nominal_duration()
+        if duration is None:
+            slowest = (float(np.min(machine.max_axis_speed))
+                       if math.isfinite(machine.max_drive) else 1e300)
+            duration = curve.length / max(slowest, 1e-300)
+            max_samples = int(10 * duration / Ts + 10 / Ts) + 10
+        else:
+            max_samples = int(20 * duration / Ts + 10 / Ts) + 10
     n_settle = int(round(settle_time / Ts))
     if compiled and _compiled_feed(interpolator) is not None:
         return _simulate_compiled(interpolator, machine, plant, start, n_settle, max_samples)

@@ -209,6 +209,13 @@ class Interpolator(ABC):
     def finished(self) -> bool:
         return self.u >= 1.0
 
+    def nominal_duration(self) -> float | None:
+        """The time the move takes at its commanded feed [s], or ``None`` if unknown.
+
+        The loop's safety limit on the number of samples is a multiple of it, so that a
+        long slow move runs and a stalled one stops."""
+        return None
+
     @abstractmethod
     def _plan_step(self, state: LoopState | None):
         """Return ``(feed, acceleration, speed_bounds, derivatives)`` for a step from

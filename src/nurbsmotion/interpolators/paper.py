@@ -61,6 +61,9 @@ class PaperInterpolator(Interpolator):
         self.law = ControlLaw(machine)
         super().__init__(curve, machine.sample_period)
 
+    def nominal_duration(self) -> float:
+        return self.curve.length / self.feed
+
     def _plan_step(self, state: LoopState | None):
         if state is None:
             raise ValueError("the paper interpolator reads the measured loop state: run it "

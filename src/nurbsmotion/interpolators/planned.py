@@ -290,6 +290,9 @@ class PlannedInterpolator(Interpolator):
         """Time the schedule takes to reach the end, without safety slow-downs [s]."""
         return (len(self.plan_u) - 1) * self.sample_period
 
+    def nominal_duration(self) -> float:
+        return self.planned_duration
+
     # ---------------------------------------------------------------- online stepping
     def reset(self) -> None:
         self.u = 0.0

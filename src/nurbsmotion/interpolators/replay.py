@@ -53,6 +53,9 @@ class ReplayInterpolator(Interpolator):
         super().__init__(curve, sample_period)
         self._s = curve.arc_length(u)
 
+    def nominal_duration(self) -> float:
+        return (len(self.parameters) - 1) * self.sample_period
+
     def reset(self) -> None:
         super().reset()
         self._k = 0

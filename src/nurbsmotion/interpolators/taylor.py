@@ -49,6 +49,9 @@ class UniformInterpolator(Interpolator):
             raise ValueError(f"feed must be finite and > 0, got {feed!r}")
         return cls(curve, sample_period, min(V * sample_period / curve.length, 1.0), V)
 
+    def nominal_duration(self) -> float:
+        return math.ceil(1.0 / self.parameter_step) * self.sample_period
+
     def _plan_step(self, state: LoopState | None):
         return self.nominal_feed, 0.0, None, None
 
@@ -80,6 +83,11 @@ class TaylorInterpolator(Interpolator):
         # A constant feed lets the compiled loop (nurbsmotion._loop_kernel) run this stepper.
         self._constant_feed = None if callable(feed) else float(feed)
         super().__init__(curve, sample_period)
+
+    def nominal_duration(self) -> float | None:
+        if self._constant_feed is None:
+            return None
+        return self.curve.length / self._constant_feed
 
     def _plan_step(self, state: LoopState | None):
         d = self.curve.derivatives(self.u, self.order)
