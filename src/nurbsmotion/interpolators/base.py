@@ -103,10 +103,19 @@ def _feed_function(feed: Feed) -> Callable[[float], tuple[float, float]]:
             a, b = max(u - h, 0.0), min(u + h, 1.0)
             return V, (float(feed(b)) - float(feed(a))) / (b - a)
         return f
-    V = float(feed)
+    V = positive_feed(feed)
+    return lambda u: (V, 0.0)
+
+
+def positive_feed(feed) -> float:
+    """``feed`` as a float, or :class:`InfeasibleError` unless it is finite and > 0."""
+    try:
+        V = float(feed)
+    except (TypeError, ValueError):
+        raise InfeasibleError(f"feed must be a number, got {feed!r}") from None
     if not (math.isfinite(V) and V > 0):
         raise InfeasibleError(f"feed must be finite and > 0, got {feed!r}")
-    return lambda u: (V, 0.0)
+    return V
 
 
 def dot(a: np.ndarray, b: np.ndarray) -> float:

@@ -23,7 +23,7 @@ import numpy as np
 from ..control import ControlLaw
 from ..machine import Machine
 from ..nurbs import NurbsCurve
-from .base import Interpolator, LoopState, dot
+from .base import Interpolator, LoopState, dot, positive_feed
 
 __all__ = ["PaperInterpolator"]
 
@@ -52,10 +52,7 @@ class PaperInterpolator(Interpolator):
         machine.check_path(curve.n_axes)
         if order not in (1, 2):
             raise ValueError(f"order must be 1 or 2, got {order!r}")
-        V = float(feed)
-        if not (np.isfinite(V) and V > 0):
-            raise ValueError(f"feed must be finite and > 0, got {feed!r}")
-        self.feed = V
+        self.feed = positive_feed(feed)
         self.order = order
         self.machine = machine
         self.law = ControlLaw(machine)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 from ..nurbs import NurbsCurve
-from .base import Feed, Interpolator, LoopState, _feed_function, dot
+from .base import Feed, Interpolator, LoopState, _feed_function, dot, positive_feed
 
 __all__ = ["UniformInterpolator", "TaylorInterpolator"]
 
@@ -44,9 +44,7 @@ class UniformInterpolator(Interpolator):
     @classmethod
     def for_feed(cls, curve: NurbsCurve, sample_period: float, feed: float):
         """The uniform step whose mean speed is ``feed``: ``epsilon = feed*Ts/length``."""
-        V = float(feed)
-        if not (math.isfinite(V) and V > 0):
-            raise ValueError(f"feed must be finite and > 0, got {feed!r}")
+        V = positive_feed(feed)
         return cls(curve, sample_period, min(V * sample_period / curve.length, 1.0), V)
 
     def nominal_duration(self) -> float:
