@@ -207,7 +207,7 @@ def _passes(lim: _Limits, lim_acc: _Limits, ds: float, bmax: np.ndarray) -> np.n
 
 def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
                   drive_fraction: float = 1.0, acceleration_fraction: float | None = None,
-                  drive_scale=None, grid_size: int = 20_000,
+                  drive_scale=None, acceleration_scale=None, grid_size: int = 20_000,
                   min_speed_ratio: float = 1e-6) -> SpeedProfile:
     """The fastest speed along ``curve`` that keeps the feedforward drive within bounds.
 
@@ -231,6 +231,9 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
     drive_scale : callable, optional
         ``drive_scale(s) -> ndarray`` in (0, 1], a further factor on both fractions along
         the path (s [pulse], shape (n,)); used by the planner to ease off locally.
+    acceleration_scale : callable, optional
+        The factor on ``acceleration_fraction`` alone, in place of ``drive_scale``
+        (same form); ``drive_scale`` by default.
     grid_size : int
         Arc-length grid points over the whole path (each piece gets its share by length,
         at least 50).
@@ -277,7 +280,10 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
         q1, q2 = _arc_derivatives(curve, u, left)
         scale = np.ones(n) if drive_scale is None else np.asarray(drive_scale(s), float)
         lim = _Limits(q1, q2, tau, drive_fraction * scale[:, None] * M)
-        lim_acc = lim if fa == drive_fraction else _Limits(q1, q2, tau, fa * scale[:, None] * M)
+        if acceleration_scale is not None:
+            scale = np.asarray(acceleration_scale(s), float)
+        lim_acc = lim if (fa == drive_fraction and acceleration_scale is None) \
+            else _Limits(q1, q2, tau, fa * scale[:, None] * M)
         vmax = lim.max_speed(F)
         inner = vmax[1:-1]
         if inner.size and np.min(inner) < min_speed_ratio * F:
