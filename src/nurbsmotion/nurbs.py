@@ -266,6 +266,9 @@ class NurbsCurve:
     # ------------------------------------------------------------------ evaluation
     def _check_parameter(self, u: Any) -> np.ndarray:
         uu = np.asarray(u, dtype=float)
+        # One min/max pass for the common valid case (NaN fails both comparisons).
+        if uu.size and uu.min() >= 0.0 and uu.max() <= 1.0:
+            return uu
         if not np.all(np.isfinite(uu)):
             raise ValueError(f"curve parameter must be finite, got {uu[~np.isfinite(uu)][:3]}")
         if np.any((uu < 0.0) | (uu > 1.0)):
