@@ -24,6 +24,18 @@ import reproduce_time
 HERE = Path(__file__).resolve().parent
 
 
+def _toppra_section(repeats: int) -> str:
+    """The TOPP-RA comparison, if its benchmark-only dependency is installed."""
+    try:
+        import toppra  # noqa: F401
+    except ImportError:
+        return ("### Look-ahead planning against TOPP-RA\n\nSkipped: `pip install toppra` "
+                "to run it (a benchmark-only dependency).\n")
+    import toppra_compare
+
+    return toppra_compare.main(repeats=repeats)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repeats")
@@ -38,6 +50,7 @@ def main(argv=None) -> int:
         nurbs_eval.main(repeats=3 if q else 7, geomdl_repeats=1 if q else 3),
         compile_cost.main(repeats=1 if q else 3),
         reproduce_time.main(repeats=1 if q else 2),
+        _toppra_section(repeats=1 if q else 3),
     ]
     took = time.perf_counter() - t0
     command = "python benchmarks/run_all.py" + (" --quick" if q else "")

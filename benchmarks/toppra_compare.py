@@ -29,6 +29,7 @@ import statistics
 import time
 
 import numpy as np
+from _common import section
 
 import nurbsmotion as nm
 from nurbsmotion.interpolators import PlannedInterpolator, ReplayInterpolator
@@ -120,25 +121,21 @@ def toppra_plan(curve, machine, feed, points_per_piece=400):
     return u
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=3)
-    args = ap.parse_args(argv)
+CASES = [("die-bonder-pi", f) for f in (0.2, 0.5, 1.0, 2.0)] + [
+    ("butterfly", f) for f in (0.05, 0.1, 0.2)]
+
+
+def main(repeats: int = 3) -> str:
+    """Plan every case with TOPP-RA and with `planned`; the Markdown section."""
     machine = die_bonder()
-    cases = [("die-bonder-pi", f) for f in (0.2, 0.5, 1.0, 2.0)] + [
-        ("butterfly", f) for f in (0.05, 0.1, 0.2)]
-    print("| path | feed [m/s] | planner | cycle [s] | bound [s] | ratio | saturated | "
-          "max contour [pulse] | plan time [s] |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    for name, feed_m_s in cases:
-        curve = to_pulses(nm.builtin_path(name), machine)
+    rows = []
+    for name, feed_m_s in CASES:
         feed = feed_m_s / PULSE_M
-        bound = time_optimal_bound(curve, machine, feed)
+        bound = time_optimal_bound(to_pulses(nm.builtin_path(name), machine), machine, feed)
         for label in ("toppra", "planned"):
             times = []
-            for _ in range(args.repeats):
-                nm.builtin_path(name)  # fresh curve: no cached geometry between repeats
-                fresh = to_pulses(nm.builtin_path(name), machine)
+            for _ in range(repeats):
+                fresh = to_pulses(nm.builtin_path(name), machine)  # no cached geometry
                 t0 = time.perf_counter()
                 if label == "toppra":
                     interp = ReplayInterpolator(fresh, machine.sample_period,
@@ -147,10 +144,22 @@ def main(argv=None):
                     interp = PlannedInterpolator(fresh, machine, feed)
                 times.append(time.perf_counter() - t0)
             met = simulate(interp, machine).metrics()
-            print(f"| {name} | {feed_m_s:g} | {label} | {met.cycle_time_s:.4f} | {bound:.4f} | "
-                  f"{met.cycle_time_s / bound:.3f} | {met.total_saturated_samples} | "
-                  f"{met.max_contour_error:.1f} | {statistics.median(times):.3f} |", flush=True)
+            rows.append([name, f"{feed_m_s:g}", label, f"{met.cycle_time_s:.4f}",
+                         f"{bound:.4f}", f"{met.cycle_time_s / bound:.3f}",
+                         met.total_saturated_samples, f"{met.max_contour_error:.0f}",
+                         f"{statistics.median(times):.3f}"])
+    return section(
+        "Look-ahead planning: `planned` against TOPP-RA, same path, same loop",
+        ["path", "feed [m/s]", "planner", "cycle [s]", "bound [s]", "cycle / bound",
+         "saturated samples", "max contour [pulse]", "planning time [s]"], rows,
+        note=f"Planning time: median of {repeats} runs on a fresh curve (arc-length tables "
+             "included), TOPP-RA with 400 gridpoints per corner-free piece; `planned` "
+             "includes its closed-loop checks on five plants. TOPP-RA plans to the "
+             "feedforward drive limit and leaves no room for the feedback terms: it "
+             "saturates.")
 
 
 if __name__ == "__main__":
-    main()
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    main(ap.parse_args().repeats)

@@ -118,6 +118,9 @@ TABLE_COLUMNS = (
 """Columns of the reproduce table: (key in a row, header)."""
 
 
+_TIMES = ("cycle_time_s", "time_optimal_bound_s", "cycle_time_ratio")
+
+
 def markdown_table(rows: list[dict], columns=TABLE_COLUMNS) -> str:
     """A Markdown table of summary rows; per-axis values are shown as ``x / y``.
 
@@ -129,8 +132,9 @@ def markdown_table(rows: list[dict], columns=TABLE_COLUMNS) -> str:
     lines = ["| " + " | ".join(h for _, h in present) + " |",
              "|" + "|".join("---" for _ in present) + "|"]
     for r in rows:
-        lines.append("| " + " | ".join(_fmt(r.get(k)) if not isinstance(r.get(k), str)
-                                       else r[k] for k, _ in present) + " |")
+        lines.append("| " + " | ".join(
+            r[k] if isinstance(r.get(k), str) else _fmt(r.get(k), 4 if k in _TIMES else 3)
+            for k, _ in present) + " |")
     if axes:
         lines.append("")
         lines.append(f"Per-axis cells read {' / '.join(axes)}.")
