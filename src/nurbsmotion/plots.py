@@ -98,7 +98,7 @@ def _feed_text(feed: float, pulse_length_um: float | None) -> str:
 
 def _mark_end(ax, t_end: float) -> None:
     """Dotted vertical line at the cycle time (setpoint reaches the path's end)."""
-    ax.axvline(t_end, color="0.5", linestyle=":", linewidth=1)
+    ax.axvline(t_end, color="0.5", linestyle=":", linewidth=1, label="end reached")
 
 
 def _draw_drive_limits(ax, max_drive: float) -> None:
@@ -307,6 +307,7 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None) -
         ax.plot(trace.t, error[:, j], color="C0")
         _mark_end(ax, t_end)
         ax.set_ylabel(f"{names[j]}: θd − θa [pulse]")
+        ax.legend(fontsize="small", loc="upper right")
         ax.set_title(f"{names[j]}: max |e| = {np.max(np.abs(error[:, j])):.4g} pulse",
                      fontsize="medium", loc="left")
     written.append(_save(fig, out / f"{prefix}following_error.png"))
