@@ -98,7 +98,7 @@ def _feed_text(feed: float, pulse_length_um: float | None) -> str:
 
 def _mark_end(ax, t_end: float) -> None:
     """Dotted vertical line at the cycle time (setpoint reaches the path's end)."""
-    ax.axvline(t_end, color="0.5", linestyle=":", linewidth=1)
+    ax.axvline(t_end, color="0.5", linestyle=":", linewidth=1, label="end reached")
 
 
 def _draw_drive_limits(ax, max_drive: float) -> None:
@@ -126,7 +126,7 @@ def _draw_speed(ax, t, speed_command, speed_bounds, Ke: float, color="C0", lines
                 linestyle="--", label="lower bound (eq. 3.6)")
 
 
-def _desired_points(curve, n: int = 4000) -> np.ndarray:
+def _desired_points(curve, n: int = 20000) -> np.ndarray:
     """Curve points uniform in arc length plus every breakpoint (corners drawn sharp),
     shape (m, n_axes) [pulse]."""
     u = np.union1d(curve.parameter_at(np.linspace(0.0, curve.length, n)), curve.breakpoints)
@@ -136,10 +136,11 @@ def _desired_points(curve, n: int = 4000) -> np.ndarray:
 def _zoom_windows(curve, runs: list[_Run], nearest: list[tuple]) -> list[_Zoom]:
     """Where to zoom: every sharp corner, or the largest contour error if there is none.
 
-    A corner's window is sized to hold the largest contour error of any run near it
-    (within ``_CORNER_REACH`` of the path length); when the runs' errors there differ by
-    more than ``_CLOSE_ZOOM_RATIO``, a second, closer window sized to the smallest one is
-    added so the better run's deviation (often 10-100 pulses) stays visible.
+    A corner's window holds the corner and, for every run, its sample of largest contour
+    error near the corner (within ``_CORNER_REACH`` of the path length), with a margin.
+    When the runs' errors there differ by more than ``_CLOSE_ZOOM_RATIO``, a closer
+    window on the corner, sized to the smallest of them, is added so the better run's
+    deviation (often 10-100 pulses) stays visible.
 
     ``nearest`` holds ``(u, distance)`` of :func:`~nurbsmotion.metrics.nearest_parameter`
     per run.
@@ -147,30 +148,39 @@ def _zoom_windows(curve, runs: list[_Run], nearest: list[tuple]) -> list[_Zoom]:
     cap = 0.5 * float(np.max(np.ptp(_desired_points(curve, 500)[:, :2], axis=0)))
     cap = max(cap, _MIN_ZOOM_HALF_WIDTH)
 
-    def half(err: float) -> float:
-        return min(max(_MIN_ZOOM_HALF_WIDTH, _ZOOM_MARGIN * err), cap)
+    def window(label: str, points: list, err: float) -> _Zoom:
+        """Square around ``points`` (each (2,) [pulse]) with room for ``err`` [pulse]."""
+        pts = np.array(points)
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        half = 0.5 * float(np.max(hi - lo)) + (_ZOOM_MARGIN - 1.0) * err
+        half = min(max(_MIN_ZOOM_HALF_WIDTH, half, _ZOOM_MARGIN * err), cap)
+        return _Zoom(label, 0.5 * (lo + hi), half)
 
     corners = curve.sharp_corners()
     if corners.size == 0:
         worst = [float(np.max(d)) for _, d in nearest]
         i = int(np.argmax(worst))
         k = int(np.argmax(nearest[i][1]))
-        on_curve = curve(nearest[i][0][k])[:2]
-        center = 0.5 * (runs[i].position[k, :2] + on_curve)
-        return [_Zoom(f"largest contour error ({runs[i].label}, t = {runs[i].t[k]:.3f} s)",
-                      center, half(worst[i]))]
+        points = [runs[i].position[k, :2], curve(nearest[i][0][k])[:2]]
+        return [window(f"largest contour error ({runs[i].label}, t = {runs[i].t[k]:.3f} s)",
+                       points, worst[i])]
     zooms = []
-    s_corner = curve.arc_length(corners)
     reach = _CORNER_REACH * curve.length
-    for n, (uc, sc) in enumerate(zip(corners, s_corner), start=1):
-        local = []
-        for u, d in nearest:
-            near = np.abs(curve.arc_length(u) - sc) <= reach
-            local.append(float(np.max(d[near])) if np.any(near) else 0.0)
-        center = curve(uc)[:2]
-        zooms.append(_Zoom(f"corner {n} (u = {uc:.3g})", center, half(max(local))))
+    for n, uc in enumerate(corners, start=1):
+        corner = curve(uc)[:2]
+        s_corner = float(curve.arc_length(uc))
+        points, local = [corner], []
+        for r, (u, d) in zip(runs, nearest):
+            near = np.abs(curve.arc_length(u) - s_corner) <= reach
+            if np.any(near):
+                k = int(np.argmax(np.where(near, d, -1.0)))
+                points.append(r.position[k, :2])
+                local.append(float(d[k]))
+            else:
+                local.append(0.0)
+        zooms.append(window(f"corner {n} (u = {uc:.3g})", points, max(local)))
         if max(local) > _CLOSE_ZOOM_RATIO * max(min(local), _MIN_ZOOM_HALF_WIDTH / 2):
-            zooms.append(_Zoom(f"corner {n}, closer", center, half(min(local))))
+            zooms.append(window(f"corner {n}, closer", [corner], min(local)))
     return zooms
 
 
@@ -179,6 +189,7 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path,
     """The desired path against each run's actual positions, its contour error over time,
     and square zooms (equal axes) on the corners; one figure for one run or several."""
     from matplotlib.patches import Rectangle
+    from matplotlib.ticker import MaxNLocator
 
     nearest = [nearest_parameter(curve, r.position) for r in runs]
     planar = curve.n_axes >= 2
@@ -199,6 +210,7 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path,
         ax_path.set_xlabel(f"{axis_names[0]} [pulse]")
         ax_path.set_ylabel(f"{axis_names[1]} [pulse]")
         ax_path.set_aspect("equal", adjustable="datalim")
+        ax_path.ticklabel_format(style="sci", scilimits=(-4, 4), useMathText=True)
         ax_path.set_title("contour" + ("" if curve.n_axes == 2 else " (first two axes)"))
     else:
         for r in runs:
@@ -214,7 +226,7 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path,
                     label=f"{r.label} (max {np.max(dist):.4g} pulse)")
     ax_err.set_xlabel("time [s]")
     ax_err.set_ylabel("contour error [pulse]")
-    ax_err.set_title("distance from the actual position to the curve")
+    ax_err.set_title("contour error (distance to the curve)")
     ax_err.legend(fontsize="small")
 
     for j, z in enumerate(zooms):
@@ -231,6 +243,7 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path,
         ax.set_xlabel(f"{axis_names[0]} [pulse]")
         ax.set_ylabel(f"{axis_names[1]} [pulse]")
         ax.ticklabel_format(useOffset=False, style="plain")
+        ax.xaxis.set_major_locator(MaxNLocator(4))
         ax_path.add_patch(Rectangle((cx - h, cy - h), 2 * h, 2 * h, fill=False,
                                     edgecolor="0.4", linewidth=0.8))
         ax_path.annotate(chr(65 + j), (cx + h, cy + h), fontsize="small", color="0.3")
@@ -294,6 +307,7 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None) -
         ax.plot(trace.t, error[:, j], color="C0")
         _mark_end(ax, t_end)
         ax.set_ylabel(f"{names[j]}: θd − θa [pulse]")
+        ax.legend(fontsize="small", loc="upper right")
         ax.set_title(f"{names[j]}: max |e| = {np.max(np.abs(error[:, j])):.4g} pulse",
                      fontsize="medium", loc="left")
     written.append(_save(fig, out / f"{prefix}following_error.png"))
@@ -356,7 +370,9 @@ def plot_setpoints(series, out_dir, axis_names=None, *, units: str | None = None
     fig = _figure(11.0, 4.6)
     ax_path, ax_feed = fig.subplots(1, 2)
     if pos.shape[1] >= 2:
-        ax_path.plot(pos[:, 0], pos[:, 1], color="C0", linewidth=1, marker=".", markersize=2)
+        few = len(pos) <= 500  # sample dots only where they stay apart
+        ax_path.plot(pos[:, 0], pos[:, 1], color="C0", linewidth=1,
+                     marker="." if few else None, markersize=3)
         ax_path.plot(*pos[0, :2], "o", color="C2", label="start")
         ax_path.plot(*pos[-1, :2], "s", color="C3", label="end")
         ax_path.set_xlabel(f"{names[0]} [{unit}]")

@@ -306,6 +306,12 @@ class SetpointSeries:
         return feed_fluctuation(self.position, self.feed, self.sample_period,
                                 self.finished_index)
 
+    def plot(self, out_dir, **kwargs):
+        """Write ``setpoints.png`` (see :func:`nurbsmotion.plots.plot_setpoints`)."""
+        from ..plots import plot_setpoints
+
+        return plot_setpoints(self, out_dir, **kwargs)
+
 
 def feed_fluctuation(position: np.ndarray, feed: np.ndarray, sample_period: float,
                      finished_index: int) -> tuple[float, float]:

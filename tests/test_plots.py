@@ -1,0 +1,98 @@
+"""Figures: each function writes the PNG files it names; importing the library does not
+import matplotlib."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import nurbsmotion as nm
+from nurbsmotion.interpolators import interpolate, make_interpolator, make_open_loop
+from nurbsmotion.loop import simulate, to_pulses
+from nurbsmotion.machine import die_bonder
+from nurbsmotion.plots import plot_comparison, plot_setpoints, plot_trace
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def machine():
+    return die_bonder()
+
+
+@pytest.fixture(scope="module")
+def pi_runs(machine):
+    """The Π move at 1 m/s, paper and taylor2."""
+    path = nm.make_die_bonder_pi()
+    return {name: simulate(make_interpolator(name, path, machine, 1e6), machine)
+            for name in ("taylor2", "paper")}
+
+
+@pytest.fixture(scope="module")
+def butterfly_runs(machine):
+    """The butterfly (no sharp corner) at 0.2 m/s, paper and taylor2."""
+    path = to_pulses(nm.make_butterfly(), machine)
+    return {name: simulate(make_interpolator(name, path, machine, 2e5), machine)
+            for name in ("taylor2", "paper")}
+
+
+def assert_pngs(paths, out_dir, names):
+    assert [p.name for p in paths] == names
+    for p in paths:
+        assert p.parent == out_dir
+        data = p.read_bytes()
+        assert data.startswith(PNG_SIGNATURE) and len(data) > 5000
+
+
+TRACE_FILES = ["contour.png", "following_error.png", "drive.png", "speed.png"]
+
+
+@pytest.mark.parametrize("algorithm", ["paper", "taylor2"])
+def test_plot_trace_pi(pi_runs, tmp_path, algorithm):
+    out = tmp_path / "new" / "folder"  # created if missing
+    paths = plot_trace(pi_runs[algorithm], out, prefix=f"{algorithm}_")
+    assert_pngs(paths, out, [f"{algorithm}_{n}" for n in TRACE_FILES])
+
+
+def test_trace_plot_method_butterfly(butterfly_runs, tmp_path):
+    paths = butterfly_runs["paper"].plot(tmp_path)
+    assert_pngs(paths, tmp_path, TRACE_FILES)
+
+
+def test_plot_setpoints(machine, tmp_path):
+    path = to_pulses(nm.make_butterfly(), machine)
+    series = interpolate(make_open_loop("taylor2", path, machine.sample_period, 2e5))
+    assert_pngs(plot_setpoints(series, tmp_path, units="pulse"), tmp_path, ["setpoints.png"])
+    one_axis = interpolate(make_open_loop("taylor2", nm.make_line([0.0], [1000.0]), 1e-3, 1e4))
+    out = tmp_path / "one"
+    assert_pngs(one_axis.plot(out, axis_names=("x",)), out, ["setpoints.png"])
+
+
+@pytest.mark.parametrize("runs, name", [("pi_runs", "pi_1.0"),
+                                        ("butterfly_runs", "butterfly_0.2")])
+def test_plot_comparison(request, tmp_path, runs, name):
+    traces = request.getfixturevalue(runs)
+    paths = plot_comparison(traces, tmp_path, name)
+    assert_pngs(paths, tmp_path, [f"{name}_contour.png", f"{name}_speed_x.png",
+                                  f"{name}_drive_x.png"])
+
+
+def test_plot_comparison_without_bounds(pi_runs, tmp_path):
+    paths = plot_comparison({"taylor2": pi_runs["taylor2"]}, tmp_path, "pi", feed=1e6)
+    assert_pngs(paths, tmp_path, ["pi_contour.png", "pi_speed_x.png", "pi_drive_x.png"])
+
+
+def test_plot_comparison_needs_a_trace(tmp_path):
+    with pytest.raises(ValueError):
+        plot_comparison({}, tmp_path, "empty")
+
+
+def test_import_does_not_import_matplotlib():
+    code = ("import sys, nurbsmotion, nurbsmotion.loop, nurbsmotion.plots, "
+            "nurbsmotion.interpolators, nurbsmotion.metrics; "
+            "sys.exit(int(any(m.startswith('matplotlib') for m in sys.modules)))")
+    src = str(Path(nm.__file__).resolve().parents[1])  # wherever the tests found it
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([src, os.environ.get("PYTHONPATH", "")])}
+    assert subprocess.run([sys.executable, "-c", code], env=env).returncode == 0
