@@ -143,7 +143,7 @@ def _cmd_run(args) -> int:
                    path=args.path, time_optimal_bound=bound)
     write_json(data, out / "summary.json")
     if not args.no_figures:
-        trace.plot(out)
+        trace.plot(out, feed=feed)
     sat = metrics.total_saturated_samples
     print(f"{args.interpolator} on {machine.name} at {feed:g} pulse/s: cycle time "
           f"{metrics.cycle_time_s:.4g} s ({metrics.cycle_time_s / bound:.3f} x the "

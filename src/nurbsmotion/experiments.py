@@ -80,7 +80,7 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
             if figures:
                 from .plots import plot_comparison
 
-                files += plot_comparison(group, out, f"{name}_{feed_m_s:g}ms")
+                files += plot_comparison(group, out, f"{name}_{feed_m_s:g}ms", feed=feed)
     files.append(write_json(rows, out / "table.json"))
     (out / "table.md").write_text(markdown_table(rows))
     files.append(out / "table.md")
