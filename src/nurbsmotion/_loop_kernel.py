@@ -218,9 +218,8 @@ def _schedule_index(s, plan_s):
 @njit(cache=True)
 def _arc_length(U, Pw, p, u, table_u, table_s, gl_x, gl_w, d3, work):
     """``CurveGeometry.arc_length`` at one parameter: the table's length up to the piece
-    that holds ``u`` plus 10-point Gauss-Legendre from the piece's start. The sums run left
-    to right (the reference's BLAS product may order them otherwise: a last-bit
-    difference)."""
+    that holds ``u`` plus 10-point Gauss-Legendre from the piece's start, summed left to
+    right as the reference sums them."""
     j = np.searchsorted(table_u, u, side="right") - 1
     j = min(max(j, 0), table_u.shape[0] - 2)
     a = table_u[j]
