@@ -38,7 +38,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._kernels import rational_derivatives_into, workspace
+from ._kernels import rational_derivatives_into, rational_point_into, workspace
 
 KIND_CONSTANT = 0
 """Constant commanded feed: the ``taylor1`` / ``taylor2`` interpolators."""
@@ -179,7 +179,7 @@ def _plan_feed(kind, feed, d, thd_prev, wd_prev, tha, wa, plan, bounds_row):
 # ``t**2`` and ``t*t`` round alike).
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _schedule_at(phi, plan_s, plan_u, speed_right, speed_left):
     """``PlannedInterpolator._at``: ``(u, s)`` at the fractional schedule index ``phi``
     (cubic Hermite u(s) between planned samples)."""
@@ -236,14 +236,16 @@ def _arc_length(U, Pw, p, u, table_u, table_s, gl_x, gl_w, d3, work):
     return table_s[j] + half * acc
 
 
-@njit(cache=True)
-def _excess(U, Pw, p, uc, plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa, d3, work):
+@njit(cache=True, inline="always")
+def _excess(U, Pw, p, uc, plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa, scratch):
     """``PlannedInterpolator._excess``: max_j |u_j[k]| - Umax [V] for the setpoint C(uc),
-    predicted with the interpolator's model of the law and the measured state."""
-    _derivatives(U, Pw, p, uc, 0, d3, work)
+    predicted with the interpolator's model of the law and the measured state.
+    ``scratch``: the point (n_axes,) and the basis scratch of ``rational_point_into``."""
+    point, ndu, bl, br = scratch
+    rational_point_into(U, Pw, p, uc, point, ndu, bl, br)
     worst = -np.inf
-    for j in range(d3.shape[2]):
-        th = d3[0, 0, j]
+    for j in range(point.shape[0]):
+        th = point[j]
         wd = (th - thd_prev[j]) / plan[P_KE_TS, j]
         drive = plan[P_KP, j] * (th - tha[j]) + plan[P_KD, j] * (wd - wa[j])
         if ff:
@@ -256,13 +258,62 @@ def _excess(U, Pw, p, uc, plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa, d3, wo
 
 
 @njit(cache=True)
+def _nearest_admissible(U, Pw, p, u_plan, cand, dist, n, plan, ff, Ts, umax,
+                        thd_prev, wd_prev, tha, wa, scratch):
+    """Index of the admissible candidate nearest to ``u_plan`` (the first such index on a
+    tie), or -1: ``argmin(where(ok, |cand - u_plan|, inf))`` of the reference, but the
+    candidates are tried nearest first and the scan stops at the first distance that has
+    an admissible one. The distances fall along ``cand[:33]`` (towards ``u_plan``) and rise
+    along ``cand[33:n]``, so a merge of the two runs visits them in order; should rounding
+    break that order (a step of a few ulps), every candidate is tried, as the reference
+    does."""
+    ordered = True
+    for i in range(n):
+        dist[i] = abs(cand[i] - u_plan)
+        if not math.isfinite(dist[i]):
+            ordered = False
+    for i in range(32):
+        if dist[i] < dist[i + 1]:
+            ordered = False
+    for i in range(33, n - 1):
+        if dist[i] > dist[i + 1]:
+            ordered = False
+    if not ordered:
+        best = -1
+        for i in range(n):
+            if (_excess(U, Pw, p, cand[i], plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
+                        scratch) <= 0.0 and (best < 0 or dist[i] < dist[best])):
+                best = i
+        return best
+    b, a = 32, 33       # the nearest untried candidate of each run
+    while b >= 0 or a < n:
+        d = min(dist[b] if b >= 0 else np.inf, dist[a] if a < n else np.inf)
+        lo = b
+        while lo >= 0 and dist[lo] == d:
+            lo -= 1
+        for i in range(lo + 1, b + 1):      # this distance's candidates, by index
+            if _excess(U, Pw, p, cand[i], plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
+                       scratch) <= 0.0:
+                return i
+        hi = a
+        while hi < n and dist[hi] == d:
+            hi += 1
+        for i in range(a, hi):
+            if _excess(U, Pw, p, cand[i], plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
+                       scratch) <= 0.0:
+                return i
+        b, a = lo, hi
+    return -1
+
+
+@njit(cache=True)
 def _safe_parameter(U, Pw, p, u0, u_plan, u_cap, ahead, plan, ff, Ts, umax,
-                    thd_prev, wd_prev, tha, wa, d3, work, cand):
+                    thd_prev, wd_prev, tha, wa, scratch, cand, dist):
     """``PlannedInterpolator._safe_parameter``: the admissible parameter in [u0, u_cap]
     nearest to ``u_plan`` (33 candidates back, the look-ahead ones, 40 bisections).
     Returns ``(u, shortened_or_lengthened)``."""
     if _excess(U, Pw, p, u_plan, plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
-               d3, work) <= 0.0:
+               scratch) <= 0.0:
         return u_plan, False
     step = max(u_plan - u0, 1e-12)
     delta = u_plan - u0            # np.linspace(u0, u_plan, 33)
@@ -281,15 +332,8 @@ def _safe_parameter(U, Pw, p, u0, u_plan, u_cap, ahead, plan, ff, Ts, umax,
         if x > u_plan:
             cand[n] = x
             n += 1
-    best = -1
-    dist = np.inf
-    for i in range(n):
-        if _excess(U, Pw, p, cand[i], plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
-                   d3, work) <= 0.0:
-            di = abs(cand[i] - u_plan)
-            if best < 0 or di < dist:
-                best = i
-                dist = di
+    best = _nearest_admissible(U, Pw, p, u_plan, cand, dist, n, plan, ff, Ts, umax,
+                               thd_prev, wd_prev, tha, wa, scratch)
     if best < 0:
         return u_plan, False       # cornered: no step helps; keep to the plan
     good = cand[best]
@@ -297,16 +341,16 @@ def _safe_parameter(U, Pw, p, u0, u_plan, u_cap, ahead, plan, ff, Ts, umax,
     for _ in range(40):
         mid = 0.5 * (good + bad)
         if _excess(U, Pw, p, mid, plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
-                   d3, work) <= 0.0:
+                   scratch) <= 0.0:
             good = mid
         else:
             bad = mid
     return good, True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _planned_step(U, Pw, p, u, sc, tables, plan, thd_prev, wd_prev, tha, wa, bounds_row,
-                  d3, work, cand):
+                  d3, work, scratch, cand, dist):
     """``PlannedInterpolator.step`` from ``u`` < 1: ``(u_new, feed, has_bounds)``; the
     schedule index, arc length and slow-down count advance in ``sc``."""
     plan_s = tables[T_PLAN_S]
@@ -332,8 +376,8 @@ def _planned_step(U, Pw, p, u, sc, tables, plan, thd_prev, wd_prev, tha, wa, bou
                 break
         u_cap = max(u_cap, u_plan)
         safe, moved = _safe_parameter(U, Pw, p, u, u_plan, u_cap, tables[T_AHEAD], plan,
-                                      ff, Ts, umax, thd_prev, wd_prev, tha, wa, d3, work,
-                                      cand)
+                                      ff, Ts, umax, thd_prev, wd_prev, tha, wa, scratch,
+                                      cand, dist)
         if moved:
             sc[S_SLOWDOWNS] += 1.0
         u_new = max(safe, u)
@@ -371,6 +415,9 @@ def run_loop(U, Pw, p, breaks, kind, order, feed, plan, tables, start, end,
     wa = np.empty(dim)
     bounds_row = np.empty((dim, 2))
     cand = np.empty(33 + tables[T_AHEAD].shape[0])
+    dist = np.empty_like(cand)
+    scratch = (np.empty(dim), np.empty((p + 1, p + 1)), np.empty(p + 1), np.empty(p + 1))
+    ndu, bl, br = scratch[1], scratch[2], scratch[3]
     k = int(sc[S_K])
     u = sc[S_U]
     finished = int(sc[S_FINISHED])
@@ -401,7 +448,8 @@ def run_loop(U, Pw, p, breaks, kind, order, feed, plan, tables, start, end,
                 # never backwards; a hold (u_new == u) is a valid step of this stepper
                 u_new, V, has_bounds = _planned_step(U, Pw, p, u, sc, tables, plan,
                                                      thd_prev, wd_prev, tha, wa,
-                                                     bounds_row, d3, work, cand)
+                                                     bounds_row, d3, work, scratch,
+                                                     cand, dist)
             else:
                 _derivatives(U, Pw, p, u, order, d3, work)
                 V, A = _plan_feed(kind, feed, d, thd_prev, wd_prev, tha, wa, plan,
@@ -422,9 +470,7 @@ def run_loop(U, Pw, p, breaks, kind, order, feed, plan, tables, start, end,
                     thd[j] = end[j]
             else:
                 u = u_new
-                _derivatives(U, Pw, p, u, 0, d3, work)
-                for j in range(dim):
-                    thd[j] = d[0, j]
+                rational_point_into(U, Pw, p, u, thd, ndu, bl, br)
             if u >= 1.0 and finished < 0:
                 finished = k
         r_u[k] = u if k > 0 else 0.0

@@ -174,8 +174,10 @@ def simulate(
         else:
             max_samples = int(20 * duration / Ts + 10 / Ts) + 10
     n_settle = int(round(settle_time / Ts))
-    if compiled and _compiled_feed(interpolator) is not None:
-        return _simulate_compiled(interpolator, machine, plant, start, n_settle, max_samples)
+    compiled_feed = _compiled_feed(interpolator) if compiled else None
+    if compiled_feed is not None:
+        return _simulate_compiled(interpolator, compiled_feed, machine, plant, start,
+                                  n_settle, max_samples)
     law = ControlLaw(machine)
     encoder = machine.speed_measurement == "encoder"
     Ke_Ts = machine.Ke * Ts
@@ -268,6 +270,7 @@ def _planned_tables(interpolator: PlannedInterpolator):
     interpolator's model of the law per axis, its schedule and the arc-length table."""
     from . import _loop_kernel as kern
     from .geometry import _GL_W, _GL_X
+    from .interpolators.planned import _AHEAD_FACTORS
 
     law, m = interpolator.law, interpolator.machine
     n = m.n_axes
@@ -287,17 +290,19 @@ def _planned_tables(interpolator: PlannedInterpolator):
     tables[kern.T_TABLE_S] = geometry._s
     tables[kern.T_GL_X] = _GL_X
     tables[kern.T_GL_W] = _GL_W
-    tables[kern.T_AHEAD] = np.geomspace(0.05, 16.0, 24)  # as _safe_parameter
+    tables[kern.T_AHEAD] = _AHEAD_FACTORS
     tables[kern.T_SCALARS] = np.array([m.max_drive, 1.0 if law.feedforward else 0.0,
                                        interpolator.sample_period, 1.0 if safety else 0.0])
     return plan, tuple(np.ascontiguousarray(t, dtype=float) for t in tables)
 
 
-def _simulate_compiled(interpolator, machine, plant, start, n_settle, max_samples) -> Trace:
-    """:func:`simulate` through the compiled loop; the same trace as the reference."""
+def _simulate_compiled(interpolator, compiled_feed, machine, plant, start, n_settle,
+                       max_samples) -> Trace:
+    """:func:`simulate` through the compiled loop (``compiled_feed`` from
+    :func:`_compiled_feed`); the same trace as the reference."""
     from . import _loop_kernel as kern
 
-    kind, feed, plan, tables = _compiled_feed(interpolator)
+    kind, feed, plan, tables = compiled_feed
     curve = interpolator.curve
     n_axes = curve.n_axes
     Ts = machine.sample_period
