@@ -65,8 +65,10 @@ def throughput(repeats: int, reference_repeats: int) -> str:
          "reference [samples/s]", "compiled / reference", "faster than real time",
          "same trace (1e-12)"], rows,
         f"Medians of {repeats} (compiled) and {reference_repeats} (reference) runs "
-        "of `simulate()`, after one warm-up run. Short runs (the Pi at 2 m/s is 145 "
-        "samples) are dominated by the per-call set-up, not by the per-sample cost.")
+        "of `simulate()`, after one warm-up run. A `planned` sample where the safety "
+        "layer changes the step costs some 45 drive predictions (the nearest admissible "
+        "candidate, then 40 bisections, as the reference does them) and an arc length: "
+        "the Pi at 1 and 2 m/s changes 14 and 33 of its 178 and 145 samples.")
 
 
 def planning_time(repeats: int) -> str:

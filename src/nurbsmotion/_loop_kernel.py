@@ -216,22 +216,27 @@ def _schedule_index(s, plan_s):
 
 
 @njit(cache=True)
-def _arc_length(U, Pw, p, u, table_u, table_s, gl_x, gl_w, d3, work):
+def _arc_length(U, Pw, p, u, table_u, table_s, gl_x, gl_w, work):
     """``CurveGeometry.arc_length`` at one parameter: the table's length up to the piece
     that holds ``u`` plus 10-point Gauss-Legendre from the piece's start, summed left to
-    right as the reference sums them."""
+    right as the reference sums them. The nodes go through the batch kernel in one call
+    (a call per node costs more than its evaluation)."""
     j = np.searchsorted(table_u, u, side="right") - 1
     j = min(max(j, 0), table_u.shape[0] - 2)
     a = table_u[j]
     half = 0.5 * (u - a)
     mid = 0.5 * (u + a)
-    dim = d3.shape[2]
-    acc = 0.0
+    nodes = np.empty(gl_x.shape[0])
     for i in range(gl_x.shape[0]):
-        _derivatives(U, Pw, p, mid + half * gl_x[i], 1, d3, work)
+        nodes[i] = mid + half * gl_x[i]
+    dim = Pw.shape[1] - 1
+    d = np.empty((2, nodes.shape[0], dim))
+    rational_derivatives_into(U, Pw, p, nodes, 1, False, d, work)
+    acc = 0.0
+    for i in range(nodes.shape[0]):
         n2 = 0.0
         for c in range(dim):
-            n2 += d3[1, 0, c] * d3[1, 0, c]
+            n2 += d[1, i, c] * d[1, i, c]
         acc += math.sqrt(n2) * gl_w[i]
     return table_s[j] + half * acc
 
@@ -350,7 +355,7 @@ def _safe_parameter(U, Pw, p, u0, u_plan, u_cap, ahead, plan, ff, Ts, umax,
 
 @njit(cache=True, inline="always")
 def _planned_step(U, Pw, p, u, sc, tables, plan, thd_prev, wd_prev, tha, wa, bounds_row,
-                  d3, work, scratch, cand, dist):
+                  work, scratch, cand, dist):
     """``PlannedInterpolator.step`` from ``u`` < 1: ``(u_new, feed, has_bounds)``; the
     schedule index, arc length and slow-down count advance in ``sc``."""
     plan_s = tables[T_PLAN_S]
@@ -363,7 +368,7 @@ def _planned_step(U, Pw, p, u, sc, tables, plan, thd_prev, wd_prev, tha, wa, bou
                                  tables[T_SPEED_LEFT])
     u_new = u_plan
     if safety:
-        for j in range(d3.shape[2]):   # eq. 3.6, as ControlLaw.speed_bounds
+        for j in range(tha.shape[0]):   # eq. 3.6, as ControlLaw.speed_bounds
             v = (plan[P_KP, j] * (thd_prev[j] - tha[j]) - plan[P_KD, j] * wa[j]
                  - plan[P_KA, j] * wd_prev[j])
             bounds_row[j, 0] = (-umax - v) / plan[P_KSIG, j]
@@ -383,7 +388,7 @@ def _planned_step(U, Pw, p, u, sc, tables, plan, thd_prev, wd_prev, tha, wa, bou
         u_new = max(safe, u)
     if u_new != u_plan:
         s_new = _arc_length(U, Pw, p, u_new, tables[T_TABLE_U], tables[T_TABLE_S],
-                            tables[T_GL_X], tables[T_GL_W], d3, work)
+                            tables[T_GL_X], tables[T_GL_W], work)
         phi = _schedule_index(s_new, plan_s)
         phi = min(max(phi, phi_prev), float(last))
     sc[S_PHI] = phi
@@ -448,7 +453,7 @@ def run_loop(U, Pw, p, breaks, kind, order, feed, plan, tables, start, end,
                 # never backwards; a hold (u_new == u) is a valid step of this stepper
                 u_new, V, has_bounds = _planned_step(U, Pw, p, u, sc, tables, plan,
                                                      thd_prev, wd_prev, tha, wa,
-                                                     bounds_row, d3, work, scratch,
+                                                     bounds_row, work, scratch,
                                                      cand, dist)
             else:
                 _derivatives(U, Pw, p, u, order, d3, work)
