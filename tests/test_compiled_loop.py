@@ -2,15 +2,16 @@
 the same trace to 1e-12 relative on the benchmarks and on random curves of any degree and
 axis count."""
 
+import copy
 import math
 
 import numpy as np
 import pytest
 
 import nurbsmotion as nm
-from nurbsmotion.interpolators import (PaperInterpolator, TaylorInterpolator,
-                                       make_interpolator)
-from nurbsmotion.loop import simulate, to_pulses
+from nurbsmotion.interpolators import (PaperInterpolator, PlannedInterpolator,
+                                       TaylorInterpolator, make_interpolator)
+from nurbsmotion.loop import _compiled_feed, simulate, to_pulses
 from nurbsmotion.machine import Axis, Machine, die_bonder
 from nurbsmotion.servo import ServoPlant
 from random_curves import N_CASES, random_curve
@@ -110,3 +111,76 @@ def test_a_feed_function_runs_in_the_reference_loop():
     path = nm.make_die_bonder_pi()
     tr = simulate(TaylorInterpolator(path, m.sample_period, lambda u: 2e5 + 1e5 * u), m)
     assert tr.u[tr.finished_index] == 1.0
+
+
+def same_planned_runs(interp, machine, plant=None, **options):
+    """Both loops on one planned interpolator (each with its own copy of ``plant``): the
+    traces, the plants' final states and the stepper's state after the run agree."""
+    plants = [None, None] if plant is None else [copy.deepcopy(plant) for _ in range(2)]
+    runs = []
+    for compiled, pl in zip((True, False), plants):
+        trace = simulate(interp, machine, plant=pl, compiled=compiled, **options)
+        runs.append((trace, interp.u, interp._phi, interp._s, interp.slowdowns, pl))
+    (a, *state_a, pa), (b, *state_b, pb) = runs
+    assert_same_trace(a, b)
+    assert state_a == state_b
+    if pa is not None:
+        np.testing.assert_allclose(pa.position, pb.position, rtol=RTOL)
+    return a, b
+
+
+def saturated(trace):
+    return int(np.sum(np.max(np.abs(trace.drive), axis=1) > trace.machine.max_drive))
+
+
+@pytest.mark.parametrize("name, feeds", [("die-bonder-pi", (2e5, 5e5, 1e6, 2e6)),
+                                         ("butterfly", (5e4, 1e5, 2e5))])
+def test_planned_runs_the_same_in_both_loops(name, feeds):
+    """The benchmarks, with the model's plant and with tau 20 % larger and Kc 20 % smaller
+    (where the safety layer shortens and lengthens steps most)."""
+    m = die_bonder()
+    path = to_pulses(nm.builtin_path(name), m)
+    start = path(0.0)
+    for feed in feeds:
+        interp = PlannedInterpolator(path, m, feed)
+        for plant in (None, ServoPlant.of_machine(m, start, time_constant_scale=1.2,
+                                                  electrical_gain_scale=0.8)):
+            a, b = same_planned_runs(interp, m, plant)
+            assert saturated(a) == saturated(b)
+
+
+def test_planned_on_random_curves_and_machines_runs_the_same_in_both_loops():
+    rng = np.random.default_rng(11)
+    ran = 0
+    for _ in range(max(N_CASES // 2, 1)):
+        curve = random_curve(rng, scale=3000.0)
+        m = random_machine(rng, curve.n_axes)
+        feed = float(rng.uniform(5e4, 1e6))
+        try:
+            interp = PlannedInterpolator(curve, m, feed, grid_size=1000, check_iterations=3)
+        except nm.InfeasibleError:
+            continue
+        plant = ServoPlant.of_machine(m, curve(0.0), time_constant_scale=1.2,
+                                      electrical_gain_scale=0.8)
+        same_planned_runs(interp, m, plant, settle_time=0.01)
+        ran += 1
+    assert ran >= max(N_CASES // 4, 1)
+
+
+def test_planned_without_safety_layer_runs_the_same_in_both_loops():
+    """No speed bounds are recorded then, as in the reference."""
+    m = die_bonder()
+    interp = PlannedInterpolator(nm.make_die_bonder_pi(), m, 1e6, safety_layer=False)
+    a, b = same_planned_runs(interp, m)
+    assert a.speed_bounds is None
+
+
+def test_planned_subclasses_run_in_the_reference_loop():
+    """A subclass may override the step, so only the exact class is compiled."""
+    class Slower(PlannedInterpolator):
+        pass
+
+    m = die_bonder()
+    path = nm.make_die_bonder_pi()
+    assert _compiled_feed(PlannedInterpolator(path, m, 5e5, check_iterations=0)) is not None
+    assert _compiled_feed(Slower(path, m, 5e5, check_iterations=0)) is None

@@ -64,6 +64,24 @@ def test_derivatives_above_the_degree_are_zero_for_a_polyline():
     assert np.all(d[2] == 0.0) and np.all(d[3] == 0.0)
 
 
+def test_one_point_evaluation_gives_the_same_bits_as_the_batch():
+    """rational_point_into (the compiled loop's setpoints) against the batch kernel, which
+    the reference loop evaluates through: bit for bit, knots and corners included."""
+    from nurbsmotion._kernels import rational_point_into
+
+    rng = np.random.default_rng(3)
+    for _ in range(N_CASES):
+        curve = random_curve(rng)
+        p = curve.degree
+        us = np.concatenate([rng.uniform(0, 1, 50), curve.breakpoints])
+        batch = curve(us)
+        out = np.empty(curve.n_axes)
+        scratch = (np.empty((p + 1, p + 1)), np.empty(p + 1), np.empty(p + 1))
+        for u, expected in zip(us, batch):
+            rational_point_into(curve.knots, curve._homogeneous, p, float(u), out, *scratch)
+            np.testing.assert_array_equal(out, expected)
+
+
 def test_importing_the_package_compiles_nothing_and_loads_no_plotting():
     """numba loads with the first evaluation, matplotlib only with the first figure."""
     import subprocess

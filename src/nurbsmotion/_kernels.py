@@ -25,8 +25,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["find_span", "workspace", "basis_derivatives", "rational_derivatives_into",
-           "rational_derivatives"]
+__all__ = ["find_span", "workspace", "basis_table", "basis_derivatives",
+           "rational_derivatives_into", "rational_point_into", "rational_derivatives"]
 
 
 @njit(cache=True)
@@ -68,14 +68,10 @@ def workspace(p: int, max_order: int, dim: int):
 
 
 @njit(cache=True)
-def basis_derivatives(span: int, u: float, p: int, n_der: int, U, ders, ndu, left, right,
-                      a) -> None:
-    """Non-zero basis functions and their derivatives up to ``n_der`` (A2.3).
-
-    Writes ``ders[k, j]`` for ``k = 0 .. n_der``, ``j = 0 .. p``; orders above ``p`` are 0.
-    ``ders`` must have shape at least ``(n_der + 1, p + 1)``; ``ndu`` (p+1, p+1), ``left``
-    and ``right`` (p+1,) and ``a`` (2, p+1) are scratch (see :func:`workspace`).
-    """
+def basis_table(span: int, u: float, p: int, U, ndu, left, right) -> None:
+    """The table ``ndu`` of A2.2 / A2.3: the non-zero basis functions ``N_{span-p+j,p}(u)``
+    in ``ndu[j, p]`` (upper triangle: the lower degrees) and the knot differences the
+    derivatives need (lower triangle); ``left`` and ``right`` (p+1,) are scratch."""
     ndu[0, 0] = 1.0
     for j in range(1, p + 1):
         left[j] = u - U[span + 1 - j]
@@ -87,6 +83,18 @@ def basis_derivatives(span: int, u: float, p: int, n_der: int, U, ders, ndu, lef
             ndu[r, j] = saved + right[r + 1] * temp      # upper triangle: basis functions
             saved = left[j - r] * temp
         ndu[j, j] = saved
+
+
+@njit(cache=True)
+def basis_derivatives(span: int, u: float, p: int, n_der: int, U, ders, ndu, left, right,
+                      a) -> None:
+    """Non-zero basis functions and their derivatives up to ``n_der`` (A2.3).
+
+    Writes ``ders[k, j]`` for ``k = 0 .. n_der``, ``j = 0 .. p``; orders above ``p`` are 0.
+    ``ders`` must have shape at least ``(n_der + 1, p + 1)``; ``ndu`` (p+1, p+1), ``left``
+    and ``right`` (p+1,) and ``a`` (2, p+1) are scratch (see :func:`workspace`).
+    """
+    basis_table(span, u, p, U, ndu, left, right)
     for j in range(p + 1):
         ders[0, j] = ndu[j, p]
     nd = min(n_der, p)
@@ -167,6 +175,27 @@ def rational_derivatives_into(U, Pw, p: int, us, max_order: int, left: bool, out
                 for m in range(1, k + 1):
                     v -= _BINOMIAL[k, m] * hom[m, dim] * out[k - m, i, c]
                 out[k, i, c] = v / w0
+
+
+@njit(cache=True)
+def rational_point_into(U, Pw, p: int, u: float, out, ndu, left, right) -> None:
+    """``C(u)`` (right-sided) into ``out``, shape (n_axes,): the ``max_order=0`` case of
+    :func:`rational_derivatives_into` with the same operations in the same order (so the
+    same bits), for callers that evaluate one point at a time; the scratch ``ndu``
+    (p+1, p+1), ``left`` and ``right`` (p+1,) is passed as plain arrays (a tuple of
+    scratch arrays passed down per point costs more than the evaluation itself)."""
+    n = Pw.shape[0]
+    dim = Pw.shape[1] - 1
+    span = find_span(n, p, U, u, False)
+    basis_table(span, u, p, U, ndu, left, right)
+    w0 = 0.0
+    for j in range(p + 1):
+        w0 += ndu[j, p] * Pw[span - p + j, dim]
+    for c in range(dim):
+        acc = 0.0
+        for j in range(p + 1):
+            acc += ndu[j, p] * Pw[span - p + j, c]
+        out[c] = acc / w0
 
 
 @njit(cache=True)

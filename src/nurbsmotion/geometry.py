@@ -33,11 +33,19 @@ def _speed(curve, u: np.ndarray) -> np.ndarray:
 
 
 def _gauss(curve, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Integral of |C'(u)| over [a, b] (elementwise arrays) by 10-point Gauss-Legendre."""
+    """Integral of |C'(u)| over [a, b] (elementwise arrays) by 10-point Gauss-Legendre.
+
+    The weighted sum runs over the nodes left to right, not through a BLAS product (which
+    may order or fuse it otherwise, depending on the CPU), so that the compiled loop
+    (:func:`nurbsmotion._loop_kernel._arc_length`) reproduces ``s(u)`` bit for bit."""
     half = 0.5 * (b - a)
     mid = 0.5 * (b + a)
     nodes = mid[:, None] + half[:, None] * _GL_X[None, :]
-    return half * (_speed(curve, nodes.ravel()).reshape(nodes.shape) @ _GL_W)
+    speed = _speed(curve, nodes.ravel()).reshape(nodes.shape)
+    total = np.zeros(len(half))
+    for i, w in enumerate(_GL_W):
+        total += speed[:, i] * w
+    return half * total
 
 
 def _reverses(curve, a: np.ndarray, b: np.ndarray) -> np.ndarray:

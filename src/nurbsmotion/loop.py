@@ -22,8 +22,9 @@ import numpy as np
 
 from .control import ControlLaw
 from .errors import InfeasibleError
-from .interpolators import (Interpolator, LoopState, PaperInterpolator, Status,
-                            TaylorInterpolator, make_interpolator)
+from .interpolators import (Interpolator, LoopState, PaperInterpolator,
+                            PlannedInterpolator, Status, TaylorInterpolator,
+                            make_interpolator)
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .servo import ServoPlant
@@ -138,7 +139,8 @@ def simulate(
         axis's full-drive speed plus ten seconds).
     compiled : bool
         Run the compiled loop (:mod:`nurbsmotion._loop_kernel`) where the interpolator
-        has one: ``taylor1`` / ``taylor2`` at a constant feed and ``paper``. It gives the
+        has one: ``taylor1`` / ``taylor2`` at a constant feed, ``paper`` and ``planned``.
+        It gives the
         same trace as the readable reference loop, which ``compiled=False`` (and any other
         interpolator) runs.
 
@@ -172,8 +174,10 @@ def simulate(
         else:
             max_samples = int(20 * duration / Ts + 10 / Ts) + 10
     n_settle = int(round(settle_time / Ts))
-    if compiled and _compiled_feed(interpolator) is not None:
-        return _simulate_compiled(interpolator, machine, plant, start, n_settle, max_samples)
+    compiled_feed = _compiled_feed(interpolator) if compiled else None
+    if compiled_feed is not None:
+        return _simulate_compiled(interpolator, compiled_feed, machine, plant, start,
+                                  n_settle, max_samples)
     law = ControlLaw(machine)
     encoder = machine.speed_measurement == "encoder"
     Ke_Ts = machine.Ke * Ts
@@ -239,49 +243,91 @@ def simulate(
 
 
 def _compiled_feed(interpolator: Interpolator):
-    """``(kind, feed, plan)`` of the compiled loop for this interpolator, or ``None``
-    (see :mod:`nurbsmotion._loop_kernel`; a new kind of feed planner registers here).
+    """``(kind, feed, plan, tables)`` of the compiled loop for this interpolator, or
+    ``None`` (see :mod:`nurbsmotion._loop_kernel`; a new kind of feed planner registers
+    here).
 
     Only the exact classes qualify: a subclass may override the step.
     """
-    from ._loop_kernel import KIND_CONSTANT, KIND_PAPER
+    from . import _loop_kernel as kern
 
+    no_tables = tuple(np.empty(0) for _ in range(kern.N_TABLES))
     if type(interpolator) is TaylorInterpolator and interpolator._constant_feed is not None:
-        return KIND_CONSTANT, interpolator._constant_feed, np.empty((0, 0))
+        return kern.KIND_CONSTANT, interpolator._constant_feed, np.empty((0, 0)), no_tables
     if type(interpolator) is PaperInterpolator:
         law = interpolator.law
         m = interpolator.machine
         rows = np.array([m.Kp, m.Kd, law._ka * np.ones(m.n_axes), law.drive_per_speed, m.Ke,
                          np.full(m.n_axes, m.max_drive)], dtype=float)
-        return KIND_PAPER, interpolator.feed, rows
+        return kern.KIND_PAPER, interpolator.feed, rows, no_tables
+    if type(interpolator) is PlannedInterpolator:
+        return kern.KIND_PLANNED, interpolator.feed, *_planned_tables(interpolator)
     return None
 
 
-def _simulate_compiled(interpolator, machine, plant, start, n_settle, max_samples) -> Trace:
-    """:func:`simulate` through the compiled loop; the same trace as the reference."""
+def _planned_tables(interpolator: PlannedInterpolator):
+    """``plan`` and ``tables`` of :data:`nurbsmotion._loop_kernel.KIND_PLANNED`: the
+    interpolator's model of the law per axis, its schedule and the arc-length table."""
+    from . import _loop_kernel as kern
+    from .geometry import _GL_W, _GL_X
+    from .interpolators.planned import _AHEAD_FACTORS
+
+    law, m = interpolator.law, interpolator.machine
+    n = m.n_axes
+    plan = np.empty((7, n))
+    plan[kern.P_KP], plan[kern.P_KD], plan[kern.P_KE_TS] = m.Kp, m.Kd, law._Ke_Ts
+    plan[kern.P_KC], plan[kern.P_TAU], plan[kern.P_KA] = m.Kc, m.tau, law._ka
+    plan[kern.P_KSIG] = law.drive_per_speed
+    geometry = interpolator.curve.geometry
+    safety = interpolator.safety_layer and math.isfinite(m.max_drive)
+    tables = [None] * kern.N_TABLES
+    tables[kern.T_PLAN_S] = interpolator.plan_s
+    tables[kern.T_PLAN_U] = interpolator.plan_u
+    tables[kern.T_SPEED_RIGHT] = interpolator._speed_right
+    tables[kern.T_SPEED_LEFT] = interpolator._speed_left
+    tables[kern.T_CAPS] = interpolator._caps
+    tables[kern.T_TABLE_U] = geometry._u
+    tables[kern.T_TABLE_S] = geometry._s
+    tables[kern.T_GL_X] = _GL_X
+    tables[kern.T_GL_W] = _GL_W
+    tables[kern.T_AHEAD] = _AHEAD_FACTORS
+    tables[kern.T_SCALARS] = np.array([m.max_drive, 1.0 if law.feedforward else 0.0,
+                                       interpolator.sample_period, 1.0 if safety else 0.0])
+    return plan, tuple(np.ascontiguousarray(t, dtype=float) for t in tables)
+
+
+def _simulate_compiled(interpolator, compiled_feed, machine, plant, start, n_settle,
+                       max_samples) -> Trace:
+    """:func:`simulate` through the compiled loop (``compiled_feed`` from
+    :func:`_compiled_feed`); the same trace as the reference."""
     from . import _loop_kernel as kern
 
-    kind, feed, plan = _compiled_feed(interpolator)
+    kind, feed, plan, tables = compiled_feed
     curve = interpolator.curve
     n_axes = curve.n_axes
     Ts = machine.sample_period
     interpolator.reset()
     # A first guess of the rows (capped, should a tiny feed promise an endless run); the
     # kernel stops when they are full and is resumed on grown rows.
-    guess = min(1.2 * curve.length / (feed * Ts) + n_settle + 64, 1 << 22)
+    duration = interpolator.nominal_duration()
+    if duration is None:
+        duration = curve.length / feed
+    guess = min(1.2 * duration / Ts + n_settle + 64, 1 << 22)
     capacity = max(1, int(min(max_samples, guess)))
-    record_bounds = kind == kern.KIND_PAPER
+    record_bounds = (kind == kern.KIND_PAPER
+                     or (kind == kern.KIND_PLANNED and tables[kern.T_SCALARS][3] != 0.0))
     rows = {
         "u": np.empty(capacity), "feed": np.empty(capacity),
         **{name: np.empty((capacity, n_axes))
            for name in ("thd", "tha", "wd", "wa", "drive", "applied")},
         "bounds": np.empty((capacity if record_bounds else 0, n_axes, 2)),
     }
-    sc = np.array([0.0, 0.0, -1.0, 0.0, 0.0])
+    sc = np.zeros(kern.N_STATE)
+    sc[kern.S_FINISHED] = -1.0
     ax = np.vstack([start, np.zeros(n_axes), plant.position, plant.speed, plant.position])
     Ad, Bd = np.ascontiguousarray(plant._Ad), np.ascontiguousarray(plant._Bd)
     fixed = (curve.knots, curve._homogeneous, curve.degree, interpolator._breaks, kind,
-             interpolator.order, float(feed), plan, start, interpolator._end,
+             interpolator.order, float(feed), plan, tables, start, interpolator._end,
              machine.Kp, machine.Kd, machine.Kc, machine.tau, machine.Ke * Ts, Ts,
              machine.controller == "pd+", float(plant.max_drive), Ad, Bd,
              machine.speed_measurement == "encoder", n_settle, int(max_samples))
@@ -295,6 +341,9 @@ def _simulate_compiled(interpolator, machine, plant, start, n_settle, max_sample
                 arr.resize((capacity,) + arr.shape[1:], refcheck=False)
     k, u = int(sc[kern.S_K]), float(sc[kern.S_U])
     interpolator.u = u
+    if kind == kern.KIND_PLANNED:
+        interpolator._phi, interpolator._s = float(sc[kern.S_PHI]), float(sc[kern.S_S])
+        interpolator.slowdowns = int(sc[kern.S_SLOWDOWNS])
     if code == kern.CANNOT_ADVANCE:
         raise InfeasibleError(
             f"{interpolator.name} interpolator cannot advance from u = {u:.9g} "

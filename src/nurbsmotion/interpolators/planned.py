@@ -91,6 +91,9 @@ DEFAULT_SMOOTHING_TIME = 0.002
 # Umax, says little about how much earlier the braking must start).
 _EASE_BEFORE, _EASE_AFTER, _EASE_FACTOR = 12, 2, 0.85
 _OVERSAMPLE = 8  # fine time steps per sample when smoothing the profile
+# Safety layer: the look-ahead candidates of a lengthened step, as multiples of the planned
+# step (the compiled loop reads the same array).
+_AHEAD_FACTORS = np.geomspace(0.05, 16.0, 24)
 
 
 def _smooth(s: np.ndarray, start: float, end: float, width: int, passes: int) -> np.ndarray:
@@ -347,7 +350,7 @@ class PlannedInterpolator(Interpolator):
         u0 = self.u
         step = max(u_plan - u0, 1e-12)
         back = np.linspace(u0, u_plan, 33)
-        ahead = np.minimum(u_plan + step * np.geomspace(0.05, 16.0, 24), u_cap)
+        ahead = np.minimum(u_plan + step * _AHEAD_FACTORS, u_cap)
         cand = np.concatenate([back, ahead[ahead > u_plan]])
         ok = self._excess(cand, state) <= 0.0
         if not np.any(ok):
