@@ -60,7 +60,8 @@ N_STATE = 8
 # caps of a lengthened step (sharp corners and 1); the arc-length table (piece starts and
 # cumulative lengths) and the 10-point Gauss-Legendre rule of
 # :class:`nurbsmotion.geometry.CurveGeometry`; the factors of the look-ahead candidates;
-# and the scalars (Umax, 1 for PD+, Ts, 1 when the safety layer is on).
+# and the scalars (Umax, 1 for PD+, Ts, 1 when the safety layer is on, the safety layer's
+# number of bisections).
 (T_PLAN_S, T_PLAN_U, T_SPEED_RIGHT, T_SPEED_LEFT, T_CAPS, T_TABLE_U, T_TABLE_S, T_GL_X,
  T_GL_W, T_AHEAD, T_SCALARS) = range(11)
 N_TABLES = 11
@@ -216,21 +217,20 @@ def _schedule_index(s, plan_s):
 
 
 @njit(cache=True)
-def _arc_length(U, Pw, p, u, table_u, table_s, gl_x, gl_w, work):
+def _arc_length(U, Pw, p, u, table_u, table_s, gl_x, gl_w, work, nodes, d):
     """``CurveGeometry.arc_length`` at one parameter: the table's length up to the piece
     that holds ``u`` plus 10-point Gauss-Legendre from the piece's start, summed left to
     right as the reference sums them. The nodes go through the batch kernel in one call
-    (a call per node costs more than its evaluation)."""
+    (a call per node costs more than its evaluation); ``nodes`` (n_gauss,) and ``d``
+    (2, n_gauss, n_axes) are scratch."""
     j = np.searchsorted(table_u, u, side="right") - 1
     j = min(max(j, 0), table_u.shape[0] - 2)
     a = table_u[j]
     half = 0.5 * (u - a)
     mid = 0.5 * (u + a)
-    nodes = np.empty(gl_x.shape[0])
     for i in range(gl_x.shape[0]):
         nodes[i] = mid + half * gl_x[i]
     dim = Pw.shape[1] - 1
-    d = np.empty((2, nodes.shape[0], dim))
     rational_derivatives_into(U, Pw, p, nodes, 1, False, d, work)
     acc = 0.0
     for i in range(nodes.shape[0]):
@@ -242,13 +242,18 @@ def _arc_length(U, Pw, p, u, table_u, table_s, gl_x, gl_w, work):
 
 
 @njit(cache=True, inline="always")
-def _excess(U, Pw, p, uc, plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa, scratch):
-    """``PlannedInterpolator._excess``: max_j |u_j[k]| - Umax [V] for the setpoint C(uc),
-    predicted with the interpolator's model of the law and the measured state.
-    ``scratch``: the point (n_axes,) and the basis scratch of ``rational_point_into``."""
+def _admissible(U, Pw, p, uc, plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa, scratch):
+    """``PlannedInterpolator._excess(uc) <= 0``: the setpoint C(uc) keeps every predicted
+    drive within Umax (the interpolator's model of the law and the measured state).
+    ``scratch``: the point (n_axes,) and the basis scratch of ``rational_point_into``.
+
+    Each drive is the reference's expression; ``max_j |u_j| - Umax <= 0`` is tested as
+    ``|u_j| <= Umax`` for every j, stopping at the first axis that fails: the same answer
+    for a finite Umax (a difference of finite doubles is <= 0 exactly when the first is <=
+    the second; an infinite drive fails both ways, a NaN drive fails both ways), and the
+    safety layer only runs with a finite Umax."""
     point, ndu, bl, br = scratch
     rational_point_into(U, Pw, p, uc, point, ndu, bl, br)
-    worst = -np.inf
     for j in range(point.shape[0]):
         th = point[j]
         wd = (th - thd_prev[j]) / plan[P_KE_TS, j]
@@ -256,13 +261,12 @@ def _excess(U, Pw, p, uc, plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa, scratc
         if ff:
             ad = (wd - wd_prev[j]) / Ts
             drive = drive + wd / plan[P_KC, j] + plan[P_TAU, j] * ad / plan[P_KC, j]
-        a = abs(drive)
-        if a > worst or math.isnan(a):
-            worst = a
-    return worst - umax
+        if not abs(drive) <= umax:
+            return False
+    return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _nearest_admissible(U, Pw, p, u_plan, cand, dist, n, plan, ff, Ts, umax,
                         thd_prev, wd_prev, tha, wa, scratch):
     """Index of the admissible candidate nearest to ``u_plan`` (the first such index on a
@@ -271,7 +275,9 @@ def _nearest_admissible(U, Pw, p, u_plan, cand, dist, n, plan, ff, Ts, umax,
     an admissible one. The distances fall along ``cand[:33]`` (towards ``u_plan``) and rise
     along ``cand[33:n]``, so a merge of the two runs visits them in order; should rounding
     break that order (a step of a few ulps), every candidate is tried, as the reference
-    does."""
+    does. Called once ``u_plan`` is known to be inadmissible: a candidate equal to it, or
+    to an ahead candidate already tried (those capped at the next corner), is not
+    evaluated again."""
     ordered = True
     for i in range(n):
         dist[i] = abs(cand[i] - u_plan)
@@ -286,8 +292,10 @@ def _nearest_admissible(U, Pw, p, u_plan, cand, dist, n, plan, ff, Ts, umax,
     if not ordered:
         best = -1
         for i in range(n):
-            if (_excess(U, Pw, p, cand[i], plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
-                        scratch) <= 0.0 and (best < 0 or dist[i] < dist[best])):
+            if (cand[i] != u_plan
+                    and _admissible(U, Pw, p, cand[i], plan, ff, Ts, umax, thd_prev,
+                                    wd_prev, tha, wa, scratch)
+                    and (best < 0 or dist[i] < dist[best])):
                 best = i
         return best
     b, a = 32, 33       # the nearest untried candidate of each run
@@ -297,15 +305,16 @@ def _nearest_admissible(U, Pw, p, u_plan, cand, dist, n, plan, ff, Ts, umax,
         while lo >= 0 and dist[lo] == d:
             lo -= 1
         for i in range(lo + 1, b + 1):      # this distance's candidates, by index
-            if _excess(U, Pw, p, cand[i], plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
-                       scratch) <= 0.0:
+            if cand[i] != u_plan and _admissible(U, Pw, p, cand[i], plan, ff, Ts, umax,
+                                                 thd_prev, wd_prev, tha, wa, scratch):
                 return i
         hi = a
         while hi < n and dist[hi] == d:
             hi += 1
-        for i in range(a, hi):
-            if _excess(U, Pw, p, cand[i], plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
-                       scratch) <= 0.0:
+        for i in range(a, hi):              # visited in index order: cand[i - 1] was tried
+            if (not (i > 33 and cand[i] == cand[i - 1])
+                    and _admissible(U, Pw, p, cand[i], plan, ff, Ts, umax, thd_prev,
+                                    wd_prev, tha, wa, scratch)):
                 return i
         b, a = lo, hi
     return -1
@@ -313,13 +322,17 @@ def _nearest_admissible(U, Pw, p, u_plan, cand, dist, n, plan, ff, Ts, umax,
 
 @njit(cache=True)
 def _safe_parameter(U, Pw, p, u0, u_plan, u_cap, ahead, plan, ff, Ts, umax,
-                    thd_prev, wd_prev, tha, wa, scratch, cand, dist):
-    """``PlannedInterpolator._safe_parameter``: the admissible parameter in [u0, u_cap]
-    nearest to ``u_plan`` (33 candidates back, the look-ahead ones, 40 bisections).
-    Returns ``(u, shortened_or_lengthened)``."""
-    if _excess(U, Pw, p, u_plan, plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
-               scratch) <= 0.0:
-        return u_plan, False
+                    thd_prev, wd_prev, tha, wa, scratch, cand, dist, n_bisect, kept):
+    """``PlannedInterpolator._safe_parameter`` once ``u_plan`` is known to be
+    inadmissible (the caller tries it first, inline): the admissible parameter in
+    [u0, u_cap] nearest to ``u_plan`` (33 candidates back, the look-ahead ones,
+    ``n_bisect`` bisections). Returns ``(u, shortened_or_lengthened)``. ``kept``
+    (n_axes + 1,) receives C(u) and u where the point of the returned parameter was
+    evaluated here (NaN as its last entry where it was not), so that the loop need not
+    evaluate it again."""
+    dim = kept.shape[0] - 1
+    point = scratch[0]
+    kept[dim] = np.nan
     step = max(u_plan - u0, 1e-12)
     delta = u_plan - u0            # np.linspace(u0, u_plan, 33)
     spacing = delta / 32
@@ -343,11 +356,14 @@ def _safe_parameter(U, Pw, p, u0, u_plan, u_cap, ahead, plan, ff, Ts, umax,
         return u_plan, False       # cornered: no step helps; keep to the plan
     good = cand[best]
     bad = cand[best + 1] if cand[best] < u_plan else cand[best - 1]
-    for _ in range(40):
+    for _ in range(n_bisect):
         mid = 0.5 * (good + bad)
-        if _excess(U, Pw, p, mid, plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
-                   scratch) <= 0.0:
+        if _admissible(U, Pw, p, mid, plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
+                   scratch):
             good = mid
+            for c in range(dim):
+                kept[c] = point[c]
+            kept[dim] = mid
         else:
             bad = mid
     return good, True
@@ -355,9 +371,10 @@ def _safe_parameter(U, Pw, p, u0, u_plan, u_cap, ahead, plan, ff, Ts, umax,
 
 @njit(cache=True, inline="always")
 def _planned_step(U, Pw, p, u, sc, tables, plan, thd_prev, wd_prev, tha, wa, bounds_row,
-                  work, scratch, cand, dist):
+                  work, scratch, cand, dist, kept, nodes, d2):
     """``PlannedInterpolator.step`` from ``u`` < 1: ``(u_new, feed, has_bounds)``; the
-    schedule index, arc length and slow-down count advance in ``sc``."""
+    schedule index, arc length and slow-down count advance in ``sc``; ``kept`` as in
+    :func:`_safe_parameter` (its last entry NaN without the safety layer)."""
     plan_s = tables[T_PLAN_S]
     scalars = tables[T_SCALARS]
     umax, ff, Ts, safety = scalars[0], scalars[1] != 0.0, scalars[2], scalars[3] != 0.0
@@ -367,28 +384,39 @@ def _planned_step(U, Pw, p, u, sc, tables, plan, thd_prev, wd_prev, tha, wa, bou
     u_plan, s_new = _schedule_at(phi, plan_s, tables[T_PLAN_U], tables[T_SPEED_RIGHT],
                                  tables[T_SPEED_LEFT])
     u_new = u_plan
+    kept[kept.shape[0] - 1] = np.nan
     if safety:
         for j in range(tha.shape[0]):   # eq. 3.6, as ControlLaw.speed_bounds
             v = (plan[P_KP, j] * (thd_prev[j] - tha[j]) - plan[P_KD, j] * wa[j]
                  - plan[P_KA, j] * wd_prev[j])
             bounds_row[j, 0] = (-umax - v) / plan[P_KSIG, j]
             bounds_row[j, 1] = (umax - v) / plan[P_KSIG, j]
-        caps = tables[T_CAPS]
-        u_cap = 1.0
-        for i in range(caps.shape[0]):
-            if caps[i] > u:
-                u_cap = caps[i]
-                break
-        u_cap = max(u_cap, u_plan)
-        safe, moved = _safe_parameter(U, Pw, p, u, u_plan, u_cap, tables[T_AHEAD], plan,
-                                      ff, Ts, umax, thd_prev, wd_prev, tha, wa, scratch,
-                                      cand, dist)
-        if moved:
-            sc[S_SLOWDOWNS] += 1.0
-        u_new = max(safe, u)
+        if _admissible(U, Pw, p, u_plan, plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
+                       scratch):
+            # the planned setpoint is within bounds (the common case, kept inline)
+            point = scratch[0]
+            dim = point.shape[0]
+            for c in range(dim):
+                kept[c] = point[c]
+            kept[dim] = u_plan
+            u_new = max(u_plan, u)
+        else:
+            caps = tables[T_CAPS]
+            u_cap = 1.0
+            for i in range(caps.shape[0]):
+                if caps[i] > u:
+                    u_cap = caps[i]
+                    break
+            u_cap = max(u_cap, u_plan)
+            safe, moved = _safe_parameter(U, Pw, p, u, u_plan, u_cap, tables[T_AHEAD],
+                                          plan, ff, Ts, umax, thd_prev, wd_prev, tha, wa,
+                                          scratch, cand, dist, int(scalars[4]), kept)
+            if moved:
+                sc[S_SLOWDOWNS] += 1.0
+            u_new = max(safe, u)
     if u_new != u_plan:
         s_new = _arc_length(U, Pw, p, u_new, tables[T_TABLE_U], tables[T_TABLE_S],
-                            tables[T_GL_X], tables[T_GL_W], work)
+                            tables[T_GL_X], tables[T_GL_W], work, nodes, d2)
         phi = _schedule_index(s_new, plan_s)
         phi = min(max(phi, phi_prev), float(last))
     sc[S_PHI] = phi
@@ -421,6 +449,9 @@ def run_loop(U, Pw, p, breaks, kind, order, feed, plan, tables, start, end,
     bounds_row = np.empty((dim, 2))
     cand = np.empty(33 + tables[T_AHEAD].shape[0])
     dist = np.empty_like(cand)
+    kept = np.empty(dim + 1)
+    nodes = np.empty(tables[T_GL_X].shape[0])
+    d2 = np.empty((2, nodes.shape[0], dim))
     scratch = (np.empty(dim), np.empty((p + 1, p + 1)), np.empty(p + 1), np.empty(p + 1))
     ndu, bl, br = scratch[1], scratch[2], scratch[3]
     k = int(sc[S_K])
@@ -454,7 +485,7 @@ def run_loop(U, Pw, p, breaks, kind, order, feed, plan, tables, start, end,
                 u_new, V, has_bounds = _planned_step(U, Pw, p, u, sc, tables, plan,
                                                      thd_prev, wd_prev, tha, wa,
                                                      bounds_row, work, scratch,
-                                                     cand, dist)
+                                                     cand, dist, kept, nodes, d2)
             else:
                 _derivatives(U, Pw, p, u, order, d3, work)
                 V, A = _plan_feed(kind, feed, d, thd_prev, wd_prev, tha, wa, plan,
@@ -473,6 +504,10 @@ def run_loop(U, Pw, p, breaks, kind, order, feed, plan, tables, start, end,
                 u = 1.0
                 for j in range(dim):
                     thd[j] = end[j]
+            elif kind == KIND_PLANNED and u_new == kept[dim]:
+                u = u_new           # C(u_new) was evaluated by the safety layer
+                for j in range(dim):
+                    thd[j] = kept[j]
             else:
                 u = u_new
                 rational_point_into(U, Pw, p, u, thd, ndu, bl, br)

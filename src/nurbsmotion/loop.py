@@ -161,9 +161,9 @@ def simulate(
                          f"from the machine's {Ts} s")
     if not (math.isfinite(settle_time) and settle_time >= 0):
         raise ValueError(f"settle_time must be finite and >= 0, got {settle_time!r}")
-    start = curve(0.0)
+    start = _start_point(interpolator, curve)
     if plant is None:
-        plant = ServoPlant.of_machine(machine, start)
+        plant = _model_plant(interpolator, machine, start)
     if max_samples is None:
         duration = interpolator.nominal_duration()
         if duration is None:
@@ -242,6 +242,44 @@ def simulate(
     )
 
 
+def _start_point(interpolator: Interpolator, curve: NurbsCurve) -> np.ndarray:
+    """``curve(0.0)`` (a copy), kept on the interpolator for the next run of its curve."""
+    cached = interpolator.__dict__.get("_loop_start")
+    if cached is None or cached[0] is not curve:
+        cached = (curve, curve(0.0))
+        interpolator._loop_start = cached
+    return cached[1].copy()
+
+
+def _model_plant(interpolator: Interpolator, machine: Machine,
+                 start: np.ndarray) -> ServoPlant:
+    """``ServoPlant.of_machine(machine, start)``; a copy of the one made for the last run
+    with this machine (its ZOH matrices are only read), kept on the interpolator."""
+    cached = interpolator.__dict__.get("_loop_plant")
+    if cached is None or cached[0] is not machine:
+        cached = (machine, ServoPlant.of_machine(machine, start))
+        interpolator._loop_plant = cached
+    template = cached[1]
+    plant = object.__new__(ServoPlant)
+    plant.__dict__.update(template.__dict__)
+    plant.speed = np.zeros(template.speed.shape[0])
+    plant.position = np.array(start, dtype=float)
+    return plant
+
+
+_NO_TABLES: tuple = ()
+_KERNEL = None
+
+
+def _kernel():
+    """:mod:`nurbsmotion._loop_kernel`, imported on first use (it loads numba)."""
+    global _KERNEL
+    if _KERNEL is None:
+        from . import _loop_kernel
+        _KERNEL = _loop_kernel
+    return _KERNEL
+
+
 def _compiled_feed(interpolator: Interpolator):
     """``(kind, feed, plan, tables)`` of the compiled loop for this interpolator, or
     ``None`` (see :mod:`nurbsmotion._loop_kernel`; a new kind of feed planner registers
@@ -249,9 +287,14 @@ def _compiled_feed(interpolator: Interpolator):
 
     Only the exact classes qualify: a subclass may override the step.
     """
-    from . import _loop_kernel as kern
+    kern = _kernel()
 
-    no_tables = tuple(np.empty(0) for _ in range(kern.N_TABLES))
+    if type(interpolator) is PlannedInterpolator:
+        return kern.KIND_PLANNED, interpolator.feed, *_planned_tables(interpolator)
+    global _NO_TABLES
+    if not _NO_TABLES:
+        _NO_TABLES = tuple(np.empty(0) for _ in range(kern.N_TABLES))
+    no_tables = _NO_TABLES
     if type(interpolator) is TaylorInterpolator and interpolator._constant_feed is not None:
         return kern.KIND_CONSTANT, interpolator._constant_feed, np.empty((0, 0)), no_tables
     if type(interpolator) is PaperInterpolator:
@@ -260,17 +303,33 @@ def _compiled_feed(interpolator: Interpolator):
         rows = np.array([m.Kp, m.Kd, law._ka * np.ones(m.n_axes), law.drive_per_speed, m.Ke,
                          np.full(m.n_axes, m.max_drive)], dtype=float)
         return kern.KIND_PAPER, interpolator.feed, rows, no_tables
-    if type(interpolator) is PlannedInterpolator:
-        return kern.KIND_PLANNED, interpolator.feed, *_planned_tables(interpolator)
     return None
 
 
 def _planned_tables(interpolator: PlannedInterpolator):
     """``plan`` and ``tables`` of :data:`nurbsmotion._loop_kernel.KIND_PLANNED`: the
-    interpolator's model of the law per axis, its schedule and the arc-length table."""
+    interpolator's model of the law per axis, its schedule and the arc-length table.
+
+    Packed once per schedule and kept on the interpolator (a short run costs less than
+    packing them): reused while the objects they come from are the same ones (a new
+    schedule, curve, machine or safety switch packs them again; the kernel only reads
+    them)."""
+    key = (interpolator.plan_s, interpolator.plan_u, interpolator._speed_right,
+           interpolator._speed_left, interpolator._caps, interpolator.curve,
+           interpolator.machine, interpolator.law, interpolator.safety_layer,
+           interpolator.sample_period)
+    cached = interpolator.__dict__.get("_compiled_tables")
+    if cached is not None and all(a is b for a, b in zip(cached[0], key)):
+        return cached[1]
+    packed = _pack_planned_tables(interpolator)
+    interpolator._compiled_tables = (key, packed)
+    return packed
+
+
+def _pack_planned_tables(interpolator: PlannedInterpolator):
     from . import _loop_kernel as kern
     from .geometry import _GL_W, _GL_X
-    from .interpolators.planned import _AHEAD_FACTORS
+    from .interpolators.planned import _AHEAD_FACTORS, _BISECTIONS
 
     law, m = interpolator.law, interpolator.machine
     n = m.n_axes
@@ -292,7 +351,8 @@ def _planned_tables(interpolator: PlannedInterpolator):
     tables[kern.T_GL_W] = _GL_W
     tables[kern.T_AHEAD] = _AHEAD_FACTORS
     tables[kern.T_SCALARS] = np.array([m.max_drive, 1.0 if law.feedforward else 0.0,
-                                       interpolator.sample_period, 1.0 if safety else 0.0])
+                                       interpolator.sample_period, 1.0 if safety else 0.0,
+                                       float(_BISECTIONS)])
     return plan, tuple(np.ascontiguousarray(t, dtype=float) for t in tables)
 
 
@@ -300,7 +360,7 @@ def _simulate_compiled(interpolator, compiled_feed, machine, plant, start, n_set
                        max_samples) -> Trace:
     """:func:`simulate` through the compiled loop (``compiled_feed`` from
     :func:`_compiled_feed`); the same trace as the reference."""
-    from . import _loop_kernel as kern
+    kern = _kernel()
 
     kind, feed, plan, tables = compiled_feed
     curve = interpolator.curve
@@ -324,7 +384,12 @@ def _simulate_compiled(interpolator, compiled_feed, machine, plant, start, n_set
     }
     sc = np.zeros(kern.N_STATE)
     sc[kern.S_FINISHED] = -1.0
-    ax = np.vstack([start, np.zeros(n_axes), plant.position, plant.speed, plant.position])
+    ax = np.empty((5, n_axes))
+    ax[kern.A_THD] = start
+    ax[kern.A_WD] = 0.0
+    ax[kern.A_THA] = plant.position
+    ax[kern.A_W] = plant.speed
+    ax[kern.A_TH] = plant.position
     Ad, Bd = np.ascontiguousarray(plant._Ad), np.ascontiguousarray(plant._Bd)
     fixed = (curve.knots, curve._homogeneous, curve.degree, interpolator._breaks, kind,
              interpolator.order, float(feed), plan, tables, start, interpolator._end,
