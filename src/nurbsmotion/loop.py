@@ -319,8 +319,12 @@ def _planned_tables(interpolator: PlannedInterpolator):
            interpolator.machine, interpolator.law, interpolator.safety_layer,
            interpolator.sample_period)
     cached = interpolator.__dict__.get("_compiled_tables")
-    if cached is not None and all(a is b for a, b in zip(cached[0], key)):
-        return cached[1]
+    if cached is not None:
+        c = cached[0]
+        if (c[0] is key[0] and c[1] is key[1] and c[2] is key[2] and c[3] is key[3]
+                and c[4] is key[4] and c[5] is key[5] and c[6] is key[6]
+                and c[7] is key[7] and c[8] is key[8] and c[9] is key[9]):
+            return cached[1]
     packed = _pack_planned_tables(interpolator)
     interpolator._compiled_tables = (key, packed)
     return packed
@@ -356,6 +360,18 @@ def _pack_planned_tables(interpolator: PlannedInterpolator):
     return plan, tuple(np.ascontiguousarray(t, dtype=float) for t in tables)
 
 
+def _machine_args(interpolator: Interpolator, machine: Machine) -> tuple:
+    """The machine's arguments of :func:`nurbsmotion._loop_kernel.run_loop` (Kp .. PD+),
+    kept on the interpolator for the next run on the same (frozen) machine."""
+    cached = interpolator.__dict__.get("_loop_machine")
+    if cached is None or cached[0] is not machine:
+        Ts = machine.sample_period
+        cached = (machine, (machine.Kp, machine.Kd, machine.Kc, machine.tau,
+                            machine.Ke * Ts, Ts, machine.controller == "pd+"))
+        interpolator._loop_machine = cached
+    return cached[1]
+
+
 def _simulate_compiled(interpolator, compiled_feed, machine, plant, start, n_settle,
                        max_samples) -> Trace:
     """:func:`simulate` through the compiled loop (``compiled_feed`` from
@@ -376,10 +392,11 @@ def _simulate_compiled(interpolator, compiled_feed, machine, plant, start, n_set
     capacity = max(1, int(min(max_samples, guess)))
     record_bounds = (kind == kern.KIND_PAPER
                      or (kind == kern.KIND_PLANNED and tables[kern.T_SCALARS][3] != 0.0))
+    shape = (capacity, n_axes)
     rows = {
         "u": np.empty(capacity), "feed": np.empty(capacity),
-        **{name: np.empty((capacity, n_axes))
-           for name in ("thd", "tha", "wd", "wa", "drive", "applied")},
+        "thd": np.empty(shape), "tha": np.empty(shape), "wd": np.empty(shape),
+        "wa": np.empty(shape), "drive": np.empty(shape), "applied": np.empty(shape),
         "bounds": np.empty((capacity if record_bounds else 0, n_axes, 2)),
     }
     sc = np.zeros(kern.N_STATE)
@@ -393,8 +410,7 @@ def _simulate_compiled(interpolator, compiled_feed, machine, plant, start, n_set
     Ad, Bd = np.ascontiguousarray(plant._Ad), np.ascontiguousarray(plant._Bd)
     fixed = (curve.knots, curve._homogeneous, curve.degree, interpolator._breaks, kind,
              interpolator.order, float(feed), plan, tables, start, interpolator._end,
-             machine.Kp, machine.Kd, machine.Kc, machine.tau, machine.Ke * Ts, Ts,
-             machine.controller == "pd+", float(plant.max_drive), Ad, Bd,
+             *_machine_args(interpolator, machine), float(plant.max_drive), Ad, Bd,
              machine.speed_measurement == "encoder", n_settle, int(max_samples))
     while True:
         code = kern.run_loop(*fixed, sc, ax, *rows.values(), record_bounds)
