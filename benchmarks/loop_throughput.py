@@ -66,9 +66,10 @@ def throughput(repeats: int, reference_repeats: int) -> str:
          "same trace (1e-12)"], rows,
         f"Medians of {repeats} (compiled) and {reference_repeats} (reference) runs "
         "of `simulate()`, after one warm-up run. A `planned` sample where the safety "
-        "layer changes the step costs some 45 drive predictions (the nearest admissible "
-        "candidate, then 40 bisections, as the reference does them) and an arc length: "
-        "the Pi at 1 and 2 m/s changes 14 and 33 of its 178 and 145 samples.")
+        "layer changes the step costs some 20 drive predictions (the candidates nearest "
+        "the plan until an admissible one, then 12 bisections, as the reference does "
+        "them) and an arc length (10 Gauss nodes): the Pi at 1 and 2 m/s changes 14 and "
+        "33 of its 178 and 145 samples, most of the run's time at 2 m/s.")
 
 
 def planning_time(repeats: int) -> str:
