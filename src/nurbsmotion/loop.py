@@ -259,12 +259,7 @@ def _model_plant(interpolator: Interpolator, machine: Machine,
     if cached is None or cached[0] is not machine:
         cached = (machine, ServoPlant.of_machine(machine, start))
         interpolator._loop_plant = cached
-    template = cached[1]
-    plant = object.__new__(ServoPlant)
-    plant.__dict__.update(template.__dict__)
-    plant.speed = np.zeros(template.speed.shape[0])
-    plant.position = np.array(start, dtype=float)
-    return plant
+    return cached[1].at_rest(start)
 
 
 _NO_TABLES: tuple = ()
@@ -319,12 +314,8 @@ def _planned_tables(interpolator: PlannedInterpolator):
            interpolator.machine, interpolator.law, interpolator.safety_layer,
            interpolator.sample_period)
     cached = interpolator.__dict__.get("_compiled_tables")
-    if cached is not None:
-        c = cached[0]
-        if (c[0] is key[0] and c[1] is key[1] and c[2] is key[2] and c[3] is key[3]
-                and c[4] is key[4] and c[5] is key[5] and c[6] is key[6]
-                and c[7] is key[7] and c[8] is key[8] and c[9] is key[9]):
-            return cached[1]
+    if cached is not None and all(a is b for a, b in zip(cached[0], key)):
+        return cached[1]
     packed = _pack_planned_tables(interpolator)
     interpolator._compiled_tables = (key, packed)
     return packed

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import functools
 
+import copy
+
 import numpy as np
 from scipy.linalg import expm
 
@@ -82,6 +84,13 @@ class ServoPlant:
         """The plant of ``machine``, optionally with tau and Kc scaled (model mismatch)."""
         return cls(machine.tau * time_constant_scale, machine.Kc * electrical_gain_scale,
                    machine.Ke, machine.max_drive, machine.sample_period, position)
+
+    def at_rest(self, position) -> "ServoPlant":
+        """A new plant with the same dynamics, at rest at ``position`` [pulse]."""
+        plant = copy.copy(self)
+        plant.speed = np.zeros_like(self.speed)
+        plant.position = np.array(position, dtype=float)
+        return plant
 
     def saturate(self, drive: np.ndarray) -> np.ndarray:
         """The drive the actuator applies: ``clip(u, -Umax, Umax)`` [V]."""
