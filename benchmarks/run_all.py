@@ -45,7 +45,7 @@ def main(argv=None) -> int:
     machine = _common.machine_description()
     t0 = time.perf_counter()
     sections = [
-        loop_throughput.main(repeats=5 if q else 15, reference_repeats=1 if q else 3),
+        loop_throughput.main(repeats=5 if q else 15),
         memory.main(),  # before geomdl's million-row lists grow this process
         nurbs_eval.main(repeats=3 if q else 7, geomdl_repeats=1 if q else 3),
         compile_cost.main(repeats=1 if q else 3),

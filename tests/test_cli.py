@@ -8,7 +8,8 @@ import pytest
 
 import nurbsmotion as nm
 from nurbsmotion.cli import main, parse_feed
-from nurbsmotion.interpolators import TaylorInterpolator, interpolate
+from nurbsmotion.interpolators import TaylorInterpolator
+from nurbsmotion.loop import interpolate
 from nurbsmotion.report import SUMMARY_KEYS
 
 

@@ -138,9 +138,24 @@ def test_parameter_at_inverts_arc_length(curve, u):
 def test_a_path_that_reverses_is_rejected(degree, knots, points, weights, where):
     """A reversal has C'(u) = 0: no tangent, and a Taylor step would divide by zero. The
     constructor finds the zeros exactly (roots of the derivative's numerator per span),
-    however narrow the reversal."""
-    with pytest.raises(InvalidCurveError, match="degenerate curve: C'\\(u\\) = 0 at " + where):
+    however narrow the reversal; the parameter it reports is one (a reversal may have two
+    equally valid zeros, so the test checks the property, not which one)."""
+    import re
+
+    from scipy.interpolate import BSpline
+
+    with pytest.raises(InvalidCurveError, match="degenerate curve: C'\\(u\\) = 0 at ") as err:
         NurbsCurve(degree, knots, points, weights)
+    u = float(re.search(r"at u = ([0-9.e+-]+)", str(err.value)).group(1))
+    w = np.asarray(weights, dtype=float)
+    A = BSpline(np.asarray(knots, float), np.asarray(points) * w[:, None], degree)
+    W = BSpline(np.asarray(knots, float), w, degree)
+    # numerator of C' = (A'W - AW')/W^2, against its scale over the span
+    numerator = lambda x: A.derivative()(x)[..., 0] * W(x) - A(x)[..., 0] * W.derivative()(x)
+    scale = np.max(np.abs(numerator(np.linspace(0, 1, 2001))))
+    # the message prints u to 6 digits: |numerator| there is within that rounding's reach
+    h = 1e-6
+    assert min(abs(numerator(u + d)) for d in np.linspace(-h, h, 201)) < 1e-4 * scale
 
 
 def test_arc_length_and_inverse_shapes():

@@ -7,8 +7,8 @@ import pytest
 
 import nurbsmotion as nm
 from nurbsmotion import InfeasibleError
-from nurbsmotion.interpolators import (Status, TaylorInterpolator, UniformInterpolator,
-                                       interpolate, make_open_loop)
+from nurbsmotion.interpolators import TaylorInterpolator, UniformInterpolator, make_open_loop
+from nurbsmotion.loop import interpolate
 
 CIRCLE = nm.make_circle(10_000.0)
 
@@ -45,9 +45,7 @@ def test_lands_exactly_on_the_end_and_holds_it(method):
     assert series.u[-1] == 1.0 and np.all(np.diff(series.u) > 0)
     np.testing.assert_array_equal(series.position[-1], [60000.0, 0.0])
     np.testing.assert_array_equal(series.position[0], [0.0, 0.0])
-    hold = interp.step()
-    assert hold.status is Status.FINISHED and hold.feed == 0.0
-    np.testing.assert_array_equal(hold.position, [60000.0, 0.0])
+    assert series.finished_index == len(series.u) - 1
 
 
 def test_steps_across_sharp_corners_keep_the_arc_length_step():
@@ -93,9 +91,24 @@ def test_bad_feed_is_a_clear_error(feed):
 
 
 def test_feed_function_that_stops_is_an_error_not_a_hang():
-    interp = TaylorInterpolator(CIRCLE, 1e-3, lambda u: 1e5 if u < 0.5 else 0.0)
-    with pytest.raises(InfeasibleError, match=r"feed function returned 0.0 at u = 0.50"):
-        interpolate(interp)
+    with pytest.raises(InfeasibleError, match=r"feed function returned 0.0 at u = 0.5"):
+        TaylorInterpolator(CIRCLE, 1e-3, lambda u: 1e5 if u < 0.5 else 0.0)
+
+
+def test_piecewise_feed_keeps_each_interval_s_speed():
+    """A feed of 2,000 on the first half of a polyline's parameter and 500 on the rest:
+    1st-order steps on straight spans travel exactly V*Ts."""
+    from types import SimpleNamespace
+
+    path = nm.make_polyline([[0, 0], [100, 0], [100, 100]])
+    feed = SimpleNamespace(breaks=[0.0, 0.5, 1.0], values=[2000.0, 500.0])
+    series = interpolate(TaylorInterpolator(path, 1e-3, feed, order=1))
+    steps = np.diff(path.arc_length(series.u))
+    first = series.u[:-1] < 0.5
+    np.testing.assert_allclose(steps[first][:-1], 2.0, rtol=1e-9)
+    np.testing.assert_allclose(steps[~first][:-1], 0.5, rtol=1e-9)
+    with pytest.raises(InfeasibleError, match="breaks rising from 0 to 1"):
+        TaylorInterpolator(path, 1e-3, SimpleNamespace(breaks=[0.0, 1.0], values=[1.0, 2.0]))
 
 
 def test_bad_sample_period_and_method():

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 import nurbsmotion as nm
-from nurbsmotion.interpolators import PaperInterpolator, TaylorInterpolator, interpolate
+from nurbsmotion.interpolators import PaperInterpolator, TaylorInterpolator
+from nurbsmotion.loop import interpolate
 from nurbsmotion.loop import run, simulate
 from nurbsmotion.machine import die_bonder
 from nurbsmotion.metrics import contour_error

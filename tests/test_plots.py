@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 
 import nurbsmotion as nm
-from nurbsmotion.interpolators import interpolate, make_interpolator, make_open_loop
+from nurbsmotion.interpolators import make_interpolator, make_open_loop
+from nurbsmotion.loop import interpolate
 from nurbsmotion.loop import simulate, to_pulses
 from nurbsmotion.machine import die_bonder
 from nurbsmotion.plots import plot_comparison, plot_setpoints, plot_trace

@@ -1,5 +1,9 @@
 """nurbsmotion: NURBS interpolation for motion systems whose actuators saturate."""
-from .errors import (
+from ._jit_cache import drop_stale_caches
+
+drop_stale_caches()  # before any compiled function is loaded from disk
+
+from .errors import (  # noqa: E402
     InfeasibleError,
     InvalidCurveError,
     InvalidMachineError,

@@ -29,7 +29,7 @@ __all__ = ["find_span", "workspace", "basis_table", "basis_derivatives",
            "rational_derivatives_into", "rational_point_into", "rational_derivatives"]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def find_span(n: int, p: int, U, u: float, left: bool) -> int:
     """Knot span of ``u`` (A2.1, by bisection), among the spans ``p .. n-1``.
 
@@ -67,7 +67,7 @@ def workspace(p: int, max_order: int, dim: int):
             np.empty(1))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def basis_table(span: int, u: float, p: int, U, ndu, left, right) -> None:
     """The table ``ndu`` of A2.2 / A2.3: the non-zero basis functions ``N_{span-p+j,p}(u)``
     in ``ndu[j, p]`` (upper triangle: the lower degrees) and the knot differences the
@@ -85,7 +85,7 @@ def basis_table(span: int, u: float, p: int, U, ndu, left, right) -> None:
         ndu[j, j] = saved
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def basis_derivatives(span: int, u: float, p: int, n_der: int, U, ders, ndu, left, right,
                       a) -> None:
     """Non-zero basis functions and their derivatives up to ``n_der`` (A2.3).
@@ -177,7 +177,7 @@ def rational_derivatives_into(U, Pw, p: int, us, max_order: int, left: bool, out
                 out[k, i, c] = v / w0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def rational_point_into(U, Pw, p: int, u: float, out, ndu, left, right) -> None:
     """``C(u)`` (right-sided) into ``out``, shape (n_axes,): the ``max_order=0`` case of
     :func:`rational_derivatives_into` with the same operations in the same order (so the

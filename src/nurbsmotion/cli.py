@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import NurbsmotionError
-from .interpolators import LOOP_METHODS, OPEN_LOOP_METHODS, interpolate, make_open_loop
+from .interpolators import LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
 from .machine import LENGTH_UNITS_UM, Machine, load_machine
 from .planning import time_optimal_bound
 
@@ -84,6 +84,7 @@ def _load_path(spec: str):
 
 def _cmd_interpolate(args) -> int:
     from .export import SetpointArrays, save_setpoints
+    from .loop import interpolate
     from .report import check_writable
 
     curve = _load_path(args.path)

@@ -1,107 +1,330 @@
-"""Discrete PD and PD+ control laws (SPEC section 4) and the speed bound they imply.
+"""The control law as data: LinuxCNC's ``pid`` HAL component, per axis.
 
-The law at sample k (eq. 3.3 of Yeh & Sun 2008, with Ke restored), per axis::
+The law is ``calc_pid`` of LinuxCNC's ``src/hal/components/pid.c``, evaluated once per
+sample Ts for every axis (SPEC section 10)::
 
-    wd[k] = (thd[k] - thd[k-1]) / (Ke*Ts)          commanded motor speed [rad/s]
-    ad[k] = (wd[k] - wd[k-1]) / Ts                 commanded motor acceleration [rad/s^2]
-    u[k]  = Kp*(thd[k] - tha[k]) + Kd*(wd[k] - wa[k]) + wd[k]/Kc + tau*ad[k]/Kc     (PD+)
-    u[k]  = Kp*(thd[k] - tha[k]) + Kd*(wd[k] - wa[k])                               (PD)
+    e      = command - feedback, clamped to +-maxerror (0: no clamp), less the deadband
+    errorI = errorI + e*Ts unless the output sat at its limit pushing the same way as e
+             (anti-windup: frozen while e*limit_state > 0), clamped to +-maxerrorI
+    errorD = (e - e_prev)/Ts, clamped to +-maxerrorD          (encoder differencing)
+           = commandD - feedback_velocity                     (``feedback-deriv`` pin)
+    cmdD   = (command - command_prev)/Ts, clamped to +-maxcmdD
+    cmdDD  = (cmdD - cmdD_prev)/Ts, clamped to +-maxcmdDD
+    output = bias + Pgain*e + Igain*errorI + Dgain*errorD + FF0*command + FF1*cmdD + FF2*cmdDD
 
-Given the past, u[k] is affine in the new speed command: ``u[k] = Ksig*wd[k] + v[k]``
-(section 3.2), which gives the bound of eq. 3.6 on wd[k] for ``|u[k]| <= Umax``.
+and the output is limited to +-maxoutput (the machine's drive limit Umax), which sets the
+limit state the integrator reads at the next sample. Positions are in pulses, the output
+in volts, times in seconds.
+
+The paper's laws are presets of it (SPEC section 4, eq. 2.4, 2.12 and 3.3 of Yeh & Sun
+2008): ``Pgain = Kp``, ``Dgain = Kd/Ke``, ``FF1 = 1/(Kc*Ke)``, ``FF2 = tau/(Kc*Ke)`` for PD+
+(``FF1 = FF2 = 0`` for PD). The ``true`` speed measurement of the paper's PD+ is the
+component's ``feedback-deriv`` pin fed with the motor speed: ``errorD = cmdD - Ke*w``.
+
+Given the past, the output is affine in the new command between the clamps
+(:func:`pid_affine`); an interpolator that predicts the drive uses that form (eq. 3.6 of
+the paper for PD+) or evaluates :func:`pid_output` for a candidate command. Both are
+plain functions on the law's numbers (:data:`PID_LAW`) and its state (:data:`PID_STATE`),
+compiled by numba and runnable as plain Python (``NUMBA_DISABLE_JIT=1``).
 
 Glossary
 --------
-thd : commanded position [pulse]; tha : measured position [pulse]; wd, wa : commanded and
-measured motor speed [rad/s]; u : drive [V]; Ksig : drive per unit speed command
-[V/(rad/s)]; v : the part of u fixed by the past [V].
+e : position error [pulse]; errorI [pulse*s]; errorD, cmdD [pulse/s]; cmdDD [pulse/s^2];
+Ts : sample period [s]; Umax : drive limit [V].
 """
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass, fields
+from typing import Any, NamedTuple
+
 import numpy as np
+from numba import njit
 
-from .machine import Machine
+from .errors import InvalidMachineError
 
-__all__ = ["ControlLaw"]
+__all__ = ["PidGains", "PID_KEYS", "PID_LAW", "PID_STATE", "pid_law", "pid_state",
+           "pid_output", "pid_commit", "pid_affine", "loop_poles"]
+
+def _number(value: Any, where: str) -> float:
+    # bool is an int in Python: refuse it explicitly, a machine file's `true` is no gain
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise InvalidMachineError(f"{where} must be a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v):
+        raise InvalidMachineError(f"{where} must be finite, got {value!r}")
+    return v
 
 
-class ControlLaw:
-    """The discrete control law of a machine, vectorised over its axes.
+@dataclass(frozen=True)
+class PidGains:
+    """The parameters of one axis's LinuxCNC ``pid`` component (its HAL names).
 
     Parameters
     ----------
-    machine : Machine
-        Gains, plant parameters, Ts and the law (``machine.controller``).
+    Pgain : float
+        [V/pulse], >= 0.
+    Igain : float
+        [V/(pulse*s)], >= 0.
+    Dgain : float
+        [V/(pulse/s)], >= 0.
+    bias : float
+        Constant output offset [V].
+    FF0, FF1, FF2 : float
+        Feedforward of the command [V/pulse], its rate [V/(pulse/s)] and its second
+        difference [V/(pulse/s^2)], >= 0.
+    deadband, maxerror, maxerrorI, maxerrorD, maxcmdD, maxcmdDD : float
+        Error deadband [pulse] and clamps of e [pulse], errorI [pulse*s], errorD, cmdD
+        [pulse/s] and cmdDD [pulse/s^2], >= 0; 0 means no clamp.
+
+    Raises
+    ------
+    InvalidMachineError
+        Naming the parameter and its value.
     """
 
-    def __init__(self, machine: Machine):
-        self.machine = machine
-        Ts = machine.sample_period
-        self.feedforward = machine.controller == "pd+"
-        self._Ke_Ts = machine.Ke * Ts
-        ff = 1.0 if self.feedforward else 0.0
-        # Section 3.2 with Ke: Ksig = Kp*Ke*Ts + Kd + 1/Kc + tau/(Kc*Ts) for PD+.
-        self.drive_per_speed = (
-            machine.Kp * machine.Ke * Ts
-            + machine.Kd
-            + ff * (1.0 / machine.Kc + machine.tau / (machine.Kc * Ts))
-        )
-        self._ka = ff * machine.tau / (machine.Kc * Ts)
+    Pgain: float = 0.0
+    Igain: float = 0.0
+    Dgain: float = 0.0
+    bias: float = 0.0
+    FF0: float = 0.0
+    FF1: float = 0.0
+    FF2: float = 0.0
+    deadband: float = 0.0
+    maxerror: float = 0.0
+    maxerrorI: float = 0.0
+    maxerrorD: float = 0.0
+    maxcmdD: float = 0.0
+    maxcmdDD: float = 0.0
 
-    def speed_command(self, position_command, position_command_prev):
-        """wd[k] [rad/s], shape (n_axes,) (or broadcast), from successive setpoints [pulse]."""
-        return (np.asarray(position_command) - position_command_prev) / self._Ke_Ts
+    def __post_init__(self):
+        for f in fields(self):
+            v = _number(getattr(self, f.name), f"pid {f.name}")
+            if f.name != "bias" and v < 0:
+                raise InvalidMachineError(f"pid {f.name} must be >= 0, got {v!r}")
+            object.__setattr__(self, f.name, v)
 
-    def drive(self, position_command, position_command_prev, speed_command_prev, position, speed):
-        """u[k] before saturation, eq. 3.3 (PD+) or eq. 2.4 (PD).
+    @classmethod
+    def from_mapping(cls, data: Any, where: str = "pid") -> "PidGains":
+        """From a machine file's ``[axes.pid]`` table; unknown keys are refused."""
+        if not isinstance(data, dict):
+            raise InvalidMachineError(f"{where} must be a table of {', '.join(PID_KEYS)}, "
+                                      f"got {data!r}")
+        unknown = sorted(set(data) - set(PID_KEYS))
+        if unknown:
+            raise InvalidMachineError(f"{where}: unknown key(s) {unknown}; expected any of "
+                                      f"{list(PID_KEYS)}")
+        try:
+            return cls(**data)
+        except InvalidMachineError as exc:
+            raise InvalidMachineError(f"{where}: {exc}") from None
 
-        Parameters
-        ----------
-        position_command : ndarray, shape (n_axes,)
-            thd[k] [pulse].
-        position_command_prev : ndarray, shape (n_axes,)
-            thd[k-1] [pulse].
-        speed_command_prev : ndarray, shape (n_axes,)
-            wd[k-1] [rad/s].
-        position : ndarray, shape (n_axes,)
-            tha[k] [pulse].
-        speed : ndarray, shape (n_axes,)
-            wa[k] [rad/s].
+    @classmethod
+    def paper_preset(cls, Kp: float, Kd: float, tau: float, Kc: float, Ke: float,
+                     feedforward: bool) -> "PidGains":
+        """The paper's PD+ (``feedforward=True``) or PD law as ``pid`` parameters."""
+        ff = 1.0 if feedforward else 0.0
+        return cls(Pgain=Kp, Dgain=Kd / Ke, FF1=ff / (Kc * Ke), FF2=ff * tau / (Kc * Ke))
 
-        Returns
-        -------
-        drive : ndarray, shape (n_axes,)
-            u[k] [V].
-        speed_command : ndarray, shape (n_axes,)
-            wd[k] [rad/s].
-        """
-        m = self.machine
-        wd = self.speed_command(position_command, position_command_prev)
-        u = m.Kp * (position_command - position) + m.Kd * (wd - speed)
-        if self.feedforward:
-            ad = (wd - speed_command_prev) / m.sample_period
-            u = u + wd / m.Kc + m.tau * ad / m.Kc
-        return u, wd
+    def to_dict(self) -> dict:
+        """The non-zero parameters, as a machine file's ``[axes.pid]`` table holds them."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name)}
 
-    def drive_offset(self, position_command_prev, speed_command_prev, position, speed):
-        """v[k] of section 3.2, so that ``u[k] = drive_per_speed*wd[k] + v[k]`` [V]."""
-        m = self.machine
-        return (
-            m.Kp * (position_command_prev - position)
-            - m.Kd * speed
-            - self._ka * speed_command_prev
-        )
 
-    def speed_bounds(self, position_command_prev, speed_command_prev, position, speed,
-                     max_drive=None):
-        """Eq. 3.6: the range of wd[k] that keeps ``|u[k]| <= Umax``.
+PID_KEYS = tuple(f.name for f in fields(PidGains))
+"""Parameters of LinuxCNC's ``pid`` component a machine file may give (missing = 0): the
+fields of :class:`PidGains`, the one place a parameter is declared."""
 
-        Returns
-        -------
-        ndarray, shape (n_axes, 2)
-            ``[wmin, wmax]`` per axis [rad/s]; multiply by Ke for pulse/s.
-        """
-        umax = self.machine.max_drive if max_drive is None else max_drive
-        v = self.drive_offset(position_command_prev, speed_command_prev, position, speed)
-        return np.stack([(-umax - v), (umax - v)], axis=-1) / self.drive_per_speed[:, None]
+
+PID_LAW = np.dtype([(key, "f8") for key in PID_KEYS]
+                   + [("feedback_deriv", "f8"), ("maxoutput", "f8"), ("period", "f8")])
+"""The law of one axis as numbers, the form the compiled loop reads (an array of shape
+(n_axes,) of this dtype is a machine's law): :data:`PID_KEYS` in the units of
+:class:`PidGains`, then ``feedback_deriv`` (1.0 where errorD is
+``cmdD - feedback_velocity``, the ``true`` speed measurement; 0.0 for encoder
+differencing), ``maxoutput`` Umax [V] (``inf``: none) and ``period`` Ts [s]."""
+
+PID_STATE = np.dtype([("prev_error", "f8"), ("error_i", "f8"), ("prev_cmd", "f8"),
+                      ("cmd_d", "f8"), ("limit_state", "f8")])
+"""One axis's memory of the law between samples: e[k-1] [pulse], errorI [pulse*s],
+command[k-1] [pulse], cmdD[k-1] [pulse/s], and the output's limit state (+1, -1, 0)."""
+
+
+def pid_law(gains, max_output: float, sample_period: float,
+            feedback_deriv: bool) -> np.ndarray:
+    """The law of a sequence of :class:`PidGains`, one per axis: shape (n_axes,), dtype
+    :data:`PID_LAW` (read-only)."""
+    law = np.zeros(len(gains), dtype=PID_LAW)
+    for key in PID_KEYS:
+        law[key] = [getattr(g, key) for g in gains]
+    law["feedback_deriv"] = 1.0 if feedback_deriv else 0.0
+    law["maxoutput"] = max_output
+    law["period"] = sample_period
+    law.flags.writeable = False
+    return law
+
+
+def pid_state(command: np.ndarray) -> np.ndarray:
+    """A law at rest with the command (and the feedback) at ``command`` [pulse], shape
+    (n_axes,): shape (n_axes,), dtype :data:`PID_STATE`."""
+    st = np.zeros(len(command), dtype=PID_STATE)
+    st["prev_cmd"] = command
+    return st
+
+
+@njit(cache=True)
+def _clamp(x, limit):
+    """``x`` clamped to +-limit; ``limit == 0`` means no clamp (LinuxCNC's convention)."""
+    if limit != 0.0:
+        if x > limit:
+            return limit
+        if x < -limit:
+            return -limit
+    return x
+
+
+@njit(cache=True)
+def pid_output(law, st, j, command, feedback, feedback_velocity):
+    """``calc_pid`` for axis ``j``: the output before its limit and the state it leaves.
+
+    Nothing is changed: :func:`pid_commit` stores the returned state, so an interpolator
+    may evaluate any number of candidate commands.
+
+    Parameters
+    ----------
+    law : ndarray, shape (n_axes,), dtype PID_LAW
+    st : ndarray, shape (n_axes,), dtype PID_STATE
+        The law's memory from the previous sample.
+    j : int
+        Axis.
+    command, feedback : float
+        Commanded and measured position [pulse].
+    feedback_velocity : float
+        Measured velocity [pulse/s] (read only with ``law.feedback_deriv``).
+
+    Returns
+    -------
+    output : float
+        The drive before the limit [V].
+    error, error_i, cmd_d : float
+        e [pulse], errorI [pulse*s] and cmdD [pulse/s] of this sample (the new state).
+    """
+    g, s = law[j], st[j]
+    Ts = g["period"]
+    e = _clamp(command - feedback, g["maxerror"])
+    db = g["deadband"]
+    if e > db:
+        e -= db
+    elif e < -db:
+        e += db
+    else:
+        e = 0.0
+    error_i = s["error_i"]
+    if e * s["limit_state"] <= 0.0:
+        error_i += e * Ts
+    error_i = _clamp(error_i, g["maxerrorI"])
+    cmd_d = _clamp((command - s["prev_cmd"]) / Ts, g["maxcmdD"])
+    cmd_dd = _clamp((cmd_d - s["cmd_d"]) / Ts, g["maxcmdDD"])
+    if g["feedback_deriv"] != 0.0:
+        error_d = cmd_d - feedback_velocity
+    else:
+        error_d = (e - s["prev_error"]) / Ts
+    error_d = _clamp(error_d, g["maxerrorD"])
+    out = (g["bias"] + g["Pgain"] * e + g["Igain"] * error_i + g["Dgain"] * error_d
+           + g["FF0"] * command + g["FF1"] * cmd_d + g["FF2"] * cmd_dd)
+    return out, e, error_i, cmd_d
+
+
+@njit(cache=True)
+def pid_commit(law, st, j, command, output, error, error_i, cmd_d):
+    """Store the state :func:`pid_output` returned for the command that was applied."""
+    g, s = law[j], st[j]
+    s["prev_error"] = error
+    s["error_i"] = error_i
+    s["prev_cmd"] = command
+    s["cmd_d"] = cmd_d
+    umax = g["maxoutput"]
+    s["limit_state"] = 1.0 if output > umax else (-1.0 if output < -umax else 0.0)
+
+
+@njit(cache=True)
+def pid_affine(law, st, j, feedback, feedback_velocity):
+    """The output of axis ``j`` as ``slope*command + offset`` between the clamps.
+
+    With no clamp, deadband or frozen integrator active the output of :func:`pid_output`
+    is exactly affine in the command, with the slope
+    ``Pgain + Igain*Ts + Dgain/Ts + FF0 + FF1/Ts + FF2/Ts^2`` > 0 for any law that moves
+    the axis (the integrator's term drops while it is frozen). For PD+ in terms of the
+    speed command ``wd = (command - command_prev)/(Ke*Ts)`` this is eq. 3.6 of Yeh & Sun
+    (2008): ``Ksig = slope*Ke*Ts`` and ``v = slope*command_prev + offset``.
+
+    Returns
+    -------
+    slope : float
+        [V/pulse]
+    offset : float
+        [V]
+    """
+    g, s = law[j], st[j]
+    Ts = g["period"]
+    ki = g["Igain"] if s["limit_state"] == 0.0 else 0.0
+    slope = (g["Pgain"] + ki * Ts + g["Dgain"] / Ts + g["FF0"] + g["FF1"] / Ts
+             + g["FF2"] / (Ts * Ts))
+    prev = s["prev_cmd"]
+    # every term at command = 0, with the differences written about the previous command
+    offset = (g["bias"] - g["Pgain"] * feedback
+              + ki * (s["error_i"] - feedback * Ts)
+              - g["FF1"] * prev / Ts
+              - g["FF2"] * (prev / Ts + s["cmd_d"]) / Ts)
+    if ki == 0.0:
+        offset += g["Igain"] * s["error_i"]
+    if g["feedback_deriv"] != 0.0:
+        offset -= g["Dgain"] * (prev / Ts + feedback_velocity)
+    else:
+        offset -= g["Dgain"] * (feedback + s["prev_error"]) / Ts
+    return slope, offset
+
+
+def loop_poles(gains: PidGains, Ad: np.ndarray, Bd: np.ndarray, sample_period: float,
+               mechanical_gain: float, feedback_deriv: bool) -> np.ndarray:
+    """Poles of one axis's closed loop, linear (no clamps), as the discrete loop runs it.
+
+    The state is ``[w, theta, theta_prev, errorI]`` (``theta_prev`` only with encoder
+    differencing, ``errorI`` only with an integral gain); the command is an input and
+    does not move the poles.
+
+    Parameters
+    ----------
+    gains : PidGains
+    Ad : ndarray, shape (2, 2)
+    Bd : ndarray, shape (2,)
+        The plant's ZOH matrices for the state ``[w, theta]``.
+    sample_period : float
+        Ts [s].
+    mechanical_gain : float
+        Ke [pulse/rad], the feedback velocity being ``Ke*w`` with ``feedback_deriv``.
+    feedback_deriv : bool
+
+    Returns
+    -------
+    ndarray, shape (n,), complex
+    """
+    Ts, Ke = sample_period, mechanical_gain
+    P, I, D = gains.Pgain, gains.Igain, gains.Dgain
+    # u as a row over [w, theta, theta_prev, errorI_prev] with command = 0:
+    # e = -theta; errorI = errorI_prev - theta*Ts
+    # errorD = (-theta + theta_prev)/Ts  or  -Ke*w
+    if feedback_deriv:
+        u = np.array([-D * Ke, -P - I * Ts, 0.0, I])
+    else:
+        u = np.array([0.0, -P - I * Ts - D / Ts, D / Ts, I])
+    A = np.zeros((4, 4))
+    A[0, :2] = Ad[0]
+    A[1, :2] = Ad[1]
+    A[0] += Bd[0] * u
+    A[1] += Bd[1] * u
+    A[2, 1] = 1.0
+    A[3] = np.array([0.0, -Ts, 0.0, 1.0])
+    keep = [0, 1] + ([] if feedback_deriv else [2]) + ([3] if I != 0.0 else [])
+    return np.linalg.eigvals(A[np.ix_(keep, keep)])

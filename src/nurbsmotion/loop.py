@@ -1,16 +1,12 @@
-"""The closed loop: interpolator, control law, saturation and plant, one sample at a time.
+"""Runs of an interpolator: in the closed loop of a machine, to the end and settled
+(:func:`simulate` -> :class:`Trace`), or open loop (:func:`interpolate` ->
+:class:`SetpointSeries`).
 
-At sample k (t = k*Ts), in this order (SPEC sections 1 and 4):
-
-1. the plant's position tha[k] is measured, and the speed wa[k] (encoder differencing,
-   or the true motor speed);
-2. the interpolator reads that :class:`~nurbsmotion.interpolators.LoopState` and returns
-   the setpoint thd[k] (sample 0 is the path's start, the loop starts at rest there);
-3. the control law gives u[k]; the actuator applies clip(u[k], -Umax, Umax) over
-   [k*Ts, (k+1)*Ts), and the plant advances exactly (zero-order hold).
-
-After the setpoint reaches the end, the loop goes on holding it for ``settle_time`` so the
-stop and its transient are part of the trace.
+:func:`simulate` builds the run from data: the interpolator's plan and a fresh state, the
+machine's control law (:meth:`nurbsmotion.machine.Machine.law`) and the true plant's ZOH
+matrices, and runs :func:`nurbsmotion.closed_loop.run_samples` (measure, step, law, clip,
+plant; SPEC sections 1 and 4) until the setpoint has reached the end and the motion has
+settled there. It changes none of the objects it is given.
 """
 
 from __future__ import annotations
@@ -20,16 +16,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .control import ControlLaw
+from numba import njit
+
+from . import closed_loop, stepping
+from .control import PidGains, pid_law, pid_state
 from .errors import InfeasibleError
-from .interpolators import (Interpolator, LoopState, PaperInterpolator,
-                            PlannedInterpolator, Status, TaylorInterpolator,
-                            make_interpolator)
+from .interpolators import Interpolator, make_interpolator
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .servo import ServoPlant
+from .stepping import Status
 
-__all__ = ["Trace", "simulate", "run", "to_pulses"]
+__all__ = ["Trace", "SetpointSeries", "simulate", "interpolate", "run", "to_pulses",
+           "settle_hold_samples"]
 
 
 def to_pulses(curve: NurbsCurve, machine: Machine) -> NurbsCurve:
@@ -67,8 +66,21 @@ class Trace:
     speed_bounds : ndarray, shape (n_samples, n_axes, 2) or None
         ``[wmin, wmax]`` of eq. 3.6 [rad/s] where the interpolator computes them
         (NaN at samples where it did not).
+    status : ndarray, shape (n_samples,), int8
+        What the interpolator did at each sample (:class:`nurbsmotion.stepping.Status`):
+        working, finished, limited (a step changed to keep the drive within Umax) or
+        cornered (no admissible step: the drive exceeds Umax).
     finished_index : int
         First sample whose setpoint is the path's end.
+    settled_index : int or None
+        First sample from which the actual position stays within ``settle_window`` of the
+        end point to the end of the trace, or ``None`` if it did not settle.
+    settle_window : float
+        The settle window [pulse].
+    success : bool
+        The motion settled at the end with every drive within Umax.
+    message : str
+        What happened, in one line.
     curve : NurbsCurve
         The path [pulse].
     machine : Machine
@@ -87,7 +99,12 @@ class Trace:
     drive_applied: np.ndarray
     feed: np.ndarray
     speed_bounds: np.ndarray | None
+    status: np.ndarray
     finished_index: int
+    settled_index: int | None
+    settle_window: float
+    success: bool
+    message: str
     curve: NurbsCurve
     machine: Machine
     interpolator: str
@@ -110,39 +127,171 @@ class Trace:
         return plot_trace(self, out_dir, **kwargs)
 
 
+@dataclass(frozen=True)
+class SetpointSeries:
+    """The setpoint stream of an open-loop interpolation, one row per sample.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n_samples,)
+        Sample times k*Ts [s]; row 0 is the start, at rest.
+    u : ndarray, shape (n_samples,)
+        Curve parameter.
+    position : ndarray, shape (n_samples, n_axes)
+        Setpoints C(u) [path units].
+    feed : ndarray, shape (n_samples,)
+        Feed commanded for the step into each sample [path units/s] (0 at row 0).
+    sample_period : float
+        Ts [s].
+    finished_index : int
+        First row at the path's end.
+    """
+
+    t: np.ndarray
+    u: np.ndarray
+    position: np.ndarray
+    feed: np.ndarray
+    sample_period: float
+    finished_index: int
+
+    @property
+    def cycle_time(self) -> float:
+        """Time at which the setpoint first reaches the path's end [s]."""
+        return float(self.t[self.finished_index])
+
+    def feed_fluctuation(self) -> tuple[float, float]:
+        """SPEC section 9: ``(|thd[k] - thd[k-1]|/Ts - Vcmd[k]) / Vcmd[k]``, (max |.|, RMS).
+
+        Taken over the full steps 1 .. finished_index - 1: the last step is cut short to
+        land on the end exactly, so it is not a fluctuation.
+        """
+        from .metrics import feed_fluctuation
+
+        return feed_fluctuation(self.position, self.feed, self.sample_period,
+                                self.finished_index)
+
+    def plot(self, out_dir, **kwargs):
+        """Write ``setpoints.png`` (see :func:`nurbsmotion.plots.plot_setpoints`)."""
+        from .plots import plot_setpoints
+
+        return plot_setpoints(self, out_dir, **kwargs)
+
+
+@njit(cache=True)
+def _run_open_loop(plan, state, law, law_state, us, feeds, positions, velocity, bounds):
+    """Steps 1, 2, ... into rows ``us``, ``feeds``, ``positions`` (row 0 is the start)
+    until the end or the rows are full; returns the rows written, or ``-k`` when step k
+    failed."""
+    n = us.shape[0]
+    for k in range(1, n):
+        u, feed, status = stepping.step(plan, state, law, law_state, positions[k - 1],
+                                        velocity, positions[k], bounds)
+        us[k] = u
+        feeds[k] = feed
+        if status == stepping.FAILED:
+            return -k
+        if status == stepping.FINISHED:
+            return k + 1
+    return n
+
+
+def interpolate(interpolator: Interpolator, max_samples: int = 10_000_000) -> SetpointSeries:
+    """Run an interpolator open loop (no loop state) from the start to the end of its path.
+
+    An interpolator that reads the loop state (``paper``, ``planned``) sees a law with no
+    gains and an axis that follows its setpoint exactly.
+
+    Raises
+    ------
+    InfeasibleError
+        If the interpolator cannot advance, or the end is not reached within
+        ``max_samples`` samples.
+    """
+    curve = interpolator.curve
+    Ts = interpolator.sample_period
+    duration = interpolator.nominal_duration()
+    guess = max_samples if duration is None else int(1.2 * duration / Ts) + 64
+    capacity = max(2, min(guess, max_samples + 1))
+    n_axes = curve.n_axes
+    law = pid_law([PidGains()] * n_axes, math.inf, Ts, False)
+    start = curve(0.0)
+    state = interpolator.new_state()
+    law_state = pid_state(start)
+    velocity = np.zeros(n_axes)
+    bounds = np.empty((n_axes, 2))
+    us, feeds = np.zeros(capacity), np.zeros(capacity)
+    positions = np.empty((capacity, n_axes))
+    positions[0] = start
+    done, k0 = 0, 1
+    while True:
+        n = _run_open_loop(interpolator.plan, state, law, law_state, us[k0 - 1:],
+                           feeds[k0 - 1:], positions[k0 - 1:], velocity, bounds)
+        if n < 0:
+            raise InfeasibleError(f"{interpolator.name} interpolator cannot advance from "
+                                  f"u = {us[k0 - 2 - n]:.9g}")
+        done = k0 - 1 + n
+        if done < capacity:
+            break
+        if capacity > max_samples:
+            raise InfeasibleError(
+                f"interpolation did not reach the end within {max_samples} samples "
+                f"(u = {us[-1]:.6g}); the feed is too low for this path")
+        k0 = capacity
+        capacity = min(2 * capacity, max_samples + 1)
+        us = np.resize(us, capacity)
+        feeds = np.resize(feeds, capacity)
+        positions = np.resize(positions, (capacity, n_axes))
+    return SetpointSeries(t=np.arange(done) * Ts, u=us[:done].copy(),
+                          position=positions[:done].copy(), feed=feeds[:done].copy(),
+                          sample_period=Ts, finished_index=done - 1)
+
+
+def settle_hold_samples(machine: Machine) -> int:
+    """Samples a motion must stay inside the settle window to count as settled: the time
+    the slowest mode of the machine's closed loop (its largest pole radius r, linear,
+    sampled) takes to decay by 1000, ``ceil(ln(1e-3)/ln r)``, at least one sample."""
+    r = machine.loop_pole_radius
+    if r <= 0.0:
+        return 1
+    return max(1, int(math.ceil(math.log(1e-3) / math.log(r))))
+
+
 def simulate(
     interpolator: Interpolator,
     machine: Machine,
     *,
     plant: ServoPlant | None = None,
     settle_time: float = 0.05,
+    settle_window: float = 1.0,
+    settle_limit: float = 10.0,
     max_samples: int | None = None,
-    compiled: bool = True,
 ) -> Trace:
-    """Run the closed loop from the path's start until ``settle_time`` after its end.
+    """Run the closed loop from the path's start until the motion has settled at its end.
 
     Parameters
     ----------
     interpolator : Interpolator
         Any stepper; its curve must be in pulses (see :func:`to_pulses`).
     machine : Machine
-        Gains, Umax and Ts of the controller (and the model of the plant).
+        The controller: its law, Umax and Ts (and the model the interpolator planned with).
     plant : ServoPlant, optional
         The true plant, when it differs from the model (e.g. tau and Kc off by 20 %);
-        ``ServoPlant.of_machine(machine, start)`` by default.
+        the machine's own by default. It starts at rest at its ``position`` (the path's
+        start by default).
     settle_time : float
-        How long to go on holding the end point after the setpoint reaches it [s].
+        The least time the run goes on holding the end point [s].
+    settle_window : float
+        The motion has settled once the actual position stays within this distance of the
+        end point [pulse], with no drive beyond Umax, for :func:`settle_hold_samples`
+        samples in a row; the run ends there (and not before ``settle_time``).
+    settle_limit : float
+        The longest time the run waits for that after the setpoint reached the end [s]; a
+        motion that has not settled by then ends the trace with ``success=False``.
     max_samples : int, optional
         Safety limit against a stalled interpolator; by default twenty times the
         interpolator's :meth:`~nurbsmotion.interpolators.Interpolator.nominal_duration`
         plus ten seconds (or, where it has none, ten times the time at the slowest
-        axis's full-drive speed plus ten seconds).
-    compiled : bool
-        Run the compiled loop (:mod:`nurbsmotion._loop_kernel`) where the interpolator
-        has one: ``taylor1`` / ``taylor2`` at a constant feed, ``paper`` and ``planned``.
-        It gives the
-        same trace as the readable reference loop, which ``compiled=False`` (and any other
-        interpolator) runs.
+        axis's full-drive speed plus ten seconds), plus ``settle_limit``.
 
     Returns
     -------
@@ -153,299 +302,90 @@ def simulate(
     InfeasibleError
         If the interpolator cannot advance, or the end is not reached in ``max_samples``.
     """
+    if not isinstance(interpolator, Interpolator):
+        raise InfeasibleError(f"interpolator must be an Interpolator, got "
+                              f"{type(interpolator).__name__}")
+    if not isinstance(machine, Machine):
+        raise InfeasibleError(f"machine must be a Machine, got {type(machine).__name__}")
     curve = interpolator.curve
     machine.check_path(curve.n_axes)
     Ts = machine.sample_period
     if abs(interpolator.sample_period - Ts) > 1e-15 * Ts:
-        raise ValueError(f"interpolator sample period {interpolator.sample_period} s differs "
-                         f"from the machine's {Ts} s")
-    if not (math.isfinite(settle_time) and settle_time >= 0):
-        raise ValueError(f"settle_time must be finite and >= 0, got {settle_time!r}")
-    start = _start_point(interpolator, curve)
+        raise InfeasibleError(f"interpolator sample period {interpolator.sample_period} s "
+                              f"differs from the machine's {Ts} s")
+    for name, value in (("settle_time", settle_time), ("settle_window", settle_window),
+                        ("settle_limit", settle_limit)):
+        if isinstance(value, bool) or not (isinstance(value, (int, float))
+                                           and math.isfinite(value) and value >= 0):
+            raise InfeasibleError(f"{name} must be a finite number >= 0, got {value!r}")
     if plant is None:
-        plant = _model_plant(interpolator, machine, start)
+        plant = ServoPlant.of_machine(machine)
+    elif plant.n_axes != machine.n_axes or plant.sample_period != Ts:
+        raise InfeasibleError(f"the plant has {plant.n_axes} axes and Ts = "
+                              f"{plant.sample_period} s; the machine {machine.n_axes} and "
+                              f"{Ts} s")
+    start = curve(0.0)
+    duration = interpolator.nominal_duration()
+    n_limit = int(round(settle_limit / Ts))
     if max_samples is None:
-        duration = interpolator.nominal_duration()
         if duration is None:
             slowest = (float(np.min(machine.max_axis_speed))
                        if math.isfinite(machine.max_drive) else 1e300)
-            duration = curve.length / max(slowest, 1e-300)
-            max_samples = int(10 * duration / Ts + 10 / Ts) + 10
+            max_samples = int(10 * curve.length / max(slowest, 1e-300) / Ts + 10 / Ts) + 10
         else:
             max_samples = int(20 * duration / Ts + 10 / Ts) + 10
+        max_samples += n_limit
     n_settle = int(round(settle_time / Ts))
-    compiled_feed = _compiled_feed(interpolator) if compiled else None
-    if compiled_feed is not None:
-        return _simulate_compiled(interpolator, compiled_feed, machine, plant, start,
-                                  n_settle, max_samples)
-    law = ControlLaw(machine)
-    encoder = machine.speed_measurement == "encoder"
-    Ke_Ts = machine.Ke * Ts
-
-    interpolator.reset()
-    thd_prev = start.copy()
-    wd_prev = np.zeros(machine.n_axes)
-    tha_prev = plant.position.copy()
-    rows_u, rows = [], []
-    bounds_rows: list = []
-    any_bounds = False
-    finished_index = None
-    k = 0
-    while True:
-        tha = plant.position.copy()
-        wa = (tha - tha_prev) / Ke_Ts if encoder else plant.speed.copy()
-        if k == 0:
-            u_k, thd, feed, bounds = 0.0, start, 0.0, None
-        else:
-            sp = interpolator.step(LoopState(k, thd_prev, wd_prev, tha, wa))
-            u_k, thd, feed, bounds = sp.u, sp.position, sp.feed, sp.speed_bounds
-            if sp.status is Status.FINISHED and finished_index is None:
-                finished_index = k
-        drive, wd = law.drive(thd, thd_prev, wd_prev, tha, wa)
-        applied = plant.saturate(drive)
-        rows_u.append((u_k, feed))
-        rows.append((thd, tha, wd, wa, drive, applied))
-        bounds_rows.append(bounds)
-        any_bounds |= bounds is not None
-        plant.step(applied)
-        thd_prev, wd_prev, tha_prev = thd, wd, tha
-        if finished_index is not None and k >= finished_index + n_settle:
-            break
-        k += 1
-        if k >= max_samples:
-            raise InfeasibleError(
-                f"{interpolator.name}: the path's end was not reached within {max_samples} "
-                f"samples ({max_samples * Ts:g} s; u = {u_k:.6g})"
-            )
-
-    cols = [np.array(c) for c in zip(*rows)]
-    u_arr, feed_arr = np.array(rows_u).T
-    speed_bounds = None
-    if any_bounds:
-        nan = np.full((machine.n_axes, 2), np.nan)
-        speed_bounds = np.array([nan if b is None else b for b in bounds_rows])
-    return Trace(
-        t=np.arange(len(u_arr)) * Ts,
-        u=u_arr,
-        position_command=cols[0],
-        position=cols[1],
-        speed_command=cols[2],
-        speed=cols[3],
-        drive=cols[4],
-        drive_applied=cols[5],
-        feed=feed_arr,
-        speed_bounds=speed_bounds,
-        finished_index=int(finished_index),
-        curve=curve,
-        machine=machine,
-        interpolator=interpolator.name,
-    )
-
-
-def _start_point(interpolator: Interpolator, curve: NurbsCurve) -> np.ndarray:
-    """``curve(0.0)`` (a copy), kept on the interpolator for the next run of its curve."""
-    cached = interpolator.__dict__.get("_loop_start")
-    if cached is None or cached[0] is not curve:
-        cached = (curve, curve(0.0))
-        interpolator._loop_start = cached
-    return cached[1].copy()
-
-
-def _model_plant(interpolator: Interpolator, machine: Machine,
-                 start: np.ndarray) -> ServoPlant:
-    """``ServoPlant.of_machine(machine, start)``; a copy of the one made for the last run
-    with this machine (its ZOH matrices are only read), kept on the interpolator."""
-    cached = interpolator.__dict__.get("_loop_plant")
-    if cached is None or cached[0] is not machine:
-        cached = (machine, ServoPlant.of_machine(machine, start))
-        interpolator._loop_plant = cached
-    return cached[1].at_rest(start)
-
-
-_NO_TABLES: tuple = ()
-_KERNEL = None
-
-
-def _kernel():
-    """:mod:`nurbsmotion._loop_kernel`, imported on first use (it loads numba)."""
-    global _KERNEL
-    if _KERNEL is None:
-        from . import _loop_kernel
-        _KERNEL = _loop_kernel
-    return _KERNEL
-
-
-def _compiled_feed(interpolator: Interpolator):
-    """``(kind, feed, plan, tables)`` of the compiled loop for this interpolator, or
-    ``None`` (see :mod:`nurbsmotion._loop_kernel`; a new kind of feed planner registers
-    here).
-
-    Only the exact classes qualify: a subclass may override the step.
-    """
-    kern = _kernel()
-
-    if type(interpolator) is PlannedInterpolator:
-        return kern.KIND_PLANNED, interpolator.feed, *_planned_tables(interpolator)
-    global _NO_TABLES
-    if not _NO_TABLES:
-        _NO_TABLES = tuple(np.empty(0) for _ in range(kern.N_TABLES))
-    no_tables = _NO_TABLES
-    if type(interpolator) is TaylorInterpolator and interpolator._constant_feed is not None:
-        return kern.KIND_CONSTANT, interpolator._constant_feed, np.empty((0, 0)), no_tables
-    if type(interpolator) is PaperInterpolator:
-        law = interpolator.law
-        m = interpolator.machine
-        rows = np.array([m.Kp, m.Kd, law._ka * np.ones(m.n_axes), law.drive_per_speed, m.Ke,
-                         np.full(m.n_axes, m.max_drive)], dtype=float)
-        return kern.KIND_PAPER, interpolator.feed, rows, no_tables
-    return None
-
-
-def _planned_tables(interpolator: PlannedInterpolator):
-    """``plan`` and ``tables`` of :data:`nurbsmotion._loop_kernel.KIND_PLANNED`: the
-    interpolator's model of the law per axis, its schedule and the arc-length table.
-
-    Packed once per schedule and kept on the interpolator (a short run costs less than
-    packing them): reused while the objects they come from are the same ones (a new
-    schedule, curve, machine or safety switch packs them again; the kernel only reads
-    them)."""
-    key = (interpolator.plan_s, interpolator.plan_u, interpolator._speed_right,
-           interpolator._speed_left, interpolator._caps, interpolator.curve,
-           interpolator.machine, interpolator.law, interpolator.safety_layer,
-           interpolator.sample_period)
-    cached = interpolator.__dict__.get("_compiled_tables")
-    if cached is not None and all(a is b for a, b in zip(cached[0], key)):
-        return cached[1]
-    packed = _pack_planned_tables(interpolator)
-    interpolator._compiled_tables = (key, packed)
-    return packed
-
-
-def _pack_planned_tables(interpolator: PlannedInterpolator):
-    from . import _loop_kernel as kern
-    from .geometry import _GL_W, _GL_X
-    from .interpolators.planned import _AHEAD_FACTORS, _BISECTIONS
-
-    law, m = interpolator.law, interpolator.machine
-    n = m.n_axes
-    plan = np.empty((7, n))
-    plan[kern.P_KP], plan[kern.P_KD], plan[kern.P_KE_TS] = m.Kp, m.Kd, law._Ke_Ts
-    plan[kern.P_KC], plan[kern.P_TAU], plan[kern.P_KA] = m.Kc, m.tau, law._ka
-    plan[kern.P_KSIG] = law.drive_per_speed
-    geometry = interpolator.curve.geometry
-    safety = interpolator.safety_layer and math.isfinite(m.max_drive)
-    tables = [None] * kern.N_TABLES
-    tables[kern.T_PLAN_S] = interpolator.plan_s
-    tables[kern.T_PLAN_U] = interpolator.plan_u
-    tables[kern.T_SPEED_RIGHT] = interpolator._speed_right
-    tables[kern.T_SPEED_LEFT] = interpolator._speed_left
-    tables[kern.T_CAPS] = interpolator._caps
-    tables[kern.T_TABLE_U] = geometry._u
-    tables[kern.T_TABLE_S] = geometry._s
-    tables[kern.T_GL_X] = _GL_X
-    tables[kern.T_GL_W] = _GL_W
-    tables[kern.T_AHEAD] = _AHEAD_FACTORS
-    tables[kern.T_SCALARS] = np.array([m.max_drive, 1.0 if law.feedforward else 0.0,
-                                       interpolator.sample_period, 1.0 if safety else 0.0,
-                                       float(_BISECTIONS)])
-    return plan, tuple(np.ascontiguousarray(t, dtype=float) for t in tables)
-
-
-def _machine_args(interpolator: Interpolator, machine: Machine) -> tuple:
-    """The machine's arguments of :func:`nurbsmotion._loop_kernel.run_loop` (Kp .. PD+),
-    kept on the interpolator for the next run on the same (frozen) machine."""
-    cached = interpolator.__dict__.get("_loop_machine")
-    if cached is None or cached[0] is not machine:
-        Ts = machine.sample_period
-        cached = (machine, (machine.Kp, machine.Kd, machine.Kc, machine.tau,
-                            machine.Ke * Ts, Ts, machine.controller == "pd+"))
-        interpolator._loop_machine = cached
-    return cached[1]
-
-
-def _simulate_compiled(interpolator, compiled_feed, machine, plant, start, n_settle,
-                       max_samples) -> Trace:
-    """:func:`simulate` through the compiled loop (``compiled_feed`` from
-    :func:`_compiled_feed`); the same trace as the reference."""
-    kern = _kernel()
-
-    kind, feed, plan, tables = compiled_feed
-    curve = interpolator.curve
-    n_axes = curve.n_axes
-    Ts = machine.sample_period
-    interpolator.reset()
-    # A first guess of the rows (capped, should a tiny feed promise an endless run); the
-    # kernel stops when they are full and is resumed on grown rows.
-    duration = interpolator.nominal_duration()
-    if duration is None:
-        duration = curve.length / feed
-    guess = min(1.2 * duration / Ts + n_settle + 64, 1 << 22)
-    capacity = max(1, int(min(max_samples, guess)))
-    record_bounds = (kind == kern.KIND_PAPER
-                     or (kind == kern.KIND_PLANNED and tables[kern.T_SCALARS][3] != 0.0))
-    shape = (capacity, n_axes)
-    rows = {
-        "u": np.empty(capacity), "feed": np.empty(capacity),
-        "thd": np.empty(shape), "tha": np.empty(shape), "wd": np.empty(shape),
-        "wa": np.empty(shape), "drive": np.empty(shape), "applied": np.empty(shape),
-        "bounds": np.empty((capacity if record_bounds else 0, n_axes, 2)),
-    }
-    sc = np.zeros(kern.N_STATE)
-    sc[kern.S_FINISHED] = -1.0
-    ax = np.empty((5, n_axes))
-    ax[kern.A_THD] = start
-    ax[kern.A_WD] = 0.0
-    ax[kern.A_THA] = plant.position
-    ax[kern.A_W] = plant.speed
-    ax[kern.A_TH] = plant.position
-    Ad, Bd = np.ascontiguousarray(plant._Ad), np.ascontiguousarray(plant._Bd)
-    fixed = (curve.knots, curve._homogeneous, curve.degree, interpolator._breaks, kind,
-             interpolator.order, float(feed), plan, tables, start, interpolator._end,
-             *_machine_args(interpolator, machine), float(plant.max_drive), Ad, Bd,
-             machine.speed_measurement == "encoder", n_settle, int(max_samples))
-    while True:
-        code = kern.run_loop(*fixed, sc, ax, *rows.values(), record_bounds)
-        if code != kern.FULL:
-            break
-        capacity = min(2 * capacity, int(max_samples) + 1)
-        for name, arr in rows.items():
-            if arr.shape[0] > 0:
-                arr.resize((capacity,) + arr.shape[1:], refcheck=False)
-    k, u = int(sc[kern.S_K]), float(sc[kern.S_U])
-    interpolator.u = u
-    if kind == kern.KIND_PLANNED:
-        interpolator._phi, interpolator._s = float(sc[kern.S_PHI]), float(sc[kern.S_S])
-        interpolator.slowdowns = int(sc[kern.S_SLOWDOWNS])
-    if code == kern.CANNOT_ADVANCE:
-        raise InfeasibleError(
-            f"{interpolator.name} interpolator cannot advance from u = {u:.9g} "
-            f"(parameter step {float(sc[kern.S_ERR_DU])!r}, feed {float(sc[kern.S_ERR_FEED])!r})"
-        )
-    if code == kern.TOO_MANY_SAMPLES:
+    hold = settle_hold_samples(machine)
+    settling = closed_loop.Settling(np.ascontiguousarray(curve(1.0), dtype=float),
+                                    float(settle_window), n_settle, hold,
+                                    max(n_limit, n_settle), int(max_samples))
+    guess = (curve.length / machine.max_axis_speed.min() if duration is None else duration)
+    capacity = int(min(1.2 * guess / Ts + n_settle + hold + 64, 1 << 22))
+    code, rows, loop = closed_loop.run(
+        interpolator.plan, interpolator.new_state(), machine.law(), pid_state(start), plant,
+        machine.speed_measurement == "encoder", start, settling,
+        interpolator.records_bounds, capacity)
+    u = float(loop.u[0])
+    finished = int(loop.finished[0])
+    if code == closed_loop.FAILED:
+        raise InfeasibleError(f"{interpolator.name} interpolator cannot advance from "
+                              f"u = {u:.9g}")
+    if finished < 0:
         raise InfeasibleError(
             f"{interpolator.name}: the path's end was not reached within {max_samples} "
-            f"samples ({max_samples * Ts:g} s; u = {u:.6g})"
-        )
-    plant.speed, plant.position = ax[kern.A_W].copy(), ax[kern.A_TH].copy()
-    for name, arr in rows.items():
-        if arr.shape[0] > 0:
-            arr.resize((k,) + arr.shape[1:], refcheck=False)
+            f"samples ({max_samples * Ts:g} s; u = {u:.6g})")
+    settled = code == closed_loop.DONE
+    n = rows.u.shape[0]
+    settled_index = n - int(loop.calm[0]) if settled else None
+    success, message = _verdict(rows, machine, settled, settled_index, n, Ts, settle_window,
+                                settle_limit)
     return Trace(
-        t=np.arange(k) * Ts,
-        u=rows["u"],
-        position_command=rows["thd"],
-        position=rows["tha"],
-        speed_command=rows["wd"],
-        speed=rows["wa"],
-        drive=rows["drive"],
-        drive_applied=rows["applied"],
-        feed=rows["feed"],
-        speed_bounds=rows["bounds"] if record_bounds else None,
-        finished_index=int(sc[kern.S_FINISHED]),
-        curve=curve,
-        machine=machine,
-        interpolator=interpolator.name,
-    )
+        t=np.arange(n) * Ts, u=rows.u, position_command=rows.command,
+        position=rows.position, speed_command=rows.speed_command, speed=rows.speed,
+        drive=rows.drive, drive_applied=rows.drive_applied, feed=rows.feed,
+        speed_bounds=rows.bounds if interpolator.records_bounds else None,
+        status=rows.status, finished_index=finished, settled_index=settled_index,
+        settle_window=float(settle_window), success=success, message=message, curve=curve,
+        machine=machine, interpolator=interpolator.name)
+
+
+def _verdict(rows, machine: Machine, settled: bool, settled_index, n: int, Ts: float,
+             window: float, limit: float) -> tuple[bool, str]:
+    """``(success, message)`` of a run: settled, and every drive within Umax."""
+    over = int(np.count_nonzero(np.max(np.abs(rows.drive), axis=1) > machine.max_drive))
+    limited = int(np.count_nonzero(rows.status == Status.LIMITED))
+    cornered = int(np.count_nonzero(rows.status == Status.CORNERED))
+    parts = [f"settled within {window:g} pulse of the end at {settled_index * Ts:.6g} s"
+             if settled else
+             f"did not settle within {window:g} pulse of the end in {limit:g} s"]
+    parts.append(f"{over} samples with a drive beyond Umax" if over else
+                 "every drive within Umax")
+    if limited:
+        parts.append(f"{limited} steps limited to keep the drive within Umax")
+    if cornered:
+        parts.append(f"{cornered} steps cornered (no admissible step)")
+    return settled and over == 0, "; ".join(parts)
 
 
 def run(curve: NurbsCurve, machine: Machine, feed: float, interpolator: str = "paper",
@@ -462,9 +402,13 @@ def run(curve: NurbsCurve, machine: Machine, feed: float, interpolator: str = "p
     interpolator : str
         One of :data:`nurbsmotion.interpolators.LOOP_METHODS`.
     **simulate_options
-        Passed to :func:`simulate` (``plant``, ``settle_time``, ``max_samples``,
-        ``compiled``).
+        Passed to :func:`simulate` (``plant``, ``settle_time``, ``settle_window``,
+        ``settle_limit``, ``max_samples``).
     """
+    if not isinstance(curve, NurbsCurve):
+        raise InfeasibleError(f"curve must be a NurbsCurve, got {type(curve).__name__}")
+    if not isinstance(machine, Machine):
+        raise InfeasibleError(f"machine must be a Machine, got {type(machine).__name__}")
     path = to_pulses(curve, machine)
     return simulate(make_interpolator(interpolator, path, machine, feed), machine,
                     **simulate_options)

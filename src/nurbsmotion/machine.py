@@ -27,7 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from .control import PidGains, loop_poles, pid_law
 from .errors import InvalidMachineError, PathFileError
+from .servo import zoh_matrices
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -37,8 +39,10 @@ else:  # pragma: no cover
 __all__ = ["Axis", "Machine", "CONTROLLERS", "SPEED_MEASUREMENTS", "LENGTH_UNITS_UM",
            "die_bonder", "builtin_machine", "BUILTIN_MACHINES", "load_machine"]
 
-CONTROLLERS = ("pd+", "pd")
-"""Control laws: PD+ (eq. 2.12 / 3.3, the default) and plain PD (eq. 2.4)."""
+CONTROLLERS = ("pd+", "pd", "pid")
+"""Control laws: PD+ (eq. 2.12 / 3.3, the default), plain PD (eq. 2.4), and LinuxCNC's
+``pid`` component with each axis's own parameters (:class:`nurbsmotion.control.PidGains`).
+All run as the ``pid`` law: PD and PD+ are its presets."""
 
 SPEED_MEASUREMENTS = ("encoder", "true")
 """Speed used by the controller: encoder differencing (default) or the true motor speed."""
@@ -82,17 +86,20 @@ class Axis:
     mechanical_gain : float
         Ke [pulse/rad], > 0.
     position_gain : float
-        Kp [V/pulse], >= 0.
+        Kp [V/pulse], >= 0 (PD and PD+ machines).
     speed_gain : float
-        Kd [V/(rad/s)], >= 0.
+        Kd [V/(rad/s)], >= 0 (PD and PD+ machines).
+    pid : PidGains, optional
+        LinuxCNC ``pid`` parameters of this axis (machines with ``controller="pid"``).
     """
 
     name: str
     time_constant: float
     electrical_gain: float
     mechanical_gain: float
-    position_gain: float
-    speed_gain: float
+    position_gain: float = 0.0
+    speed_gain: float = 0.0
+    pid: PidGains | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.isidentifier():
@@ -104,6 +111,8 @@ class Axis:
             object.__setattr__(self, f, _positive(getattr(self, f), where + f))
         for f in ("position_gain", "speed_gain"):
             object.__setattr__(self, f, _non_negative(getattr(self, f), where + f))
+        if self.pid is not None and not isinstance(self.pid, PidGains):
+            raise InvalidMachineError(f"{where}pid must be a PidGains, got {self.pid!r}")
 
 
 @dataclass(frozen=True)
@@ -118,8 +127,9 @@ class Machine:
         Umax [V], > 0; ``math.inf`` for an ideal, unsaturated drive.
     sample_period : float
         Ts [s], > 0, shared by the interpolator and the controller.
-    controller : {"pd+", "pd"}
-        Control law (SPEC section 4).
+    controller : {"pd+", "pd", "pid"}
+        Control law (SPEC sections 4 and 10): the paper's PD+ or PD from each axis's Kp
+        and Kd, or LinuxCNC's ``pid`` from each axis's ``pid`` parameters.
     speed_measurement : {"encoder", "true"}
         ``"encoder"``: speed by differencing positions (SPEC eq. 3.3); ``"true"``: the
         simulated motor speed.
@@ -131,7 +141,9 @@ class Machine:
     Raises
     ------
     InvalidMachineError
-        Naming the bad field.
+        Naming the bad field, or the axis whose closed loop (its law and plant, linear,
+        as sampled) has a pole on or outside the unit circle: an unstable machine is
+        refused, not simulated.
     """
 
     axes: tuple[Axis, ...]
@@ -166,6 +178,30 @@ class Machine:
                 f"speed_measurement must be one of {SPEED_MEASUREMENTS}, "
                 f"got {self.speed_measurement!r}"
             )
+        for a in axes:
+            if (self.controller == "pid") != (a.pid is not None):
+                raise InvalidMachineError(
+                    f"axis {a.name!r}: " + ("a controller = 'pid' machine needs the axis's "
+                                            "pid parameters" if a.pid is None else
+                                            f"pid parameters need controller = 'pid', not "
+                                            f"{self.controller!r}"))
+        self._check_stable()
+
+    def _check_stable(self) -> None:
+        feedback_deriv = self.speed_measurement == "true"
+        for a, gains in zip(self.axes, self.pid_gains):
+            Ad, Bd = zoh_matrices(a.time_constant, a.electrical_gain, a.mechanical_gain,
+                                  self.sample_period)
+            poles = loop_poles(gains, Ad, Bd, self.sample_period, a.mechanical_gain,
+                               feedback_deriv)
+            radius = float(np.max(np.abs(poles)))
+            self._arrays["pole_radius"] = max(radius, self._arrays.get("pole_radius", 0.0))
+            if not radius < 1.0:
+                shown = ", ".join(f"{p.real:.6g}{p.imag:+.6g}j" for p in poles)
+                raise InvalidMachineError(
+                    f"axis {a.name!r}: the closed loop is not stable at Ts = "
+                    f"{self.sample_period:g} s: poles {shown} (largest |p| = {radius:.6g}, "
+                    "must be < 1); change the gains or the sample period")
 
     @property
     def n_axes(self) -> int:
@@ -208,6 +244,27 @@ class Machine:
         return self._column("speed_gain")
 
     @property
+    def pid_gains(self) -> tuple[PidGains, ...]:
+        """Each axis's law as LinuxCNC ``pid`` parameters (PD and PD+ as presets)."""
+        if self.controller == "pid":
+            return tuple(a.pid for a in self.axes)
+        return tuple(PidGains.paper_preset(a.position_gain, a.speed_gain, a.time_constant,
+                                           a.electrical_gain, a.mechanical_gain,
+                                           self.controller == "pd+") for a in self.axes)
+
+    @property
+    def loop_pole_radius(self) -> float:
+        """The largest pole radius of the axes' closed loops (linear, sampled), < 1."""
+        return self._arrays["pole_radius"]
+
+    def law(self) -> np.ndarray:
+        """The control law of every axis as numbers (shape (n_axes,), dtype :data:`nurbsmotion.control.PID_LAW`)."""
+        if "law" not in self._arrays:
+            self._arrays["law"] = pid_law(self.pid_gains, self.max_drive, self.sample_period,
+                                          self.speed_measurement == "true")
+        return self._arrays["law"]
+
+    @property
     def max_axis_speed(self) -> np.ndarray:
         """Steady speed at full drive, Umax*Kc*Ke, shape (n_axes,) [pulse/s]."""
         return self.max_drive * self.Kc * self.Ke
@@ -244,9 +301,7 @@ class Machine:
             "controller": self.controller,
             "speed_measurement": self.speed_measurement,
             "pulse_length_um": self.pulse_length_um,
-            "axes": [
-                {k: getattr(a, k) for k in Axis.__dataclass_fields__} for a in self.axes
-            ],
+            "axes": [_axis_dict(a, self.controller) for a in self.axes],
         }
 
     @classmethod
@@ -265,16 +320,23 @@ class Machine:
                 raise PathFileError(f"machine field {key!r} is missing", source)
         if not isinstance(data["axes"], list):
             raise PathFileError("machine field 'axes' must be a list of axis tables", source)
-        axis_fields = set(Axis.__dataclass_fields__)
+        pid = data.get("controller") == "pid"
+        plant_fields = {"name", "time_constant", "electrical_gain", "mechanical_gain"}
+        axis_fields = plant_fields | ({"pid"} if pid else {"position_gain", "speed_gain"})
         axes = []
         for i, entry in enumerate(data["axes"]):
             if not isinstance(entry, dict) or set(entry) != axis_fields:
                 got = sorted(entry) if isinstance(entry, dict) else entry
                 raise PathFileError(
-                    f"axes[{i}] must have exactly the fields {sorted(axis_fields)}, got {got}",
+                    f"axes[{i}] must have exactly the fields {sorted(axis_fields)} "
+                    f"(controller {data.get('controller', 'pd+')!r}), got {got}",
                     source,
                 )
             try:
+                if pid:
+                    name = entry.get("name")
+                    entry = {**entry, "pid": PidGains.from_mapping(
+                        entry["pid"], f"axis {name!r} pid")}
                 axes.append(Axis(**entry))
             except InvalidMachineError as exc:
                 raise PathFileError(f"axes[{i}]: {exc}", source) from None
@@ -282,6 +344,17 @@ class Machine:
             return cls(**{**data, "axes": tuple(axes)})
         except InvalidMachineError as exc:
             raise PathFileError(str(exc), source) from None
+
+
+def _axis_dict(axis: Axis, controller: str) -> dict:
+    """One axis as a machine file's ``[[axes]]`` table holds it."""
+    out = {k: getattr(axis, k) for k in ("name", "time_constant", "electrical_gain",
+                                          "mechanical_gain")}
+    if controller == "pid":
+        out["pid"] = axis.pid.to_dict()
+    else:
+        out["position_gain"], out["speed_gain"] = axis.position_gain, axis.speed_gain
+    return out
 
 
 def die_bonder(**changes: Any) -> Machine:

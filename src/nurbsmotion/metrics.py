@@ -19,10 +19,10 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .interpolators.base import feed_fluctuation
 from .nurbs import NurbsCurve
+from .stepping import Status
 
-__all__ = ["Metrics", "trace_metrics", "contour_error", "nearest_parameter",
+__all__ = ["Metrics", "trace_metrics", "feed_fluctuation", "contour_error", "nearest_parameter",
            "SATURATION_TOLERANCE"]
 
 SATURATION_TOLERANCE = 1e-6
@@ -49,6 +49,15 @@ class Metrics:
         Samples with |u| > Umax (1 + SATURATION_TOLERANCE) per axis.
     feed_fluctuation_max, feed_fluctuation_rms : float
         Relative (1 = 100 %).
+    limited_samples : int
+        Samples whose step the interpolator changed to keep every drive within Umax.
+    cornered_samples : dict of str to int
+        Samples at which no admissible step existed, counted per axis whose drive then
+        exceeded Umax.
+    success : bool
+        The motion settled at the end with every drive within Umax.
+    message : str
+        The run's verdict in one line.
     """
 
     cycle_time_s: float
@@ -61,6 +70,10 @@ class Metrics:
     saturated_samples: dict
     feed_fluctuation_max: float
     feed_fluctuation_rms: float
+    limited_samples: int
+    cornered_samples: dict
+    success: bool
+    message: str
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -69,6 +82,18 @@ class Metrics:
     def total_saturated_samples(self) -> int:
         """Saturated samples summed over the axes."""
         return int(sum(self.saturated_samples.values()))
+
+
+def feed_fluctuation(position: np.ndarray, feed: np.ndarray, sample_period: float,
+                     finished_index: int) -> tuple[float, float]:
+    """Feedrate fluctuation (max |.|, RMS) of SPEC section 9; see
+    :meth:`nurbsmotion.loop.SetpointSeries.feed_fluctuation`."""
+    k = np.arange(1, finished_index)
+    if k.size == 0:
+        return 0.0, 0.0
+    speed = np.linalg.norm(position[k] - position[k - 1], axis=1) / sample_period
+    rel = (speed - feed[k]) / feed[k]
+    return float(np.max(np.abs(rel))), float(np.sqrt(np.mean(rel**2)))
 
 
 def nearest_parameter(curve: NurbsCurve, points: np.ndarray, grid_size: int = 20_000):
@@ -139,6 +164,8 @@ def trace_metrics(trace) -> Metrics:
                                  axis=0)
     fl_max, fl_rms = feed_fluctuation(trace.position_command, trace.feed,
                                       trace.machine.sample_period, trace.finished_index)
+    cornered = trace.status == Status.CORNERED
+    cornered_axes = np.count_nonzero(cornered[:, None] & (np.abs(trace.drive) > umax), axis=0)
 
     def per_axis(values):
         return {n: float(v) for n, v in zip(names, values)}
@@ -154,4 +181,8 @@ def trace_metrics(trace) -> Metrics:
         saturated_samples={n: int(v) for n, v in zip(names, saturated)},
         feed_fluctuation_max=fl_max,
         feed_fluctuation_rms=fl_rms,
+        limited_samples=int(np.count_nonzero(trace.status == Status.LIMITED)),
+        cornered_samples={n: int(v) for n, v in zip(names, cornered_axes)},
+        success=bool(trace.success),
+        message=trace.message,
     )

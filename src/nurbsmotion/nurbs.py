@@ -222,6 +222,12 @@ class NurbsCurve:
         return self.control_points.shape[0]
 
     @property
+    def homogeneous(self) -> np.ndarray:
+        """Homogeneous control points ``[w*P, w]``, shape (n_control_points, n_axes + 1)
+        (read-only)."""
+        return self._homogeneous
+
+    @property
     def breakpoints(self) -> np.ndarray:
         """Distinct knot values in ``[0, 1]``, shape (n_spans + 1,)."""
         return np.unique(self.knots)

@@ -28,7 +28,8 @@ SUMMARY_KEYS = (
     "cycle_time_s", "steps", "max_following_error", "rms_following_error",
     "max_contour_error", "rms_contour_error", "max_drive_ratio", "saturated_samples",
     "feed_fluctuation_max", "feed_fluctuation_rms", "interpolator", "feed", "machine", "path",
-    "time_optimal_bound_s", "cycle_time_ratio",
+    "time_optimal_bound_s", "cycle_time_ratio", "limited_samples", "cornered_samples",
+    "success", "message",
 )
 """Keys of ``summary.json``, in order."""
 

@@ -16,13 +16,16 @@ x = [w, theta] : state, motor speed [rad/s] and position [pulse]; u : drive [V].
 from __future__ import annotations
 
 import functools
-
-import copy
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from scipy.linalg import expm
 
-__all__ = ["ServoPlant", "zoh_matrices"]
+from .errors import InvalidMachineError
+
+__all__ = ["ServoPlant", "zoh_matrices", "plant_step"]
 
 
 def zoh_matrices(time_constant: float, electrical_gain: float, mechanical_gain: float,
@@ -53,8 +56,17 @@ def _zoh_exponential(time_constant, electrical_gain, mechanical_gain, sample_per
     return E
 
 
+def _axis_values(values, name: str) -> np.ndarray:
+    arr = np.array(values, dtype=float).reshape(-1)
+    if arr.size == 0 or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise InvalidMachineError(f"plant {name} must be finite and > 0 per axis, got {values!r}")
+    arr.flags.writeable = False
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
 class ServoPlant:
-    """All axes of a machine's plant, stepped together.
+    """All axes of a machine's plant: a value object (the loop owns the motion's state).
 
     Parameters
     ----------
@@ -65,40 +77,114 @@ class ServoPlant:
         Umax [V] (``inf`` for no saturation).
     sample_period : float
         Ts [s].
-    position : array_like, shape (n_axes,)
-        Initial position [pulse]; the plant starts at rest.
+    position : array_like, shape (n_axes,), optional
+        Where the plant starts, at rest [pulse]; by default the path's start.
+
+    Attributes
+    ----------
+    Ad : ndarray, shape (n_axes, 2, 2)
+    Bd : ndarray, shape (n_axes, 2)
+        ZOH matrices per axis, state ``[w, theta]``.
     """
 
-    def __init__(self, time_constant, electrical_gain, mechanical_gain, max_drive,
-                 sample_period, position):
-        mats = [zoh_matrices(t, c, e, sample_period)
-                for t, c, e in zip(time_constant, electrical_gain, mechanical_gain)]
-        self._Ad = np.array([a for a, _ in mats])  # (n_axes, 2, 2)
-        self._Bd = np.array([b for _, b in mats])  # (n_axes, 2)
-        self.max_drive = max_drive
-        self.speed = np.zeros(len(mats))
-        self.position = np.array(position, dtype=float)
+    time_constant: np.ndarray
+    electrical_gain: np.ndarray
+    mechanical_gain: np.ndarray
+    max_drive: float
+    sample_period: float
+    position: np.ndarray | None = None
+    Ad: np.ndarray = field(init=False, repr=False)
+    Bd: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        tau = _axis_values(self.time_constant, "time_constant")
+        Kc = _axis_values(self.electrical_gain, "electrical_gain")
+        Ke = _axis_values(self.mechanical_gain, "mechanical_gain")
+        if not (tau.size == Kc.size == Ke.size):
+            raise InvalidMachineError("plant parameters must have one value per axis, got "
+                                      f"{tau.size}, {Kc.size} and {Ke.size}")
+        Ts = float(self.sample_period)
+        if not (math.isfinite(Ts) and Ts > 0):
+            raise InvalidMachineError(f"plant sample_period must be finite and > 0, "
+                                      f"got {self.sample_period!r}")
+        umax = float(self.max_drive)
+        if not umax > 0:
+            raise InvalidMachineError(f"plant max_drive must be > 0, got {self.max_drive!r}")
+        mats = [zoh_matrices(t, c, e, Ts) for t, c, e in zip(tau, Kc, Ke)]
+        Ad = np.array([a for a, _ in mats])
+        Bd = np.array([b for _, b in mats])
+        Ad.flags.writeable = Bd.flags.writeable = False
+        for name, value in (("time_constant", tau), ("electrical_gain", Kc),
+                            ("mechanical_gain", Ke), ("max_drive", umax),
+                            ("sample_period", Ts), ("Ad", Ad), ("Bd", Bd)):
+            object.__setattr__(self, name, value)
+        if self.position is not None:
+            pos = np.array(self.position, dtype=float).reshape(-1)
+            if pos.size != tau.size or not np.all(np.isfinite(pos)):
+                raise InvalidMachineError(f"plant position must be {tau.size} finite numbers, "
+                                          f"got {self.position!r}")
+            pos.flags.writeable = False
+            object.__setattr__(self, "position", pos)
+
+    @property
+    def n_axes(self) -> int:
+        return self.time_constant.size
 
     @classmethod
-    def of_machine(cls, machine, position, *, time_constant_scale=1.0, electrical_gain_scale=1.0):
-        """The plant of ``machine``, optionally with tau and Kc scaled (model mismatch)."""
-        return cls(machine.tau * time_constant_scale, machine.Kc * electrical_gain_scale,
-                   machine.Ke, machine.max_drive, machine.sample_period, position)
+    def of_machine(cls, machine, position=None, *, time_constant_scale=1.0,
+                   electrical_gain_scale=1.0, mechanical_gain_scale=1.0) -> "ServoPlant":
+        """The plant of ``machine``, optionally with tau, Kc and Ke scaled (model mismatch;
+        a scale may be one number or one per axis)."""
+        return cls(machine.tau * np.asarray(time_constant_scale, dtype=float),
+                   machine.Kc * np.asarray(electrical_gain_scale, dtype=float),
+                   machine.Ke * np.asarray(mechanical_gain_scale, dtype=float),
+                   machine.max_drive, machine.sample_period, position)
 
     def at_rest(self, position) -> "ServoPlant":
-        """A new plant with the same dynamics, at rest at ``position`` [pulse]."""
-        plant = copy.copy(self)
-        plant.speed = np.zeros_like(self.speed)
-        plant.position = np.array(position, dtype=float)
-        return plant
+        """The same dynamics, starting at rest at ``position`` [pulse]."""
+        return ServoPlant(self.time_constant, self.electrical_gain, self.mechanical_gain,
+                          self.max_drive, self.sample_period, position)
 
     def saturate(self, drive: np.ndarray) -> np.ndarray:
         """The drive the actuator applies: ``clip(u, -Umax, Umax)`` [V]."""
         return np.clip(drive, -self.max_drive, self.max_drive)
 
-    def step(self, drive_applied: np.ndarray) -> None:
-        """Advance one sample holding ``drive_applied`` [V], shape (n_axes,)."""
-        Ad, Bd = self._Ad, self._Bd
-        w, th = self.speed, self.position
-        self.speed = Ad[:, 0, 0] * w + Ad[:, 0, 1] * th + Bd[:, 0] * drive_applied
-        self.position = Ad[:, 1, 0] * w + Ad[:, 1, 1] * th + Bd[:, 1] * drive_applied
+    def response(self, drive: np.ndarray, position=None) -> tuple[np.ndarray, np.ndarray]:
+        """Speed and position under a drive sequence, from rest.
+
+        Parameters
+        ----------
+        drive : ndarray, shape (n_samples, n_axes)
+            u[k] [V], clipped to +-Umax and held over each sample.
+        position : array_like, shape (n_axes,), optional
+            Start [pulse]; :attr:`position` (or 0) by default.
+
+        Returns
+        -------
+        speed : ndarray, shape (n_samples + 1, n_axes)
+            w[k] [rad/s].
+        position : ndarray, shape (n_samples + 1, n_axes)
+            theta[k] [pulse].
+        """
+        drive = np.asarray(drive, dtype=float)
+        start = self.position if position is None else np.asarray(position, dtype=float)
+        w = np.zeros((drive.shape[0] + 1, self.n_axes))
+        th = np.zeros_like(w)
+        th[0] = 0.0 if start is None else start
+        for k in range(drive.shape[0]):
+            applied = self.saturate(drive[k])
+            for j in range(self.n_axes):
+                w[k + 1, j], th[k + 1, j] = plant_step(self.Ad, self.Bd, j, w[k, j], th[k, j],
+                                                       applied[j])
+        return w, th
+
+
+@njit(cache=True)
+def plant_step(Ad, Bd, j, speed, position, drive_applied):
+    """One exact ZOH step of axis ``j``: ``(speed, position)`` one sample later.
+
+    ``Ad``, ``Bd`` of shapes (n_axes, 2, 2) and (n_axes, 2); speed w [rad/s], position
+    theta [pulse], the (clipped) drive held over the sample [V]."""
+    w = Ad[j, 0, 0] * speed + Ad[j, 0, 1] * position + Bd[j, 0] * drive_applied
+    th = Ad[j, 1, 0] * speed + Ad[j, 1, 1] * position + Bd[j, 1] * drive_applied
+    return w, th

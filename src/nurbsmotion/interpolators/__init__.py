@@ -1,4 +1,6 @@
-"""Interpolators: one module each, all steppers with ``step(state) -> Setpoint``.
+"""Interpolators: one module each; a plan (data) and a compiled step each, registered with
+:mod:`nurbsmotion.stepping`. Adding one means a module and an entry in
+:func:`make_interpolator` (and :data:`LOOP_METHODS` for the command line).
 
 - ``uniform``: fixed parameter step (eq. 1.1);
 - ``taylor1`` / ``taylor2``: constant (or parameter-dependent) feed, eq. 3.2 / 3.1;
@@ -7,15 +9,13 @@
 - ``replay``: a parameter sequence planned elsewhere, fed through the same loop.
 """
 
-from .base import (Feed, Interpolator, LoopState, Setpoint, SetpointSeries, Status,
-                   interpolate, taylor_increment)
+from .base import Interpolator, Status, taylor_increment
 from .paper import PaperInterpolator
 from .replay import ReplayInterpolator
 from .planned import PlannedInterpolator
 from .taylor import TaylorInterpolator, UniformInterpolator
 
-__all__ = ["Feed", "Interpolator", "LoopState", "Setpoint", "SetpointSeries", "Status",
-           "interpolate", "taylor_increment", "PaperInterpolator", "PlannedInterpolator",
+__all__ = ["Interpolator", "Status", "taylor_increment", "PaperInterpolator", "PlannedInterpolator",
            "ReplayInterpolator", "TaylorInterpolator", "UniformInterpolator",
            "OPEN_LOOP_METHODS", "LOOP_METHODS", "make_open_loop", "make_interpolator"]
 
@@ -26,7 +26,7 @@ LOOP_METHODS = ("taylor1", "taylor2", "paper", "planned")
 """Interpolators offered in the servo loop (``nurbsmotion run --interpolator``)."""
 
 
-def make_open_loop(method: str, curve, sample_period: float, feed: Feed) -> Interpolator:
+def make_open_loop(method: str, curve, sample_period: float, feed) -> Interpolator:
     """An open-loop interpolator by name (one of :data:`OPEN_LOOP_METHODS`)."""
     if method == "uniform":
         return UniformInterpolator.for_feed(curve, sample_period, feed)

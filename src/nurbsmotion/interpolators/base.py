@@ -1,10 +1,17 @@
-"""The stepper interface every interpolator implements, and the open-loop driver.
+"""What every interpolator shares: the path as data, the Taylor step, the open-loop driver.
 
-An interpolator is a stepper, as in ruckig: :meth:`Interpolator.step` is called once per
-sample with the measured :class:`LoopState` (or ``None`` when run open loop) and returns the
-next :class:`Setpoint` with an explicit :class:`Status`. Sample 0 is the path's start, at
-rest; step k (k >= 1) produces the setpoint thd[k]. The step that reaches ``u = 1`` lands
-on it exactly and reports ``FINISHED``; later steps hold the end point.
+An interpolator is a Python object that holds an immutable *plan* (a NamedTuple of
+numbers and arrays) and makes a fresh *state* for every run; its per-sample step is a
+compiled function registered with :func:`nurbsmotion.stepping.register` (the contract is
+in :mod:`nurbsmotion.stepping`). The object is never changed by a run.
+
+The step itself is the Taylor expansion of order 1 or 2 (eq. 3.2 / 3.1 of Yeh & Sun 2008,
+with the tangential-acceleration term of SPEC section 5). A step that crosses a knot where
+the curve loses the continuity the expansion relies on (C1 for first order, C2 for second
+order; a sharp corner is one) is integrated piecewise: the expansion restarts at the knot
+with the derivatives of the span the step moves into (SPEC section 5's one-sided rule),
+for the rest of Ts. The step that reaches u = 1 lands on it exactly and reports
+``FINISHED``.
 
 Glossary
 --------
@@ -15,100 +22,189 @@ Ts : sample period [s].
 
 from __future__ import annotations
 
-import enum
 import math
-from abc import ABC, abstractmethod
-from dataclasses import dataclass
-from typing import Callable, Union
+from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
+from .. import stepping
+from .._kernels import rational_derivatives_into, rational_point_into, workspace
+from ..control import pid_affine
 from ..errors import InfeasibleError
 from ..nurbs import NurbsCurve
+from ..stepping import Status
 
-__all__ = ["Status", "LoopState", "Setpoint", "Interpolator", "SetpointSeries",
-           "Feed", "taylor_increment", "interpolate"]
-
-Feed = Union[float, Callable[[float], float]]
-"""A commanded feed: a constant, or a function of the curve parameter u [path units/s]."""
-
-
-class Status(enum.Enum):
-    """What a step did."""
-
-    WORKING = "working"
-    """Moved along the path; the end is not reached yet."""
-    FINISHED = "finished"
-    """The setpoint is at the path's end (reached at this step or before)."""
+__all__ = ["Status", "Interpolator", "PathData", "PathScratch", "path_data", "path_scratch",
+           "taylor_increment", "advance", "land", "path_point", "path_derivatives",
+           "speed_bounds", "positive_feed"]
 
 
-@dataclass(frozen=True)
-class LoopState:
-    """What the loop measured at sample k, before the interpolator picks thd[k].
+class PathData(NamedTuple):
+    """A NURBS path as the compiled steps read it.
 
-    Attributes
+    knots : (n + p + 1,); points : (n, n_axes + 1) homogeneous ``[w*P, w]``; degree : p;
+    breaks : knots inside (0, 1) where a Taylor step of the interpolator's order is
+    restarted, then 1.0; end : C(1), shape (n_axes,) [path units]."""
+
+    knots: np.ndarray
+    points: np.ndarray
+    degree: int
+    breaks: np.ndarray
+    end: np.ndarray
+
+
+class PathScratch(NamedTuple):
+    """Per-run scratch for evaluating a :class:`PathData` one parameter at a time."""
+
+    derivatives: np.ndarray     # (3, 1, n_axes)
+    work: tuple                 # nurbsmotion._kernels.workspace(p, 2, n_axes)
+    point: np.ndarray           # (n_axes,)
+    basis: np.ndarray           # (p + 1, p + 1)
+    left: np.ndarray            # (p + 1,)
+    right: np.ndarray           # (p + 1,)
+
+
+def path_data(curve: NurbsCurve, order: int) -> PathData:
+    """The path of ``curve`` for steps of Taylor order ``order`` (1 or 2)."""
+    p = curve.degree
+    breaks = np.array([b for b in curve.breakpoints[1:-1]
+                       if curve.knot_multiplicity(b) >= p - order + 1] + [1.0])
+    return PathData(np.ascontiguousarray(curve.knots, dtype=float),
+                    np.ascontiguousarray(curve.homogeneous, dtype=float), int(p), breaks,
+                    np.ascontiguousarray(curve(1.0), dtype=float))
+
+
+def path_scratch(path: PathData) -> PathScratch:
+    p, dim = path.degree, path.points.shape[1] - 1
+    return PathScratch(np.empty((3, 1, dim)), workspace(p, 2, dim), np.empty(dim),
+                       np.empty((p + 1, p + 1)), np.empty(p + 1), np.empty(p + 1))
+
+
+@njit(cache=True)
+def path_derivatives(path, u, order, sc):
+    """``C^(k)(u)`` for k = 0 .. order (right-sided) into ``sc.derivatives[:, 0]``; returns
+    that view, shape (3, n_axes)."""
+    us = sc.work[-1]
+    us[0] = u
+    rational_derivatives_into(path.knots, path.points, path.degree, us, order, False,
+                              sc.derivatives, sc.work)
+    return sc.derivatives[:, 0, :]
+
+
+@njit(cache=True)
+def path_point(path, u, out, sc):
+    """``C(u)`` (right-sided) into ``out``, shape (n_axes,)."""
+    rational_point_into(path.knots, path.points, path.degree, u, out, sc.basis, sc.left,
+                        sc.right)
+
+
+@njit(cache=True)
+def taylor_increment(d, order, V, A, T):
+    """Parameter step of the speed-controlled interpolator (eq. 3.1 / 3.2).
+
+    ``du = V*T/|D| + (A/|D| - V^2 <D, D2>/|D|^4) * T^2 / 2`` for order 2 (eq. 3.1 plus the
+    tangential-acceleration term A that eq. 3.1 omits, SPEC section 5; Farouki & Tsai
+    2001); ``du = V*T/|D|`` for order 1 (eq. 3.2). Should the second-order term make the
+    step non-positive (a step far too long for the local curvature), the first-order step
+    is used.
+
+    Parameters
     ----------
-    k : int
-        Sample index.
-    position_command_prev : ndarray, shape (n_axes,)
-        thd[k-1] [pulse].
-    speed_command_prev : ndarray, shape (n_axes,)
-        wd[k-1] [rad/s].
-    position : ndarray, shape (n_axes,)
-        tha[k], measured [pulse].
-    speed : ndarray, shape (n_axes,)
-        wa[k], measured [rad/s].
+    d : ndarray, shape (>= order + 1, n_axes)
+        C(u), C'(u), C''(u).
+    order : int
+    V : float
+        Feed [path units/s].
+    A : float
+        dV/dt [path units/s^2].
+    T : float
+        The time the step covers [s].
     """
-
-    k: int
-    position_command_prev: np.ndarray
-    speed_command_prev: np.ndarray
-    position: np.ndarray
-    speed: np.ndarray
-
-
-@dataclass(frozen=True)
-class Setpoint:
-    """One interpolator output.
-
-    Attributes
-    ----------
-    u : float
-        Curve parameter of the setpoint.
-    position : ndarray, shape (n_axes,)
-        C(u) [path units].
-    feed : float
-        The feed V this step asked for [path units/s] (0 while holding the end).
-    status : Status
-    speed_bounds : ndarray, shape (n_axes, 2), optional
-        ``[wmin, wmax]`` per axis [rad/s] where the interpolator computes them (eq. 3.6).
-    """
-
-    u: float
-    position: np.ndarray
-    feed: float
-    status: Status
-    speed_bounds: np.ndarray | None = None
+    dim = d.shape[1]
+    n2 = 0.0
+    for c in range(dim):
+        n2 += d[1, c] * d[1, c]
+    n1 = math.sqrt(n2)
+    first = V * T / n1
+    if order == 1:
+        return first
+    d12 = 0.0
+    for c in range(dim):
+        d12 += d[1, c] * d[2, c]
+    second = 0.5 * (A / n1 - V * V * d12 / (n2 * n2))
+    du = first + second * T**2
+    return du if du > 0 else first
 
 
-def _feed_function(feed: Feed) -> Callable[[float], tuple[float, float]]:
-    """``feed(u) -> (V, dV/du)``, checking that V is finite and > 0."""
-    if callable(feed):
-        def f(u: float) -> tuple[float, float]:
-            V = float(feed(u))
-            if not (math.isfinite(V) and V > 0):
-                raise InfeasibleError(f"the feed function returned {V!r} at u = {u:.9g}; "
-                                      "a feed must be finite and > 0")
-            h = 1e-6
-            a, b = max(u - h, 0.0), min(u + h, 1.0)
-            return V, (float(feed(b)) - float(feed(a))) / (b - a)
-        return f
-    V = positive_feed(feed)
-    return lambda u: (V, 0.0)
+@njit(cache=True)
+def _time_to_reach(target, d, order, V, A, T):
+    """Time within ``T`` at which the expansion advances by ``target`` (bisection: the
+    expansion is increasing in time on [0, T])."""
+    lo = 0.0
+    hi = T
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if taylor_increment(d, order, V, A, mid) < target:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@njit(cache=True)
+def advance(path, order, u0, V, A, Ts, sc, fresh):
+    """Parameter after one sample from ``u0`` at feed V and tangential acceleration A,
+    piecewise across :attr:`PathData.breaks`; ``fresh``: the derivatives at ``u0`` are
+    already in the scratch (:func:`path_derivatives`)."""
+    u = u0
+    remaining = Ts
+    d = sc.derivatives[:, 0, :] if fresh else path_derivatives(path, u, order, sc)
+    while True:
+        du = taylor_increment(d, order, V, A, remaining)
+        b = path.breaks[np.searchsorted(path.breaks, u, side="right")]
+        if u + du <= b or b >= 1.0:
+            return u + du
+        dt = _time_to_reach(b - u, d, order, V, A, remaining)
+        u = b
+        V = V + A * dt
+        remaining = remaining - dt
+        if remaining <= 0.0 or V <= 0.0:
+            return u
+        d = path_derivatives(path, u, order, sc)
+
+
+@njit(cache=True)
+def land(path, u, command, sc):
+    """Finish a step at parameter ``u``: the setpoint C(u) into ``command``, or the end
+    point when ``u >= 1``. Returns ``(u, status)`` with u capped at 1."""
+    if u >= 1.0:
+        for j in range(command.shape[0]):
+            command[j] = path.end[j]
+        return 1.0, stepping.FINISHED
+    path_point(path, u, command, sc)
+    return u, stepping.WORKING
+
+
+@njit(cache=True)
+def speed_bounds(law, law_state, Ke, position, velocity, bounds):
+    """The range of speed commands that keeps every drive within Umax, into ``bounds``
+    (n_axes, 2) [rad/s]: eq. 3.6 of Yeh & Sun (2008) from the law's affine form
+    (:func:`nurbsmotion.control.pid_affine`), ``wd = (thd - thd_prev)/(Ke*Ts)``."""
+    Ts = law[0]["period"]
+    umax = law[0]["maxoutput"]
+    for j in range(position.shape[0]):
+        slope, offset = pid_affine(law, law_state, j, position[j], velocity[j])
+        ksig = slope * Ke[j] * Ts                       # section 3.2: u = Ksig*wd + v
+        v = slope * law_state[j]["prev_cmd"] + offset
+        bounds[j, 0] = (-umax - v) / ksig
+        bounds[j, 1] = (umax - v) / ksig
 
 
 def positive_feed(feed) -> float:
     """``feed`` as a float, or :class:`InfeasibleError` unless it is finite and > 0."""
+    if isinstance(feed, bool):
+        raise InfeasibleError(f"feed must be a number, got {feed!r}")
     try:
         V = float(feed)
     except (TypeError, ValueError):
@@ -118,72 +214,11 @@ def positive_feed(feed) -> float:
     return V
 
 
-def dot(a: np.ndarray, b: np.ndarray) -> float:
-    """``<a, b>`` summed left to right in plain double precision.
+class Interpolator:
+    """Base class: a plan (immutable data) and a compiled step (:mod:`nurbsmotion.stepping`).
 
-    Not ``a @ b``: BLAS may fuse or reorder the sum, and the compiled loop
-    (:mod:`nurbsmotion._loop_kernel`) must be able to reproduce the reference step bit for
-    bit, since the paper's feed amplifies a last-bit difference near saturation.
-    """
-    return float(sum(a * b))
-
-
-def taylor_increment(d1: np.ndarray, d2: np.ndarray | None, feed: float,
-                     acceleration: float, duration: float) -> float:
-    """Parameter step of the speed-controlled interpolator (eq. 3.1 / 3.2).
-
-    ``du = V*T/|D| + (A/|D| - V^2 <D, D2>/|D|^4) * T^2 / 2`` with ``d2`` given (eq. 3.1
-    plus the tangential-acceleration term A that eq. 3.1 omits, SPEC section 5; Farouki &
-    Tsai 2001); ``du = V*T/|D|`` with ``d2=None`` (eq. 3.2). Should the second-order term
-    make the step non-positive (a step far too long for the local curvature), the
-    first-order step is used.
-
-    Parameters
-    ----------
-    d1, d2 : ndarray, shape (n_axes,)
-        C'(u), C''(u) (``d2=None`` for first order).
-    feed : float
-        V [path units/s].
-    acceleration : float
-        A = dV/dt [path units/s^2].
-    duration : float
-        T, the time the step covers [s] (Ts for a whole sample).
-    """
-    n2 = dot(d1, d1)
-    n1 = math.sqrt(n2)
-    first = feed * duration / n1
-    if d2 is None:
-        return first
-    second = 0.5 * (acceleration / n1 - feed * feed * dot(d1, d2) / (n2 * n2))
-    du = first + second * duration**2
-    return du if du > 0 else first
-
-
-def _time_to_reach(du_target: float, d1: np.ndarray, d2: np.ndarray | None, feed: float,
-                   acceleration: float, duration: float) -> float:
-    """Time within ``duration`` at which the Taylor expansion advances by ``du_target``."""
-    lo, hi = 0.0, duration
-    for _ in range(60):  # bisection: the expansion is increasing in time on [0, duration]
-        mid = 0.5 * (lo + hi)
-        if taylor_increment(d1, d2, feed, acceleration, mid) < du_target:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
-
-
-class Interpolator(ABC):
-    """Base class: owns the parameter, lands exactly on u = 1, then holds the end point.
-
-    Subclasses implement :meth:`_plan_step`, which returns the feed V of the step, its
-    tangential acceleration A, the speed bounds it computed (or ``None``) and the curve
-    derivatives at the current parameter it already evaluated (or ``None``).
-
-    The step itself is the Taylor expansion of order :attr:`order` (eq. 3.1 / 3.2). A step
-    that crosses a knot where the curve loses the continuity the expansion relies on (C1
-    for first order, C2 for second order; a sharp corner is one) is integrated piecewise:
-    the expansion is restarted at the knot with the derivatives of the span the step moves
-    into (SPEC section 5's one-sided rule, applied inside the step), for the rest of Ts.
+    Subclasses set :attr:`plan` in their constructor, implement :meth:`new_state`, and
+    register their step for the plan's type.
 
     Parameters
     ----------
@@ -191,32 +226,33 @@ class Interpolator(ABC):
         The path [path units; pulse when run in the servo loop].
     sample_period : float
         Ts [s], > 0.
+
+    Attributes
+    ----------
+    name : str
+        Label in traces and summaries.
+    records_bounds : bool
+        The step computes speed bounds (eq. 3.6) worth recording in the trace.
+    plan : NamedTuple
+        What the step reads; never changed.
     """
 
     name = "base"
-    order = 2
+    records_bounds = False
+    plan: tuple
 
     def __init__(self, curve: NurbsCurve, sample_period: float):
         if not isinstance(curve, NurbsCurve):
-            raise TypeError(f"curve must be a NurbsCurve, got {type(curve).__name__}")
+            raise InfeasibleError(f"curve must be a NurbsCurve, got {type(curve).__name__}")
         Ts = float(sample_period)
         if not (math.isfinite(Ts) and Ts > 0):
-            raise ValueError(f"sample_period must be finite and > 0, got {sample_period!r}")
+            raise InfeasibleError(f"sample_period must be finite and > 0, got {sample_period!r}")
         self.curve = curve
         self.sample_period = Ts
-        self._end = curve(1.0)
-        p = curve.degree
-        self._breaks = np.array([b for b in curve.breakpoints[1:-1]
-                                 if curve.knot_multiplicity(b) >= p - self.order + 1] + [1.0])
-        self.reset()
 
-    def reset(self) -> None:
-        """Back to the start of the path."""
-        self.u = 0.0
-
-    @property
-    def finished(self) -> bool:
-        return self.u >= 1.0
+    def new_state(self) -> tuple:
+        """A fresh state for one run from the path's start (:mod:`nurbsmotion.stepping`)."""
+        raise NotImplementedError
 
     def nominal_duration(self) -> float | None:
         """The time the move takes at its commanded feed [s], or ``None`` if unknown.
@@ -224,136 +260,3 @@ class Interpolator(ABC):
         The loop's safety limit on the number of samples is a multiple of it, so that a
         long slow move runs and a stalled one stops."""
         return None
-
-    @abstractmethod
-    def _plan_step(self, state: LoopState | None):
-        """Return ``(feed, acceleration, speed_bounds, derivatives)`` for a step from
-        ``self.u``; ``derivatives`` is ``curve.derivatives(self.u, order)`` or ``None``."""
-
-    def _advance(self, feed: float, acceleration: float, derivatives) -> float:
-        """Parameter after one sample at feed V with tangential acceleration A."""
-        u, V, remaining = self.u, feed, self.sample_period
-        d = derivatives if derivatives is not None else self.curve.derivatives(u, self.order)
-        while True:
-            d2 = d[2] if self.order == 2 else None
-            du = taylor_increment(d[1], d2, V, acceleration, remaining)
-            b = self._breaks[np.searchsorted(self._breaks, u, side="right")]
-            if u + du <= b or b >= 1.0:
-                return u + du
-            dt = _time_to_reach(b - u, d[1], d2, V, acceleration, remaining)
-            u, V, remaining = b, V + acceleration * dt, remaining - dt
-            if remaining <= 0.0 or V <= 0.0:
-                return u
-            d = self.curve.derivatives(u, self.order)
-
-    def step(self, state: LoopState | None = None) -> Setpoint:
-        """The next setpoint. ``state`` is the measured loop state (``None`` open loop)."""
-        if self.finished:
-            return Setpoint(1.0, self._end, 0.0, Status.FINISHED)
-        feed, acceleration, bounds, derivatives = self._plan_step(state)
-        u = self._advance(feed, acceleration, derivatives)
-        du = u - self.u
-        if not (du > 0 and math.isfinite(du)):
-            raise InfeasibleError(
-                f"{self.name} interpolator cannot advance from u = {self.u:.9g} "
-                f"(parameter step {du!r}, feed {feed!r})"
-            )
-        if u >= 1.0:
-            self.u = 1.0
-            return Setpoint(1.0, self._end, feed, Status.FINISHED, bounds)
-        self.u = u
-        return Setpoint(u, self.curve(u), feed, Status.WORKING, bounds)
-
-
-@dataclass(frozen=True)
-class SetpointSeries:
-    """The setpoint stream of an open-loop interpolation, one row per sample.
-
-    Attributes
-    ----------
-    t : ndarray, shape (n_samples,)
-        Sample times k*Ts [s]; row 0 is the start, at rest.
-    u : ndarray, shape (n_samples,)
-        Curve parameter.
-    position : ndarray, shape (n_samples, n_axes)
-        Setpoints C(u) [path units].
-    feed : ndarray, shape (n_samples,)
-        Feed commanded for the step into each sample [path units/s] (0 at row 0).
-    sample_period : float
-        Ts [s].
-    finished_index : int
-        First row at the path's end.
-    """
-
-    t: np.ndarray
-    u: np.ndarray
-    position: np.ndarray
-    feed: np.ndarray
-    sample_period: float
-    finished_index: int
-
-    @property
-    def cycle_time(self) -> float:
-        """Time at which the setpoint first reaches the path's end [s]."""
-        return float(self.t[self.finished_index])
-
-    def feed_fluctuation(self) -> tuple[float, float]:
-        """SPEC section 9: ``(|thd[k] - thd[k-1]|/Ts - Vcmd[k]) / Vcmd[k]``, (max |.|, RMS).
-
-        Taken over the full steps 1 .. finished_index - 1: the last step is cut short to
-        land on the end exactly, so it is not a fluctuation.
-        """
-        return feed_fluctuation(self.position, self.feed, self.sample_period,
-                                self.finished_index)
-
-    def plot(self, out_dir, **kwargs):
-        """Write ``setpoints.png`` (see :func:`nurbsmotion.plots.plot_setpoints`)."""
-        from ..plots import plot_setpoints
-
-        return plot_setpoints(self, out_dir, **kwargs)
-
-
-def feed_fluctuation(position: np.ndarray, feed: np.ndarray, sample_period: float,
-                     finished_index: int) -> tuple[float, float]:
-    """Feedrate fluctuation (max |.|, RMS) of SPEC section 9; see
-    :meth:`SetpointSeries.feed_fluctuation`."""
-    k = np.arange(1, finished_index)
-    if k.size == 0:
-        return 0.0, 0.0
-    speed = np.linalg.norm(position[k] - position[k - 1], axis=1) / sample_period
-    rel = (speed - feed[k]) / feed[k]
-    return float(np.max(np.abs(rel))), float(np.sqrt(np.mean(rel**2)))
-
-
-def interpolate(interpolator: Interpolator, max_samples: int = 10_000_000) -> SetpointSeries:
-    """Run an interpolator open loop from the start to the end of its path.
-
-    Raises
-    ------
-    InfeasibleError
-        If the end is not reached within ``max_samples`` samples.
-    """
-    interpolator.reset()
-    curve = interpolator.curve
-    us, positions, feeds = [0.0], [curve(0.0)], [0.0]
-    while True:
-        sp = interpolator.step(None)
-        us.append(sp.u)
-        positions.append(sp.position)
-        feeds.append(sp.feed)
-        if sp.status is Status.FINISHED:
-            break
-        if len(us) > max_samples:
-            raise InfeasibleError(
-                f"interpolation did not reach the end within {max_samples} samples "
-                f"(u = {sp.u:.6g}); the feed is too low for this path"
-            )
-    n = len(us)
-    return SetpointSeries(
-        t=np.arange(n) * interpolator.sample_period,
-        u=np.array(us),
-        position=np.array(positions),
-        feed=np.array(feeds),
-        sample_period=interpolator.sample_period,
-        finished_index=n - 1,
-    )

@@ -9,6 +9,10 @@ Each sample, for every axis j (SPEC section 7):
    (eq. 3.10); an axis with D_j = 0 imposes no limit;
 4. Vm = min_j Vm_j, and the step is eq. 3.2 with Vm (eq. 3.8-3.9).
 
+The bounds of step 2 come from the loop's control law as it is (its affine form in the
+new setpoint, :func:`nurbsmotion.control.pid_affine`): for the paper's PD+ they are eq. 3.6
+exactly; for PD or any LinuxCNC ``pid`` law the same construction gives that law's bounds.
+
 Known gaps, reproduced on purpose (SPEC section 7): the tangent at u_i misses the other
 axis's motion when a step crosses a sharp corner; one sample of look-ahead cannot slow down
 before a corner or the path's end; nothing bounds jerk or contour error.
@@ -17,15 +21,27 @@ before a corner or the path's end; nothing bounds jerk or contour error.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
-from ..control import ControlLaw
+from .. import stepping
+from ..errors import InfeasibleError
 from ..machine import Machine
 from ..nurbs import NurbsCurve
-from .base import Interpolator, LoopState, dot, positive_feed
+from .base import (Interpolator, PathData, advance, land, path_data, path_derivatives,
+                   positive_feed, speed_bounds)
+from .taylor import StepState
 
 __all__ = ["PaperInterpolator"]
+
+
+class PaperPlan(NamedTuple):
+    path: PathData
+    order: int
+    feed: float                 # F [pulse/s]
+    mechanical_gain: np.ndarray  # Ke per axis [pulse/rad]
 
 
 class PaperInterpolator(Interpolator):
@@ -36,7 +52,7 @@ class PaperInterpolator(Interpolator):
     curve : NurbsCurve
         The path [pulse].
     machine : Machine
-        The model the bounds are computed with (gains, tau, Kc, Ke, Umax, Ts).
+        Ke per axis and Ts (the bounds come from the loop's law and Umax).
     feed : float
         Commanded feed F [pulse/s].
     order : {1, 2}
@@ -47,36 +63,63 @@ class PaperInterpolator(Interpolator):
     """
 
     name = "paper"
+    records_bounds = True
 
     def __init__(self, curve: NurbsCurve, machine: Machine, feed: float, order: int = 1):
         machine.check_path(curve.n_axes)
-        if order not in (1, 2):
-            raise ValueError(f"order must be 1 or 2, got {order!r}")
-        self.feed = positive_feed(feed)
-        self.order = order
-        self.machine = machine
-        self.law = ControlLaw(machine)
         super().__init__(curve, machine.sample_period)
+        if order not in (1, 2) or isinstance(order, bool):
+            raise InfeasibleError(f"order must be 1 or 2, got {order!r}")
+        self.feed = positive_feed(feed)
+        self.order = int(order)
+        self.plan = PaperPlan(path_data(curve, self.order), self.order, self.feed,
+                              np.array(machine.Ke, dtype=float))
+
+    def new_state(self) -> StepState:
+        return StepState.new(self.plan.path)
 
     def nominal_duration(self) -> float:
         return self.curve.length / self.feed
 
-    def _plan_step(self, state: LoopState | None):
-        if state is None:
-            raise ValueError("the paper interpolator reads the measured loop state: run it "
-                             "in the servo loop (nurbsmotion.simulate), not open loop")
-        d = self.curve.derivatives(self.u, self.order)
-        d1 = d[1]
-        Ke = self.machine.Ke
-        V = self.feed
-        tangent = d1 / math.sqrt(dot(d1, d1))
-        bounds = self.law.speed_bounds(state.position_command_prev, state.speed_command_prev,
-                                       state.position, state.speed)
-        wmin, wmax = bounds[:, 0], bounds[:, 1]
-        wd = tangent * V / Ke                                          # eq. 3.7
-        with np.errstate(divide="ignore", invalid="ignore"):
-            vm = np.where(wd > wmax, np.abs(wmax * Ke / tangent),      # eq. 3.10
-                          np.where(wd < wmin, np.abs(wmin * Ke / tangent), V))
-        vm = np.where(tangent == 0.0, V, vm)
-        Vm = float(np.min(vm))
-        return Vm, 0.0, bounds, d  # the base class steps with eq. 3.8-3.9
+
+@njit(cache=True)
+def paper_step(plan, state, law, law_state, position, velocity, command, bounds):
+    """Eq. 3.6-3.10 and the step of eq. 3.8-3.9; the contract of :mod:`nurbsmotion.stepping`."""
+    u0 = state.u[0]
+    d = path_derivatives(plan.path, u0, plan.order, state.scratch)
+    dim = d.shape[1]
+    n2 = 0.0
+    for c in range(dim):
+        n2 += d[1, c] * d[1, c]
+    norm = math.sqrt(n2)
+    speed_bounds(law, law_state, plan.mechanical_gain, position, velocity, bounds)  # eq. 3.6
+    V = plan.feed
+    Vm = np.inf     # eq. 3.10 may also raise the feed, where a bound forces motion
+    for j in range(dim):
+        Ke = plan.mechanical_gain[j]
+        wmin, wmax = bounds[j, 0], bounds[j, 1]
+        tangent = d[1, j] / norm
+        wd = tangent * V / Ke                                             # eq. 3.7
+        if tangent == 0.0:
+            vm = V
+        elif wd > wmax:
+            vm = abs(wmax * Ke / tangent)                                 # eq. 3.10
+        elif wd < wmin:
+            vm = abs(wmin * Ke / tangent)
+        else:
+            vm = V
+        if vm < Vm:
+            Vm = vm
+    u_new = advance(plan.path, plan.order, u0, Vm, 0.0, law[0]["period"], state.scratch,
+                    True)
+    du = u_new - u0
+    if not (du > 0 and math.isfinite(du)):
+        return u0, Vm, stepping.FAILED
+    u, status = land(plan.path, u_new, command, state.scratch)
+    state.u[0] = u
+    if status == stepping.WORKING and Vm != V:
+        status = stepping.LIMITED
+    return u, Vm, status
+
+
+stepping.register(PaperPlan, paper_step)

@@ -52,12 +52,21 @@ import math
 
 import numpy as np
 
-from ..control import ControlLaw
+from typing import NamedTuple
+
+from numba import njit
+
+from .. import closed_loop, stepping
+from .._kernels import rational_derivatives_into
+from ..control import pid_output, pid_state
 from ..errors import InfeasibleError
+from ..geometry import _GL_W, _GL_X
 from ..machine import Machine
 from ..nurbs import NurbsCurve
 from ..planning import SpeedProfile, speed_profile
-from .base import Interpolator, LoopState, Setpoint, Status
+from ..servo import ServoPlant
+from .base import (Interpolator, PathData, PathScratch, path_data, path_point,
+                   path_scratch, speed_bounds)
 
 __all__ = ["PlannedInterpolator", "DEFAULT_DRIVE_MARGIN", "DEFAULT_ACCELERATION_MARGIN",
            "DEFAULT_MODEL_UNCERTAINTY", "DEFAULT_SMOOTHING_TIME"]
@@ -114,6 +123,45 @@ def _smooth(s: np.ndarray, start: float, end: float, width: int, passes: int) ->
     return s
 
 
+
+_CHECK_SETTLE_TIME = 0.05
+"""How long the offline closed-loop check goes on after the end [s]."""
+
+
+class PlannedPlan(NamedTuple):
+    """The schedule and the safety layer's data (see :class:`PlannedInterpolator`)."""
+
+    path: PathData
+    plan_s: np.ndarray          # (n,) arc length per planned sample [pulse]
+    plan_u: np.ndarray          # (n,) curve parameter per planned sample
+    speed_right: np.ndarray     # (n,) |C'(u)| from the right [pulse]
+    speed_left: np.ndarray      # (n,) |C'(u)| from the left [pulse]
+    caps: np.ndarray            # sharp corners and 1: a lengthened step stops there
+    table_u: np.ndarray         # arc-length table of CurveGeometry: piece starts
+    table_s: np.ndarray         # and cumulative lengths [pulse]
+    gl_x: np.ndarray            # Gauss-Legendre nodes and weights on [-1, 1]
+    gl_w: np.ndarray
+    ahead: np.ndarray           # look-ahead candidates, multiples of the planned step
+    mechanical_gain: np.ndarray  # Ke per axis [pulse/rad]
+    safety: bool
+    bisections: int
+
+
+class PlannedState(NamedTuple):
+    """The online state: the parameter reached, the fractional schedule index and the
+    arc length reached [pulse] (shape (1,) each), and scratch."""
+
+    u: np.ndarray
+    phi: np.ndarray
+    s: np.ndarray
+    scratch: PathScratch
+    candidates: np.ndarray
+    distances: np.ndarray
+    kept: np.ndarray            # (n_axes + 1,): C(u) and u last evaluated by the layer
+    nodes: np.ndarray           # Gauss nodes of one arc-length evaluation
+    node_derivatives: np.ndarray
+
+
 class PlannedInterpolator(Interpolator):
     """Look-ahead, jerk-limited, drive-limited interpolation with a real-time safety layer.
 
@@ -167,6 +215,7 @@ class PlannedInterpolator(Interpolator):
 
     name = "planned"
     order = 2
+    records_bounds = True
 
     def __init__(self, curve: NurbsCurve, machine: Machine, feed: float, *,
                  drive_margin: float = DEFAULT_DRIVE_MARGIN,
@@ -194,29 +243,24 @@ class PlannedInterpolator(Interpolator):
         if not (0 <= model_uncertainty < 1):
             raise ValueError(f"model_uncertainty must lie in [0, 1), got {model_uncertainty!r}")
         self.model_uncertainty = float(model_uncertainty)
-        self.law = ControlLaw(machine)
         super().__init__(curve, machine.sample_period)
         self.acceleration_margin = float(acceleration_margin)
         if not (0 < self.acceleration_margin <= 1):
             raise ValueError(f"acceleration_margin must lie in (0, 1], got {acceleration_margin!r}")
         self.profile = None
+        self._caps = np.concatenate([curve.sharp_corners(), [1.0]])
         if machine.max_drive == math.inf:
             # An ideal drive: only the feed limits the speed (accelerations are unbounded,
             # the smoothing alone shapes them).
             self._set_plan(self._schedule_unlimited(F, max_samples))
         else:
             self._plan_checked(F, grid_size, max_samples, check_iterations)
-        self._caps = np.concatenate([curve.sharp_corners(), [1.0]])
-        self.reset()
 
     def _plan_checked(self, F: float, grid_size: int, max_samples: int,
                       iterations: int) -> None:
         """Plan, run this stepper (safety layer included) in the closed loop of the model
         and of the mismatched plants, and ease the profile off before every sample where a
         drive exceeded Umax (where the safety layer was cornered); repeat."""
-        from ..loop import simulate
-        from ..servo import ServoPlant
-
         curve, m = self.curve, self.machine
         L = curve.length
         d = self.model_uncertainty
@@ -225,8 +269,9 @@ class PlannedInterpolator(Interpolator):
         n_grid = int(min(200_000, max(2000, 4 * L / (F * self.sample_period))))
         s_grid = np.linspace(0.0, L, n_grid)
         scale = np.ones(n_grid)
-        self._caps = np.concatenate([curve.sharp_corners(), [1.0]])
         start = curve(0.0)
+        law = m.law()
+        n_settle = int(round(_CHECK_SETTLE_TIME / self.sample_period))
         for it in range(iterations + 1):
             cur = scale.copy()
             self.profile = speed_profile(
@@ -241,15 +286,24 @@ class PlannedInterpolator(Interpolator):
             self._set_plan(self._schedule(self.profile, max_samples))
             if it == iterations or not self.safety_layer:
                 break
+            n_plan = len(self.plan.plan_u)
+            settling = closed_loop.Settling(self.plan.path.end, math.inf, n_settle, 0,
+                                            n_settle, 20 * n_plan + 10 * n_settle)
             bad_s = []
             for ts, ks in plants:
                 plant = ServoPlant.of_machine(m, start, time_constant_scale=ts,
                                               electrical_gain_scale=ks)
-                trace = simulate(self, m, plant=plant)
-                over = np.nonzero(np.max(np.abs(trace.drive), axis=1) > m.max_drive)[0]
+                code, rows, loop = closed_loop.run(
+                    self.plan, self.new_state(), law, pid_state(start), plant,
+                    m.speed_measurement == "encoder", start, settling, False,
+                    n_plan + n_settle + 1)
+                if code != closed_loop.DONE:
+                    raise InfeasibleError("planned: the closed-loop check of the plan did "
+                                          f"not reach the end (u = {loop.u[0]:.6g})")
+                over = np.nonzero(np.max(np.abs(rows.drive), axis=1) > m.max_drive)[0]
                 if over.size:
-                    s_tr = curve.arc_length(trace.u)
-                    last = trace.finished_index
+                    s_tr = curve.arc_length(rows.u)
+                    last = int(loop.finished[0])
                     for k in over:
                         lo = float(s_tr[max(min(k, last) - _EASE_BEFORE, 0)])
                         hi = float(s_tr[min(k + _EASE_AFTER, last)])
@@ -260,7 +314,6 @@ class PlannedInterpolator(Interpolator):
             for lo, hi in bad_s:
                 sel = (s_grid >= lo) & (s_grid <= hi)
                 scale[sel] = np.minimum(scale[sel], cur[sel] * _EASE_FACTOR)
-        self.reset()
 
     # ---------------------------------------------------------------- offline plan
     def _piece_samples(self, t: np.ndarray, s: np.ndarray, max_samples: int) -> np.ndarray:
@@ -319,122 +372,283 @@ class PlannedInterpolator(Interpolator):
         u[-1] = 1.0
         return np.maximum.accumulate(u)
 
+
+    def _set_plan(self, plan_s: np.ndarray) -> None:
+        """The schedule as the step reads it: arc length and parameter per sample, |C'| at
+        both sides of every planned parameter (for the local inverse of
+        :func:`_schedule_at`), and what the safety layer needs."""
+        curve, m = self.curve, self.machine
+        plan_u = self._parameters(plan_s)
+        geometry = curve.geometry
+        self.plan = PlannedPlan(
+            path=path_data(curve, self.order), plan_s=plan_s, plan_u=plan_u,
+            speed_right=np.linalg.norm(curve(plan_u, 1), axis=1),
+            speed_left=np.linalg.norm(curve(plan_u, 1, "left"), axis=1),
+            caps=self._caps, table_u=geometry._u, table_s=geometry._s, gl_x=_GL_X,
+            gl_w=_GL_W, ahead=_AHEAD_FACTORS, mechanical_gain=np.array(m.Ke, dtype=float),
+            safety=bool(self.safety_layer and math.isfinite(m.max_drive)),
+            bisections=_BISECTIONS)
+
+    @property
+    def plan_s(self) -> np.ndarray:
+        """Arc length of every planned sample [pulse], shape (n_samples,)."""
+        return self.plan.plan_s
+
+    @property
+    def plan_u(self) -> np.ndarray:
+        """Curve parameter of every planned sample, shape (n_samples,)."""
+        return self.plan.plan_u
+
     @property
     def planned_duration(self) -> float:
         """Time the schedule takes to reach the end, without safety slow-downs [s]."""
-        return (len(self.plan_u) - 1) * self.sample_period
+        return (len(self.plan.plan_u) - 1) * self.sample_period
 
     def nominal_duration(self) -> float:
         return self.planned_duration
 
-    # ---------------------------------------------------------------- online stepping
-    def reset(self) -> None:
-        self.u = 0.0
-        self._phi = 0.0
-        self._s = 0.0
-        self.slowdowns = 0
+    def new_state(self) -> PlannedState:
+        p = self.plan
+        n_axes = self.curve.n_axes
+        n_gauss = p.gl_x.shape[0]
+        n_cand = 33 + p.ahead.shape[0]
+        return PlannedState(np.zeros(1), np.zeros(1), np.zeros(1), path_scratch(p.path),
+                            np.empty(n_cand),
+                            np.empty(n_cand), np.empty(n_axes + 1), np.empty(n_gauss),
+                            np.empty((2, n_gauss, n_axes)))
 
-    def _plan_step(self, state):  # pragma: no cover - step() is overridden
-        raise NotImplementedError
 
-    def _excess(self, u: np.ndarray, state: LoopState) -> np.ndarray:
-        """max_j |u_j[k]| - Umax for candidate parameters ``u``, shape (n,) [V]."""
-        drive, _ = self.law.drive(self.curve(u), state.position_command_prev,
-                                  state.speed_command_prev, state.position, state.speed)
-        return np.max(np.abs(drive), axis=-1) - self.machine.max_drive
+# ------------------------------------------------------------------ the online step
+@njit(cache=True)
+def _schedule_at(phi, plan_s, plan_u, speed_right, speed_left):
+    """``(u, s)`` at the fractional schedule index ``phi`` (exact at whole indices).
 
-    def _safe_parameter(self, u_plan: float, state: LoopState, u_cap: float) -> float:
-        """The admissible parameter in [self.u, u_cap] nearest to ``u_plan``: its exact
-        setpoint keeps every drive within Umax (predicted with the control law and the
-        measured state, eq. 3.6). ``u_plan`` itself when it is within bounds or nothing in
-        the range is.
+    Between two planned samples u(s) is the cubic Hermite interpolant with the exact end
+    slopes du/ds = 1/|C'(u)| (one-sided inward: corners and the end are planned samples):
+    O(step^4) accurate, and never beyond the bracketing samples."""
+    k = int(math.floor(phi))
+    if phi == k or plan_s[k + 1] == plan_s[k]:
+        return plan_u[k], plan_s[k]
+    s0, s1 = plan_s[k], plan_s[k + 1]
+    u0, u1 = plan_u[k], plan_u[k + 1]
+    h = s1 - s0
+    t = phi - k  # the schedule is linear in phi between samples
+    m0, m1 = h / speed_right[k], h / speed_left[k + 1]
+    t2 = t * t
+    t3 = t2 * t
+    u = ((2 * t3 - 3 * t2 + 1) * u0 + (t3 - 2 * t2 + t) * m0
+         + (-2 * t3 + 3 * t2) * u1 + (t3 - t2) * m1)
+    return min(max(u, u0), u1), s0 + t * h
 
-        A shorter step than planned lowers the drive along the motion; a longer one (up to
-        ``u_cap``, the next sharp corner or the end) lowers the braking drive, so an axis that
-        lags behind a braking plan is not cornered: the setpoint goes ahead instead.
-        """
-        if self._excess(np.array([u_plan]), state)[0] <= 0.0:
-            return u_plan
-        u0 = self.u
-        step = max(u_plan - u0, 1e-12)
-        back = np.linspace(u0, u_plan, 33)
-        ahead = np.minimum(u_plan + step * _AHEAD_FACTORS, u_cap)
-        cand = np.concatenate([back, ahead[ahead > u_plan]])
-        ok = self._excess(cand, state) <= 0.0
-        if not np.any(ok):
-            return u_plan  # cornered: no step helps; keep to the plan
-        i = int(np.argmin(np.where(ok, np.abs(cand - u_plan), np.inf)))
-        good = float(cand[i])
-        bad = float(cand[i + 1]) if cand[i] < u_plan else float(cand[i - 1])
-        for _ in range(_BISECTIONS):
-            mid = 0.5 * (good + bad)
-            if self._excess(np.array([mid]), state)[0] <= 0.0:
-                good = mid
-            else:
-                bad = mid
-        self.slowdowns += 1
-        return good
 
-    def _set_plan(self, plan_s: np.ndarray) -> None:
-        """The schedule: arc length and parameter per sample, and ds/du at both sides of
-        every planned parameter for the local inverse of :meth:`_at`."""
-        self.plan_s = plan_s
-        self.plan_u = self._parameters(plan_s)
-        self._index = np.arange(len(plan_s), dtype=float)
-        self._speed_right = np.linalg.norm(self.curve(self.plan_u, 1), axis=1)
-        self._speed_left = np.linalg.norm(self.curve(self.plan_u, 1, "left"), axis=1)
+@njit(cache=True)
+def _schedule_index(s, plan_s):
+    """The fractional schedule index of arc length ``s`` (linear between samples)."""
+    n = plan_s.shape[0]
+    if math.isnan(s):
+        return np.nan
+    if s < plan_s[0]:
+        return 0.0
+    if s >= plan_s[n - 1]:
+        return float(n - 1)
+    j = np.searchsorted(plan_s, s, side="right") - 1
+    if plan_s[j] == s:
+        return float(j)
+    return j + (s - plan_s[j]) / (plan_s[j + 1] - plan_s[j])
 
-    def _at(self, phi: float) -> tuple[float, float]:
-        """(u, s) at the fractional schedule index ``phi`` (exact at whole indices).
 
-        Between two planned samples u(s) is the cubic Hermite interpolant with the exact
-        end slopes du/ds = 1/|C'(u)| (one-sided inward: corners and the end are planned
-        samples): O(step^4) accurate, and never beyond the bracketing samples."""
-        k = int(math.floor(phi))
-        if phi == k or self.plan_s[k + 1] == self.plan_s[k]:
-            return float(self.plan_u[k]), float(self.plan_s[k])
-        s0, s1 = float(self.plan_s[k]), float(self.plan_s[k + 1])
-        u0, u1 = float(self.plan_u[k]), float(self.plan_u[k + 1])
-        h = s1 - s0
-        t = phi - k  # the schedule is linear in phi between samples
-        m0, m1 = h / self._speed_right[k], h / self._speed_left[k + 1]
-        u = ((2 * t**3 - 3 * t**2 + 1) * u0 + (t**3 - 2 * t**2 + t) * m0
-             + (-2 * t**3 + 3 * t**2) * u1 + (t**3 - t**2) * m1)
-        return min(max(u, u0), u1), s0 + t * h
+@njit(cache=True)
+def _arc_length(plan, u, state):
+    """:meth:`nurbsmotion.geometry.CurveGeometry.arc_length` at one parameter: the table's
+    length up to the piece that holds ``u`` plus 10-point Gauss-Legendre from the piece's
+    start."""
+    path = plan.path
+    table_u = plan.table_u
+    j = np.searchsorted(table_u, u, side="right") - 1
+    j = min(max(j, 0), table_u.shape[0] - 2)
+    a = table_u[j]
+    half = 0.5 * (u - a)
+    mid = 0.5 * (u + a)
+    nodes, d = state.nodes, state.node_derivatives
+    for i in range(plan.gl_x.shape[0]):
+        nodes[i] = mid + half * plan.gl_x[i]
+    rational_derivatives_into(path.knots, path.points, path.degree, nodes, 1, False, d,
+                              state.scratch.work)
+    dim = d.shape[2]
+    acc = 0.0
+    for i in range(nodes.shape[0]):
+        n2 = 0.0
+        for c in range(dim):
+            n2 += d[1, i, c] * d[1, i, c]
+        acc += math.sqrt(n2) * plan.gl_w[i]
+    return plan.table_s[j] + half * acc
 
-    def step(self, state: LoopState | None = None) -> Setpoint:
-        """The next setpoint; ``state`` (the measured loop state) enables the safety layer.
 
-        The schedule runs on a fractional sample index: normally it advances by one planned
-        sample per step; after the safety layer has shortened a step, the index is set to
-        the point reached, so that the schedule goes on from there at the planned pace
-        (a shortened step slows the motion, it never makes it jump).
-        """
-        if self.finished:
-            return Setpoint(1.0, self._end, 0.0, Status.FINISHED)
-        last = len(self.plan_u) - 1
-        phi = min(self._phi + 1.0, float(last))
-        u_plan, s_new = self._at(phi)
-        u_new = u_plan
-        bounds = None
-        if state is not None and math.isfinite(self.machine.max_drive) and self.safety_layer:
-            bounds = self.law.speed_bounds(state.position_command_prev,
-                                           state.speed_command_prev, state.position,
-                                           state.speed)
-            caps = self._caps[self._caps > self.u]
-            u_cap = max(float(caps[0]) if caps.size else 1.0, u_plan)
-            u_new = max(self._safe_parameter(u_plan, state, u_cap), self.u)
-        if u_new != u_plan:
-            s_new = float(self.curve.arc_length(u_new))
-            phi = float(np.interp(s_new, self.plan_s, self._index))
-            phi = min(max(phi, self._phi), float(last))
-        self._phi = phi
-        # the feed of this step: arc length covered over Ts (a hold reports the smallest
-        # positive feed, so that the fluctuation metric shows it as a 100 % drop)
-        feed = max((s_new - self._s) / self.sample_period, 5e-324)
-        self._s = s_new
-        if u_new >= 1.0:
-            self.u = 1.0
-            return Setpoint(1.0, self._end, feed, Status.FINISHED, bounds)
-        self.u = u_new
-        return Setpoint(self.u, self.curve(self.u), feed, Status.WORKING, bounds)
+@njit(cache=True)
+def _admissible(plan, uc, law, law_state, position, velocity, state):
+    """The setpoint C(uc) keeps every predicted drive within Umax (the loop's law from
+    its memory and the measured state, :func:`nurbsmotion.control.pid_output`); C(uc) is
+    left in ``state.scratch.point``."""
+    point = state.scratch.point
+    path_point(plan.path, uc, point, state.scratch)
+    umax = law[0]["maxoutput"]
+    for j in range(point.shape[0]):
+        drive = pid_output(law, law_state, j, point[j], position[j], velocity[j])[0]
+        if not abs(drive) <= umax:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _keep(state, u):
+    """Remember the point just evaluated by :func:`_admissible` as C(u)."""
+    kept = state.kept
+    dim = kept.shape[0] - 1
+    for c in range(dim):
+        kept[c] = state.scratch.point[c]
+    kept[dim] = u
+
+
+@njit(cache=True)
+def _nearest_admissible(plan, u_plan, n, law, law_state, position, velocity, state):
+    """Index of the admissible candidate nearest to ``u_plan`` (the first on a tie), or
+    -1. The distances fall along ``candidates[:33]`` (towards ``u_plan``) and rise along
+    ``candidates[33:n]``, so a merge of the two runs visits them nearest first and stops
+    at the first admissible one; should rounding break that order, every candidate is
+    tried. ``u_plan`` itself is known to be inadmissible and is not tried again."""
+    cand, dist = state.candidates, state.distances
+    ordered = True
+    for i in range(n):
+        dist[i] = abs(cand[i] - u_plan)
+        if not math.isfinite(dist[i]):
+            ordered = False
+    for i in range(32):
+        if dist[i] < dist[i + 1]:
+            ordered = False
+    for i in range(33, n - 1):
+        if dist[i] > dist[i + 1]:
+            ordered = False
+    if not ordered:
+        best = -1
+        for i in range(n):
+            if (cand[i] != u_plan
+                    and _admissible(plan, cand[i], law, law_state, position, velocity, state)
+                    and (best < 0 or dist[i] < dist[best])):
+                best = i
+        return best
+    b, a = 32, 33       # the nearest untried candidate of each run
+    while b >= 0 or a < n:
+        d = min(dist[b] if b >= 0 else np.inf, dist[a] if a < n else np.inf)
+        lo = b
+        while lo >= 0 and dist[lo] == d:
+            lo -= 1
+        for i in range(lo + 1, b + 1):
+            if cand[i] != u_plan and _admissible(plan, cand[i], law, law_state, position,
+                                                 velocity, state):
+                return i
+        hi = a
+        while hi < n and dist[hi] == d:
+            hi += 1
+        for i in range(a, hi):
+            if (not (i > 33 and cand[i] == cand[i - 1])
+                    and _admissible(plan, cand[i], law, law_state, position, velocity,
+                                    state)):
+                return i
+        b, a = lo, hi
+    return -1
+
+
+@njit(cache=True)
+def _safe_parameter(plan, u0, u_plan, u_cap, law, law_state, position, velocity, state):
+    """The admissible parameter in [u0, u_cap] nearest to ``u_plan`` (inadmissible):
+    33 candidates back, the look-ahead ones, then bisections. Returns ``(u, found)``.
+
+    A shorter step than planned lowers the drive along the motion; a longer one (up to
+    ``u_cap``, the next sharp corner or the end) lowers the braking drive, so an axis that
+    lags behind a braking plan is not cornered: the setpoint goes ahead instead."""
+    cand = state.candidates
+    step = max(u_plan - u0, 1e-12)
+    delta = u_plan - u0
+    for i in range(33):
+        cand[i] = u0 + delta * (i / 32)
+    cand[32] = u_plan
+    n = 33
+    for i in range(plan.ahead.shape[0]):
+        x = min(u_plan + step * plan.ahead[i], u_cap)
+        if x > u_plan:
+            cand[n] = x
+            n += 1
+    best = _nearest_admissible(plan, u_plan, n, law, law_state, position, velocity, state)
+    if best < 0:
+        return u_plan, False       # cornered: no step helps; keep to the plan
+    good = cand[best]
+    bad = cand[best + 1] if cand[best] < u_plan else cand[best - 1]
+    for _ in range(plan.bisections):
+        mid = 0.5 * (good + bad)
+        if _admissible(plan, mid, law, law_state, position, velocity, state):
+            good = mid
+            _keep(state, mid)
+        else:
+            bad = mid
+    return good, True
+
+
+@njit(cache=True)
+def planned_step(plan, state, law, law_state, position, velocity, command, bounds):
+    """The next setpoint: the planned sample, changed by the safety layer only where its
+    exact predicted drive would exceed Umax; the contract of :mod:`nurbsmotion.stepping`.
+
+    The schedule runs on a fractional sample index: normally it advances by one planned
+    sample per step; after the safety layer has changed a step, the index is set to the
+    point reached, so that the schedule goes on from there at the planned pace."""
+    u = state.u[0]
+    last = plan.plan_s.shape[0] - 1
+    phi_prev = state.phi[0]
+    phi = min(phi_prev + 1.0, float(last))
+    u_plan, s_new = _schedule_at(phi, plan.plan_s, plan.plan_u, plan.speed_right,
+                                 plan.speed_left)
+    u_new = u_plan
+    status = stepping.WORKING
+    state.kept[-1] = np.nan
+    if plan.safety:
+        speed_bounds(law, law_state, plan.mechanical_gain, position, velocity, bounds)
+        if _admissible(plan, u_plan, law, law_state, position, velocity, state):
+            _keep(state, u_plan)
+            u_new = max(u_plan, u)
+        else:
+            u_cap = 1.0
+            for i in range(plan.caps.shape[0]):
+                if plan.caps[i] > u:
+                    u_cap = plan.caps[i]
+                    break
+            u_cap = max(u_cap, u_plan)
+            safe, found = _safe_parameter(plan, u, u_plan, u_cap, law, law_state, position,
+                                          velocity, state)
+            status = stepping.LIMITED if found else stepping.CORNERED
+            u_new = max(safe, u)
+    else:
+        bounds[:] = np.nan
+    if u_new != u_plan:
+        s_new = _arc_length(plan, u_new, state)
+        phi = min(max(_schedule_index(s_new, plan.plan_s), phi_prev), float(last))
+    state.phi[0] = phi
+    # the feed of this step: arc length covered over Ts (a hold reports the smallest
+    # positive feed, so that the fluctuation metric shows it as a 100 % drop)
+    feed = max((s_new - state.s[0]) / law[0]["period"], 5e-324)
+    state.s[0] = s_new
+    dim = command.shape[0]
+    if u_new >= 1.0:
+        u_new = 1.0
+        for j in range(dim):
+            command[j] = plan.path.end[j]
+        status = stepping.FINISHED
+    elif u_new == state.kept[dim]:
+        for j in range(dim):
+            command[j] = state.kept[j]
+    else:
+        path_point(plan.path, u_new, command, state.scratch)
+    state.u[0] = u_new
+    return u_new, feed, status
+
+
+stepping.register(PlannedPlan, planned_step)

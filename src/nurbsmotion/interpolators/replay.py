@@ -7,12 +7,29 @@ on equal terms. Sample k's setpoint is C(parameters[k]).
 
 from __future__ import annotations
 
-import numpy as np
+from typing import NamedTuple
 
+import numpy as np
+from numba import njit
+
+from .. import stepping
+from ..errors import InfeasibleError
 from ..nurbs import NurbsCurve
-from .base import Interpolator, LoopState, Setpoint, Status
+from .base import Interpolator, PathData, PathScratch, land, path_data, path_scratch
 
 __all__ = ["ReplayInterpolator"]
+
+
+class ReplayState(NamedTuple):
+    u: np.ndarray               # (1,)
+    k: np.ndarray               # (1,) int64: the sample whose setpoint was given last
+    scratch: PathScratch
+
+
+class ReplayPlan(NamedTuple):
+    path: PathData
+    parameters: np.ndarray      # (n,) u at samples 0, 1, ...
+    feeds: np.ndarray           # (n,) arc length into each sample over Ts [path units/s]
 
 
 class ReplayInterpolator(Interpolator):
@@ -31,45 +48,49 @@ class ReplayInterpolator(Interpolator):
 
     Raises
     ------
-    ValueError
+    InfeasibleError
         If the sequence does not start at 0, end at 1, or decreases.
     """
 
     def __init__(self, curve: NurbsCurve, sample_period: float, parameters,
                  name: str = "replay"):
+        super().__init__(curve, sample_period)
         u = np.asarray(parameters, dtype=float)
         if u.ndim != 1 or u.size < 2:
-            raise ValueError(f"parameters must have shape (n_samples,), n >= 2, got {u.shape}")
+            raise InfeasibleError(f"parameters must have shape (n_samples,), n >= 2, got {u.shape}")
         if not np.all(np.isfinite(u)):
-            raise ValueError("parameters must be finite")
+            raise InfeasibleError("parameters must be finite")
         if u[0] != 0.0 or u[-1] != 1.0:
-            raise ValueError(f"parameters must start at 0 and end at 1, got {u[0]!r} .. "
-                             f"{u[-1]!r}")
+            raise InfeasibleError(f"parameters must start at 0 and end at 1, got {u[0]!r} .. "
+                                  f"{u[-1]!r}")
         if np.any(np.diff(u) < 0):
             k = int(np.flatnonzero(np.diff(u) < 0)[0])
-            raise ValueError(f"parameters decrease at sample {k + 1}: {u[k + 1]!r} < {u[k]!r}")
-        self.parameters = u
+            raise InfeasibleError(f"parameters decrease at sample {k + 1}: {u[k + 1]!r} < {u[k]!r}")
         self.name = name
-        super().__init__(curve, sample_period)
-        self._s = curve.arc_length(u)
+        feeds = np.concatenate([[0.0], np.diff(curve.arc_length(u)) / self.sample_period])
+        u.flags.writeable = False
+        self.plan = ReplayPlan(path_data(curve, 1), u, feeds)
+
+    @property
+    def parameters(self) -> np.ndarray:
+        return self.plan.parameters
+
+    def new_state(self) -> ReplayState:
+        return ReplayState(np.zeros(1), np.zeros(1, np.int64), path_scratch(self.plan.path))
 
     def nominal_duration(self) -> float:
-        return (len(self.parameters) - 1) * self.sample_period
+        return (len(self.plan.parameters) - 1) * self.sample_period
 
-    def reset(self) -> None:
-        super().reset()
-        self._k = 0
 
-    def _plan_step(self, state: LoopState | None):  # pragma: no cover - step() overrides
-        raise NotImplementedError
+@njit(cache=True)
+def replay_step(plan, state, law, law_state, position, velocity, command, bounds):
+    """Sample k's setpoint is C(parameters[k]); the contract of :mod:`nurbsmotion.stepping`."""
+    k = state.k[0] + 1
+    state.k[0] = k
+    bounds[:] = np.nan
+    u, status = land(plan.path, plan.parameters[k], command, state.scratch)
+    state.u[0] = u
+    return u, plan.feeds[k], status
 
-    def step(self, state: LoopState | None = None) -> Setpoint:
-        if self.finished:
-            return Setpoint(1.0, self._end, 0.0, Status.FINISHED)
-        self._k += 1
-        k = self._k
-        u = float(self.parameters[k])
-        feed = (self._s[k] - self._s[k - 1]) / self.sample_period
-        self.u = u
-        status = Status.FINISHED if u >= 1.0 else Status.WORKING
-        return Setpoint(u, self.curve(u), feed, status)
+
+stepping.register(ReplayPlan, replay_step)

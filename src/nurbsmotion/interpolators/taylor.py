@@ -7,11 +7,93 @@ Neither reads the loop state. At a sharp corner the derivatives are taken from t
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
+import numpy as np
+from numba import njit
+
+from .. import stepping
+from ..errors import InfeasibleError
 from ..nurbs import NurbsCurve
-from .base import Feed, Interpolator, LoopState, _feed_function, dot, positive_feed
+from .base import (Interpolator, PathData, PathScratch, advance, land, path_data,
+                   path_derivatives, path_scratch, positive_feed)
 
-__all__ = ["UniformInterpolator", "TaylorInterpolator"]
+__all__ = ["UniformInterpolator", "TaylorInterpolator", "feed_table"]
+
+class StepState(NamedTuple):
+    """The state of a stepper that carries only its parameter: u, shape (1,)."""
+
+    u: np.ndarray
+    scratch: PathScratch
+
+    @classmethod
+    def new(cls, path: PathData) -> "StepState":
+        return cls(np.zeros(1), path_scratch(path))
+
+
+FEED_FUNCTION_SAMPLES = 4096
+"""Intervals of the parameter a feed function is tabulated on (plus the curve's knots)."""
+
+
+def feed_table(feed, curve: NurbsCurve) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A commanded feed as data: V(u) linear on each interval of the curve parameter.
+
+    Parameters
+    ----------
+    feed : float, callable or piecewise feed
+        A number [path units/s]; a function of the parameter u (tabulated on
+        :data:`FEED_FUNCTION_SAMPLES` intervals and the curve's knots); or an object with
+        ``breaks`` (m + 1,) rising from 0 to 1 in u and ``values`` (m,), constant on each
+        interval (e.g. the programmed F of each piece of a G-code file).
+    curve : NurbsCurve
+
+    Returns
+    -------
+    breaks : ndarray, shape (m + 1,)
+    start, end : ndarray, shape (m,)
+        V at the start and the end of each interval [path units/s], finite and > 0.
+
+    Raises
+    ------
+    InfeasibleError
+        Naming the value (and for a function, the parameter) that is not finite and > 0.
+    """
+    if hasattr(feed, "breaks") and hasattr(feed, "values"):
+        breaks = np.asarray(feed.breaks, dtype=float)
+        values = np.array([positive_feed(v) for v in np.asarray(feed.values).ravel()])
+        if (breaks.ndim != 1 or breaks.size != values.size + 1 or breaks[0] != 0.0
+                or breaks[-1] != 1.0 or np.any(np.diff(breaks) <= 0)):
+            raise InfeasibleError("a piecewise feed needs breaks rising from 0 to 1, one "
+                                  f"more than its values; got {breaks!r} for {values!r}")
+        return breaks, values, values
+    if callable(feed):
+        u = np.union1d(np.linspace(0.0, 1.0, FEED_FUNCTION_SAMPLES + 1), curve.breakpoints)
+        V = np.empty_like(u)
+        for i, ui in enumerate(u):
+            try:
+                V[i] = float(feed(float(ui)))
+            except (TypeError, ValueError) as exc:
+                raise InfeasibleError(f"the feed function failed at u = {ui:.9g}: {exc}") from None
+            if not (math.isfinite(V[i]) and V[i] > 0):
+                raise InfeasibleError(f"the feed function returned {float(V[i])!r} at u = {ui:.9g}; "
+                                      "a feed must be finite and > 0")
+        return u, V[:-1], V[1:]
+    V = positive_feed(feed)
+    return np.array([0.0, 1.0]), np.array([V]), np.array([V])
+
+
+class UniformPlan(NamedTuple):
+    path: PathData
+    parameter_step: float
+    feed: float
+
+
+class TaylorPlan(NamedTuple):
+    path: PathData
+    order: int
+    feed_breaks: np.ndarray     # (m + 1,) in u
+    feed_start: np.ndarray      # (m,) V at each interval's start [path units/s]
+    feed_end: np.ndarray        # (m,) V at each interval's end [path units/s]
 
 
 class UniformInterpolator(Interpolator):
@@ -33,13 +115,14 @@ class UniformInterpolator(Interpolator):
 
     def __init__(self, curve: NurbsCurve, sample_period: float, parameter_step: float,
                  nominal_feed: float | None = None):
+        super().__init__(curve, sample_period)
         eps = float(parameter_step)
         if not (math.isfinite(eps) and 0 < eps <= 1):
-            raise ValueError(f"parameter_step must be in (0, 1], got {parameter_step!r}")
+            raise InfeasibleError(f"parameter_step must be in (0, 1], got {parameter_step!r}")
         self.parameter_step = eps
-        super().__init__(curve, sample_period)
-        self.nominal_feed = (curve.length * eps / self.sample_period
-                             if nominal_feed is None else float(nominal_feed))
+        feed = (curve.length * eps / self.sample_period if nominal_feed is None
+                else positive_feed(nominal_feed))
+        self.plan = UniformPlan(path_data(curve, 1), eps, feed)
 
     @classmethod
     def for_feed(cls, curve: NurbsCurve, sample_period: float, feed: float):
@@ -47,14 +130,24 @@ class UniformInterpolator(Interpolator):
         V = positive_feed(feed)
         return cls(curve, sample_period, min(V * sample_period / curve.length, 1.0), V)
 
+    @property
+    def nominal_feed(self) -> float:
+        return self.plan.feed
+
+    def new_state(self) -> StepState:
+        return StepState.new(self.plan.path)
+
     def nominal_duration(self) -> float:
         return math.ceil(1.0 / self.parameter_step) * self.sample_period
 
-    def _plan_step(self, state: LoopState | None):
-        return self.nominal_feed, 0.0, None, None
 
-    def _advance(self, feed, acceleration, derivatives) -> float:
-        return self.u + self.parameter_step
+@njit(cache=True)
+def uniform_step(plan, state, law, law_state, position, velocity, command, bounds):
+    """Eq. 1.1; the step contract of :mod:`nurbsmotion.stepping`."""
+    bounds[:] = np.nan
+    u, status = land(plan.path, state.u[0] + plan.parameter_step, command, state.scratch)
+    state.u[0] = u
+    return u, plan.feed, status
 
 
 class TaylorInterpolator(Interpolator):
@@ -65,30 +158,55 @@ class TaylorInterpolator(Interpolator):
     curve : NurbsCurve
     sample_period : float
         Ts [s].
-    feed : float or callable
-        V [path units/s]: a constant, or a function of the parameter u. For a varying feed
-        the second-order step includes the tangential acceleration term (SPEC section 5).
+    feed : float, callable or piecewise feed
+        V [path units/s]: a constant, a function of the curve parameter u, or a
+        piecewise-constant feed over u (see :func:`feed_table`). A varying feed enters the
+        second-order step with its tangential acceleration (SPEC section 5).
     order : {1, 2}
-        1: eq. 3.2; 2: eq. 3.1 (with the A term).
+        1: eq. 3.2; 2: eq. 3.1.
     """
 
-    def __init__(self, curve: NurbsCurve, sample_period: float, feed: Feed, order: int = 2):
-        if order not in (1, 2):
-            raise ValueError(f"Taylor order must be 1 or 2, got {order!r}")
-        self.order = order
-        self.name = f"taylor{order}"
-        self._feed = _feed_function(feed)
-        # A constant feed lets the compiled loop (nurbsmotion._loop_kernel) run this stepper.
-        self._constant_feed = None if callable(feed) else float(feed)
+    def __init__(self, curve: NurbsCurve, sample_period: float, feed, order: int = 2):
         super().__init__(curve, sample_period)
+        if order not in (1, 2) or isinstance(order, bool):
+            raise InfeasibleError(f"Taylor order must be 1 or 2, got {order!r}")
+        self.order = int(order)
+        self.name = f"taylor{order}"
+        self.plan = TaylorPlan(path_data(curve, self.order), self.order,
+                               *feed_table(feed, curve))
 
-    def nominal_duration(self) -> float | None:
-        if self._constant_feed is None:
-            return None
-        return self.curve.length / self._constant_feed
+    def new_state(self) -> StepState:
+        return StepState.new(self.plan.path)
 
-    def _plan_step(self, state: LoopState | None):
-        d = self.curve.derivatives(self.u, self.order)
-        V, dV_du = self._feed(self.u)
-        A = dV_du * V / math.sqrt(dot(d[1], d[1]))  # dV/dt = dV/du * du/dt
-        return V, A, None, d
+    def nominal_duration(self) -> float:
+        p = self.plan
+        s = self.curve.arc_length(p.feed_breaks)
+        return float(np.sum(np.diff(s) / np.minimum(p.feed_start, p.feed_end)))
+
+
+@njit(cache=True)
+def taylor_step(plan, state, law, law_state, position, velocity, command, bounds):
+    """Eq. 3.1 / 3.2 at the commanded feed; the step contract of :mod:`nurbsmotion.stepping`."""
+    u0 = state.u[0]
+    bounds[:] = np.nan
+    breaks = plan.feed_breaks
+    i = min(max(np.searchsorted(breaks, u0, side="right") - 1, 0), breaks.shape[0] - 2)
+    dV_du = (plan.feed_end[i] - plan.feed_start[i]) / (breaks[i + 1] - breaks[i])
+    V = plan.feed_start[i] + dV_du * (u0 - breaks[i])
+    d = path_derivatives(plan.path, u0, plan.order, state.scratch)
+    n2 = 0.0
+    for c in range(d.shape[1]):
+        n2 += d[1, c] * d[1, c]
+    A = dV_du * V / math.sqrt(n2)                   # dV/dt = dV/du * du/dt
+    u_new = advance(plan.path, plan.order, u0, V, A, law[0]["period"], state.scratch,
+                    True)
+    du = u_new - u0
+    if not (du > 0 and math.isfinite(du)):
+        return u0, V, stepping.FAILED
+    u, status = land(plan.path, u_new, command, state.scratch)
+    state.u[0] = u
+    return u, V, status
+
+
+stepping.register(UniformPlan, uniform_step)
+stepping.register(TaylorPlan, taylor_step)

@@ -1,0 +1,277 @@
+"""The closed loop, sample by sample: one implementation, compiled and readable.
+
+At sample k (t = k*Ts), for every axis (SPEC sections 1, 3 and 4):
+
+1. the plant's position tha[k] is measured, and its velocity: encoder differencing
+   ``(tha[k] - tha[k-1])/Ts`` or the true motor speed ``Ke*w[k]`` [pulse/s];
+2. the interpolator's registered step (:func:`nurbsmotion.stepping.step`) reads them and
+   the law's memory and gives the setpoint thd[k]; sample 0 is the path's start, at rest;
+3. the law (:func:`nurbsmotion.control.pid_output`) gives the drive u[k]; the actuator
+   applies ``clip(u[k], -Umax, Umax)`` over [k*Ts, (k+1)*Ts) and the plant advances
+   exactly (:func:`nurbsmotion.servo.plant_step`).
+
+The run goes on after the setpoint reaches the end until the motion has settled: at
+least ``min_samples`` more samples, and until the actual position has stayed within
+``window`` of the end point, with no drive beyond Umax, for ``hold_samples`` samples in a
+row (:class:`Settling`); ``limit_samples`` bounds the wait, ``max_samples`` the whole run. Every array the loop
+writes is one of :class:`Rows`; its own state lives in two structured arrays the caller
+owns (:class:`LoopState`, :class:`AxisState`), so a run whose rows are full is resumed on
+grown rows where it stopped.
+
+:func:`run_samples` is compiled by numba once per interpolator type (its plan's type) and
+runs as plain Python with ``NUMBA_DISABLE_JIT=1``.
+
+Glossary
+--------
+thd, tha : commanded and measured position [pulse]; u : drive [V]; w : motor speed
+[rad/s]; Ke : mechanical gain [pulse/rad]; Ts : sample period [s]; Umax : drive limit [V].
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from . import stepping
+from .control import pid_commit, pid_output
+from .servo import plant_step
+
+__all__ = ["Rows", "Settling", "LoopState", "AxisState", "DONE", "FULL", "FAILED",
+           "OUT_OF_SAMPLES", "new_rows", "run_samples"]
+
+DONE, FULL, FAILED, OUT_OF_SAMPLES = 0, 1, 2, 3
+"""Return codes of :func:`run_samples`: settled; rows full (grow them and call again);
+the interpolator could not advance; ``max_samples`` (or, after the end, ``limit_samples``)
+reached first."""
+
+class LoopState(NamedTuple):
+    """The loop's own state, one-element arrays: the next sample, the first sample at the
+    end (-1 before), the samples in a row spent settled, and the curve parameter of the
+    last setpoint."""
+
+    k: np.ndarray
+    finished: np.ndarray
+    calm: np.ndarray
+    u: np.ndarray
+
+
+class AxisState(NamedTuple):
+    """Per axis, shape (n_axes,): the plant's motor speed w [rad/s] and position [pulse]
+    now, and the position measured at the previous sample [pulse]."""
+
+    speed: np.ndarray
+    position: np.ndarray
+    position_prev: np.ndarray
+
+
+class Rows(NamedTuple):
+    """The trace, one row per sample (see :class:`nurbsmotion.loop.Trace`)."""
+
+    u: np.ndarray               # (n,)
+    feed: np.ndarray            # (n,) [pulse/s]
+    status: np.ndarray          # (n,) int8, stepping.Status codes
+    command: np.ndarray         # (n, n_axes) [pulse]
+    position: np.ndarray        # (n, n_axes) [pulse]
+    speed_command: np.ndarray   # (n, n_axes) [rad/s]
+    speed: np.ndarray           # (n, n_axes) [rad/s]
+    drive: np.ndarray           # (n, n_axes) [V], before the limit
+    drive_applied: np.ndarray   # (n, n_axes) [V]
+    bounds: np.ndarray          # (n or 0, n_axes, 2) [pulse/s]
+
+
+class Settling(NamedTuple):
+    """When a run ends (see the module docstring).
+
+    end : ndarray, shape (n_axes,) -- the path's end point [pulse];
+    window : float -- settle window, a distance to the end point [pulse];
+    min_samples : int -- samples the run goes on at least after the setpoint's end;
+    hold_samples : int -- samples in a row inside the window that count as settled;
+    limit_samples : int -- samples after the setpoint's end the run waits at most;
+    max_samples : int -- samples of the whole run at most."""
+
+    end: np.ndarray
+    window: float
+    min_samples: int
+    hold_samples: int
+    limit_samples: int
+    max_samples: int
+
+
+def new_rows(capacity: int, n_axes: int, with_bounds: bool) -> Rows:
+    """Uninitialised rows for ``capacity`` samples."""
+    shape = (capacity, n_axes)
+    return Rows(np.empty(capacity), np.empty(capacity), np.empty(capacity, np.int8),
+                np.empty(shape), np.empty(shape), np.empty(shape), np.empty(shape),
+                np.empty(shape), np.empty(shape),
+                np.empty((capacity if with_bounds else 0, n_axes, 2)))
+
+
+@njit(cache=True)
+def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settling, loop,
+                axes, rows, command, velocity, position, bounds):
+    """Run the loop from ``loop.k[0]`` until it ends or ``rows`` are full.
+
+    Parameters
+    ----------
+    plan, state
+        The interpolator's plan and state (:mod:`nurbsmotion.stepping`).
+    law : ndarray, shape (n_axes,), dtype PID_LAW
+    law_state : ndarray, shape (n_axes,), dtype PID_STATE
+    Ad, Bd : ndarray, shapes (n_axes, 2, 2), (n_axes, 2)
+        The true plant's ZOH matrices.
+    Ke : ndarray, shape (n_axes,)
+        The true plant's mechanical gains [pulse/rad] (its speed in pulse/s is ``Ke*w``).
+    encoder : bool
+        Velocity by encoder differencing (else the true speed).
+    start : ndarray, shape (n_axes,)
+        The setpoint of sample 0 [pulse].
+    settling : Settling
+    loop : LoopState
+    axes : AxisState
+    rows : Rows
+    command, velocity, position, bounds : ndarray
+        Scratch: shapes (n_axes,), (n_axes,), (n_axes,), (n_axes, 2).
+
+    Returns
+    -------
+    int
+        :data:`DONE`, :data:`FULL`, :data:`FAILED` or :data:`OUT_OF_SAMPLES`.
+    """
+    Ts = law[0]["period"]
+    umax = law[0]["maxoutput"]
+    n_axes = start.shape[0]
+    k = loop.k[0]
+    capacity = rows.u.shape[0]
+    record_bounds = rows.bounds.shape[0] > 0
+    end = settling.end
+    while True:
+        if k >= settling.max_samples:
+            loop.k[0] = k
+            return OUT_OF_SAMPLES
+        if k >= capacity:
+            loop.k[0] = k
+            return FULL
+        for j in range(n_axes):
+            position[j] = axes.position[j]
+            if encoder:
+                velocity[j] = (position[j] - axes.position_prev[j]) / Ts
+            else:
+                velocity[j] = Ke[j] * axes.speed[j]
+        finished = loop.finished[0]
+        if k == 0:
+            u, feed, status = 0.0, 0.0, stepping.WORKING
+            for j in range(n_axes):
+                command[j] = start[j]
+                bounds[j, 0] = np.nan
+                bounds[j, 1] = np.nan
+        elif finished >= 0:
+            u, feed, status = 1.0, 0.0, stepping.FINISHED
+            for j in range(n_axes):
+                command[j] = end[j]
+                bounds[j, 0] = np.nan
+                bounds[j, 1] = np.nan
+        else:
+            u, feed, status = stepping.step(plan, state, law, law_state, position, velocity,
+                                            command, bounds)
+            if status == stepping.FAILED:
+                loop.k[0] = k
+                loop.u[0] = u
+                return FAILED
+            if status == stepping.FINISHED:
+                loop.finished[0] = k
+        rows.u[k] = u
+        rows.feed[k] = feed
+        rows.status[k] = status
+        over = False
+        for j in range(n_axes):
+            prev_cmd = law_state[j]["prev_cmd"]
+            out, e, ei, cd = pid_output(law, law_state, j, command[j], position[j],
+                                        velocity[j])
+            pid_commit(law, law_state, j, command[j], out, e, ei, cd)
+            applied = min(max(out, -umax), umax)
+            over = over or not abs(out) <= umax
+            rows.command[k, j] = command[j]
+            rows.position[k, j] = position[j]
+            rows.speed_command[k, j] = (command[j] - prev_cmd) / (Ke[j] * Ts)
+            rows.speed[k, j] = velocity[j] / Ke[j]
+            rows.drive[k, j] = out
+            rows.drive_applied[k, j] = applied
+            if record_bounds:
+                rows.bounds[k, j, 0] = bounds[j, 0]
+                rows.bounds[k, j, 1] = bounds[j, 1]
+            w, th = plant_step(Ad, Bd, j, axes.speed[j], axes.position[j], applied)
+            axes.position_prev[j] = position[j]
+            axes.speed[j] = w
+            axes.position[j] = th
+        loop.u[0] = u
+        if loop.finished[0] >= 0:
+            dist2 = 0.0
+            for j in range(n_axes):
+                dist2 += (position[j] - end[j]) ** 2
+            if math.sqrt(dist2) <= settling.window and not over:
+                loop.calm[0] += 1
+            else:
+                loop.calm[0] = 0
+            if (k >= loop.finished[0] + settling.min_samples
+                    and loop.calm[0] >= settling.hold_samples):
+                loop.k[0] = k + 1
+                return DONE
+            if k >= loop.finished[0] + settling.limit_samples:
+                loop.k[0] = k + 1
+                return OUT_OF_SAMPLES
+        k += 1
+
+
+def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
+        settling: Settling, with_bounds: bool, capacity: int):
+    """:func:`run_samples` from sample 0 to the end, growing the rows as needed.
+
+    Parameters
+    ----------
+    plan, state
+        The interpolator's plan and a fresh state.
+    law : ndarray, shape (n_axes,), dtype PID_LAW
+    law_state : ndarray, shape (n_axes,), dtype PID_STATE
+        The law at rest at ``start`` (:func:`nurbsmotion.control.pid_state`); changed.
+    plant : ServoPlant
+        The true plant; its ``position`` (or ``start``) is where the motion starts, at rest.
+    encoder : bool
+    start : ndarray, shape (n_axes,)
+        Setpoint of sample 0 [pulse].
+    settling : Settling
+    with_bounds : bool
+        Record the step's speed bounds.
+    capacity : int
+        First guess of the number of samples.
+
+    Returns
+    -------
+    code : int
+        :data:`DONE`, :data:`FAILED` or :data:`OUT_OF_SAMPLES`.
+    rows : Rows
+        Trimmed to the samples run.
+    loop : LoopState
+    """
+    n_axes = start.shape[0]
+    loop = LoopState(np.zeros(1, np.int64), np.full(1, -1, np.int64), np.zeros(1, np.int64),
+                     np.zeros(1))
+    origin = np.array(start if plant.position is None else plant.position, dtype=float)
+    axes = AxisState(np.zeros(n_axes), origin.copy(), origin.copy())
+    capacity = max(1, min(int(capacity), settling.max_samples))
+    rows = new_rows(capacity, n_axes, with_bounds)
+    scratch = (np.empty(n_axes), np.empty(n_axes), np.empty(n_axes), np.empty((n_axes, 2)))
+    while True:
+        code = run_samples(plan, state, law, law_state, plant.Ad, plant.Bd,
+                           plant.mechanical_gain, encoder, start, settling, loop, axes, rows,
+                           *scratch)
+        if code != FULL:
+            break
+        capacity = min(2 * capacity, settling.max_samples)
+        rows = Rows(*(np.resize(r, (capacity,) + r.shape[1:]) if r.shape[0] else r
+                      for r in rows))
+    k = int(loop.k[0])
+    rows = Rows(*(r[:k] if r.shape[0] else r for r in rows))
+    return code, rows, loop

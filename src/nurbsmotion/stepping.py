@@ -1,0 +1,87 @@
+"""The per-sample contract between an interpolator and the loop, and its registry.
+
+An interpolator is, for the loop, two pieces of data and one compiled function:
+
+- its *plan*: an immutable :class:`typing.NamedTuple` of numbers and arrays (the path,
+  the feed, a schedule, ...), built once in Python;
+- its *state*: a NamedTuple of arrays (the parameter ``u`` and whatever else the stepper
+  carries between samples, as one-element arrays, and scratch arrays), made fresh for
+  every run;
+- its *step*, registered here for the plan's type::
+
+      step(plan, state, law, law_state, position, velocity, command, bounds)
+          -> (u, feed, status)
+
+  called once per sample k >= 1 with the measured position tha[k] [pulse] and velocity
+  [pulse/s] (shape (n_axes,)), the control law (:data:`nurbsmotion.control.PID_LAW`) and
+  its memory from sample k-1 (so that the step can predict the drive any candidate
+  setpoint would cause: :func:`nurbsmotion.control.pid_output` and
+  :func:`~nurbsmotion.control.pid_affine`). It writes the setpoint thd[k] into
+  ``command`` and the speed bounds it used into ``bounds`` (shape (n_axes, 2), [pulse/s];
+  NaN where it has none), and returns the curve parameter, the feed it commanded
+  [pulse/s] and a :class:`Status` code. Open loop (:func:`nurbsmotion.interpolators.interpolate`)
+  the law is :func:`nurbsmotion.control.pid_law` of no gains and the state is the
+  setpoint's own.
+
+:func:`step` dispatches on the plan's type at compile time (numba ``overload``), so the
+loop is compiled once per interpolator type and cached on disk; with
+``NUMBA_DISABLE_JIT=1`` the same functions run as plain Python. Adding an interpolator
+means one module that defines its plan, state and step and calls :func:`register`.
+"""
+
+from __future__ import annotations
+
+import enum
+
+from numba.extending import overload
+
+__all__ = ["Status", "WORKING", "FINISHED", "LIMITED", "CORNERED", "FAILED", "register",
+           "step"]
+
+WORKING, FINISHED, LIMITED, CORNERED, FAILED = 0, 1, 2, 3, 4
+"""Status codes a step returns (see :class:`Status`)."""
+
+
+class Status(enum.IntEnum):
+    """What one sample's step did."""
+
+    WORKING = WORKING
+    """Moved along the plan; the end is not reached yet."""
+    FINISHED = FINISHED
+    """The setpoint is at the path's end (reached at this step or before)."""
+    LIMITED = LIMITED
+    """The step was changed from the plan (shortened, or lengthened while braking) so
+    that every predicted drive stays within Umax."""
+    CORNERED = CORNERED
+    """No admissible step existed: the drive of at least one axis will exceed Umax."""
+    FAILED = FAILED
+    """The interpolator cannot advance (a zero or non-finite step); the run stops."""
+
+
+_STEPS: dict = {}
+
+
+def register(plan_type: type, step_function) -> None:
+    """Make ``step_function`` the step of plans of type ``plan_type`` (a NamedTuple)."""
+    _STEPS[plan_type] = step_function
+
+
+def step(plan, state, law, law_state, position, velocity, command, bounds):
+    """The registered step of ``type(plan)`` (see the module docstring)."""
+    return _STEPS[type(plan)](plan, state, law, law_state, position, velocity, command,
+                              bounds)
+
+
+@overload(step, jit_options={"cache": True})
+def _step_overload(plan, state, law, law_state, position, velocity, command, bounds):
+    from numba.core import types
+
+    if not isinstance(plan, types.BaseNamedTuple):
+        return None
+    fn = _STEPS.get(plan.instance_class)
+    if fn is None:
+        return None
+
+    def impl(plan, state, law, law_state, position, velocity, command, bounds):
+        return fn(plan, state, law, law_state, position, velocity, command, bounds)
+    return impl
