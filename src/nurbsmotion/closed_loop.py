@@ -5,7 +5,8 @@ At sample k (t = k*Ts), for every axis (SPEC sections 1, 3 and 4):
 1. the plant's position tha[k] is measured, and its velocity: encoder differencing
    ``(tha[k] - tha[k-1])/Ts`` or the true motor speed ``Ke*w[k]`` [pulse/s];
 2. the interpolator's registered step (:func:`nurbsmotion.stepping.step`) reads them and
-   the law's memory and gives the setpoint thd[k]; sample 0 is the path's start, at rest;
+   the law's memory and gives the setpoint thd[k] (sample 0 is the path's start, at rest;
+   once at the end, the step holds it, or goes on steering the plant there);
 3. the law (:func:`nurbsmotion.control.pid_output`) gives the drive u[k]; the actuator
    applies ``clip(u[k], -Umax, Umax)`` over [k*Ts, (k+1)*Ts) and the plant advances
    exactly (:func:`nurbsmotion.servo.plant_step`).
@@ -160,17 +161,10 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
                 velocity[j] = (position[j] - axes.position_prev[j]) / Ts
             else:
                 velocity[j] = Ke[j] * axes.speed[j]
-        finished = loop.finished[0]
         if k == 0:
             u, feed, status = 0.0, 0.0, stepping.WORKING
             for j in range(n_axes):
                 command[j] = start[j]
-                bounds[j, 0] = np.nan
-                bounds[j, 1] = np.nan
-        elif finished >= 0:
-            u, feed, status = 1.0, 0.0, stepping.FINISHED
-            for j in range(n_axes):
-                command[j] = end[j]
                 bounds[j, 0] = np.nan
                 bounds[j, 1] = np.nan
         else:
@@ -180,7 +174,7 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
                 loop.k[0] = k
                 loop.u[0] = u
                 return FAILED
-            if status == stepping.FINISHED:
+            if status == stepping.FINISHED and loop.finished[0] < 0:
                 loop.finished[0] = k
         rows.u[k] = u
         rows.feed[k] = feed

@@ -41,7 +41,6 @@ from __future__ import annotations
 from typing import Iterable, Sequence
 
 import numpy as np
-from scipy.interpolate import BSpline, make_interp_spline
 
 from .errors import InvalidCurveError
 from .nurbs import NurbsCurve
@@ -52,9 +51,11 @@ DEFAULT_JOIN_TOLERANCE = 1e-9
 """Largest gap between pieces accepted by :func:`join`, relative to the path size."""
 
 
-def _homogeneous(curve: NurbsCurve) -> BSpline:
+def _homogeneous(curve: NurbsCurve):
     w = curve.weights
     H = np.hstack([curve.control_points * w[:, None], w[:, None]])
+    from scipy.interpolate import BSpline  # lazily: importing it costs ~0.5 s
+
     return BSpline(curve.knots, H, curve.degree, extrapolate=False)
 
 
@@ -65,6 +66,8 @@ def _refit(curve: NurbsCurve, knots: np.ndarray, degree: int) -> NurbsCurve:
     greville = np.array([np.mean(knots[i + 1 : i + degree + 1]) for i in range(n)])
     greville = np.clip(greville, knots[degree], knots[n])  # the mean of equal knots may round
     H = _homogeneous(curve)(greville)
+    from scipy.interpolate import make_interp_spline
+
     fit = make_interp_spline(greville, H, k=degree, t=knots)
     w = fit.c[:, -1]
     return NurbsCurve(

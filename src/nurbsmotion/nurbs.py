@@ -38,8 +38,6 @@ from importlib import resources
 from typing import Any
 
 import numpy as np
-from scipy.interpolate import BSpline
-from scipy.special import comb
 
 from .errors import InvalidCurveError
 
@@ -329,6 +327,8 @@ class NurbsCurve:
             homogeneous = self._homogeneous
             t = self.knots
             p = self.degree
+            from scipy.interpolate import BSpline  # lazily: importing it costs ~0.5 s
+
             self._spline = BSpline(t, homogeneous, p, extrapolate=True)
             # The mirrored curve evaluated at 1 - u gives left-sided values at breakpoints.
             self._mirror = BSpline(1.0 - t[::-1], homogeneous[::-1], p, extrapolate=True)
@@ -342,7 +342,7 @@ class NurbsCurve:
         for k in range(max_order + 1):
             v = A[k].copy()
             for i in range(1, k + 1):
-                v -= comb(k, i, exact=True) * wd[i] * out[k - i]
+                v -= math.comb(k, i) * wd[i] * out[k - i]
             out[k] = v / wd[0]
         return out
 
@@ -460,6 +460,8 @@ class NurbsCurve:
         p = self.degree
         nodes = np.polynomial.chebyshev.chebpts1(2 * p - 1)
         bp = self.breakpoints
+        from scipy.interpolate import BSpline
+
         weight = BSpline(self.knots, self.weights, p)
         for a, b in zip(bp[:-1], bp[1:]):
             uu = 0.5 * (a + b) + 0.5 * (b - a) * nodes

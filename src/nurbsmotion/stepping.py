@@ -19,7 +19,9 @@ An interpolator is, for the loop, two pieces of data and one compiled function:
   :func:`~nurbsmotion.control.pid_affine`). It writes the setpoint thd[k] into
   ``command`` and the speed bounds it used into ``bounds`` (shape (n_axes, 2), [pulse/s];
   NaN where it has none), and returns the curve parameter, the feed it commanded
-  [pulse/s] and a :class:`Status` code. Open loop (:func:`nurbsmotion.interpolators.interpolate`)
+  [pulse/s] and a :class:`Status` code. It is called at every sample, also after it
+  first reported ``FINISHED``: then it holds the end (:func:`hold_end`) or, if it steers
+  the plant rather than the setpoint, goes on steering it there. Open loop (:func:`nurbsmotion.interpolators.interpolate`)
   the law is :func:`nurbsmotion.control.pid_law` of no gains and the state is the
   setpoint's own.
 
@@ -33,10 +35,12 @@ from __future__ import annotations
 
 import enum
 
+import numpy as np
+from numba import njit
 from numba.extending import overload
 
 __all__ = ["Status", "WORKING", "FINISHED", "LIMITED", "CORNERED", "FAILED", "register",
-           "step"]
+           "step", "hold_end"]
 
 WORKING, FINISHED, LIMITED, CORNERED, FAILED = 0, 1, 2, 3, 4
 """Status codes a step returns (see :class:`Status`)."""
@@ -59,6 +63,16 @@ class Status(enum.IntEnum):
 
 
 _STEPS: dict = {}
+
+
+@njit(cache=True)
+def hold_end(end, command, bounds):
+    """The step of an interpolator that has reached the end: hold it (feed 0)."""
+    for j in range(command.shape[0]):
+        command[j] = end[j]
+        bounds[j, 0] = np.nan
+        bounds[j, 1] = np.nan
+    return 1.0, 0.0, FINISHED
 
 
 def register(plan_type: type, step_function) -> None:

@@ -85,6 +85,8 @@ class PaperInterpolator(Interpolator):
 @njit(cache=True)
 def paper_step(plan, state, law, law_state, position, velocity, command, bounds):
     """Eq. 3.6-3.10 and the step of eq. 3.8-3.9; the contract of :mod:`nurbsmotion.stepping`."""
+    if state.u[0] >= 1.0:
+        return stepping.hold_end(plan.path.end, command, bounds)
     u0 = state.u[0]
     d = path_derivatives(plan.path, u0, plan.order, state.scratch)
     dim = d.shape[1]

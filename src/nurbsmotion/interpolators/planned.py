@@ -601,6 +601,8 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
     The schedule runs on a fractional sample index: normally it advances by one planned
     sample per step; after the safety layer has changed a step, the index is set to the
     point reached, so that the schedule goes on from there at the planned pace."""
+    if state.u[0] >= 1.0:
+        return stepping.hold_end(plan.path.end, command, bounds)
     u = state.u[0]
     last = plan.plan_s.shape[0] - 1
     phi_prev = state.phi[0]

@@ -85,6 +85,8 @@ class ReplayInterpolator(Interpolator):
 @njit(cache=True)
 def replay_step(plan, state, law, law_state, position, velocity, command, bounds):
     """Sample k's setpoint is C(parameters[k]); the contract of :mod:`nurbsmotion.stepping`."""
+    if state.u[0] >= 1.0:
+        return stepping.hold_end(plan.path.end, command, bounds)
     k = state.k[0] + 1
     state.k[0] = k
     bounds[:] = np.nan

@@ -144,6 +144,8 @@ class UniformInterpolator(Interpolator):
 @njit(cache=True)
 def uniform_step(plan, state, law, law_state, position, velocity, command, bounds):
     """Eq. 1.1; the step contract of :mod:`nurbsmotion.stepping`."""
+    if state.u[0] >= 1.0:
+        return stepping.hold_end(plan.path.end, command, bounds)
     bounds[:] = np.nan
     u, status = land(plan.path, state.u[0] + plan.parameter_step, command, state.scratch)
     state.u[0] = u
@@ -187,6 +189,8 @@ class TaylorInterpolator(Interpolator):
 @njit(cache=True)
 def taylor_step(plan, state, law, law_state, position, velocity, command, bounds):
     """Eq. 3.1 / 3.2 at the commanded feed; the step contract of :mod:`nurbsmotion.stepping`."""
+    if state.u[0] >= 1.0:
+        return stepping.hold_end(plan.path.end, command, bounds)
     u0 = state.u[0]
     bounds[:] = np.nan
     breaks = plan.feed_breaks
