@@ -28,6 +28,7 @@ from .interpolators import (Interpolator, LoopState, PaperInterpolator,
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .servo import ServoPlant
+from .units import feed_in_pulses
 
 __all__ = ["Trace", "simulate", "run", "to_pulses"]
 
@@ -448,7 +449,7 @@ def _simulate_compiled(interpolator, compiled_feed, machine, plant, start, n_set
     )
 
 
-def run(curve: NurbsCurve, machine: Machine, feed: float, interpolator: str = "paper",
+def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
         **simulate_options) -> Trace:
     """Run a path on a machine with a named interpolator.
 
@@ -457,14 +458,17 @@ def run(curve: NurbsCurve, machine: Machine, feed: float, interpolator: str = "p
     curve : NurbsCurve
         The path, in any unit the machine knows (converted with :func:`to_pulses`).
     machine : Machine
-    feed : float
-        Commanded feed F [pulse/s].
+    feed : float or str
+        Commanded feed F: a bare number in the path's units per second (pulse/s for a
+        path in pulses), or a text with a unit such as ``"100mm/s"``
+        (:func:`nurbsmotion.units.feed_in_pulses`).
     interpolator : str
         One of :data:`nurbsmotion.interpolators.LOOP_METHODS`.
     **simulate_options
         Passed to :func:`simulate` (``plant``, ``settle_time``, ``max_samples``,
         ``compiled``).
     """
+    feed = feed_in_pulses(feed, curve, machine)
     path = to_pulses(curve, machine)
     return simulate(make_interpolator(interpolator, path, machine, feed), machine,
                     **simulate_options)
