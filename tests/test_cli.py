@@ -269,7 +269,8 @@ def test_trace_options(tmp_path, capsys, monkeypatch):
 
     from nurbsmotion import cli
 
-    base = ["run", "die-bonder-pi", "--feed", "5e5", "--interpolator", "paper", "--no-figures"]
+    base = ["run", "die-bonder-pi", "--feed", "5e5", "--interpolator", "paper",
+            "--no-figures"]
     assert main(base + ["--out", str(tmp_path / "all")]) == 0
     header, full = read_csv(tmp_path / "all" / "trace.csv")
     steps = json.loads((tmp_path / "all" / "summary.json").read_text())["steps"]

@@ -448,11 +448,16 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
     planar = n_axes == 2
     zooms = (_zoom_windows(curve, runs, nearest, _MIN_ZOOM_HALF_WIDTH_PULSES / per_unit)
              if planar else [])
-    n_cols = 3 if n_axes >= 3 else max(2, min(len(zooms), 4))
-    n_rows = 2 if n_axes >= 3 else 1 + math.ceil(len(zooms) / n_cols)
+    one_row = len(zooms) == 1  # path, error and the zoom side by side
+    n_cols = 3 if n_axes >= 3 or one_row else max(2, min(len(zooms), 4))
+    n_rows = 2 if n_axes >= 3 else (1 if one_row else 1 + math.ceil(len(zooms) / n_cols))
     fig = _figure(4.4 * n_cols, 4.4 * n_rows + 0.6)
     grid = fig.add_gridspec(n_rows, 2 * n_cols)
-    half = n_cols if n_axes < 3 else 3
+    half = 2 if one_row else (3 if n_axes >= 3 else n_cols)
+    err_slot = grid[0, half:4] if one_row else grid[0, half:]
+    zoom_slots = ([grid[0, 4:]] if one_row else
+                  [grid[1 + j // n_cols, 2 * (j % n_cols):2 * (j % n_cols) + 2]
+                   for j in range(len(zooms))])
     desired = _desired_points(curve)
 
     if n_axes >= 3:
@@ -485,7 +490,7 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
         ax_path.set_ylabel(f"{names[0]} [{unit}]")
         ax_path.set_title("position")
 
-    ax_err = fig.add_subplot(grid[0, half:])
+    ax_err = fig.add_subplot(err_slot)
     for r, (_, dist) in zip(runs, nearest):
         ax_err.plot(r.t, dist, color=r.color, linestyle=r.linestyle,
                     label=f"contour error, {r.label} (max {np.max(dist):.3g} {unit})")
@@ -495,8 +500,8 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
     ax_err.set_ylim(bottom=0)
     ax_err.grid(True, linewidth=0.3, color="0.85")
 
-    for j, z in enumerate(zooms):
-        ax = fig.add_subplot(grid[1 + j // n_cols, 2 * (j % n_cols):2 * (j % n_cols) + 2])
+    for j, (z, slot) in enumerate(zip(zooms, zoom_slots)):
+        ax = fig.add_subplot(slot)
         ax.plot(desired[:, 0], desired[:, 1], color="k", linewidth=1)
         for r in runs:
             ax.plot(r.position[:, 0], r.position[:, 1], color=r.color, linestyle=r.linestyle,
