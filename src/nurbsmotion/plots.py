@@ -91,6 +91,7 @@ class _Zoom:
     label: str
     center: np.ndarray
     half_width: float  # [L]
+    corner: int | None = None  # the sharp corner it shows (1, 2, ...), if any
 
 
 @dataclass(frozen=True)
@@ -360,13 +361,13 @@ def _zoom_windows(curve, runs: list[_Run], nearest: list[tuple],
     cap = 0.5 * float(np.max(np.ptp(_desired_points(curve, 500)[:, :2], axis=0)))
     cap = max(cap, min_half)
 
-    def window(label: str, points: list, err: float) -> _Zoom:
+    def window(label: str, points: list, err: float, corner: int | None = None) -> _Zoom:
         """Square around ``points`` (each (2,) [L]) with room for ``err`` [L]."""
         pts = np.array(points)
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         half = 0.5 * float(np.max(hi - lo)) + (_ZOOM_MARGIN - 1.0) * err
         half = min(max(min_half, half, _ZOOM_MARGIN * err), cap)
-        return _Zoom(label, 0.5 * (lo + hi), half)
+        return _Zoom(label, 0.5 * (lo + hi), half, corner)
 
     corners = curve.sharp_corners()
     if corners.size == 0:
@@ -386,9 +387,9 @@ def _zoom_windows(curve, runs: list[_Run], nearest: list[tuple],
                 local.append(float(d[k]))
             else:
                 local.append(0.0)
-        zooms.append(window(f"corner {n} (u = {uc:.3g})", points, max(local)))
+        zooms.append(window(f"corner {n} (u = {uc:.3g})", points, max(local), n))
         if max(local) > _CLOSE_ZOOM_RATIO * max(min(local), min_half / 2):
-            zooms.append(window(f"corner {n}, closer", [corner], min(local)))
+            zooms.append(window(f"corner {n}, closer", [corner], min(local), n))
     return zooms
 
 
@@ -403,25 +404,24 @@ def _label_corners(ax, curve, zooms: list[_Zoom]) -> None:
     lo = pts.min(axis=0) - [0.1 * size, 0.0]
     hi = pts.max(axis=0) + [0.1 * size, 0.0]
     box = dict(boxstyle="round,pad=0.25", facecolor="white", edgecolor="0.5", alpha=0.95)
-    places: dict[tuple, list] = {}
+    places: dict = {}  # corner number or zoom index -> (anchor (2,) [L], letters)
+    corners = curve.sharp_corners()
     for j, z in enumerate(zooms):
         (cx, cy), h = z.center, z.half_width
         ax.add_patch(Rectangle((cx - h, cy - h), 2 * h, 2 * h, fill=False, edgecolor="0.3",
                                linewidth=0.9))
-        places.setdefault((round(cx, 9), round(cy, 9)), []).append(chr(65 + j))
-    corners = {n: curve(uc)[:2] for n, uc in enumerate(curve.sharp_corners(), start=1)}
-    for (cx, cy), letters in places.items():
-        p = np.array([cx, cy])
-        name = next((f"corner {n} " for n, c in corners.items()
-                     if np.linalg.norm(c - p) <= max(z.half_width for z in zooms)), "")
+        key = ("corner", z.corner) if z.corner is not None else ("zoom", j)
+        anchor = curve(corners[z.corner - 1])[:2] if z.corner is not None else z.center
+        places.setdefault(key, (anchor, []))[1].append(chr(65 + j))
+    for (kind, n), (p, letters) in places.items():
         away = p - centre
         norm = float(np.linalg.norm(away))
         away = away / norm if norm > 0 else np.array([0.0, 1.0])
         # outward from the path's centre, kept inside the path's box (where the axes are)
         text_at = np.clip(p + 0.2 * size * away, lo, hi)
-        ax.annotate(f"{name}({', '.join(letters)})" if name else ", ".join(letters), p,
-                    xytext=text_at, fontsize="medium", ha="center",
-                    va="center", bbox=box,
+        text = ", ".join(letters)
+        ax.annotate(f"corner {n} ({text})" if kind == "corner" else text, p, xytext=text_at,
+                    fontsize="medium", ha="center", va="center", bbox=box,
                     arrowprops=dict(arrowstyle="-", color="0.4", linewidth=0.8))
 
 
