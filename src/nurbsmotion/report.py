@@ -70,7 +70,7 @@ TRACE_FORMATS = ("csv", "parquet")
 TRACE_FILES = {fmt: f"trace.{fmt}" for fmt in TRACE_FORMATS}
 """Trace format -> file name."""
 
-TRACE_CHUNK_ROWS = 65_536
+TRACE_CHUNK_ROWS = 16_384
 """Rows converted and written at a time."""
 
 
