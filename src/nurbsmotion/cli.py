@@ -106,7 +106,7 @@ def _cmd_run(args) -> int:
     check_writable(exports.values(), args.overwrite)
     stages = ["plan and run the closed loop", "time-optimal bound", "metrics", "summary"]
     stages += [] if args.no_figures else ["figures"]
-    with _progress(args, total=len(stages), unit="stage") as bar:
+    with _progress(args, total=len(stages), unit="stage", desc=stages[0]) as bar:
         def stage(name: str) -> None:
             bar.set_description(name)
 
@@ -250,15 +250,17 @@ def _parser() -> argparse.ArgumentParser:
         return sub.add_parser(name, help=help, description=help,
                               formatter_class=_HelpFormatter)
 
-    def common(c: argparse.ArgumentParser, out_default: str | None = None) -> None:
+    def common(c: argparse.ArgumentParser, out_default: str | None = None,
+               progress: bool = True) -> None:
         if out_default is None:
             c.add_argument("--out", required=True, help="output folder (created)")
         else:
             c.add_argument("--out", default=out_default, help="output folder (created)")
         c.add_argument("--overwrite", action="store_true", help="replace existing output files")
-        c.add_argument("--quiet", action="store_true",
-                       help="no progress bar (there is none either when stderr is not a "
-                       "terminal)")
+        if progress:
+            c.add_argument("--quiet", action="store_true",
+                           help="no progress bar (there is none either when stderr is not "
+                           "a terminal)")
 
     i = command("interpolate", "open-loop setpoints of a path at a constant feed")
     i.add_argument("path", help=path_help)
@@ -266,7 +268,7 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
                    help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
     i.add_argument("--sample-period", type=float, default=1e-3, help="Ts [s]")
-    common(i)
+    common(i, progress=False)  # open loop: done in a moment
     i.set_defaults(func=_cmd_interpolate)
 
     r = command("run", "closed-loop servo simulation of a path on a machine")
