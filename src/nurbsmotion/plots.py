@@ -38,7 +38,7 @@ import numpy as np
 
 from ._io import write_output
 from .metrics import nearest_parameter
-from .units import pulses_per_report_unit, report_unit
+from .units import report_unit
 
 __all__ = ["plot_trace", "plot_setpoints", "plot_comparison", "settling_time",
            "TRACE_FIGURES", "DRIVE_FRAME", "MAX_EVENT_WINDOWS"]
