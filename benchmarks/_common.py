@@ -17,6 +17,23 @@ if str(SRC) not in sys.path:
     sys.path.insert(0, str(SRC))  # run from a checkout without installing
 
 
+PEAK_MB = r"""
+def peak_mb():
+    # VmHWM starts afresh at exec; ru_maxrss may keep the forking parent's peak.
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    import resource
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+"""
+"""Source of ``peak_mb()``, the peak resident set size of the process [MB], for the
+child scripts of the benchmarks."""
+
+
 def median_time(fn, repeats: int, warmup: int = 1) -> tuple[float, list[float]]:
     """Median wall time of ``fn()`` over ``repeats`` calls after ``warmup`` calls [s]."""
     for _ in range(warmup):

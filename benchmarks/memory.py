@@ -14,25 +14,14 @@ from __future__ import annotations
 import json
 
 import _common  # noqa: F401  (puts src/ on the path)
-from _common import run_python, section
+from _common import PEAK_MB, run_python, section
 
-CHILD = r"""
-import json, resource, time
+CHILD = PEAK_MB + r"""
+import json, time
 import nurbsmotion as nm
 from nurbsmotion.interpolators import make_interpolator
 from nurbsmotion.loop import simulate, to_pulses
 from nurbsmotion.machine import die_bonder
-
-def peak_mb():
-    # VmHWM starts afresh at exec; ru_maxrss may keep the forking parent's peak.
-    try:
-        with open("/proc/self/status") as f:
-            for line in f:
-                if line.startswith("VmHWM:"):
-                    return int(line.split()[1]) / 1024
-    except OSError:
-        pass
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 m = die_bonder()
 path = to_pulses(nm.make_butterfly(), m)

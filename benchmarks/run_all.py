@@ -16,6 +16,7 @@ from pathlib import Path
 
 import _common
 import compile_cost
+import long_run
 import loop_throughput
 import memory
 import nurbs_eval
@@ -47,6 +48,7 @@ def main(argv=None) -> int:
     sections = [
         loop_throughput.main(repeats=5 if q else 15),
         memory.main(),  # before geomdl's million-row lists grow this process
+        long_run.main(repeats=1 if q else 2),
         nurbs_eval.main(repeats=3 if q else 7, geomdl_repeats=1 if q else 3),
         compile_cost.main(repeats=1 if q else 3),
         reproduce_time.main(repeats=1 if q else 2),

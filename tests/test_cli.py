@@ -10,7 +10,7 @@ import nurbsmotion as nm
 from nurbsmotion.cli import main, parse_feed
 from nurbsmotion.interpolators import TaylorInterpolator
 from nurbsmotion.loop import interpolate
-from nurbsmotion.report import SUMMARY_KEYS
+from nurbsmotion.report import SUMMARY_KEYS, SUMMARY_LENGTH_KEYS
 
 
 def read_csv(path):
@@ -44,9 +44,23 @@ def test_run_writes_trace_and_summary_contracts(tmp_path):
                  "--interpolator", "paper", "--out", str(tmp_path)]) == 0
     header, data = read_csv(tmp_path / "trace.csv")
     per_axis = ["cmd", "act", "drive", "drive_applied", "speed_min", "speed_max"]
-    assert header == ["t", "u"] + [f"{a}_{c}" for a in "xy" for c in per_axis]
+    pulse_columns = ["t", "u"] + [f"{a}_{c}" for a in "xy" for c in per_axis]
+    mm = ["cmd_mm", "act_mm", "speed_min_mm_per_s", "speed_max_mm_per_s"]
+    assert header == pulse_columns + [f"{a}_{c}" for a in "xy" for c in mm]
+    for pulses, mm in (("x_cmd", "x_cmd_mm"), ("y_act", "y_act_mm"),
+                       ("y_speed_max", "y_speed_max_mm_per_s")):  # 1 pulse = 1 um
+        np.testing.assert_allclose(data[:, header.index(pulses)] / 1000,
+                                   data[:, header.index(mm)], rtol=1e-15)
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert tuple(summary) == SUMMARY_KEYS
+    assert tuple(summary)[:len(SUMMARY_KEYS)] == SUMMARY_KEYS  # contract: first, in order
+    assert summary["length_unit"] == "mm" and summary["feed_mm_per_s"] == 1000.0
+    for key in SUMMARY_LENGTH_KEYS:
+        assert summary[f"{key}_mm"] == pytest.approx(
+            {a: v / 1000 for a, v in summary[key].items()} if isinstance(summary[key], dict)
+            else summary[key] / 1000, rel=1e-15)
+    assert set(summary["units"]) == set(summary) - {"units"}
+    assert summary["units"]["max_contour_error"] == "pulse"
+    assert summary["units"]["max_contour_error_mm"] == "mm"
     assert summary["saturated_samples"]["x"] > 0
     assert summary["feed"] == 1e6 and summary["interpolator"] == "paper"
     assert summary["steps"] == round(summary["cycle_time_s"] / 1e-3)
@@ -131,7 +145,7 @@ def test_parse_feed(text, expected):
 
 
 def test_reproduce_writes_tables_and_figures(tmp_path):
-    assert main(["reproduce", "--out", str(tmp_path)]) == 0
+    assert main(["reproduce", "--out", str(tmp_path), "--no-figures"]) == 0
     rows = json.loads((tmp_path / "table.json").read_text())
     assert len(rows) == 18
     pi1 = {r["interpolator"]: r for r in rows
@@ -142,8 +156,27 @@ def test_reproduce_writes_tables_and_figures(tmp_path):
     assert pi1["planned"]["time_optimal_bound_s"] == pytest.approx(0.1153, abs=5e-4)
     assert pi1["planned"]["cycle_time_ratio"] == pytest.approx(
         pi1["planned"]["cycle_time_s"] / pi1["planned"]["time_optimal_bound_s"])
-    assert "| die-bonder-pi | 1 | paper |" in (tmp_path / "table.md").read_text()
-    assert len(list(tmp_path.glob("*.png"))) == 18
+    assert pi1["planned"]["max_contour_error_mm"] == pytest.approx(
+        pi1["planned"]["max_contour_error"] / 1000, rel=1e-15)
+    table = (tmp_path / "table.md").read_text()
+    assert "| die-bonder-pi | 1 | paper |" in table
+    assert "| max drive x / Umax | max drive y / Umax |" in table
+    assert "max contour [mm]" in table
+    assert not list(tmp_path.glob("*.png"))
+
+
+def test_reproduce_figures(tmp_path):
+    """Per path and feed: the contour, and the speed and drive of every axis."""
+    from nurbsmotion.experiments import reproduce
+
+    seen = []
+    result = reproduce(tmp_path, experiment={"die-bonder-pi": (0.5,)},
+                       interpolators=("taylor1", "planned"),
+                       progress=lambda done, total, label: seen.append((done, total)))
+    names = ["contour", "speed_x", "drive_x", "speed_y", "drive_y"]
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == sorted(
+        f"die-bonder-pi_0.5ms_{n}.png" for n in names)
+    assert len(result.rows) == 2 and seen == [(1, 3), (2, 3), (3, 3)]
 
 
 def test_run_exports_the_commanded_setpoints_in_path_units(tmp_path):
@@ -177,3 +210,87 @@ def test_bound_prints_the_time_optimal_bound(capsys):
     assert main(["bound", "examples/butterfly.toml", "--machine", "examples/die_bonder.toml",
                  "--feed", "50mm/s"]) == 0
     assert float(capsys.readouterr().out) == pytest.approx(382.86 / 50, rel=2e-3)
+
+
+def test_run_defaults_to_planned_and_reports_in_mm(tmp_path, capsys):
+    assert main(["run", "butterfly", "--feed", "100mm/s", "--out", str(tmp_path),
+                 "--no-figures"]) == 0
+    out, err = capsys.readouterr()
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["interpolator"] == "planned"
+    assert summary["feed"] == 1e5 and summary["feed_mm_per_s"] == pytest.approx(100.0)
+    assert f"{summary['max_contour_error_mm']:.4g} mm" in out
+    assert err == ""  # no progress bar when stderr is not a terminal
+
+
+def test_every_help_shows_the_defaults(capsys):
+    for command, shown in [("run", ["(default: planned)", "(default: die-bonder)",
+                                    "(default: csv)", "period of the PVT table [s] "
+                                    "(default: 0.01)"]),
+                           ("interpolate", ["(default: taylor2)", "Ts [s] (default: 0.001)"]),
+                           ("bound", ["(default: die-bonder)"]),
+                           ("reproduce", ["(default: results)"])]:
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        for s in shown:
+            assert s in text, (command, s)
+        assert "(default: None)" not in text and "(default: False)" not in text
+
+
+def test_every_option_is_in_the_cli_reference():
+    import argparse
+    from pathlib import Path
+
+    from nurbsmotion.cli import _parser
+
+    doc = (Path(__file__).parents[1] / "docs" / "cli.md").read_text()
+    sub = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction))
+    for name, parser in sub.choices.items():
+        assert f"nurbsmotion {name}" in doc
+        for action in parser._actions:
+            for option in action.option_strings:
+                if option not in ("-h", "--help"):
+                    assert f"`{option}" in doc, (name, option)
+
+
+def test_version(capsys):
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"nurbsmotion {version('nurbsmotion')}"
+
+
+def test_trace_options(tmp_path, capsys, monkeypatch):
+    """--trace-every keeps every N-th row and the end; Parquet holds the CSV's numbers;
+    --no-trace writes none; a large trace is announced with its size and the options."""
+    import pyarrow.parquet as pq
+
+    from nurbsmotion import cli
+
+    base = ["run", "die-bonder-pi", "--feed", "5e5", "--interpolator", "paper",
+            "--no-figures"]
+    assert main(base + ["--out", str(tmp_path / "all")]) == 0
+    header, full = read_csv(tmp_path / "all" / "trace.csv")
+    steps = json.loads((tmp_path / "all" / "summary.json").read_text())["steps"]
+    assert main(base + ["--out", str(tmp_path / "every"), "--trace-every", "7"]) == 0
+    _, every = read_csv(tmp_path / "every" / "trace.csv")
+    rows = sorted(set(range(0, len(full), 7)) | {steps, len(full) - 1})
+    np.testing.assert_array_equal(every, full[rows])
+    assert main(base + ["--out", str(tmp_path / "pq"), "--trace-format", "parquet"]) == 0
+    table = pq.read_table(tmp_path / "pq" / "trace.parquet")
+    assert table.column_names == header
+    np.testing.assert_array_equal(np.column_stack([c.to_numpy() for c in table.columns]),
+                                  full)
+    assert main(base + ["--out", str(tmp_path / "none"), "--no-trace"]) == 0
+    assert sorted(p.name for p in (tmp_path / "none").iterdir()) == ["summary.json"]
+    capsys.readouterr()
+    monkeypatch.setattr(cli, "TRACE_NOTICE_BYTES", 1000)
+    assert main(base + ["--out", str(tmp_path / "big")]) == 0
+    err = capsys.readouterr().err
+    assert "trace.csv" in err and "--trace-every" in err and "--no-trace" in err
+    size = (tmp_path / "big" / "trace.csv").stat().st_size
+    mb = float(err.split(" MB")[0].split("about ")[-1].replace(",", ""))
+    assert mb == pytest.approx(size / 1e6, rel=0.2, abs=0.01)

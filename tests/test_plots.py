@@ -10,10 +10,9 @@ import pytest
 
 import nurbsmotion as nm
 from nurbsmotion.interpolators import make_interpolator, make_open_loop
-from nurbsmotion.loop import interpolate
-from nurbsmotion.loop import simulate, to_pulses
+from nurbsmotion.loop import interpolate, run, simulate, to_pulses
 from nurbsmotion.machine import die_bonder
-from nurbsmotion.plots import plot_comparison, plot_setpoints, plot_trace
+from nurbsmotion.plots import plot_comparison, plot_setpoints, plot_trace, settling_time
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -47,14 +46,30 @@ def assert_pngs(paths, out_dir, names):
         assert data.startswith(PNG_SIGNATURE) and len(data) > 5000
 
 
-TRACE_FILES = ["contour.png", "following_error.png", "drive.png", "speed.png"]
+TRACE_FILES = ["contour.png", "following_error.png", "drive.png", "speed.png", "settle.png"]
 
 
 @pytest.mark.parametrize("algorithm", ["paper", "taylor2"])
-def test_plot_trace_pi(pi_runs, tmp_path, algorithm):
+def test_plot_trace_pi(pi_runs, tmp_path, algorithm, monkeypatch):
+    """Both drive X to several Umax at 1 m/s; the drive axes stay on the ±Umax frame."""
+    from nurbsmotion import plots
+
+    limits = []
+    save = plots._save
+
+    def spy(fig, path, overwrite=True):
+        if path.name.endswith("drive.png"):
+            limits.extend(ax.get_ylim() for ax in fig.axes)
+        return save(fig, path, overwrite)
+
+    monkeypatch.setattr(plots, "_save", spy)
+    trace = pi_runs[algorithm]
     out = tmp_path / "new" / "folder"  # created if missing
-    paths = plot_trace(pi_runs[algorithm], out, prefix=f"{algorithm}_")
+    paths = plot_trace(trace, out, prefix=f"{algorithm}_")
     assert_pngs(paths, out, [f"{algorithm}_{n}" for n in TRACE_FILES])
+    assert max(trace.metrics().max_drive_ratio.values()) > 4
+    frame = plots.DRIVE_FRAME * trace.machine.max_drive
+    assert limits and all(lim == pytest.approx((-frame, frame)) for lim in limits)
 
 
 def test_trace_plot_method_butterfly(butterfly_runs, tmp_path):
@@ -77,11 +92,12 @@ def test_plot_comparison(request, tmp_path, runs, name):
     traces = request.getfixturevalue(runs)
     paths = plot_comparison(traces, tmp_path, name)
     assert_pngs(paths, tmp_path, [f"{name}_contour.png", f"{name}_speed_x.png",
-                                  f"{name}_drive_x.png"])
+                                  f"{name}_drive_x.png", f"{name}_speed_y.png",
+                                  f"{name}_drive_y.png"])
 
 
 def test_plot_comparison_without_bounds(pi_runs, tmp_path):
-    paths = plot_comparison({"taylor2": pi_runs["taylor2"]}, tmp_path, "pi", feed=1e6)
+    paths = plot_comparison({"taylor2": pi_runs["taylor2"]}, tmp_path, "pi", feed=1e6, axis=0)
     assert_pngs(paths, tmp_path, ["pi_contour.png", "pi_speed_x.png", "pi_drive_x.png"])
 
 
@@ -92,8 +108,35 @@ def test_plot_comparison_needs_a_trace(tmp_path):
 
 def test_import_does_not_import_matplotlib():
     code = ("import sys, nurbsmotion, nurbsmotion.loop, nurbsmotion.plots, "
-            "nurbsmotion.interpolators, nurbsmotion.metrics; "
-            "sys.exit(int(any(m.startswith('matplotlib') for m in sys.modules)))")
+            "nurbsmotion.interpolators, nurbsmotion.metrics, nurbsmotion.report, "
+            "nurbsmotion.cli; heavy = ('matplotlib', 'pyarrow', 'tqdm'); "
+            "sys.exit(int(any(m.split('.')[0] in heavy for m in sys.modules)))")
     src = str(Path(nm.__file__).resolve().parents[1])  # wherever the tests found it
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([src, os.environ.get("PYTHONPATH", "")])}
     assert subprocess.run([sys.executable, "-c", code], env=env).returncode == 0
+
+
+def test_plot_trace_of_a_three_axis_path(tmp_path):
+    """A 3-D path: the contour figure draws it in 3-D and in projections."""
+    from nurbsmotion.machine import load_machine
+
+    root = Path(__file__).parents[1] / "examples"
+    machine = load_machine(root / "gantry3.toml")
+    path = nm.load_path(root / "helix3d.json")
+    trace = run(path, machine, "200mm/s", "taylor2")
+    assert_pngs(trace.plot(tmp_path, feed=2e5), tmp_path, TRACE_FILES)
+
+
+def test_settling_time_is_the_closed_loops_slowest_decay(machine):
+    """4 / (slowest decay rate) of the PD loop, from python-control's poles of
+    Kc Ke / (s (tau s + 1)) under position gain Kp and speed gain Kd / Ke."""
+    control = pytest.importorskip("control")
+    rates = []
+    for tau, Kc, Ke, Kp, Kd in zip(machine.tau, machine.Kc, machine.Ke, machine.Kp,
+                                   machine.Kd):
+        plant = control.tf([Kc * Ke], [tau, 1, 0])  # u [V] -> theta [pulse]
+        loop = control.feedback(plant, control.tf([Kd / Ke, Kp], [1]))
+        rates.append(min(-loop.poles().real))
+    assert settling_time(machine) == pytest.approx(4 / min(rates), rel=1e-9)
+    # SPEC section 2: X's poles are about -123 +- 400j, so about 33 ms
+    assert settling_time(machine) == pytest.approx(4 / 123, rel=0.02)

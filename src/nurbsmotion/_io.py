@@ -87,6 +87,10 @@ def write_output(
         kwargs = {} if binary else {"encoding": "utf-8", "newline": "\n"}
         with os.fdopen(fd, mode, **kwargs) as handle:
             write(handle)
+        # mkstemp makes the file private (0600); give it the permissions open() would
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
         if not overwrite and path.exists():  # appeared while we were writing
             raise OutputExistsError(f"{path}: file exists; refusing to overwrite it")
         os.replace(tmp, path)

@@ -1,7 +1,7 @@
 """Compiled NURBS evaluation kernels (numba ``@njit(cache=True)``).
 
 Span search, B-spline basis functions with their derivatives and rational derivatives, for
-one parameter (called from the compiled loop, :mod:`nurbsmotion._loop_kernel`) or a batch
+one parameter (called from the compiled loop, :mod:`nurbsmotion.closed_loop`) or a batch
 (called by :meth:`nurbsmotion.nurbs.NurbsCurve.derivatives`). Any degree, any axis count.
 
 The first call of each kernel compiles it (about a second or two); the machine code is

@@ -7,73 +7,26 @@ and turns the library's typed errors into one line on stderr and a non-zero exit
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
+from . import units
 from .errors import NurbsmotionError
 from .interpolators import LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
-from .machine import LENGTH_UNITS_UM, Machine, load_machine
+from .machine import Machine, load_machine
 from .planning import time_optimal_bound
 
 __all__ = ["main", "parse_feed"]
 
-_FEED = re.compile(r"^\s*([0-9.eE+-]+)\s*(?:([a-z]+)\s*/\s*(s|min))?\s*$")
-
 
 def parse_feed(text: str) -> tuple[float, str | None]:
-    """``"1e6"`` -> (1e6, None); ``"0.5m/s"`` -> (0.5e6, "um"); ``"600mm/min"`` -> (10e3, "um").
-
-    A bare number is in path units per second. With a unit, the value is converted to
-    micrometres per second (or kept in pulse/s for ``pulse/s``).
-    """
-    m = _FEED.match(text)
-    if not m:
-        raise argparse.ArgumentTypeError(
-            f"feed {text!r} is not a number or a speed such as 0.5m/s, 100mm/s, 600mm/min"
-        )
+    """argparse type of ``--feed``: :func:`nurbsmotion.units.parse_feed`, its error as an
+    argparse error."""
     try:
-        value = float(m.group(1))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"feed {text!r} is not a number") from None
-    if not (np.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"feed must be finite and > 0, got {text!r}")
-    unit, per = m.group(2), m.group(3)
-    if per == "min":
-        value /= 60.0
-    if unit is None or unit == "pulse":
-        return value, unit
-    if unit not in LENGTH_UNITS_UM:
-        raise argparse.ArgumentTypeError(
-            f"feed unit {unit!r} unknown; use pulse or one of {sorted(LENGTH_UNITS_UM)}"
-        )
-    return value * LENGTH_UNITS_UM[unit], "um"
-
-
-def _feed_in_path_units(feed: tuple[float, str | None], curve) -> float:
-    """A parsed feed in the path's units per second (no machine needed)."""
-    value, unit = feed
-    if unit is None or unit == curve.units:
-        return value
-    if unit == "um" and curve.units in LENGTH_UNITS_UM:
-        return value / LENGTH_UNITS_UM[curve.units]
-    raise NurbsmotionError(
-        f"cannot convert a feed with a length unit to a path in {curve.units or 'no unit'}; "
-        "give a bare number in path units per second"
-    )
-
-
-def _feed_in_pulses(feed: tuple[float, str | None], machine: Machine, curve) -> float:
-    """A parsed feed in the machine's pulse/s."""
-    value, unit = feed
-    if unit == "pulse":
-        return value
-    if unit == "um":
-        return value * machine.pulses_per_unit("um")
-    return value * machine.pulses_per_unit(curve.units)
+        return units.parse_feed(text)
+    except units.InvalidFeedError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _load_path(spec: str):
@@ -88,7 +41,7 @@ def _cmd_interpolate(args) -> int:
     from .report import check_writable
 
     curve = _load_path(args.path)
-    feed = _feed_in_path_units(args.feed, curve)
+    feed = units.feed_in_path_units(args.feed, curve)
     out = Path(args.out)
     check_writable([out / "setpoints.csv", out / "setpoints.png"], args.overwrite)
     series = interpolate(make_open_loop(args.method, curve, args.sample_period, feed))
@@ -98,7 +51,7 @@ def _cmd_interpolate(args) -> int:
                    out / "setpoints.csv", overwrite=args.overwrite)
     from .plots import plot_setpoints
 
-    plot_setpoints(series, out, axis_names=names)
+    plot_setpoints(series, out, axis_names=names, units=curve.units or "pulse")
     fl_max, fl_rms = series.feed_fluctuation()
     print(f"{args.method}: {len(series.t)} samples, cycle time {series.cycle_time:.6g} s, "
           f"feed fluctuation max {fl_max:.3%} RMS {fl_rms:.3%} -> {out}")
@@ -115,42 +68,100 @@ def _cmd_bound(args) -> int:
     curve = _load_path(args.path)
     machine = load_machine(args.machine)
     machine.check_path(curve.n_axes)
-    feed = _feed_in_pulses(args.feed, machine, curve)
+    feed = units.feed_in_pulses(args.feed, curve, machine)
     bound = time_optimal_bound(to_pulses(curve, machine), machine, feed)
     print(f"{bound:.6g}")
     return 0
 
 
+TRACE_NOTICE_BYTES = 200e6
+"""A trace file larger than this [byte] is announced with its size and the options to
+make it smaller (``--trace-every``, ``--no-trace``)."""
+
+
+def _progress(args, **kwargs):
+    """A tqdm bar on stderr; silent when stderr is not a terminal or with ``--quiet``."""
+    from tqdm import tqdm
+
+    return tqdm(disable=True if args.quiet else None, leave=False, **kwargs)
+
+
 def _cmd_run(args) -> int:
     from .loop import run
-    from .report import summary, write_json, write_trace_csv, check_writable
+    from .report import TRACE_FILES, check_writable, summary, write_json
 
     curve = _load_path(args.path)
     machine = load_machine(args.machine)
     machine.check_path(curve.n_axes)
-    feed = _feed_in_pulses(args.feed, machine, curve)
+    feed = units.feed_in_pulses(args.feed, curve, machine)
+    unit = units.report_unit(curve.units)
+    per_unit = units.pulses_per_report_unit(curve.units, machine)
     out = Path(args.out)
-    check_writable([out / "trace.csv", out / "summary.json"], args.overwrite)
+    trace_file = None if args.no_trace else out / TRACE_FILES[args.trace_format]
+    check_writable([f for f in (trace_file, out / "summary.json") if f], args.overwrite)
+    if not args.no_figures:
+        from .plots import TRACE_FIGURES
+
+        check_writable([out / f for f in TRACE_FIGURES], args.overwrite)
     exports = {fmt: out / EXPORT_FILES[fmt] for fmt in args.export or ()}
     check_writable(exports.values(), args.overwrite)
-    trace = run(curve, machine, feed, args.interpolator)
-    out.mkdir(parents=True, exist_ok=True)
-    write_trace_csv(trace, out / "trace.csv")
-    if exports:
-        _export_setpoints(trace, curve, machine, exports, args)
-    metrics = trace.metrics()
-    bound = time_optimal_bound(trace.curve, machine, feed)
-    data = summary(metrics, interpolator=args.interpolator, feed=feed, machine=machine.name,
-                   path=args.path, time_optimal_bound=bound)
-    write_json(data, out / "summary.json")
-    if not args.no_figures:
-        trace.plot(out, feed=feed)
+    stages = ["plan and run the closed loop", "time-optimal bound", "metrics", "summary"]
+    stages += [] if args.no_figures else ["figures"]
+    with _progress(args, total=len(stages), unit="stage", desc=stages[0]) as bar:
+        def stage(name: str) -> None:
+            bar.set_description(name)
+
+        stage(stages[0])
+        trace = run(curve, machine, (feed, "pulse"), args.interpolator)
+        bar.update()
+        out.mkdir(parents=True, exist_ok=True)
+        if trace_file is not None:
+            _write_trace(args, trace, trace_file, unit, per_unit)
+        if exports:
+            _export_setpoints(trace, curve, machine, exports, args)
+        stage(stages[1])
+        bound = time_optimal_bound(trace.curve, machine, feed)
+        bar.update()
+        stage(stages[2])
+        metrics = trace.metrics()
+        bar.update()
+        data = summary(metrics, interpolator=args.interpolator, feed=feed,
+                       machine=machine.name, path=args.path, time_optimal_bound=bound,
+                       length_unit=unit, pulses_per_length_unit=per_unit)
+        write_json(data, out / "summary.json", overwrite=args.overwrite)
+        bar.update()
+        if not args.no_figures:
+            stage(stages[4])
+            trace.plot(out, feed=feed, length_unit=unit, overwrite=args.overwrite)
+            bar.update()
     sat = metrics.total_saturated_samples
-    print(f"{args.interpolator} on {machine.name} at {feed:g} pulse/s: cycle time "
-          f"{metrics.cycle_time_s:.4g} s ({metrics.cycle_time_s / bound:.3f} x the "
-          f"time-optimal bound), max contour error {metrics.max_contour_error:.4g} "
-          f"pulse, {sat} saturated sample{'s' if sat != 1 else ''} -> {out}")
+    print(f"{args.interpolator} on {machine.name} at {feed / per_unit:.4g} {unit}/s "
+          f"({feed:.4g} pulse/s): cycle time {metrics.cycle_time_s:.4g} s "
+          f"({metrics.cycle_time_s / bound:.3f} x the time-optimal bound), max contour error "
+          f"{metrics.max_contour_error / per_unit:.4g} {unit} "
+          f"({metrics.max_contour_error:.4g} pulse), {sat} saturated "
+          f"sample{'s' if sat != 1 else ''} -> {out}")
     return 0
+
+
+def _write_trace(args, trace, file: Path, unit: str, per_unit: float) -> None:
+    """Write the trace file, announcing its size first when it is large."""
+    from .report import estimate_trace_bytes, trace_rows, write_trace
+
+    options = dict(fmt=args.trace_format, every=args.trace_every, length_unit=unit,
+                   pulses_per_length_unit=per_unit)
+    size = estimate_trace_bytes(trace, **options)
+    rows = len(trace_rows(trace, args.trace_every))
+    if size > TRACE_NOTICE_BYTES:
+        every = max(2, round(size / TRACE_NOTICE_BYTES * 2))
+        print(f"nurbsmotion run: writing {file.name}: {rows:,} rows, about "
+              f"{size / 1e6:.3g} MB; --trace-every {every} keeps one row in {every}, "
+              "--no-trace writes none (the summary and figures use every sample either "
+              "way)" + ("" if args.trace_format == "parquet" else
+                        ", --trace-format parquet is smaller"), file=sys.stderr)
+    with _progress(args, total=rows, unit="row", unit_scale=True,
+                   desc=f"write {file.name}") as bar:
+        write_trace(trace, file, overwrite=args.overwrite, progress=bar.update, **options)
 
 
 EXPORT_FILES = {"csv": "setpoints.csv", "npz": "setpoints.npz", "pvt": "pvt.csv",
@@ -180,63 +191,136 @@ def _cmd_reproduce(args) -> int:
     from .experiments import reproduce
 
     t0 = time.perf_counter()
-    result = reproduce(args.out, overwrite=args.overwrite, figures=not args.no_figures)
-    print((Path(args.out) / "table.md").read_text())
+    with _progress(args, unit="run") as bar:
+        def progress(done: int, total: int, label: str) -> None:
+            bar.total = total
+            bar.set_description(label)
+            bar.update(done - bar.n)
+
+        result = reproduce(args.out, overwrite=args.overwrite, figures=not args.no_figures,
+                           progress=progress)
+    if not args.quiet:
+        print((Path(args.out) / "table.md").read_text())
     print(f"{len(result.rows)} runs, {len(result.files)} files in {args.out} "
           f"({time.perf_counter() - t0:.1f} s)")
     return 0
 
 
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows ``(default: ...)`` for options that have a default worth showing (not for
+    required options, flags, or options without a default)."""
+
+    def _get_help_string(self, action):
+        if action.required or action.default in (None, False) or isinstance(
+                action, argparse._StoreTrueAction):
+            return action.help
+        return super()._get_help_string(action)
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("nurbsmotion")
+    except PackageNotFoundError:  # running from a source tree that is not installed
+        from . import __version__
+
+        return __version__
+
+
 def _parser() -> argparse.ArgumentParser:
+    from .report import TRACE_FORMATS
+
     p = argparse.ArgumentParser(
         prog="nurbsmotion",
         description="NURBS interpolation for motion systems whose actuators saturate.",
+        epilog="Reference: docs/cli.md; file formats: docs/formats.md; the model and every "
+        "metric: docs/model.md.",
+        formatter_class=_HelpFormatter,
     )
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
-    feed_help = ("commanded feed: a number in path units per second, or a speed with a "
-                 "unit such as 0.5m/s, 100mm/s, 600mm/min, 1e6pulse/s")
+    feed_help = ("commanded feed: a bare number in the path's units per second (pulse/s for "
+                 "a path in pulses), or a speed with a unit: 0.5m/s, 100mm/s, 600mm/min, "
+                 "2in/s, 1e6pulse/s")
+    path_help = ("path: a built-in name (die-bonder-pi, butterfly) or a file .json, .toml, "
+                 ".ngc/.nc/.gcode, .dxf; FILE#k picks the k-th contour of a file")
+    machine_help = "built-in machine name (die-bonder) or a machine file (.toml/.json)"
 
-    i = sub.add_parser("interpolate", help="open-loop setpoints of a path at a feed")
-    i.add_argument("path", help="path file (.json, .toml, ...) or built-in name "
-                   "(die-bonder-pi, butterfly)")
+    def command(name: str, help: str) -> argparse.ArgumentParser:
+        return sub.add_parser(name, help=help, description=help,
+                              formatter_class=_HelpFormatter)
+
+    def common(c: argparse.ArgumentParser, out_default: str | None = None,
+               progress: bool = True) -> None:
+        if out_default is None:
+            c.add_argument("--out", required=True, help="output folder (created)")
+        else:
+            c.add_argument("--out", default=out_default, help="output folder (created)")
+        c.add_argument("--overwrite", action="store_true", help="replace existing output files")
+        if progress:
+            c.add_argument("--quiet", action="store_true",
+                           help="no progress bar (there is none either when stderr is not "
+                           "a terminal)")
+
+    i = command("interpolate", "open-loop setpoints of a path at a constant feed")
+    i.add_argument("path", help=path_help)
     i.add_argument("--feed", type=parse_feed, required=True, help=feed_help)
-    i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2")
-    i.add_argument("--sample-period", type=float, default=1e-3, help="Ts [s] (default 0.001)")
-    i.add_argument("--out", required=True, help="output folder")
-    i.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
+                   help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
+    i.add_argument("--sample-period", type=float, default=1e-3, help="Ts [s]")
+    common(i, progress=False)  # open loop: done in a moment
     i.set_defaults(func=_cmd_interpolate)
 
-    r = sub.add_parser("run", help="closed-loop servo simulation of a path on a machine")
-    r.add_argument("path", help="path file or built-in name")
-    r.add_argument("--machine", default="die-bonder",
-                   help="built-in machine name or machine file (.toml/.json)")
+    r = command("run", "closed-loop servo simulation of a path on a machine")
+    r.add_argument("path", help=path_help)
+    r.add_argument("--machine", default="die-bonder", help=machine_help)
     r.add_argument("--feed", type=parse_feed, required=True, help=feed_help)
-    r.add_argument("--interpolator", choices=LOOP_METHODS, default="paper")
-    r.add_argument("--out", required=True, help="output folder")
-    r.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    r.add_argument("--interpolator", choices=LOOP_METHODS, default="planned",
+                   help="planned: look-ahead, plans every drive within ±Umax; paper: Yeh & "
+                   "Sun (2008), saturation-aware one step ahead; taylor1/taylor2: constant "
+                   "feed")
+    common(r)
     r.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    r.add_argument("--no-trace", action="store_true",
+                   help="write no trace file (the summary and figures use every sample "
+                   "either way)")
+    r.add_argument("--trace-every", type=_positive_int, default=1, metavar="N",
+                   help="keep one trace row in N (and the rows where the end is reached and "
+                   "the last)")
+    r.add_argument("--trace-format", choices=TRACE_FORMATS, default="csv",
+                   help="trace.csv or trace.parquet (smaller, faster to read)")
     r.add_argument("--export", action="append", choices=sorted(EXPORT_FILES),
                    help="also write the commanded setpoints (up to the end point, in the "
                    "path's units): csv, npz, pvt (position-velocity-time table), gcode "
-                   "(LinuxCNC G1 per sample); repeat for several")
+                   "(LinuxCNC G1 per sample, in mm); repeat for several")
     r.add_argument("--pvt-period", type=float, default=0.01,
-                   help="period of the PVT table [s] (default 0.01)")
+                   help="period of the PVT table [s]")
     r.set_defaults(func=_cmd_run)
 
-    b = sub.add_parser("bound", help="print the time-optimal bound of a path [s]: the "
-                       "least time at rest at both ends within the drive limits and the feed")
-    b.add_argument("path", help="path file or built-in name")
-    b.add_argument("--machine", default="die-bonder",
-                   help="built-in machine name or machine file (.toml/.json)")
+    b = command("bound", "print the time-optimal bound of a path [s]: the least time at "
+                "rest at both ends within the drive limits and the feed")
+    b.add_argument("path", help=path_help)
+    b.add_argument("--machine", default="die-bonder", help=machine_help)
     b.add_argument("--feed", type=parse_feed, required=True, help=feed_help)
     b.set_defaults(func=_cmd_bound)
 
-    e = sub.add_parser("reproduce", help="the paper's experiment on built-in defaults")
-    e.add_argument("--out", default="results", help="output folder (default: results)")
-    e.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    e = command("reproduce", "the paper's experiment on built-in defaults: the Π and the "
+                "butterfly at three feeds each, taylor1 / paper / planned")
+    common(e, out_default="results")
     e.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     e.set_defaults(func=_cmd_reproduce)
     return p
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -12,12 +12,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
+
+from ._io import write_output
 
 from .loop import Trace, run, to_pulses
 from .machine import Machine, die_bonder
 from .nurbs import builtin_path
 from .planning import time_optimal_bound
 from .report import check_writable, markdown_table, summary, write_json
+from .units import pulses_per_report_unit, report_unit
 
 __all__ = ["PAPER_EXPERIMENT", "ExperimentResult", "reproduce"]
 
@@ -43,7 +47,8 @@ class ExperimentResult:
 
 def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
               interpolators=PAPER_INTERPOLATORS, overwrite: bool = False,
-              figures: bool = True) -> ExperimentResult:
+              figures: bool = True,
+              progress: Callable[[int, int, str], None] | None = None) -> ExperimentResult:
     """Run the experiment and write ``table.md``, ``table.json`` and the figures.
 
     Parameters
@@ -57,6 +62,12 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
         Path name -> feeds [m/s]; :data:`PAPER_EXPERIMENT` by default.
     interpolators : sequence of str
         Interpolators to compare.
+    overwrite : bool
+        Replace existing outputs.
+    figures : bool
+        Write the figures of every path and feed.
+    progress : callable, optional
+        ``progress(done, total, label)`` after each run and each set of figures.
     """
     machine = machine or die_bonder()
     experiment = experiment or PAPER_EXPERIMENT
@@ -64,9 +75,21 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
     check_writable([out / "table.md", out / "table.json"], overwrite)
     out.mkdir(parents=True, exist_ok=True)
     pulses_per_m = machine.pulses_per_unit("m")
+    total = sum(len(f) for f in experiment.values()) * (len(interpolators) + bool(figures))
+    done = 0
+
+    def step(label: str) -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total, label)
+
     rows, traces, files = [], {}, []
     for name, feeds in experiment.items():
-        curve = to_pulses(builtin_path(name), machine)  # once, so its geometry is reused
+        given = builtin_path(name)
+        unit = report_unit(given.units)
+        per_unit = pulses_per_report_unit(given.units, machine)
+        curve = to_pulses(given, machine)  # once, so its geometry is reused
         for feed_m_s in feeds:
             feed = feed_m_s * pulses_per_m
             bound = time_optimal_bound(curve, machine, feed)
@@ -75,13 +98,17 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
                 tr = run(curve, machine, feed, method)
                 group[method] = traces[(name, feed_m_s, method)] = tr
                 row = summary(tr.metrics(), interpolator=method, feed=feed,
-                              machine=machine.name, path=name, time_optimal_bound=bound)
+                              machine=machine.name, path=name, time_optimal_bound=bound,
+                              length_unit=unit, pulses_per_length_unit=per_unit)
                 rows.append({"path": name, "feed_m_s": feed_m_s, **row})
+                step(f"{name} {feed_m_s:g} m/s {method}")
             if figures:
                 from .plots import plot_comparison
 
-                files += plot_comparison(group, out, f"{name}_{feed_m_s:g}ms", feed=feed)
-    files.append(write_json(rows, out / "table.json"))
-    (out / "table.md").write_text(markdown_table(rows))
-    files.append(out / "table.md")
+                files += plot_comparison(group, out, f"{name}_{feed_m_s:g}ms", feed=feed,
+                                         length_unit=unit)
+                step(f"{name} {feed_m_s:g} m/s figures")
+    files.append(write_json(rows, out / "table.json", overwrite=overwrite))
+    table = markdown_table(rows)
+    files.append(write_output(out / "table.md", lambda h: h.write(table), overwrite=overwrite))
     return ExperimentResult(rows, traces, files)

@@ -37,7 +37,7 @@ def _gauss(curve, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
     The weighted sum runs over the nodes left to right, not through a BLAS product (which
     may order or fuse it otherwise, depending on the CPU), so that the compiled loop
-    (:func:`nurbsmotion._loop_kernel._arc_length`) reproduces ``s(u)`` bit for bit."""
+    (``_arc_length`` of :mod:`nurbsmotion.interpolators.planned`) reproduces ``s(u)``."""
     half = 0.5 * (b - a)
     mid = 0.5 * (b + a)
     nodes = mid[:, None] + half[:, None] * _GL_X[None, :]

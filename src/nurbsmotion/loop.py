@@ -26,6 +26,7 @@ from .machine import Machine
 from .nurbs import NurbsCurve
 from .servo import ServoPlant
 from .stepping import Status
+from .units import feed_in_pulses
 
 __all__ = ["Trace", "SetpointSeries", "simulate", "interpolate", "run", "to_pulses",
            "settle_hold_samples"]
@@ -388,7 +389,7 @@ def _verdict(rows, machine: Machine, settled: bool, settled_index, n: int, Ts: f
     return settled and over == 0, "; ".join(parts)
 
 
-def run(curve: NurbsCurve, machine: Machine, feed: float, interpolator: str = "paper",
+def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
         **simulate_options) -> Trace:
     """Run a path on a machine with a named interpolator.
 
@@ -397,8 +398,10 @@ def run(curve: NurbsCurve, machine: Machine, feed: float, interpolator: str = "p
     curve : NurbsCurve
         The path, in any unit the machine knows (converted with :func:`to_pulses`).
     machine : Machine
-    feed : float
-        Commanded feed F [pulse/s].
+    feed : float or str
+        Commanded feed F: a bare number in the path's units per second (pulse/s for a
+        path in pulses), or a text with a unit such as ``"100mm/s"``
+        (:func:`nurbsmotion.units.feed_in_pulses`).
     interpolator : str
         One of :data:`nurbsmotion.interpolators.LOOP_METHODS`.
     **simulate_options
@@ -409,6 +412,7 @@ def run(curve: NurbsCurve, machine: Machine, feed: float, interpolator: str = "p
         raise InfeasibleError(f"curve must be a NurbsCurve, got {type(curve).__name__}")
     if not isinstance(machine, Machine):
         raise InfeasibleError(f"machine must be a Machine, got {type(machine).__name__}")
+    feed = feed_in_pulses(feed, curve, machine)
     path = to_pulses(curve, machine)
     return simulate(make_interpolator(interpolator, path, machine, feed), machine,
                     **simulate_options)

@@ -3,16 +3,29 @@
 matplotlib is imported inside the functions, so ``import nurbsmotion`` never imports it.
 Figures are built as :class:`matplotlib.figure.Figure` objects on an Agg canvas, without
 pyplot: no global figure registry, no backend to select, nothing left open afterwards.
+Every file is written through a temporary name and renamed when complete.
 
-Every function takes an output folder (created if missing) and returns the paths it wrote.
-Positions are plotted in pulses, speeds in pulse/ms (the unit of the paper's Fig. 6).
+What every figure follows:
+
+- lengths in one report unit ``L`` (``"mm"`` or ``"in"``,
+  :func:`nurbsmotion.units.report_unit`), speeds in ``L/s``, time in s, drive in V;
+- every axis of the machine for drive and speed;
+- the drive axis is framed on ±Umax (:data:`DRIVE_FRAME` × Umax); what lies outside is
+  clipped, marked with triangles on the frame's edge, and its peak is written in the
+  panel's title, so one outlier never sets the range;
+- beside the whole run, time windows around the events that matter: the start, each
+  sharp corner (at most :data:`MAX_EVENT_WINDOWS` of them, those with the largest drive),
+  or, on a path without corners, the sample of largest drive, and the stop. A window spans
+  the slowest axis's 2 % settling time of the closed loop after the event and half of it
+  before (:func:`settling_time`, from the model: no tuned constant);
+- legends sit outside the data (below the panels or at their right).
 
 Glossary
 --------
 thd, tha : commanded and actual axis positions [pulse]; wd : commanded axis speed [rad/s];
 wmin, wmax : speed bounds of eq. 3.6 [rad/s]; Ke : mechanical gain [pulse/rad];
 u : drive before clipping [V]; Umax : drive limit [V]; F : commanded feed [pulse/s];
-Ts : sample period [s].
+Ts : sample period [s]; k : pulses per report unit [pulse/L].
 """
 
 from __future__ import annotations
@@ -23,38 +36,71 @@ from pathlib import Path
 
 import numpy as np
 
+from ._io import write_output
 from .metrics import nearest_parameter
+from .units import report_unit
 
-__all__ = ["plot_trace", "plot_setpoints", "plot_comparison"]
+__all__ = ["plot_trace", "plot_setpoints", "plot_comparison", "settling_time",
+           "TRACE_FIGURES", "DRIVE_FRAME", "MAX_EVENT_WINDOWS"]
+
+TRACE_FIGURES = ("contour.png", "following_error.png", "drive.png", "speed.png",
+                 "settle.png")
+"""Files :func:`plot_trace` writes (after its prefix)."""
+
+DRIVE_FRAME = 1.25
+"""The drive axes span ±DRIVE_FRAME × Umax: the limit lines and a margin above them."""
+
+MAX_EVENT_WINDOWS = 3
+"""Corner windows shown at most (the corners with the largest drive), besides start and stop."""
 
 _DPI = 110
 _STYLES = (("C0", "-"), ("C3", "--"), ("C2", "-."), ("C1", ":"), ("C4", "-"), ("C5", "--"))
 """(colour, line style) per run, in order: solid first, as the paper draws its proposed
 algorithm solid and the uncompensated one dashed (Figs. 5 and 7)."""
-_MIN_ZOOM_HALF_WIDTH = 50.0  # [pulse] so a 10-pulse deviation spans a tenth of a zoom
+_MIN_ZOOM_HALF_WIDTH_PULSES = 50.0  # so a 10-pulse deviation spans a tenth of a zoom
 _ZOOM_MARGIN = 1.3  # the zoom holds the largest nearby contour error with this margin
 _CORNER_REACH = 0.05  # samples within this fraction of the length size a corner's zoom
 _CLOSE_ZOOM_RATIO = 3.0  # add a closer zoom when the runs' errors differ by this factor
+_MAX_ERROR_ZOOMS = 4  # zooms on the largest contour errors of a path without corners
+_SETTLE_WINDOW_PULSES = 1.0  # the end point's settle band: ±1 pulse
+_SETTLE_ZOOM = 5.0  # the settle zoom spans ±5 pulses: the band and what enters it
 
 
 @dataclass(frozen=True)
 class _Run:
-    """One line in a figure: a run's actual positions and how to draw them."""
+    """One run as a figure draws it, every length already in the report unit."""
 
     label: str
-    t: np.ndarray  # (n_samples,) [s]
-    position: np.ndarray  # (n_samples, n_axes) [pulse]
+    trace: object  # the Trace (pulses); for its time, drive and bounds
+    position: np.ndarray  # (n_samples, n_axes) [L]
+    position_command: np.ndarray  # (n_samples, n_axes) [L]
+    speed_command: np.ndarray  # (n_samples, n_axes) [L/s]
+    speed_bounds: np.ndarray | None  # (n_samples, n_axes, 2) [L/s]
     color: str
     linestyle: str
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.trace.t
 
 
 @dataclass(frozen=True)
 class _Zoom:
-    """A square window of the path plane, centred on ``center`` (2,) [pulse]."""
+    """A square window of the path plane, centred on ``center`` (2,) [L]."""
 
     label: str
     center: np.ndarray
-    half_width: float  # [pulse]
+    half_width: float  # [L]
+    corner: int | None = None  # the sharp corner it shows (1, 2, ...), if any
+
+
+@dataclass(frozen=True)
+class _Event:
+    """A moment worth a time window: where on the path (``u``) and its name."""
+
+    label: str
+    u: float
+    kind: str  # "start", "corner", "peak" or "stop"
 
 
 def _output_dir(out_dir) -> Path:
@@ -73,8 +119,9 @@ def _figure(width: float, height: float):
     return fig
 
 
-def _save(fig, path: Path) -> Path:
-    fig.savefig(path, dpi=_DPI)
+def _save(fig, path: Path, overwrite: bool = True) -> Path:
+    write_output(path, lambda h: fig.savefig(h, format="png", dpi=_DPI), overwrite=overwrite,
+                 binary=True)
     fig.clear()  # the figure is not registered anywhere; this frees its artists now
     return path
 
@@ -89,51 +136,217 @@ def _axis_labels(n_axes: int, axis_names=None) -> tuple[str, ...]:
     return tuple(default[j] if j < 3 else f"axis {j}" for j in range(n_axes))
 
 
-def _feed_text(feed: float, pulse_length_um: float | None) -> str:
-    """``F = 1 m/s (1e+06 pulse/s)``; without a pulse length, pulse/s only."""
-    if pulse_length_um is None:
-        return f"F = {feed:.4g} pulse/s"
-    return f"F = {feed * pulse_length_um * 1e-6:.4g} m/s ({feed:.3g} pulse/s)"
+def _feed_text(feed: float, per_unit: float, unit: str) -> str:
+    """``F = 1000 mm/s (1e+06 pulse/s)``."""
+    return f"F = {feed / per_unit:.4g} {unit}/s ({feed:.3g} pulse/s)"
 
 
-def _mark_end(ax, t_end: float) -> None:
-    """Dotted vertical line at the cycle time (setpoint reaches the path's end)."""
-    ax.axvline(t_end, color="0.5", linestyle=":", linewidth=1, label="end reached")
+def _legend_below(fig, axes, ncol: int | None = None) -> None:
+    """One legend for the figure, below every panel, from the handles of ``axes``."""
+    handles, labels = [], []
+    for ax in np.atleast_1d(axes).ravel():
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels and not lab.startswith("_"):
+                handles.append(h)
+                labels.append(lab)
+    if handles:
+        fig.legend(handles, labels, loc="outside lower center", fontsize="small",
+                   ncol=ncol or min(len(labels), 4))
 
 
-def _draw_drive_limits(ax, max_drive: float) -> None:
-    """Dashed +-Umax lines (nothing for an ideal drive)."""
-    if math.isfinite(max_drive):
-        for sign in (1, -1):
-            ax.axhline(sign * max_drive, color="k", linestyle="--", linewidth=1,
-                       label="±Umax" if sign > 0 else None)
+def settling_time(machine) -> float:
+    """2 % settling time of the slowest axis's closed position loop [s], at least 10 Ts.
 
-
-def _draw_speed(ax, t, speed_command, speed_bounds, Ke: float, color="C0", linestyle="-",
-                label="speed command") -> None:
-    """Commanded axis speed and its eq. 3.6 bounds, converted to pulse/ms.
-
-    ``speed_command`` (n,) and ``speed_bounds`` (n, 2) or None are in rad/s; rad/s * Ke
-    [pulse/rad] / 1000 gives pulse/ms. Bounds are drawn as the paper's Fig. 6 draws them
-    (upper solid, lower dashed); NaN rows (not computed) leave gaps.
+    Each axis's plant ``tau w' = -w + Kc u``, ``th' = Ke w`` under the PD law
+    ``u = Kp (thd - th) - Kd w`` (the feedforward of PD+ does not move the poles) has the
+    characteristic polynomial ``tau s^2 + (1 + Kc Kd) s + Kc Kp Ke``; the slowest decay
+    rate ``sigma = min |Re(s)|`` over the axes gives ``4 / sigma``.
     """
-    to_pulse_ms = Ke / 1000.0
-    ax.plot(t, speed_command * to_pulse_ms, color=color, linestyle=linestyle, label=label)
-    if speed_bounds is not None:
-        ax.plot(t, speed_bounds[:, 1] * to_pulse_ms, color="k", linewidth=1,
-                label="upper bound (eq. 3.6)")
-        ax.plot(t, speed_bounds[:, 0] * to_pulse_ms, color="k", linewidth=1,
-                linestyle="--", label="lower bound (eq. 3.6)")
+    rates = []
+    for tau, Kc, Ke, Kp, Kd in zip(machine.tau, machine.Kc, machine.Ke, machine.Kp,
+                                   machine.Kd):
+        roots = np.roots([tau, 1.0 + Kc * Kd, Kc * Kp * Ke])
+        rates.append(float(np.min(np.abs(roots.real))))
+    sigma = min(rates)
+    settle = 4.0 / sigma if sigma > 0 else math.inf
+    return max(min(settle, 1.0), 10.0 * machine.sample_period)
+
+
+def _make_run(trace, label: str, style: tuple[str, str], per_unit: float) -> _Run:
+    k = 1.0 / per_unit
+    Ke = trace.machine.Ke
+    bounds = None if trace.speed_bounds is None else trace.speed_bounds * Ke[None, :, None] * k
+    return _Run(label, trace, trace.position * k, trace.position_command * k,
+                trace.speed_command * Ke * k, bounds, *style)
+
+
+def _index_at(trace, u: float) -> int:
+    """First sample whose setpoint reaches path parameter ``u``."""
+    i = int(np.searchsorted(trace.u[: trace.finished_index + 1], u - 1e-12))
+    return min(i, trace.finished_index)
+
+
+def _drive_peaks(traces: list, settle: float) -> list[_Event]:
+    """On a path without corners: the places of the largest drive of the run that drives
+    hardest, at most :data:`MAX_EVENT_WINDOWS`, a settling time apart, in path order."""
+    worst = max(traces, key=lambda tr: float(np.max(np.abs(tr.drive))))
+    end = worst.finished_index
+    peak = np.max(np.abs(worst.drive[: end + 1]), axis=1)
+    chosen: list[int] = []
+    for k in np.argsort(peak)[::-1]:
+        t = worst.t[k]
+        if 0 < worst.u[k] < 1 and all(abs(t - worst.t[c]) > settle for c in chosen):
+            chosen.append(int(k))
+        if len(chosen) == MAX_EVENT_WINDOWS:
+            break
+    return [_Event(f"drive peak, t = {worst.t[k]:.3g} s", float(worst.u[k]), "peak")
+            for k in sorted(chosen)]
+
+
+def _events(curve, traces: list, settle: float) -> list[_Event]:
+    """Start, the sharp corners with the largest drive near them (or, without corners,
+    the places of the largest drive), and the stop."""
+    corners = curve.sharp_corners()
+    events = [_Event("start", 0.0, "start")]
+    if corners.size:
+        def drive_near(uc: float) -> float:
+            peak = 0.0
+            for tr in traces:
+                i = _index_at(tr, uc)
+                lo, hi = max(i - 20, 0), min(i + 40, len(tr.t))
+                peak = max(peak, float(np.max(np.abs(tr.drive[lo:hi]))))
+            return peak
+
+        chosen = sorted(sorted(corners, key=drive_near, reverse=True)[:MAX_EVENT_WINDOWS])
+        index = {float(c): n for n, c in enumerate(corners, start=1)}
+        events += [_Event(f"corner {index[float(c)]}", float(c), "corner") for c in chosen]
+    else:
+        events += _drive_peaks(traces, settle)
+    events.append(_Event("stop", 1.0, "stop"))
+    return events
+
+
+def _window(event: _Event, settle: float) -> tuple[float, float]:
+    """Time span [s] of an event's window, relative to the event."""
+    if event.kind == "start":
+        return -0.1 * settle, 1.4 * settle
+    return -0.5 * settle, settle
+
+
+def _event_time(run: _Run, event: _Event) -> float:
+    tr = run.trace
+    return float(tr.t[tr.finished_index if event.kind == "stop" else _index_at(tr, event.u)])
+
+
+def _window_columns(fig, n_rows: int, events: list[_Event]):
+    """Axes grid: a wide whole-run column then one column per event; shape
+    (n_rows, 1 + len(events))."""
+    grid = fig.add_gridspec(n_rows, 1 + len(events), width_ratios=[2.4] + [1] * len(events))
+    axes = np.empty((n_rows, 1 + len(events)), dtype=object)
+    for r in range(n_rows):
+        for c in range(1 + len(events)):
+            share = axes[r, 0] if c > 1 else None
+            axes[r, c] = fig.add_subplot(grid[r, c], sharey=share)
+    return axes
+
+
+def _plot_windowed(axes_row, runs: list[_Run], events: list[_Event], settle: float,
+                   values, *, frame: float | None = None, bounds=None) -> None:
+    """One quantity over the whole run (first panel) and around each event.
+
+    ``values(run)`` gives the (n_samples,) series of a run; ``bounds(run)`` optionally
+    (n_samples, 2) lower/upper bounds drawn in black. With ``frame``, the value axis is
+    ±frame and samples beyond it are marked on its edge.
+    """
+    for c, ax in enumerate(axes_row):
+        event = None if c == 0 else events[c - 1]
+        for run in runs:
+            y = values(run)
+            t = run.t
+            if event is not None:
+                t0 = _event_time(run, event)
+                lo, hi = _window(event, settle)
+                sel = (t >= t0 + lo - 1e-12) & (t <= t0 + hi + 1e-12)
+                t, y = t[sel] - t0, y[sel]
+                yb = None if bounds is None or bounds(run) is None else bounds(run)[sel]
+            else:
+                yb = None if bounds is None else bounds(run)
+            ax.plot(t, y, color=run.color, linestyle=run.linestyle, linewidth=1.1,
+                    label=run.label)
+            if yb is not None:
+                ax.plot(t, yb[:, 1], color="k", linewidth=0.8, label="upper bound (eq. 3.6)")
+                ax.plot(t, yb[:, 0], color="k", linewidth=0.8, linestyle="--",
+                        label="lower bound (eq. 3.6)")
+            if frame is not None:
+                _mark_beyond(ax, t, y, frame, run.color)
+        if event is None:
+            for run in runs:
+                ax.axvline(run.trace.cycle_time, color="0.6", linestyle=":", linewidth=0.8)
+            ax.set_xlabel("time [s]")
+        else:
+            ax.axvline(0.0, color="0.6", linestyle=":", linewidth=0.8)
+            ax.set_xlim(*_window(event, settle))
+            ax.set_xlabel("t − t_event [s]")
+            ax.tick_params(labelleft=False)
+        if frame is not None:
+            ax.set_ylim(-frame, frame)
+        ax.grid(True, linewidth=0.3, color="0.85")
+
+
+def _mark_beyond(ax, t, y, frame: float, color: str) -> None:
+    """Triangles on the frame's edge where ``y`` lies beyond ±frame."""
+    for sign, marker in ((1, "^"), (-1, "v")):
+        out = sign * y > frame
+        if np.any(out):
+            ax.plot(t[out], np.full(np.count_nonzero(out), sign * frame * 0.97), marker,
+                    color=color, markersize=4, linestyle="none", clip_on=False,
+                    label="beyond the frame (clipped)")
+
+
+def _drive_title(runs: list[_Run], j: int, umax: float) -> str:
+    """Peak |u| / Umax of axis j per run, and how many samples lie beyond the frame."""
+    parts = []
+    for run in runs:
+        d = np.abs(run.trace.drive[:, j])
+        beyond = int(np.count_nonzero(d > DRIVE_FRAME * umax))
+        text = f"{run.label} {np.max(d) / umax:.3g}"
+        if beyond:
+            text += f" ({beyond} off-frame ▲▼)"
+        parts.append(text)
+    return "max |u| / Umax: " + ", ".join(parts)
 
 
 def _desired_points(curve, n: int = 20000) -> np.ndarray:
     """Curve points uniform in arc length plus every breakpoint (corners drawn sharp),
-    shape (m, n_axes) [pulse]."""
+    shape (m, n_axes) [L]."""
     u = np.union1d(curve.parameter_at(np.linspace(0.0, curve.length, n)), curve.breakpoints)
     return curve(u)
 
 
-def _zoom_windows(curve, runs: list[_Run], nearest: list[tuple]) -> list[_Zoom]:
+def _error_peaks(curve, runs: list[_Run], nearest: list[tuple]) -> list[tuple]:
+    """On a path without corners: the places of the largest contour error, at most
+    :data:`_MAX_ERROR_ZOOMS`, at least ``2 * _CORNER_REACH`` of the length apart; each as
+    (label, points (2,) [L] to hold, error [L])."""
+    candidates = []  # (error, run index, sample)
+    for i, (_, d) in enumerate(nearest):
+        for k in np.argsort(d)[::-1][:2000]:
+            candidates.append((float(d[k]), i, int(k)))
+    candidates.sort(reverse=True)
+    chosen, places = [], []
+    for err, i, k in candidates:
+        s = float(curve.arc_length(nearest[i][0][k]))
+        if all(abs(s - q) > 2 * _CORNER_REACH * curve.length for q in places):
+            places.append(s)
+            run = runs[i]
+            chosen.append((f"{run.label}, t = {run.t[k]:.3f} s",
+                           [run.position[k, :2], curve(nearest[i][0][k])[:2]], err))
+        if len(chosen) == _MAX_ERROR_ZOOMS:
+            break
+    return chosen
+
+
+def _zoom_windows(curve, runs: list[_Run], nearest: list[tuple],
+                  min_half: float) -> list[_Zoom]:
     """Where to zoom: every sharp corner, or the largest contour error if there is none.
 
     A corner's window holds the corner and, for every run, its sample of largest contour
@@ -146,24 +359,20 @@ def _zoom_windows(curve, runs: list[_Run], nearest: list[tuple]) -> list[_Zoom]:
     per run.
     """
     cap = 0.5 * float(np.max(np.ptp(_desired_points(curve, 500)[:, :2], axis=0)))
-    cap = max(cap, _MIN_ZOOM_HALF_WIDTH)
+    cap = max(cap, min_half)
 
-    def window(label: str, points: list, err: float) -> _Zoom:
-        """Square around ``points`` (each (2,) [pulse]) with room for ``err`` [pulse]."""
+    def window(label: str, points: list, err: float, corner: int | None = None) -> _Zoom:
+        """Square around ``points`` (each (2,) [L]) with room for ``err`` [L]."""
         pts = np.array(points)
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         half = 0.5 * float(np.max(hi - lo)) + (_ZOOM_MARGIN - 1.0) * err
-        half = min(max(_MIN_ZOOM_HALF_WIDTH, half, _ZOOM_MARGIN * err), cap)
-        return _Zoom(label, 0.5 * (lo + hi), half)
+        half = min(max(min_half, half, _ZOOM_MARGIN * err), cap)
+        return _Zoom(label, 0.5 * (lo + hi), half, corner)
 
     corners = curve.sharp_corners()
     if corners.size == 0:
-        worst = [float(np.max(d)) for _, d in nearest]
-        i = int(np.argmax(worst))
-        k = int(np.argmax(nearest[i][1]))
-        points = [runs[i].position[k, :2], curve(nearest[i][0][k])[:2]]
-        return [window(f"largest contour error ({runs[i].label}, t = {runs[i].t[k]:.3f} s)",
-                       points, worst[i])]
+        return [window(label, points, err)
+                for label, points, err in _error_peaks(curve, runs, nearest)]
     zooms = []
     reach = _CORNER_REACH * curve.length
     for n, uc in enumerate(corners, start=1):
@@ -178,59 +387,121 @@ def _zoom_windows(curve, runs: list[_Run], nearest: list[tuple]) -> list[_Zoom]:
                 local.append(float(d[k]))
             else:
                 local.append(0.0)
-        zooms.append(window(f"corner {n} (u = {uc:.3g})", points, max(local)))
-        if max(local) > _CLOSE_ZOOM_RATIO * max(min(local), _MIN_ZOOM_HALF_WIDTH / 2):
-            zooms.append(window(f"corner {n}, closer", [corner], min(local)))
+        zooms.append(window(f"corner {n} (u = {uc:.3g})", points, max(local), n))
+        if max(local) > _CLOSE_ZOOM_RATIO * max(min(local), min_half / 2):
+            zooms.append(window(f"corner {n}, closer", [corner], min(local), n))
     return zooms
 
 
-def _contour_figure(curve, runs: list[_Run], title: str, path: Path,
-                    axis_names: tuple[str, ...]) -> Path:
-    """The desired path against each run's actual positions, its contour error over time,
-    and square zooms (equal axes) on the corners; one figure for one run or several."""
+def _label_corners(ax, curve, zooms: list[_Zoom]) -> None:
+    """Zoom boxes, and one label per place beside (not on) the path with a leader line:
+    "corner n (A, B)" at a sharp corner, the zoom letters elsewhere."""
     from matplotlib.patches import Rectangle
+
+    pts = _desired_points(curve, 500)[:, :2]
+    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    size = float(np.max(np.ptp(pts, axis=0)))
+    lo = pts.min(axis=0) - [0.1 * size, 0.0]
+    hi = pts.max(axis=0) + [0.1 * size, 0.0]
+    box = dict(boxstyle="round,pad=0.25", facecolor="white", edgecolor="0.5", alpha=0.95)
+    places: dict = {}  # corner number or zoom index -> (anchor (2,) [L], letters)
+    corners = curve.sharp_corners()
+    for j, z in enumerate(zooms):
+        (cx, cy), h = z.center, z.half_width
+        ax.add_patch(Rectangle((cx - h, cy - h), 2 * h, 2 * h, fill=False, edgecolor="0.3",
+                               linewidth=0.9))
+        key = ("corner", z.corner) if z.corner is not None else ("zoom", j)
+        anchor = curve(corners[z.corner - 1])[:2] if z.corner is not None else z.center
+        places.setdefault(key, (anchor, []))[1].append(chr(65 + j))
+    for (kind, n), (p, letters) in places.items():
+        away = p - centre
+        norm = float(np.linalg.norm(away))
+        away = away / norm if norm > 0 else np.array([0.0, 1.0])
+        # outward from the path's centre, kept inside the path's box (where the axes are)
+        text_at = np.clip(p + 0.2 * size * away, lo, hi)
+        text = ", ".join(letters)
+        ax.annotate(f"corner {n} ({text})" if kind == "corner" else text, p, xytext=text_at,
+                    fontsize="medium", ha="center", va="center", bbox=box,
+                    arrowprops=dict(arrowstyle="-", color="0.4", linewidth=0.8))
+
+
+def _path_panel(ax, desired, runs: list[_Run], i: int, j: int, names, unit: str) -> None:
+    """Desired path and actual positions in the plane of axes i and j, equal scales."""
+    ax.plot(desired[:, i], desired[:, j], color="k", linewidth=1, label="desired path")
+    for r in runs:
+        ax.plot(r.position[:, i], r.position[:, j], color=r.color, linestyle=r.linestyle,
+                linewidth=1.2, label=f"actual, {r.label}")
+    ax.set_xlabel(f"{names[i]} [{unit}]")
+    ax.set_ylabel(f"{names[j]} [{unit}]")
+    ax.set_aspect("equal", adjustable="datalim")
+
+
+def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit: str,
+                    per_unit: float, overwrite: bool) -> Path:
+    """The desired path against each run's actual positions, the contour error over time,
+    and square zooms (equal axes) on the corners; a 3-D path as a 3-D view and its three
+    projections. ``curve`` and the runs are in the report unit."""
     from matplotlib.ticker import MaxNLocator
 
     nearest = [nearest_parameter(curve, r.position) for r in runs]
-    planar = curve.n_axes >= 2
-    zooms = _zoom_windows(curve, runs, nearest) if planar else []
-    n_cols = max(2, min(len(zooms), 4))
-    n_zoom_rows = math.ceil(len(zooms) / n_cols)
-    fig = _figure(4.2 * n_cols, 4.4 * (1 + n_zoom_rows))
-    grid = fig.add_gridspec(1 + n_zoom_rows, 2 * n_cols)
-    ax_path = fig.add_subplot(grid[0, :n_cols])
-    ax_err = fig.add_subplot(grid[0, n_cols:])
+    n_axes = curve.n_axes
+    planar = n_axes == 2
+    zooms = (_zoom_windows(curve, runs, nearest, _MIN_ZOOM_HALF_WIDTH_PULSES / per_unit)
+             if planar else [])
+    one_row = len(zooms) == 1  # path, error and the zoom side by side
+    n_cols = 3 if n_axes >= 3 or one_row else max(2, min(len(zooms), 4))
+    n_rows = 2 if n_axes >= 3 else (1 if one_row else 1 + math.ceil(len(zooms) / n_cols))
+    fig = _figure(4.4 * n_cols, 4.4 * n_rows + 0.6)
+    grid = fig.add_gridspec(n_rows, 2 * n_cols)
+    half = 2 if one_row else (3 if n_axes >= 3 else n_cols)
+    err_slot = grid[0, half:4] if one_row else grid[0, half:]
+    zoom_slots = ([grid[0, 4:]] if one_row else
+                  [grid[1 + j // n_cols, 2 * (j % n_cols):2 * (j % n_cols) + 2]
+                   for j in range(len(zooms))])
     desired = _desired_points(curve)
 
-    if planar:
-        ax_path.plot(desired[:, 0], desired[:, 1], color="k", linewidth=1, label="desired path")
+    if n_axes >= 3:
+        ax_path = fig.add_subplot(grid[0, :half], projection="3d")
+        ax_path.plot(desired[:, 0], desired[:, 1], desired[:, 2], color="k", linewidth=1,
+                     label="desired path")
         for r in runs:
-            ax_path.plot(r.position[:, 0], r.position[:, 1], color=r.color,
+            ax_path.plot(r.position[:, 0], r.position[:, 1], r.position[:, 2], color=r.color,
                          linestyle=r.linestyle, linewidth=1.2, label=f"actual, {r.label}")
-        ax_path.set_xlabel(f"{axis_names[0]} [pulse]")
-        ax_path.set_ylabel(f"{axis_names[1]} [pulse]")
-        ax_path.set_aspect("equal", adjustable="datalim")
-        ax_path.ticklabel_format(style="sci", scilimits=(-4, 4), useMathText=True)
-        ax_path.set_title("contour" + ("" if curve.n_axes == 2 else " (first two axes)"))
+        for k, setter in enumerate((ax_path.set_xlabel, ax_path.set_ylabel,
+                                    ax_path.set_zlabel)):
+            setter(f"{names[k]} [{unit}]")
+        ax_path.set_box_aspect(np.maximum(np.ptp(desired[:, :3], axis=0), 1e-9))
+        ax_path.set_title("contour (3-D view)" + ("" if n_axes == 3 else ", first 3 axes"))
+        for c, (i, j) in enumerate(((0, 1), (0, 2), (1, 2))):
+            ax = fig.add_subplot(grid[1, 2 * c:2 * c + 2])
+            _path_panel(ax, desired, runs, i, j, names, unit)
+            ax.set_title(f"projection on {names[i]}{names[j]}", fontsize="medium")
+    elif planar:
+        ax_path = fig.add_subplot(grid[0, :half])
+        _path_panel(ax_path, desired, runs, 0, 1, names, unit)
+        ax_path.set_title("contour")
+        _label_corners(ax_path, curve, zooms)
     else:
+        ax_path = fig.add_subplot(grid[0, :half])
         for r in runs:
             ax_path.plot(r.t, r.position[:, 0], color=r.color, linestyle=r.linestyle,
                          label=f"actual, {r.label}")
         ax_path.set_xlabel("time [s]")
-        ax_path.set_ylabel(f"{axis_names[0]} [pulse]")
+        ax_path.set_ylabel(f"{names[0]} [{unit}]")
         ax_path.set_title("position")
-    ax_path.legend(fontsize="small")
 
+    ax_err = fig.add_subplot(err_slot)
     for r, (_, dist) in zip(runs, nearest):
         ax_err.plot(r.t, dist, color=r.color, linestyle=r.linestyle,
-                    label=f"{r.label} (max {np.max(dist):.4g} pulse)")
+                    label=f"contour error, {r.label} (max {np.max(dist):.3g} {unit})")
     ax_err.set_xlabel("time [s]")
-    ax_err.set_ylabel("contour error [pulse]")
+    ax_err.set_ylabel(f"contour error [{unit}]")
     ax_err.set_title("contour error (distance to the curve)")
-    ax_err.legend(fontsize="small")
+    ax_err.set_ylim(bottom=0)
+    ax_err.grid(True, linewidth=0.3, color="0.85")
 
-    for j, z in enumerate(zooms):
-        ax = fig.add_subplot(grid[1 + j // n_cols, 2 * (j % n_cols):2 * (j % n_cols) + 2])
+    for j, (z, slot) in enumerate(zip(zooms, zoom_slots)):
+        ax = fig.add_subplot(slot)
         ax.plot(desired[:, 0], desired[:, 1], color="k", linewidth=1)
         for r in runs:
             ax.plot(r.position[:, 0], r.position[:, 1], color=r.color, linestyle=r.linestyle,
@@ -239,30 +510,118 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path,
         ax.set_xlim(cx - h, cx + h)
         ax.set_ylim(cy - h, cy + h)
         ax.set_aspect("equal", adjustable="box")
-        ax.set_title(f"{chr(65 + j)}: {z.label}, ±{h:.3g} pulse", fontsize="medium")
-        ax.set_xlabel(f"{axis_names[0]} [pulse]")
-        ax.set_ylabel(f"{axis_names[1]} [pulse]")
+        ax.set_title(f"{chr(65 + j)}: {z.label}, ±{h:.2g} {unit}", fontsize="small")
+        ax.set_xlabel(f"{names[0]} [{unit}]")
+        ax.set_ylabel(f"{names[1]} [{unit}]")
         ax.ticklabel_format(useOffset=False, style="plain")
         ax.xaxis.set_major_locator(MaxNLocator(4))
-        ax_path.add_patch(Rectangle((cx - h, cy - h), 2 * h, 2 * h, fill=False,
-                                    edgecolor="0.4", linewidth=0.8))
-        ax_path.annotate(chr(65 + j), (cx + h, cy + h), fontsize="small", color="0.3")
+    _legend_below(fig, [ax_path, ax_err], ncol=2)
     fig.suptitle(title)
-    return _save(fig, path)
+    return _save(fig, path, overwrite)
 
 
-def _trace_title(trace, feed: float | None) -> str:
+def _trace_title(trace, feed: float | None, per_unit: float, unit: str) -> str:
     if feed is None:
         feed = float(np.max(trace.feed))
     name = trace.curve.name or "path"
-    return f"{name}, {trace.interpolator}, {_feed_text(feed, trace.machine.pulse_length_um)}"
+    return f"{name}, {trace.interpolator}, {_feed_text(feed, per_unit, unit)}"
 
 
-def _run_of(trace, label: str, style: tuple[str, str]) -> _Run:
-    return _Run(label, trace.t, trace.position, *style)
+def _units_of(trace, length_unit: str | None) -> tuple[str, float]:
+    """The report unit and pulses per it; ``length_unit`` None: by the path's units."""
+    unit = length_unit or report_unit(trace.curve.units)
+    return unit, trace.machine.pulses_per_unit(unit)
 
 
-def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None) -> list[Path]:
+def _drive_figure(runs: list[_Run], events, settle: float, title: str, path: Path,
+                  axes_shown, overwrite: bool) -> Path:
+    """u before clipping [V] per axis (rows): whole run and event windows (columns)."""
+    machine = runs[0].trace.machine
+    names, umax = machine.axis_names, machine.max_drive
+    fig = _figure(4.0 + 2.3 * len(events), 2.7 * len(axes_shown) + 1.0)
+    grid = _window_columns(fig, len(axes_shown), events)
+    finite = math.isfinite(umax)
+    for row, j in zip(grid, axes_shown):
+        _plot_windowed(row, runs, events, settle, lambda r, j=j: r.trace.drive[:, j],
+                       frame=DRIVE_FRAME * umax if finite else None)
+        for ax in row:
+            if finite:
+                for sign in (1, -1):
+                    ax.axhline(sign * umax, color="k", linestyle="--", linewidth=0.9,
+                               label="±Umax" if sign > 0 else None)
+        row[0].set_ylabel(f"{names[j]}: u [V]")
+        if finite:
+            row[0].set_title(_drive_title(runs, j, umax), fontsize="small", loc="left")
+    for c, event in enumerate(events, start=1):
+        grid[0, c].set_title(event.label, fontsize="medium")
+    _legend_below(fig, grid)
+    fig.suptitle(f"drive before clipping (Fig. 7), {title}")
+    return _save(fig, path, overwrite)
+
+
+def _speed_figure(rows: list, events, settle: float, title: str, path: Path, unit: str,
+                  overwrite: bool) -> Path:
+    """Commanded axis speed [L/s] and its eq. 3.6 bounds where computed; one panel row per
+    ``(run, axis index, label)`` in ``rows``."""
+    fig = _figure(4.0 + 2.3 * len(events), 2.7 * len(rows) + 1.0)
+    grid = _window_columns(fig, len(rows), events)
+    for panels, (run, j, label) in zip(grid, rows):
+        _plot_windowed(panels, [run], events, settle, lambda r, j=j: r.speed_command[:, j],
+                       bounds=(lambda r, j=j: None if r.speed_bounds is None
+                               else r.speed_bounds[:, j, :]))
+        panels[0].set_ylabel(f"{label} speed [{unit}/s]")
+    for col, event in enumerate(events, start=1):
+        grid[0, col].set_title(event.label, fontsize="medium")
+    _legend_below(fig, grid)
+    fig.suptitle(title)
+    return _save(fig, path, overwrite)
+
+
+def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float,
+                   settle: float, overwrite: bool) -> Path:
+    """Actual position minus the end point per axis [L] from shortly before the setpoint
+    reaches the end to the last sample: the whole approach (left) and a zoom on the
+    ±1 pulse band (right, ±:data:`_SETTLE_ZOOM` pulses)."""
+    tr = run.trace
+    names = tr.machine.axis_names
+    end = run.position_command[tr.finished_index]
+    t0 = tr.cycle_time
+    sel = tr.t >= t0 - 0.5 * settle
+    t = tr.t[sel] - t0
+    band = _SETTLE_WINDOW_PULSES / per_unit
+    fig = _figure(11.0, 2.3 * len(names) + 1.0)
+    axes = fig.subplots(len(names), 2, sharex=True, squeeze=False)
+    for j, (ax_all, ax_zoom) in enumerate(axes):
+        dev = run.position[sel, j] - end[j]
+        after = np.nonzero((t >= 0) & (np.abs(dev) > band))[0]
+        if after.size == 0:
+            when = "within ±1 pulse when the setpoint reaches the end"
+        elif after[-1] + 1 < len(t):
+            when = f"within ±1 pulse from t_end + {t[after[-1] + 1]:.4g} s on"
+        else:
+            when = "not within ±1 pulse by the last sample"
+        for ax in (ax_all, ax_zoom):
+            ax.axhspan(-band, band, color="C2", alpha=0.25,
+                       label=f"±1 pulse (±{band:.3g} {unit})")
+            ax.plot(t, dev, color=run.color, marker=".", markersize=3, linewidth=1,
+                    label=f"actual − end point, {run.label}")
+            ax.axvline(0.0, color="0.6", linestyle=":", linewidth=0.8,
+                       label="setpoint reaches the end")
+            ax.grid(True, linewidth=0.3, color="0.85")
+        ax_zoom.set_ylim(-_SETTLE_ZOOM * band, _SETTLE_ZOOM * band)
+        ax_all.set_ylabel(f"{names[j]} − end [{unit}]")
+        ax_all.set_title(f"{names[j]}: {when}", fontsize="medium", loc="left")
+        ax_zoom.set_title(f"{names[j]}, zoom ±{_SETTLE_ZOOM:g} pulse", fontsize="medium",
+                          loc="left")
+    for ax in axes[-1]:
+        ax.set_xlabel("t − t_end [s] (t_end: the setpoint reaches the end point)")
+    _legend_below(fig, axes, ncol=3)
+    fig.suptitle(f"settling at the end point, {title}")
+    return _save(fig, path, overwrite)
+
+
+def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
+               length_unit: str | None = None, overwrite: bool = True) -> list[Path]:
     """Write the figures of one closed-loop run.
 
     Parameters
@@ -276,73 +635,70 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None) -
     feed : float, optional
         The commanded feed F for the title [pulse/s]; by default the largest feed the
         interpolator asked for.
+    length_unit : str, optional
+        Unit of every length in the figures (``"mm"``, ``"in"``, ...); by default the
+        report unit of the trace's path (:func:`nurbsmotion.units.report_unit`).
+    overwrite : bool
+        Replace existing files.
 
     Returns
     -------
     list of Path
-        ``contour.png`` (desired path against the actual positions, contour error over
-        time, zooms on each sharp corner, or on the largest contour error when there is
-        none), ``following_error.png`` (thd - tha per axis [pulse]), ``drive.png`` (u before
-        clipping per axis [V], dashed +-Umax) and ``speed.png`` (commanded axis speed
-        [pulse/ms] and, when the interpolator computed them, the eq. 3.6 bounds).
+        :data:`TRACE_FIGURES`: ``contour.png`` (desired path against the actual
+        positions, contour error over time [L], zooms on the sharp corners or on the
+        largest contour error; a 3-D path in 3-D and in its projections),
+        ``following_error.png`` (thd - tha per axis [L]), ``drive.png`` (u before
+        clipping per axis [V], framed on ±Umax, with event windows), ``speed.png``
+        (commanded axis speed [L/s] and the eq. 3.6 bounds where computed, with event
+        windows) and ``settle.png`` (actual position minus the end point per axis [L]
+        with the ±1 pulse band).
     """
     out = _output_dir(out_dir)
+    unit, per_unit = _units_of(trace, length_unit)
+    run = _make_run(trace, trace.interpolator, _STYLES[0], per_unit)
     names = trace.machine.axis_names
-    n_axes = len(names)
-    title = _trace_title(trace, feed)
-    t_end = trace.cycle_time
-    written = [_contour_figure(trace.curve, [_run_of(trace, trace.interpolator, _STYLES[0])],
-                               title, out / f"{prefix}contour.png", names)]
+    title = _trace_title(trace, feed, per_unit, unit)
+    curve = trace.curve.scaled(1.0 / per_unit, units=unit)
+    settle = settling_time(trace.machine)
+    events = _events(trace.curve, [trace], settle)
+    written = [_contour_figure(curve, [run], title, out / f"{prefix}contour.png", names, unit,
+                               per_unit, overwrite)]
 
-    def panels(kind: str):
-        fig = _figure(8.0, 2.4 * n_axes + 0.6)
-        axes = fig.subplots(n_axes, 1, sharex=True, squeeze=False)[:, 0]
-        axes[-1].set_xlabel("time [s]")
-        fig.suptitle(f"{kind}: {title}")
-        return fig, axes
-
-    fig, axes = panels("following error")
-    error = trace.position_command - trace.position
+    fig = _figure(8.0, 2.2 * len(names) + 1.0)
+    axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
+    error = run.position_command - run.position
     for j, ax in enumerate(axes):
-        ax.plot(trace.t, error[:, j], color="C0")
-        _mark_end(ax, t_end)
-        ax.set_ylabel(f"{names[j]}: θd − θa [pulse]")
-        ax.legend(fontsize="small", loc="upper right")
-        ax.set_title(f"{names[j]}: max |e| = {np.max(np.abs(error[:, j])):.4g} pulse",
+        ax.plot(trace.t, error[:, j], color=run.color, label="θd − θa")
+        ax.axvline(trace.cycle_time, color="0.6", linestyle=":", linewidth=0.8,
+                   label="setpoint reaches the end")
+        ax.set_ylabel(f"{names[j]}: θd − θa [{unit}]")
+        ax.set_title(f"{names[j]}: max |e| = {np.max(np.abs(error[:, j])):.4g} {unit}",
                      fontsize="medium", loc="left")
-    written.append(_save(fig, out / f"{prefix}following_error.png"))
+        ax.grid(True, linewidth=0.3, color="0.85")
+    axes[-1].set_xlabel("time [s]")
+    _legend_below(fig, axes, ncol=2)
+    fig.suptitle(f"following error, {title}")
+    written.append(_save(fig, out / f"{prefix}following_error.png", overwrite))
 
-    fig, axes = panels("drive")
-    umax = trace.machine.max_drive
-    for j, ax in enumerate(axes):
-        ax.plot(trace.t, trace.drive[:, j], color="C0", label="u before clipping")
-        _draw_drive_limits(ax, umax)
-        _mark_end(ax, t_end)
-        ax.set_ylabel(f"{names[j]}: u [V]")
-        if math.isfinite(umax):
-            ax.set_title(f"{names[j]}: max |u| = {np.max(np.abs(trace.drive[:, j])) / umax:.3g}"
-                         " Umax", fontsize="medium", loc="left")
-        ax.legend(fontsize="small", loc="upper right")
-    written.append(_save(fig, out / f"{prefix}drive.png"))
-
-    fig, axes = panels("axis speed")
-    for j, ax in enumerate(axes):
-        bounds = None if trace.speed_bounds is None else trace.speed_bounds[:, j, :]
-        _draw_speed(ax, trace.t, trace.speed_command[:, j], bounds, trace.machine.Ke[j])
-        _mark_end(ax, t_end)
-        ax.set_ylabel(f"{names[j]}: speed [pulse/ms]")
-        ax.legend(fontsize="small", loc="upper right")
-    written.append(_save(fig, out / f"{prefix}speed.png"))
+    written.append(_drive_figure([run], events, settle, title, out / f"{prefix}drive.png",
+                                 range(len(names)), overwrite))
+    written.append(_speed_figure([(run, j, names[j]) for j in range(len(names))], events,
+                                 settle, f"axis speed command and its bounds (Fig. 6), {title}",
+                                 out / f"{prefix}speed.png", unit, overwrite))
+    written.append(_settle_figure(run, title, out / f"{prefix}settle.png", unit, per_unit,
+                                  settle, overwrite))
     return written
 
 
+
 def plot_setpoints(series, out_dir, axis_names=None, *, units: str | None = None,
-                   prefix: str = "") -> list[Path]:
+                   prefix: str = "", overwrite: bool = True) -> list[Path]:
     """Write ``setpoints.png`` of an open-loop interpolation.
 
-    Left: the path of the setpoints (first two axes; position against time for a single
-    axis). Right: the commanded feed and the chord speed ``|thd[k] - thd[k-1]| / Ts`` the
-    setpoints actually move at (the last, shortened step reaches the end exactly).
+    Left: the path of the setpoints (first two axes; a 3-D path in 3-D; position against
+    time for a single axis). Right: the commanded feed and the chord speed
+    ``|thd[k] - thd[k-1]| / Ts`` the setpoints actually move at (the last, shortened step
+    reaches the end exactly).
 
     Parameters
     ----------
@@ -357,6 +713,8 @@ def plot_setpoints(series, out_dir, axis_names=None, *, units: str | None = None
         ``"path unit"`` by default.
     prefix : str
         Put in front of the file name.
+    overwrite : bool
+        Replace an existing file.
 
     Returns
     -------
@@ -367,20 +725,26 @@ def plot_setpoints(series, out_dir, axis_names=None, *, units: str | None = None
     unit = units or "path unit"
     pos = series.position
     names = _axis_labels(pos.shape[1], axis_names)
-    fig = _figure(11.0, 4.6)
-    ax_path, ax_feed = fig.subplots(1, 2)
+    fig = _figure(11.0, 5.0)
+    three_d = pos.shape[1] >= 3
+    ax_path = fig.add_subplot(1, 2, 1, projection="3d" if three_d else None)
+    ax_feed = fig.add_subplot(1, 2, 2)
     if pos.shape[1] >= 2:
         few = len(pos) <= 500  # sample dots only where they stay apart
-        ax_path.plot(pos[:, 0], pos[:, 1], color="C0", linewidth=1,
-                     marker="." if few else None, markersize=3)
-        ax_path.plot(*pos[0, :2], "o", color="C2", label="start")
-        ax_path.plot(*pos[-1, :2], "s", color="C3", label="end")
+        cols = [pos[:, k] for k in range(3 if three_d else 2)]
+        ax_path.plot(*cols, color="C0", linewidth=1, marker="." if few else None,
+                     markersize=3, label="setpoints")
+        ax_path.plot(*[[c[0]] for c in cols], "o", color="C2", label="start")
+        ax_path.plot(*[[c[-1]] for c in cols], "s", color="C3", label="end")
         ax_path.set_xlabel(f"{names[0]} [{unit}]")
         ax_path.set_ylabel(f"{names[1]} [{unit}]")
-        ax_path.set_aspect("equal", adjustable="datalim")
-        ax_path.legend(fontsize="small")
+        if three_d:
+            ax_path.set_zlabel(f"{names[2]} [{unit}]")
+            ax_path.set_box_aspect(np.maximum(np.ptp(pos[:, :3], axis=0), 1e-9))
+        else:
+            ax_path.set_aspect("equal", adjustable="datalim")
     else:
-        ax_path.plot(series.t, pos[:, 0], color="C0")
+        ax_path.plot(series.t, pos[:, 0], color="C0", label="setpoints")
         ax_path.set_xlabel("time [s]")
         ax_path.set_ylabel(f"{names[0]} [{unit}]")
     ax_path.set_title("setpoints")
@@ -389,20 +753,22 @@ def plot_setpoints(series, out_dir, axis_names=None, *, units: str | None = None
     ax_feed.plot(series.t[1:], series.feed[1:], color="k", linewidth=1, label="commanded feed")
     ax_feed.plot(series.t[1:], chord, color="C3", linestyle="--", linewidth=1,
                  label="chord speed |Δθd|/Ts")
-    _mark_end(ax_feed, series.cycle_time)
+    ax_feed.axvline(series.cycle_time, color="0.6", linestyle=":", linewidth=0.8,
+                    label="end reached")
     ax_feed.set_xlabel("time [s]")
     ax_feed.set_ylabel(f"feed [{unit}/s]")
     ax_feed.set_ylim(bottom=0)
-    ax_feed.legend(fontsize="small", loc="lower center")
     fl_max, fl_rms = series.feed_fluctuation()
     ax_feed.set_title(f"feed fluctuation max {100 * fl_max:.3g} %, RMS {100 * fl_rms:.3g} %",
                       fontsize="medium")
+    _legend_below(fig, [ax_path, ax_feed], ncol=3)
     fig.suptitle(f"{series.finished_index} steps, cycle time {series.cycle_time:.4g} s")
-    return [_save(fig, out / f"{prefix}setpoints.png")]
+    return [_save(fig, out / f"{prefix}setpoints.png", overwrite)]
 
 
 def plot_comparison(traces: dict, out_dir, name: str, *, feed: float | None = None,
-                    axis: int = 0) -> list[Path]:
+                    axis: int | None = None, length_unit: str | None = None,
+                    overwrite: bool = True) -> list[Path]:
     """Write the figures comparing algorithms on one path at one feed (``reproduce``).
 
     Parameters
@@ -416,18 +782,23 @@ def plot_comparison(traces: dict, out_dir, name: str, *, feed: float | None = No
         Prefix of the file names and the path's name in the titles (e.g. ``"pi_1.0"``).
     feed : float, optional
         The commanded feed F [pulse/s]; by default the largest feed any run asked for.
-    axis : int
-        The axis of the speed and drive figures (X, as in the paper, by default).
+    axis : int, optional
+        Only this axis for the speed and drive figures; every axis by default.
+    length_unit : str, optional
+        Unit of every length (``"mm"``, ``"in"``); by default the report unit of the
+        path (:func:`nurbsmotion.units.report_unit`).
+    overwrite : bool
+        Replace existing files.
 
     Returns
     -------
     list of Path
         ``{name}_contour.png`` (Fig. 5: desired path and every run's actual contour, with
-        corner zooms), ``{name}_speed_{ax}.png`` (Fig. 6: commanded speed of that axis
-        inside its eq. 3.6 bounds [pulse/ms], one panel per run that computed bounds, or
-        every run's command in one panel if none did) and ``{name}_drive_{ax}.png``
-        (Fig. 7: every run's drive on that axis with +-Umax [V]); ``ax`` is the axis's
-        name (``x`` on the die-bonder).
+        corner zooms), then per axis ``ax``: ``{name}_speed_{ax}.png`` (Fig. 6: each
+        run's commanded speed [L/s] inside its eq. 3.6 bounds where it computed them,
+        one row per run) and ``{name}_drive_{ax}.png`` (Fig. 7: every run's drive [V],
+        framed on ±Umax); both with the whole run and windows around the start, the
+        corners and the stop.
     """
     if not traces:
         raise ValueError("plot_comparison needs at least one trace")
@@ -436,46 +807,25 @@ def plot_comparison(traces: dict, out_dir, name: str, *, feed: float | None = No
     first = items[0][1]
     machine = first.machine
     names = machine.axis_names
-    if not 0 <= axis < len(names):
+    if axis is not None and not 0 <= axis < len(names):
         raise ValueError(f"axis {axis} out of range for axes {names}")
+    shown = range(len(names)) if axis is None else [axis]
+    unit, per_unit = _units_of(first, length_unit)
     if feed is None:
         feed = max(float(np.max(tr.feed)) for _, tr in items)
-    title = f"{name}: {_feed_text(feed, machine.pulse_length_um)}"
-    styles = {label: _STYLES[i % len(_STYLES)] for i, (label, _) in enumerate(items)}
-    runs = [_run_of(tr, label, styles[label]) for label, tr in items]
-    ax_name = names[axis]
-    written = [_contour_figure(first.curve, runs, title, out / f"{name}_contour.png", names)]
-
-    bounded = [(label, tr) for label, tr in items if tr.speed_bounds is not None]
-    shown = bounded or items
-    fig = _figure(8.0, 2.8 * len(shown) + 0.6)
-    axes = fig.subplots(len(shown), 1, sharex=True, squeeze=False)[:, 0]
-    for ax, (label, tr) in zip(axes, shown):
-        bounds = tr.speed_bounds[:, axis, :] if tr.speed_bounds is not None else None
-        color, style = styles[label]
-        _draw_speed(ax, tr.t, tr.speed_command[:, axis], bounds, machine.Ke[axis],
-                    color=color, linestyle=style, label=f"{label}: speed command")
-        _mark_end(ax, tr.cycle_time)
-        ax.set_ylabel(f"{ax_name} speed [pulse/ms]")
-        ax.legend(fontsize="small", loc="upper right")
-        if not bounded:
-            ax.set_title("no run computed eq. 3.6 bounds", fontsize="medium", loc="left")
-    axes[-1].set_xlabel("time [s]")
-    fig.suptitle(f"{ax_name} speed command and its bounds (Fig. 6), {title}")
-    written.append(_save(fig, out / f"{name}_speed_{ax_name}.png"))
-
-    fig = _figure(8.0, 4.2)
-    ax = fig.subplots()
-    for label, tr in items:
-        color, style = styles[label]
-        ratio = np.max(np.abs(tr.drive[:, axis])) / machine.max_drive
-        ax.plot(tr.t, tr.drive[:, axis], color=color, linestyle=style,
-                label=f"{label} (max {ratio:.3g} Umax)" if math.isfinite(machine.max_drive)
-                else label)
-    _draw_drive_limits(ax, machine.max_drive)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel(f"{ax_name} drive u before clipping [V]")
-    ax.legend(fontsize="small", loc="upper right")
-    fig.suptitle(f"{ax_name} drive (Fig. 7), {title}")
-    written.append(_save(fig, out / f"{name}_drive_{ax_name}.png"))
+    title = f"{name}: {_feed_text(feed, per_unit, unit)}"
+    runs = [_make_run(tr, label, _STYLES[i % len(_STYLES)], per_unit)
+            for i, (label, tr) in enumerate(items)]
+    curve = first.curve.scaled(1.0 / per_unit, units=unit)
+    settle = settling_time(machine)
+    events = _events(first.curve, [tr for _, tr in items], settle)
+    written = [_contour_figure(curve, runs, title, out / f"{name}_contour.png", names, unit,
+                               per_unit, overwrite)]
+    for j in shown:
+        written.append(_speed_figure([(r, j, f"{r.label}: {names[j]}") for r in runs],
+                                     events, settle, f"{names[j]} speed command and its "
+                                     f"bounds (Fig. 6), {title}",
+                                     out / f"{name}_speed_{names[j]}.png", unit, overwrite))
+        written.append(_drive_figure(runs, events, settle, f"{names[j]}, {title}",
+                                     out / f"{name}_drive_{names[j]}.png", [j], overwrite))
     return written

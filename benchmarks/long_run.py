@@ -1,0 +1,88 @@
+"""A 10-minute move end to end: ``nurbsmotion run ... --no-figures`` on 600,000 samples.
+
+The butterfly on the die-bonder at the feed that takes 600 s (its length / 600 s, about
+0.64 mm/s), ``paper`` interpolator (its planning is one sample ahead, so the figure is the
+loop, the metrics and the trace writer), in a fresh process each: wall time from the
+interpreter's start to its exit, and the peak resident set size (VmHWM). Then the same
+run's stages one by one in one process: the loop, the metrics, the time-optimal bound, and
+writing the trace as CSV and as Parquet.
+
+    python benchmarks/long_run.py
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import time
+
+import _common  # noqa: F401  (puts src/ on the path)
+from _common import PEAK_MB, run_python, section
+
+END_TO_END = PEAK_MB + r"""
+import json, sys
+from nurbsmotion.cli import main
+import nurbsmotion as nm
+feed = f"{nm.make_butterfly().length / 600.0!r}mm/s"
+code = main(["run", "butterfly", "--feed", feed, "--interpolator", "paper", "--no-figures",
+             "--quiet", "--out", sys.argv[1], "--trace-format", sys.argv[2]])
+print(json.dumps({"code": code, "peak": peak_mb()}))
+"""
+
+STAGES = PEAK_MB + r"""
+import json, sys, time
+from pathlib import Path
+import nurbsmotion as nm
+from nurbsmotion.loop import run
+from nurbsmotion.machine import die_bonder
+from nurbsmotion.planning import time_optimal_bound
+from nurbsmotion.report import write_trace
+m = die_bonder()
+curve = nm.make_butterfly()
+run(curve, m, 100.0, "paper")  # warm-up: load the kernels
+out = Path(sys.argv[1])
+t = {}
+t0 = time.perf_counter(); tr = run(curve, m, curve.length / 600.0, "paper")
+t["loop"] = time.perf_counter() - t0
+t0 = time.perf_counter(); tr.metrics(); t["metrics"] = time.perf_counter() - t0
+t0 = time.perf_counter(); time_optimal_bound(tr.curve, m, tr.feed.max())
+t["bound"] = time.perf_counter() - t0
+for fmt in ("csv", "parquet"):
+    t0 = time.perf_counter()
+    f = write_trace(tr, out / f"trace.{fmt}", fmt=fmt, length_unit="mm",
+                    pulses_per_length_unit=1000.0)
+    t[fmt] = time.perf_counter() - t0
+    t[fmt + "_mb"] = f.stat().st_size / 1e6
+t["samples"] = len(tr.t)
+print(json.dumps(t))
+"""
+
+
+def main(repeats: int = 1) -> str:
+    rows = []
+    for fmt in ("csv", "parquet"):
+        walls, peaks = [], []
+        for _ in range(repeats):
+            with tempfile.TemporaryDirectory() as out:
+                wall, text = run_python(END_TO_END.replace("sys.argv[1]", repr(out))
+                                        .replace("sys.argv[2]", repr(fmt)))
+            r = json.loads(text.splitlines()[-1])
+            assert r["code"] == 0
+            walls.append(wall)
+            peaks.append(r["peak"])
+        rows.append([f"`run butterfly --feed <0.638 mm/s> --interpolator paper --no-figures "
+                     f"--trace-format {fmt}`", f"**{min(walls):.1f}**", f"**{max(peaks):.0f}**"])
+    with tempfile.TemporaryDirectory() as out:
+        _, text = run_python(STAGES.replace("sys.argv[1]", repr(out)))
+    s = json.loads(text.splitlines()[-1])
+    note = (f"Stages of the same run in one warm process ({s['samples']:,} samples): loop "
+            f"{s['loop']:.2f} s, metrics {s['metrics']:.2f} s, time-optimal bound "
+            f"{s['bound']:.2f} s, trace.csv {s['csv']:.2f} s ({s['csv_mb']:.0f} MB), "
+            f"trace.parquet {s['parquet']:.2f} s ({s['parquet_mb']:.0f} MB). Wall time "
+            "includes starting Python and importing (kernels from the disk cache).")
+    return section("A 10-minute move end to end", ["command", "wall time [s]",
+                                                   "peak RSS [MB]"], rows, note=note)
+
+
+if __name__ == "__main__":
+    main()
