@@ -185,14 +185,15 @@ class CurveGeometry:
         return self.parameter_at(np.linspace(0.0, self.length, n))
 
     def sharp_corners(self, angle_tolerance: float = 1e-6) -> np.ndarray:
-        """Interior breakpoints where the left and right tangents differ by more than
-        ``angle_tolerance`` [rad]. Only knots of full multiplicity can be corners, since
-        elsewhere the curve is C1 and C' never vanishes (checked at construction)."""
+        """Interior parameters where the left and right (limit) tangents differ by more
+        than ``angle_tolerance`` [rad]: knots of full multiplicity, and interior points
+        where C' = 0 (:attr:`NurbsCurve.zero_speed_points`) with a tangent reversal (a
+        cusp). Elsewhere the curve is C1 with C' != 0, so it has no corner."""
         if angle_tolerance not in self._corners:
             c = self.curve
-            candidates = np.array(
-                [b for b in c.breakpoints[1:-1] if c.knot_multiplicity(b) >= c.degree]
-            )
+            full = [b for b in c.breakpoints[1:-1] if c.knot_multiplicity(b) >= c.degree]
+            zero = [u for u in c.zero_speed_points if 0.0 < u < 1.0]
+            candidates = np.unique(np.array(full + zero, dtype=float))
             if candidates.size:
                 angle = c.turning_angle(candidates)
                 candidates = candidates[angle > angle_tolerance]

@@ -183,7 +183,6 @@ _SKIPPED_G = {
 _REFUSED_G = {
     41.0: "cutter radius compensation changes the path", 42.0: "cutter radius compensation changes the path",
     41.1: "cutter radius compensation changes the path", 42.1: "cutter radius compensation changes the path",
-    93.0: "inverse-time feed mode is not read; use G94 (units per minute)",
     95.0: "feed per revolution is not read; use G94 (units per minute)",
     17.1: "the UVW planes are not read", 18.1: "the UVW planes are not read", 19.1: "the UVW planes are not read",
     33.0: "spindle-synchronised motion is not read", 33.1: "rigid tapping is not read",
@@ -223,12 +222,12 @@ def _skipped_m(m: float) -> str | None:
     return None
 
 
-def _embed(curve: NurbsCurve, base: np.ndarray, cols: tuple, line: int) -> NurbsCurve:
+def _embed(curve: NurbsCurve, base: np.ndarray, cols: tuple) -> NurbsCurve:
     """A planar curve placed in ``len(base)`` dimensions: its two coordinates go to
     ``cols``, the others stay at ``base``."""
     P = np.repeat(base[None, :], curve.n_control_points, axis=0)
     P[:, list(cols)] = curve.control_points
-    return NurbsCurve(curve.degree, curve.knots, P, curve.weights, name=f"line {line}")
+    return NurbsCurve(curve.degree, curve.knots, P, curve.weights)
 
 
 def helix(center, radius0: float, radius1: float, a0: float, sweep: float, start: np.ndarray,
@@ -274,6 +273,9 @@ class _Reader:
         self.plane = 17.0
         self.position = np.zeros(9)  # absolute position of X..W [output units]
         self.feed = 0.0  # [output units / min]
+        self.inverse_time = False  # G93
+        self.feed_word = 0.0  # F of this line under G93 [1/min]
+        self.f_on_line = False
         self.motion: str | None = None
         self.pieces: list = []  # (curve or ("line", start, end), line, feed)
         self.contours: list[GcodeContour] = []
@@ -309,24 +311,41 @@ class _Reader:
     def par(self, k: int) -> float:
         return self.program.numbered[k]
 
-    def offset(self) -> np.ndarray:
-        """G5x + G92 offset of X..W [output units] (parameters #5221.., #5211..)."""
+    def frame(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """The active G5x offset, G92 offset (X..W, [output units]) and XY rotation [deg]
+        (parameters #5221.. per system, #5211.., #5210), as LinuxCNC keeps them."""
         n = self.program.numbered
         system = int(n[5220]) or 1
         base = 5201 + 20 * system
-        if n[base + 9] != 0.0:
-            raise self.error(f"coordinate system {system} is rotated (R{n[base + 9]:g}); "
-                             "rotated coordinate systems are not read")
-        g5x = np.array(n[base: base + 9])
         g92 = np.array(n[5211:5220]) if n[5210] else np.zeros(9)
-        return g5x + g92
+        return np.array(n[base: base + 9]), g92, n[base + 9]
+
+    def to_program(self, p: np.ndarray) -> np.ndarray:
+        """Absolute (machine) coordinates -> program coordinates (LinuxCNC's unrotate)."""
+        g5x, g92, rot = self.frame()
+        q = p - g5x
+        if rot:
+            c, s = math.cos(math.radians(rot)), math.sin(math.radians(rot))
+            q[0], q[1] = c * q[0] + s * q[1], -s * q[0] + c * q[1]
+        return q - g92
+
+    def to_absolute(self, q: np.ndarray) -> np.ndarray:
+        """Program coordinates (shape (..., 9)) -> absolute: + G92, rotate XY, + G5x."""
+        g5x, g92, rot = self.frame()
+        p = q + g92
+        if rot:
+            c, s = math.cos(math.radians(rot)), math.sin(math.radians(rot))
+            p = p.copy()
+            p[..., 0], p[..., 1] = c * (q[..., 0] + g92[0]) - s * (q[..., 1] + g92[1]), \
+                s * (q[..., 0] + g92[0]) + c * (q[..., 1] + g92[1])
+        return p + g5x
 
     def system_parameter(self, name: str) -> float | None:
         """``#<_x>`` .. ``#<_w>`` and a few modal flags, for the language layer."""
         if len(name) == 2 and name[1].upper() in _AXES:
             i = _AXES.index(name[1].upper())
-            k = 1.0 / self.scale() if self.units else 1.0
-            return float((self.position[i] - self.offset()[i]) * k)
+            k = 1.0 / self.scale() if self.units and i not in (3, 4, 5) else 1.0
+            return float(self.to_program(self.position)[i] * k)
         flags = {"_metric": not self.input_inch, "_imperial": bool(self.input_inch),
                  "_absolute": self.absolute, "_incremental": not self.absolute}
         if name in flags:
@@ -341,27 +360,57 @@ class _Reader:
                              f"{MAX_COORDINATE:g} (MAX_COORDINATE)")
         return v
 
+    def lengths(self) -> np.ndarray:
+        """Factor from the words' units to output units for X..W (1 for rotary A B C)."""
+        k = self.scale()
+        return np.array([k, k, k, 1.0, 1.0, 1.0, k, k, k])
+
     def target(self, words: dict, base: np.ndarray | None = None, machine: bool = False) -> np.ndarray:
         """End point of a move from its axis words [absolute, output units]: absolute under
-        G90, relative to ``base`` (default: the current position) under G91; ``machine``:
-        the words are machine coordinates (G53, G28/G30 home)."""
-        k = self.scale()
-        end = self.position.copy()
-        ref = self.position if base is None else base
-        off = np.zeros(9) if machine else self.offset()
+        G90, relative to ``base`` (default: the current position) under G91; polar ``@``
+        (radius) and ``^`` (angle, degrees) in the XY plane as LinuxCNC reads them;
+        ``machine``: the words are machine coordinates (G53)."""
+        k = self.lengths()
+        if machine:
+            end = self.position.copy()
+            for axis, letter in enumerate(_AXES):
+                if letter in words:
+                    end[axis] = k[axis] * self.value(letter, words[letter])
+            return end
+        cur = self.to_program(self.position)
+        ref = cur if base is None else self.to_program(base)
+        end = cur.copy()
         for axis, letter in enumerate(_AXES):
             if letter in words:
-                v = self.value(letter, words[letter])
-                if letter in "ABC":
-                    end[axis] = v + (off[axis] if self.absolute else ref[axis])
-                else:
-                    end[axis] = k * v + (off[axis] if self.absolute else ref[axis])
-        return end
+                v = k[axis] * self.value(letter, words[letter])
+                end[axis] = v if self.absolute else ref[axis] + v
+        if "@" in words or "^" in words:
+            if "X" in words or "Y" in words:
+                raise self.error("polar coordinates @ ^ cannot be given with X or Y")
+            r0, t0 = math.hypot(cur[0], cur[1]), math.degrees(math.atan2(cur[1], cur[0]))
+            r = k[0] * self.value("@", words["@"]) + (0.0 if self.absolute else r0) if "@" in words else r0
+            t = self.value("^", words["^"]) + (0.0 if self.absolute else t0) if "^" in words else t0
+            end[0], end[1] = r * math.cos(math.radians(t)), r * math.sin(math.radians(t))
+        return self.to_absolute(end)
 
-    def add_piece(self, piece, line: int) -> None:
-        if self.feed <= 0:
+    def add_piece(self, piece, line: int, length: float | None = None) -> None:
+        """Add a piece with the feed in force; under G93 (inverse time) F is 1 / the move's
+        duration [1/min], so the piece's feed is its length times F."""
+        feed = self.feed
+        if self.inverse_time:
+            if not self.f_on_line:
+                raise self.error("inverse-time feed (G93) needs an F word on every feed move")
+            feed = self.feed_word * length
+        if feed <= 0:
             raise self.error("feed move without a feed rate: no F word (or F0) before it", line)
-        self.pieces.append((piece, line, self.feed))
+        self.pieces.append((piece, line, feed))
+
+    def add_curve(self, curve: NurbsCurve, line: int) -> None:
+        """Add a piece given in program coordinates X..W (9 columns)."""
+        P = self.to_absolute(curve.control_points)
+        piece = self.make(lambda: NurbsCurve(curve.degree, curve.knots, P[:, self.axes],
+                                             curve.weights, name=f"line {line}"), line)
+        self.add_piece(piece, line, piece.length if self.inverse_time else None)
 
     def make(self, build, line: int):
         try:
@@ -411,8 +460,8 @@ class _Reader:
         """Process one block; return False when the program ends (M2/M30)."""
         self.line = block.line
         rest = dict(block.words)
-        if "$" in rest:
-            self.warn("GRBL '$' settings lines skipped", "$")
+        if "$$" in rest:
+            self.warn("GRBL '$' settings lines skipped", "$$")
             return True
         motion = None
         special = None  # a non-modal G code of group 0 that uses the axis words
@@ -430,6 +479,8 @@ class _Reader:
                 self.absolute = g == 90.0
             elif g in (90.1, 91.1):
                 self.arc_absolute = g == 90.1
+            elif g in (93.0, 94.0):
+                self.inverse_time = g == 93.0
             elif g in (17.0, 18.0, 19.0):
                 self.plane = g
             elif g in _COORD_SYSTEMS:
@@ -462,30 +513,34 @@ class _Reader:
             if name is None:
                 raise self.error(f"M{m:g} is not an M code this reader knows")
             self.warn(f"{name} skipped: it does not change the path", name)
-            if 62 <= m <= 68:
+            if m >= 48:  # the words of M48-M53, M61-M68 (P, Q, E, L, R) go with them
                 for letter in "PEQLR":
                     rest.pop(letter, None)
         for letter, what in (("S", "S spindle speed"), ("T", "T tool number"), ("H", "H tool offset"),
-                             ("D", "D cutter radius")):
+                             ("D", "D cutter radius"), ("$", "$ spindle selector")):
             if letter in rest:
                 rest.pop(letter)
                 self.warn(f"{what} skipped: it does not change the path", letter)
+        self.f_on_line = "F" in rest
         if "F" in rest:
             f = rest.pop("F")
             if not (0 <= f <= MAX_COORDINATE):
                 raise self.error(f"feed F{f:g} must be >= 0 and at most {MAX_COORDINATE:g}")
-            self.feed = f * (1.0 if self.units is None else self.scale())
+            if self.inverse_time:
+                self.feed_word = f
+            else:
+                self.feed = f * (1.0 if self.units is None else self.scale())
 
         if self.block is not None and self.block["kind"] == "G5.2" and motion not in (None, "G5.2", "G5.3"):
             raise self.error(f"the G5.2 block opened on line {self.block['line']} is not closed "
                              f"with G5.3 before this {motion}")
         if self.block is not None and self.block["kind"] == "G6.2" and motion not in (None, "G6.2"):
             self.close_g6()
+        if motion is not None:
+            self.motion = motion
         if special is not None:
             self.non_modal(special, rest)
             rest = {}
-        if motion is not None:
-            self.motion = motion
 
         if motion == "G5.3":
             self.close_g5(rest)
@@ -510,19 +565,18 @@ class _Reader:
             self.end_contour()
             if w:
                 self.position = self.target(w)
-            self.position = np.array(n[home: home + 9]) * np.r_[[k] * 3, [1.0] * 3, [k] * 3]
+            self.position = np.array(n[home: home + 9]) * self.lengths()
         elif g in (28.1, 30.1):
             home = 5161 if g == 28.1 else 5181
-            n[home: home + 9] = list(self.position / np.r_[[k] * 3, [1.0] * 3, [k] * 3])
+            n[home: home + 9] = list(self.position / self.lengths())
         elif g == 92.0:
             if not w:
                 raise self.error("G92 needs at least one axis word")
-            g5x = self.offset() - (np.array(n[5211:5220]) if n[5210] else 0.0)
-            g92 = np.array(n[5211:5220]) if n[5210] else np.zeros(9)
+            _, g92, _ = self.frame()
+            unshifted = self.to_program(self.position) + g92
             for axis, letter in enumerate(_AXES):
                 if letter in w:
-                    v = self.value(letter, w[letter]) * (1.0 if letter in "ABC" else k)
-                    g92[axis] = self.position[axis] - g5x[axis] - v
+                    g92[axis] = unshifted[axis] - self.value(letter, w[letter]) * self.lengths()[axis]
             n[5211:5220] = list(g92)
             n[5210] = 1.0
         elif g in (92.1, 92.2):
@@ -550,7 +604,7 @@ class _Reader:
                 raise self.error(f"word(s) {', '.join(extra)} not allowed with G10")
             for axis, letter in enumerate(_AXES):
                 if letter in w:
-                    v = self.value(letter, w[letter]) * (1.0 if letter in "ABC" else k)
+                    v = self.value(letter, w[letter]) * self.lengths()[axis]
                     if L == 2.0:
                         n[base + axis] = v
                     else:  # L20: the current point gets coordinate v
@@ -587,7 +641,8 @@ class _Reader:
             self.end_contour()  # a plunge or lift of an axis outside the path ends the contour
         elif kind == "G1":
             if moves_path:
-                self.add_piece(("line", start, end), line)
+                length = float(np.linalg.norm((end - start)[self.axes]))
+                self.add_piece(("line", start, end), line, length)
         elif kind in ("G2", "G3"):
             self.arc(w, start, end)
         else:
@@ -597,6 +652,9 @@ class _Reader:
         self.position = end
 
     def arc(self, w: dict, start: np.ndarray, end: np.ndarray) -> None:
+        """G2/G3 in the selected plane, computed in program coordinates as LinuxCNC does:
+        an exact arc when only the plane's axes move, else a helix; a spiral when the
+        end radius differs from the start radius within LinuxCNC's tolerance."""
         clockwise = self.motion == "G2"
         k = self.scale()
         line = self.line
@@ -607,10 +665,11 @@ class _Reader:
         if turns > MAX_ARC_TURNS:
             raise self.error(f"arc turns P{turns:g} are more than the {MAX_ARC_TURNS} read "
                              "(MAX_ARC_TURNS)")
-        s2, e2 = start[[i1, i2]], end[[i1, i2]]
-        if "K" in w and self.plane == 17.0 or "I" in w and self.plane == 19.0 or "J" in w and self.plane == 18.0:
-            raise self.error(f"{'IJK'[[0, 1, 2][_PLANES[self.plane][2]]]} word not allowed with an arc in "
-                             f"the {_g_name(self.plane)} plane")
+        wrong = "IJK"[lin]
+        if wrong in w:
+            raise self.error(f"{wrong} word not allowed with an arc in the {_g_name(self.plane)} plane")
+        ps, pe = self.to_program(start), self.to_program(end)
+        s2, e2 = ps[[i1, i2]], pe[[i1, i2]]
         if "R" in w:
             if o1 in w or o2 in w:
                 raise self.error("arc with both R and a centre offset")
@@ -629,35 +688,29 @@ class _Reader:
                 raise self.error(f"{self.motion} needs {o1}/{o2} (centre) or R (radius) in the "
                                  f"{_g_name(self.plane)} plane")
             off = np.array([k * self.value(o1, w.get(o1, 0.0)), k * self.value(o2, w.get(o2, 0.0))])
-            if self.arc_absolute:
-                if not (o1 in w and o2 in w):
-                    raise self.error(f"absolute arc centre (G90.1) needs both {o1} and {o2}")
-                center = off + self.offset()[[i1, i2]]
-            else:
-                center = s2 + off
+            if self.arc_absolute and not (o1 in w and o2 in w):
+                raise self.error(f"absolute arc centre (G90.1) needs both {o1} and {o2}")
+            center = off if self.arc_absolute else s2 + off
         r1 = float(np.hypot(*(s2 - center)))
         r2 = float(np.hypot(*(e2 - center)))
         if r1 == 0.0:
             raise self.error(f"arc centre {center.tolist()} coincides with its start point")
-        mm = 1.0 if self.units == "mm" else 1.0 / _INCH
+        # LinuxCNC's check (interp_arc.cc): |r2 - r1| > 100 tol, or > tol and > 0.1 %
+        tol = (2 * 0.01 * math.sqrt(2)) * (1.0 if self.units == "mm" else 1.0 / _INCH)
         diff = abs(r2 - r1)
-        if diff > 0.5 * mm or (diff > 0.005 * mm and diff > 0.001 * r1):
+        if diff > 100 * tol or (diff > tol and diff / max(r1, r2) > 0.001):
             raise self.error(
                 f"radius to end of arc differs from radius to start: start {s2.tolist()} "
                 f"centre {center.tolist()} end {e2.tolist()} r1 {r1:.6g} r2 {r2:.6g}")
-        on_path = set(self.axes)
-        if i1 not in on_path or i2 not in on_path:
+        if i1 not in self.axes or i2 not in self.axes:
             raise self.error(f"an arc in the {_g_name(self.plane)} plane needs the axes "
                              f"{_AXES[i1]}{_AXES[i2]} in the path (the path has "
                              f"{''.join(_AXES[i] for i in self.axes)})")
-        cols = (self.axes.index(i1), self.axes.index(i2))
-        linear = [a for a in self.axes if a not in (i1, i2) and end[a] != start[a]]
-        if not linear:
-            build = lambda: arc_by_center(s2, e2, center, clockwise=clockwise, turns=int(turns),
-                                          name=f"line {line}")  # fmt: skip
-            base = start[self.axes]
+        linear = bool(np.any(np.delete(pe != ps, [i1, i2])))
+        if not linear and diff <= 1e-12 * r1:
+            build = lambda: arc_by_center(s2, e2, center, clockwise=clockwise, turns=int(turns))
             for piece in self.make(build, line):
-                self.add_piece(self.make(lambda: _embed(piece, base, cols, line), line), line)
+                self.add_curve(_embed(piece, ps, (i1, i2)), line)
             return
         a0 = math.atan2(s2[1] - center[1], s2[0] - center[0])
         a1 = math.atan2(e2[1] - center[1], e2[0] - center[0])
@@ -665,14 +718,13 @@ class _Reader:
         if sweep == 0.0:
             sweep = 2 * math.pi
         sweep = (sweep + 2 * math.pi * (int(turns) - 1)) * (-1.0 if clockwise else 1.0)
-        build = lambda: helix(center, r1, r2, a0, sweep, start[self.axes], end[self.axes], cols,
-                              name=f"line {line}")  # fmt: skip
-        self.add_piece(self.make(build, line), line)
+        self.add_curve(self.make(lambda: helix(center, r1, r2, a0, sweep, ps, pe, (i1, i2)), line), line)
 
     def spline(self, kind: str, w: dict, start: np.ndarray, end: np.ndarray) -> None:
         k = self.scale()
         line = self.line
-        s2, e2 = start[[0, 1]], end[[0, 1]]
+        ps = self.to_program(start)
+        s2, e2 = ps[[0, 1]], self.to_program(end)[[0, 1]]
         if kind == "G5.1":
             if "I" not in w and "J" not in w:
                 raise self.error("G5.1 needs I and/or J")
@@ -691,17 +743,8 @@ class _Reader:
             self._g5_pq = k * np.array([self.value("P", w["P"]), self.value("Q", w["Q"])])
             ctrl = [s2, s2 + first, e2 + self._g5_pq, e2]
         p = len(ctrl) - 1
-        self.planar_piece(lambda: NurbsCurve(p, [0.0] * (p + 1) + [1.0] * (p + 1), ctrl), (0, 1), line)
-
-    def planar_piece(self, build, plane_axes: tuple, line: int) -> None:
-        """Add a piece built in two coordinates ``plane_axes`` (indices into X..W)."""
-        if not set(plane_axes) <= set(self.axes):
-            raise self.error(f"the curve lies in the {''.join(_AXES[i] for i in plane_axes)} "
-                             f"plane but the path has the axes {''.join(_AXES[i] for i in self.axes)}")
-        cols = tuple(self.axes.index(i) for i in plane_axes)
-        base = self.position[self.axes]
-        curve = self.make(build, line)
-        self.add_piece(self.make(lambda: _embed(curve, base, cols, line), line), line)
+        curve = self.make(lambda: NurbsCurve(p, [0.0] * (p + 1) + [1.0] * (p + 1), ctrl), line)
+        self.add_curve(_embed(curve, ps, (0, 1)), line)
 
     # -- LinuxCNC G5.2 / G5.3: (first, second) = (X, Y), (Y, Z) or (Z, X) as LinuxCNC
     def g5_axes(self) -> tuple:
@@ -726,7 +769,7 @@ class _Reader:
                 if not 0 < w0 <= MAX_COORDINATE:
                     raise self.error(f"weight P{w0:g} of the first control point must be positive")
             self.block = {"kind": "G5.2", "line": self.line, "order": 3, "plane": (a, b),
-                          "base": self.position.copy(), "points": [self.position[[a, b]].copy()],
+                          "base": self.position.copy(), "points": [self.position.copy()],
                           "weights": [w0]}  # fmt: skip
         bl = self.block
         if "L" in w:
@@ -743,8 +786,7 @@ class _Reader:
             weight = w.get("P", 1.0)
             if not 0 < weight <= MAX_COORDINATE:
                 raise self.error(f"weight P{weight:g} must be positive")
-            pt = self.target({la: w[la], lb: w[lb]}, base=bl["base"])
-            bl["points"].append(pt[[a, b]])
+            bl["points"].append(self.target({la: w[la], lb: w[lb]}, base=bl["base"]))
             bl["weights"].append(weight)
         elif "P" in w and not opening:
             raise self.error(f"P without {la} and {lb} is only allowed on the opening G5.2 line")
@@ -767,11 +809,17 @@ class _Reader:
                                              bl["weights"]), bl["plane"], points[-1], line)
 
     def finish_nurbs(self, build, plane: tuple, last: np.ndarray, line: int) -> None:
-        # LinuxCNC drops nothing: a first control point repeating the start gives a zero
-        # derivative at the start, which the path keeps (see NurbsCurve).
-        self.planar_piece(build, plane, line)
-        self.position = self.position.copy()
-        self.position[list(plane)] = last
+        """Add a G5.2/G6.2 curve whose control points are absolute X..W rows. A first
+        control point repeating the start (LinuxCNC's own examples) gives C'(0) = 0, which
+        the path keeps (see NurbsCurve)."""
+        if not set(plane) <= set(self.axes):
+            raise self.error(f"the curve lies in the {''.join(_AXES[i] for i in plane)} plane but "
+                             f"the path has the axes {''.join(_AXES[i] for i in self.axes)}")
+        curve = self.make(build, line)
+        piece = self.make(lambda: NurbsCurve(curve.degree, curve.knots, curve.control_points[:, self.axes],
+                                             curve.weights, name=f"line {line}"), line)
+        self.add_piece(piece, line, piece.length if self.inverse_time else None)
+        self.position = np.array(last, dtype=float)
 
     # -- G6.2 (LinuxCNC) / G06.2 (Fanuc)
     def g6_point(self, w: dict, opening: bool) -> None:
@@ -804,15 +852,15 @@ class _Reader:
         if la in w or lb in w:
             if bl["tail"]:
                 raise self.error("G6.2 control point after the knot-only blocks")
-            point = self.target({x: w[x] for x in (la, lb) if x in w})[[a, b]]
-            here = self.position[[a, b]]
+            point = self.target({x: w[x] for x in (la, lb) if x in w})
+            here = self.position
             if opening and np.max(np.abs(point - here)) > 1e-9 * max(1.0, np.max(np.abs(point))):
-                raise self.error(f"the first G6.2 control point {point.tolist()} is not the current "
-                                 f"position {here.tolist()}")
+                raise self.error(f"the first G6.2 control point {point[[a, b]].tolist()} is not the "
+                                 f"current position {here[[a, b]].tolist()}")
             bl["points"].append(point)
             bl["weights"].append(weight)
         elif opening:
-            bl["points"].append(self.position[[a, b]].copy())
+            bl["points"].append(self.position.copy())
             bl["weights"].append(weight)
         else:
             bl["tail"] += 1

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 import re
-from bisect import bisect_right
+from bisect import bisect_left, bisect_right
 from dataclasses import dataclass
 from typing import Callable, Iterator
 
@@ -101,6 +101,7 @@ def split_lines(data: bytes, source: str) -> list[str]:
 _PLAIN = re.compile(r"(?:[a-z][+-]?(?:\d+\.?\d*|\.\d+))*\Z")
 _PLAIN_WORD = re.compile(r"([a-z])([+-]?(?:\d+\.?\d*|\.\d+))")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
+_DOLLAR_WORD = re.compile(r"\$[+-]?[0-9.]")  # LinuxCNC's spindle selector $n (GRBL: $H, $$, $x=v)
 _OWORD = re.compile(r"o(<[^>]*>|\d+)([a-z]+)")
 _FUNCTIONS = {
     "abs": abs, "acos": lambda x: math.degrees(math.acos(x)),
@@ -246,7 +247,7 @@ class _Parser:
                 target = self.parameter()
                 self.expect("=")
                 assigns.append((target, self.value()))
-            elif "a" <= ch <= "z":
+            elif "a" <= ch <= "z" or ch in "@^$":
                 self.i += 1
                 words.append((ch, self.value()))
             else:
@@ -336,7 +337,7 @@ class Program:
                 return ("o", label, kw, tuple(args))
             raise p.error(f"cannot read the O-word {code[:20]!r} (expected o<name> or o123 "
                           "followed by sub, call, if, while, ...)")
-        if code.startswith("$"):
+        if code.startswith("$") and not _DOLLAR_WORD.match(code):
             return ("skip", "GRBL '$' settings line")
         words, assigns = p.words()
         return ("w", words, tuple(assigns))
@@ -418,7 +419,7 @@ class Program:
 
     def _is_do_while(self, label: str, index: int) -> bool:
         marks = self.olabels.get(label, [])
-        j = bisect_right(marks, (index, "")) - 1
+        j = bisect_left(marks, (index, ""))  # this while's own mark
         return j > 0 and marks[j - 1][1] == "do"
 
     def blocks(self) -> Iterator[Block]:
@@ -462,7 +463,7 @@ class Program:
                     yield Block(line, tuple(g), tuple(m), rest)
                 continue
             if item[0] == "skip":
-                yield Block(line, (), (), {"$": 0.0})
+                yield Block(line, (), (), {"$$": 0.0})
                 continue
             _, label, kw, args = item
             here = pc - 1
