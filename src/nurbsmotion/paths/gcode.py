@@ -74,6 +74,7 @@ import numpy as np
 
 from .._io import check_input_file, write_output
 from ..errors import InvalidCurveError, PathFileError
+from ..feed import FeedLimit
 from ..joining import bezier_segments, elevate_degree, join_with_edges
 from ..nurbs import NurbsCurve, make_polyline
 from .ngc import MAX_LINE_LENGTH, Program, split_lines
@@ -122,6 +123,17 @@ class GcodeContour:
     def feed(self) -> np.ndarray:
         """Programmed feed of each piece [program units / s], shape (n_pieces,)."""
         return self.programmed_feed / 60.0
+
+    @property
+    def feed_limit(self) -> FeedLimit:
+        """The programmed feed as a :class:`~nurbsmotion.feed.FeedLimit` [program units / s]
+        (pieces whose edges coincide to rounding merged, keeping the lower feed)."""
+        edges, feed = np.asarray(self.piece_edges, float), self.feed
+        keep = np.concatenate([[True], np.diff(edges) > 0])
+        keep[-1] = True
+        idx = np.flatnonzero(keep)
+        speeds = np.minimum.reduceat(feed, idx[:-1]) if len(idx) > 1 else feed[:1]
+        return FeedLimit(edges[idx], speeds[: len(idx) - 1])
 
     def feed_at(self, u) -> np.ndarray:
         """Programmed feed [program units / s] of the piece containing each ``u`` in
