@@ -166,7 +166,11 @@ def test_run_reads_a_gcode_contour(tmp_path):
     assert main(["run", "examples/butterfly.ngc#1", "--feed", "0.05m/s", "--out",
                  str(tmp_path), "--no-figures"]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["path"] == "examples/butterfly.ngc#1" and summary["feed"] == 5e4
+    # the file's F600 (10 mm/s = 1e4 pulse/s) is lower than --feed: it rules (issue 11)
+    assert summary["path"] == "examples/butterfly.ngc#1" and summary["feed"] == 1e4
+    assert summary["feed_used"] == ("the lower of the file's programmed feed (10000 pulse/s) and "
+                                    "--feed 50000 pulse/s per piece: its lowest value (paper "
+                                    "takes one feed)")
 
 
 def test_bound_prints_the_time_optimal_bound(capsys):
@@ -176,3 +180,46 @@ def test_bound_prints_the_time_optimal_bound(capsys):
     assert main(["bound", "examples/butterfly.toml", "--machine", "examples/die_bonder.toml",
                  "--feed", "50mm/s"]) == 0
     assert float(capsys.readouterr().out) == pytest.approx(382.86 / 50, rel=2e-3)
+
+
+# ---------------------------------------------------------------- path files: units, feed
+def test_contours_lists_index_pieces_length_box_units_and_feed(capsys):
+    from pathlib import Path
+
+    ngc = Path(__file__).resolve().parents[1] / "examples" / "butterfly.ngc"
+    assert main(["contours", str(ngc)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].endswith("5 contours (choose one with " + str(ngc) + "#k)")
+    rows = [line for line in out if line.startswith("| ") and line[2].isdigit()]
+    assert [r.split(" | ")[0] for r in rows] == ["| 1", "| 2", "| 3", "| 4", "| 5"]
+    assert all(r.endswith("| mm | F600 mm/min |") for r in rows)
+
+
+def test_gcode_feed_is_optional_and_capped_and_units_override(capsys):
+    from pathlib import Path
+
+    ngc = str(Path(__file__).resolve().parents[1] / "examples" / "butterfly.ngc") + "#4"
+    assert main(["bound", ngc]) == 0
+    programmed = float(capsys.readouterr().out)
+    assert main(["bound", ngc, "--feed", "5mm/s"]) == 0  # lower than F600 = 10 mm/s
+    capped = float(capsys.readouterr().out)
+    assert main(["bound", ngc, "--feed", "1m/s"]) == 0  # higher: the file's F rules
+    assert float(capsys.readouterr().out) == programmed
+    assert capped > 1.9 * programmed
+    # read in inches: 25.4 x longer at the same programmed F (600 in/min = 25.4 x faster)
+    assert main(["bound", ngc, "--units", "in", "--feed", "10mm/s"]) == 0
+    assert float(capsys.readouterr().out) > 20 * capped
+    assert main(["bound", "die-bonder-pi"]) == 2
+    assert "--feed is required: die-bonder-pi gives no programmed feed" in capsys.readouterr().err
+
+
+def test_warnings_are_one_line_without_source_echo(tmp_path, capsys):
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text("G0 X0 Y0\nM3 S1000\nG1 X5 F100\nM2\n")
+    assert main(["contours", str(ngc)]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        f"nurbsmotion: warning: {ngc}, line 2: M3/M4/M5 spindle skipped: it does not change the path",
+        f"nurbsmotion: warning: {ngc}, line 2: S spindle speed skipped: it does not change the path",
+        f"nurbsmotion: warning: {ngc}, line 3: no G20/G21 before the first move; reading millimetres (G21)",
+    ]
