@@ -13,6 +13,7 @@ import functools
 import json
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -38,8 +39,9 @@ def linuxcnc_python() -> str | None:
 def linuxcnc_moves(program: Path) -> dict:
     """``{"error": str | None, "moves": [[kind, line, [x..w]], ...]}`` in mm (see the helper)."""
     exe = linuxcnc_python()
-    r = subprocess.run([exe, str(HELPER), str(program)], capture_output=True, text=True,
-                       timeout=120, cwd=program.parent)
+    with tempfile.TemporaryDirectory() as tmp:  # LinuxCNC writes its rs274ngc.var there
+        r = subprocess.run([exe, str(HELPER), str(Path(program).resolve())], capture_output=True,
+                           text=True, timeout=120, cwd=tmp)
     if r.returncode != 0:
         return {"error": r.stderr.strip().splitlines()[-1] if r.stderr.strip() else "failed", "moves": []}
     return json.loads(r.stdout)

@@ -297,6 +297,12 @@ class _Reader:
         self._g5_pq: np.ndarray | None = None
         self.line = 0
         self.program: Program | None = None
+        self.frame_changes = 0  # bumped by blocks that change offsets or the coordinate system
+        self._frame_key = None
+        self._frame = self._identity = None
+        self.on_path = np.zeros(9, bool)
+        self.on_path[self.axes] = True
+        self._k = None  # (input inch, output units) -> lengths()
 
     # -- helpers
     def error(self, message: str, line: int | None = None) -> PathFileError:
@@ -325,7 +331,17 @@ class _Reader:
 
     def frame(self) -> tuple[np.ndarray, np.ndarray, float]:
         """The active G5x offset, G92 offset (X..W, [output units]) and XY rotation [deg]
-        (parameters #5221.. per system, #5211.., #5210), as LinuxCNC keeps them."""
+        (parameters #5221.. per system, #5211.., #5210), as LinuxCNC keeps them; cached
+        until a block or an assignment changes them."""
+        key = (self.program.frame_version, self.frame_changes)
+        if self._frame_key != key:
+            self._frame = self._read_frame()
+            self._frame_key = key
+            g5x, g92, rot = self._frame
+            self._identity = not (rot or np.any(g5x) or np.any(g92))
+        return self._frame
+
+    def _read_frame(self) -> tuple[np.ndarray, np.ndarray, float]:
         n = self.program.numbered
         system = int(n[5220]) or 1
         base = 5201 + 20 * system
@@ -335,6 +351,8 @@ class _Reader:
     def to_program(self, p: np.ndarray) -> np.ndarray:
         """Absolute (machine) coordinates -> program coordinates (LinuxCNC's unrotate)."""
         g5x, g92, rot = self.frame()
+        if self._identity:
+            return p.copy()
         q = p - g5x
         if rot:
             c, s = math.cos(math.radians(rot)), math.sin(math.radians(rot))
@@ -344,6 +362,8 @@ class _Reader:
     def to_absolute(self, q: np.ndarray) -> np.ndarray:
         """Program coordinates (shape (..., 9)) -> absolute: + G92, rotate XY, + G5x."""
         g5x, g92, rot = self.frame()
+        if self._identity:
+            return q
         p = q + g92
         if rot:
             c, s = math.cos(math.radians(rot)), math.sin(math.radians(rot))
@@ -375,7 +395,9 @@ class _Reader:
     def lengths(self) -> np.ndarray:
         """Factor from the words' units to output units for X..W (1 for rotary A B C)."""
         k = self.scale()
-        return np.array([k, k, k, 1.0, 1.0, 1.0, k, k, k])
+        if self._k is None or self._k[0] != k:
+            self._k = (k, np.array([k, k, k, 1.0, 1.0, 1.0, k, k, k]))
+        return self._k[1]
 
     def target(self, words: dict, base: np.ndarray | None = None, machine: bool = False) -> np.ndarray:
         """End point of a move from its axis words [absolute, output units]: absolute under
@@ -406,23 +428,26 @@ class _Reader:
         return self.to_absolute(end)
 
     def add_piece(self, piece, line: int, length: float | None = None) -> None:
-        """Add a piece with the feed in force; under G93 (inverse time) F is 1 / the move's
-        duration [1/min], so the piece's feed is its length times F."""
+        """Add a piece with the feed in force; ``length`` is its arc length where known
+        exactly (a line, an arc). Under G93 (inverse time) F is 1 / the move's duration
+        [1/min], so the piece's feed is its length times F."""
         feed = self.feed
         if self.inverse_time:
             if not self.f_on_line:
                 raise self.error("inverse-time feed (G93) needs an F word on every feed move")
+            if length is None:
+                length = piece.length
             feed = self.feed_word * length
         if feed <= 0:
             raise self.error("feed move without a feed rate: no F word (or F0) before it", line)
-        self.pieces.append((piece, line, feed))
+        self.pieces.append((piece, line, feed, length))
 
-    def add_curve(self, curve: NurbsCurve, line: int) -> None:
+    def add_curve(self, curve: NurbsCurve, line: int, length: float | None = None) -> None:
         """Add a piece given in program coordinates X..W (9 columns)."""
         P = self.to_absolute(curve.control_points)
         piece = self.make(lambda: NurbsCurve(curve.degree, curve.knots, P[:, self.axes],
                                              curve.weights, name=f"line {line}"), line)
-        self.add_piece(piece, line, piece.length if self.inverse_time else None)
+        self.add_piece(piece, line, length)
 
     def make(self, build, line: int):
         try:
@@ -434,8 +459,8 @@ class _Reader:
         if not self.pieces:
             return
         name = f"{Path(self.source).stem}#{len(self.contours) + 1}"
-        runs, run_lines = [], []  # consecutive lines become one polyline
-        for piece, line, feed in self.pieces:
+        runs, run_lines, known = [], [], []  # consecutive lines become one polyline
+        for piece, line, feed, length in self.pieces:
             if isinstance(piece, tuple):
                 if runs and isinstance(runs[-1], list):
                     runs[-1].append(piece[2])
@@ -446,14 +471,22 @@ class _Reader:
             else:
                 runs.append(piece)
                 run_lines.append([(line, feed)])
-        curves = [make_polyline(np.array(r)[:, self.axes]) if isinstance(r, list) else r for r in runs]
+            known.append(length)
+        curves = []
+        for k, r in enumerate(runs):
+            if isinstance(r, list):
+                P = np.array(r)[:, self.axes]
+                curves.append(make_polyline(P))
+                known[k] = float(np.sum(np.linalg.norm(np.diff(P, axis=0), axis=1)))
+            else:
+                curves.append(r)
         try:
             if len(curves) == 1:
                 c = curves[0]
                 curve = NurbsCurve(c.degree, c.knots, c.control_points, c.weights, name=name, units=self.units)
                 edges = np.array([0.0, 1.0])
             else:
-                curve, edges = join_with_edges(curves, name=name, units=self.units)
+                curve, edges = join_with_edges(curves, name=name, units=self.units, lengths=known)
         except InvalidCurveError as exc:
             raise self.error(f"cannot join the moves into one path: {exc}", self.pieces[0][1]) from None
         all_edges, feeds, lines = [0.0], [], []
@@ -497,6 +530,7 @@ class _Reader:
                 self.plane = g
             elif g in _COORD_SYSTEMS:
                 self.program.numbered[5220] = float(_COORD_SYSTEMS[g])
+                self.frame_changes += 1
             elif g in (10.0, 28.0, 28.1, 30.0, 30.1, 53.0, 92.0, 92.1, 92.2, 92.3):
                 if special is not None:
                     raise self.error(f"two codes of group 0 on one line: {_g_name(special)} and {_g_name(g)}")
@@ -552,6 +586,7 @@ class _Reader:
             self.motion = motion
         if special is not None:
             self.non_modal(special, rest)
+            self.frame_changes += 1
             rest = {}
 
         if motion == "G5.3":
@@ -636,9 +671,8 @@ class _Reader:
         end = self.target(w, machine=machine)
         start = self.position
         changed = end != start
-        on_path = np.zeros(9, bool)
-        on_path[self.axes] = True
-        moves_path, moves_other = bool(np.any(changed & on_path)), bool(np.any(changed & ~on_path))
+        on_path = self.on_path
+        moves_path, moves_other = bool((changed & on_path).any()), bool((changed & ~on_path).any())
         line = self.line
         if kind == "G0":
             if moves_path or moves_other:
@@ -653,7 +687,7 @@ class _Reader:
             self.end_contour()  # a plunge or lift of an axis outside the path ends the contour
         elif kind == "G1":
             if moves_path:
-                length = float(np.linalg.norm((end - start)[self.axes]))
+                length = math.dist(end[self.axes], start[self.axes]) if self.inverse_time else None
                 self.add_piece(("line", start, end), line, length)
         elif kind in ("G2", "G3"):
             self.arc(w, start, end)
@@ -721,8 +755,9 @@ class _Reader:
         linear = bool(np.any(np.delete(pe != ps, [i1, i2])))
         if not linear and diff <= 1e-12 * r1:
             build = lambda: arc_by_center(s2, e2, center, clockwise=clockwise, turns=int(turns))
-            for piece in self.make(build, line):
-                self.add_curve(_embed(piece, ps, (i1, i2)), line)
+            for piece in self.make(build, line):  # rational quadratics: sweep 2 acos(w_mid) each
+                sweep = 2.0 * float(np.sum(np.arccos(np.clip(piece.weights[1::2], -1.0, 1.0))))
+                self.add_curve(_embed(piece, ps, (i1, i2)), line, r1 * sweep)
             return
         a0 = math.atan2(s2[1] - center[1], s2[0] - center[0])
         a1 = math.atan2(e2[1] - center[1], e2[0] - center[0])

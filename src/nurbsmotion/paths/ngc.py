@@ -298,6 +298,7 @@ class Program:
         self.numbered = [0.0] * _N_NUMBERED
         self.globals = dict(_SYSTEM_PARAMETER_DEFAULTS)
         self.frames = [{}]  # named locals per call level
+        self.frame_version = 0  # bumped when a parameter of #5160..#5399 is assigned
 
     # -- parsing
     def _parse(self, text: str, line: int):
@@ -398,7 +399,10 @@ class Program:
         if target[0] == "<":
             self.set_named(target[1], value)
         else:
-            self.numbered[self.index(self.eval(target[1], line), line)] = value
+            k = self.index(self.eval(target[1], line), line)
+            self.numbered[k] = value
+            if 5160 <= k < 5400:  # home positions, offsets, rotations: the motion layer's frame
+                self.frame_version += 1
 
     # -- execution
     def _next_mark(self, label: str, index: int, kinds: tuple, line: int) -> tuple[int, str]:
