@@ -2,36 +2,42 @@
 
 Reading
 -------
-:func:`load_gcode` reads the motion of a program in the XY plane and returns a
+:func:`load_gcode` reads the motion of a program along the path axes and returns a
 :class:`GcodeProgram`: the *contours* it cuts, each one :class:`NurbsCurve` built by
 :func:`nurbsmotion.joining.join` from the program's feed moves, plus the programmed feed
 of every piece.
 
 What is read
-    ``G0`` rapid and ``G1`` linear moves; ``G2``/``G3`` arcs in centre format (``I J``,
-    incremental by default, absolute under ``G90.1``) or radius format (``R``, negative
-    for more than a half turn), with ``P`` turns, as exact rational arcs; ``G5`` cubic
-    and ``G5.1`` quadratic splines (LinuxCNC); ``G5.2``/``G5.3`` NURBS blocks (LinuxCNC);
-    ``G06.2`` NURBS (Fanuc); ``F`` feed (units per minute, ``G94``); ``G20``/``G21``;
-    ``G90``/``G91``; ``G17``; ``N`` line numbers; comments in ``( )`` and after ``;``;
-    ``%`` lines. Accepted because they do not change the XY path: ``G40 G49 G54 G61
-    G61.1 G64 G80 G94``, ``M0 M1 M3 M4 M5 M6 M7 M8 M9``, ``S`` and ``T`` words. ``M2``
-    or ``M30`` ends the program. ``G4`` (dwell) ends the current contour.
-    Anything else (other G/M codes, parameters ``#``, expressions ``[ ]``, O-words, block
-    delete ``/``, a second plane, a helix, inverse-time feed) is a :class:`PathFileError`
-    naming the line: nothing is skipped silently.
+    The language (parameters, expressions, O-word subroutines and control flow) is
+    executed by :mod:`nurbsmotion.paths.ngc`; this module turns the executed blocks into
+    motion, in LinuxCNC's canonical coordinates (G5x + G92 offsets and the XY rotation of
+    ``G10 L2 R`` applied, as AXIS draws them): ``G0`` and ``G1``; ``G2``/``G3`` in the
+    G17/G18/G19 plane in centre format (incremental, or absolute under ``G90.1``) or radius
+    format, with ``P`` turns, as exact rational arcs, as a helix (C1 cubic pieces within
+    :data:`HELIX_TOLERANCE` of the radius) when another axis moves along, or as a spiral
+    when the end radius differs from the start radius within LinuxCNC's tolerance; ``G5``
+    and ``G5.1`` (XY); ``G5.2``/``G5.3`` and ``G6.2`` (``P`` order, ``Q`` method, ``K``
+    knots, ``R`` weights; Fanuc ``G06.2`` alike) in the XY, YZ and ZX planes; ``F`` under
+    ``G94`` (units per minute) or ``G93`` (inverse time); ``G20``/``G21``; ``G90``/``G91``;
+    ``G53``; ``G54``-``G59.3``; ``G10 L2/L20``; ``G92``, ``G92.1``/``.2``/``.3``;
+    ``G28``/``G30`` (a rapid through the given point to the stored home: a new contour);
+    polar ``@``/``^``. Words that do not change the path are skipped, each kind reported
+    once as a :class:`GcodeWarning` (one line). ``M2``/``M30`` end the program; ``G4``
+    (dwell) ends the contour. What would change the path but is not read (cutter
+    compensation, canned cycles, spindle-synchronised motion, probing, UVW planes) is a
+    :class:`PathFileError` naming the line.
 
 Contours
-    A 2-axis XY path cannot hold a lift or a plunge. A contour is therefore a maximal run
-    of XY feed moves at a constant Z; a rapid move (``G0``) or any move that changes Z
-    ends it, and the next feed move starts a new one. A feed move that changes X/Y and Z
-    together (a ramp or helix) is refused. The sample ``examples/butterfly.ngc`` thus gives
-    five contours. :func:`nurbsmotion.paths.resolve_path` asks the user to pick one
-    (``file.ngc#k``) when there are several, rather than guessing.
+    The machine's axes decide which coordinates form the path (``axes``, default
+    ``"xy"``). A contour is a maximal run of feed moves of those axes; a rapid move, or a
+    move of an axis outside the path, ends it. A feed move of an outside axis together with
+    path axes (a helix on a 2-axis machine, a rotary axis) is refused, naming the machine
+    that could follow it. :func:`nurbsmotion.paths.resolve_path` asks the user to pick one
+    contour (``file.ngc#k``) when there are several, rather than guessing.
 
 LinuxCNC G5.2 (2.9, read from ``interp_convert.cc`` and ``nurbs_additional_functions.cc``)
     The current position is the first control point; ``G5.2 P-`` without X/Y sets its
-    weight. Every later point needs X, Y and a positive P. ``L`` sets the order only when
+    weight (a first listed point equal to it repeats it: C'(0) = 0, kept as given). Every later point needs X, Y and a positive P. ``L`` sets the order only when
     ``L > 3`` (default 3, i.e. quadratic). The knot vector is implicit and open-uniform
     over integers: ``k`` zeros, ``1 .. n-k+1``, ``k`` times ``n-k+2`` for ``n + 1``
     control points of order ``k`` (``knot_vector_creator``). Under ``G91`` every control
