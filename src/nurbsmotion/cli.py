@@ -119,9 +119,14 @@ def _setup_warnings() -> None:
     import logging
     import warnings
 
+    class _Stderr(logging.Handler):  # the stderr of the moment (tests swap it)
+        def emit(self, record):
+            print(self.format(record), file=sys.stderr)
+
     log = logging.getLogger("nurbsmotion")
-    if not log.handlers:
-        handler = logging.StreamHandler()
+    if not any(getattr(h, "nurbsmotion_cli", False) for h in log.handlers):
+        handler = _Stderr()
+        handler.nurbsmotion_cli = True
         handler.setFormatter(logging.Formatter("nurbsmotion: warning: %(message)s"))
         log.addHandler(handler)
         log.propagate = False
