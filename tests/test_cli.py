@@ -100,10 +100,11 @@ def test_errors_are_one_clear_line(tmp_path, capsys, args, message):
     bad_json.write_text('{"degree": 1,\n "knots": [0, 0, 1, 1,\n}')
     bad_curve = tmp_path / "bad_curve.json"
     bad_curve.write_text(json.dumps({"degree": 1, "knots": [0, 0, 1, 1],
-                                     "control_points": [[0, 0], [1, 1]], "weights": [1, -1]}))
+                                     "control_points": [[0, 0], [1, 1]], "weights": [1, -1],
+                                     "units": "mm"}))
     three = tmp_path / "three.json"
     three.write_text(json.dumps({"degree": 1, "knots": [0, 0, 1, 1],
-                                 "control_points": [[0, 0, 0], [1, 1, 1]]}))
+                                 "control_points": [[0, 0, 0], [1, 1, 1]], "units": "mm"}))
     out = tmp_path / "out"
     fmt = dict(out=out, bad_json=bad_json, bad_curve=bad_curve, three_axes=three)
     assert main([a.format(**fmt) for a in args]) == 2

@@ -4,8 +4,8 @@
 ``s(u)``, ``u(s)``, the total length and the list of sharp corners.
 
 Arc length is integrated with 10-point Gauss-Legendre quadrature on an adaptive partition
-of every knot span (a piece is split until the rule and the rule on its two halves agree to
-1e-13 of the total length and C' does not reverse inside it), so ``s(u)`` is accurate to
+of every knot span, split also where C' = 0 (a piece is split until the rule and the rule
+on its two halves agree to 1e-13 of the total length and C' does not reverse inside it), so ``s(u)`` is accurate to
 well below 1e-9 relative. The inverse ``u(s)`` is found by safeguarded Newton iteration
 inside the bracketing piece.
 
@@ -79,7 +79,9 @@ class CurveGeometry:
 
     def __init__(self, curve, rtol: float = 1e-13):
         self.curve = curve
-        bp = curve.breakpoints
+        # |C'| has a kink where C' = 0 (a cusp, a reversal): split there too, so that no
+        # quadrature piece straddles one, however narrow the reversal
+        bp = np.union1d(curve.breakpoints, curve.zero_speed_points)
         a = np.repeat(bp[:-1], 4) + np.tile(np.arange(4) / 4, len(bp) - 1) * np.repeat(
             np.diff(bp), 4
         )

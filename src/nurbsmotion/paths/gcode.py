@@ -332,9 +332,6 @@ class _Reader:
             return 1.0
         return _INCH if self.input_inch else 1.0 / _INCH
 
-    def par(self, k: int) -> float:
-        return self.program.numbered[k]
-
     def frame(self) -> tuple[np.ndarray, np.ndarray, float]:
         """The active G5x offset, G92 offset (X..W, [output units]) and XY rotation [deg]
         (parameters #5221.. per system, #5211.., #5210), as LinuxCNC keeps them; cached
