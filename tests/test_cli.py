@@ -115,10 +115,11 @@ def test_errors_are_one_clear_line(tmp_path, capsys, args, message):
     bad_json.write_text('{"degree": 1,\n "knots": [0, 0, 1, 1,\n}')
     bad_curve = tmp_path / "bad_curve.json"
     bad_curve.write_text(json.dumps({"degree": 1, "knots": [0, 0, 1, 1],
-                                     "control_points": [[0, 0], [1, 1]], "weights": [1, -1]}))
+                                     "control_points": [[0, 0], [1, 1]], "weights": [1, -1],
+                                     "units": "mm"}))
     three = tmp_path / "three.json"
     three.write_text(json.dumps({"degree": 1, "knots": [0, 0, 1, 1],
-                                 "control_points": [[0, 0, 0], [1, 1, 1]]}))
+                                 "control_points": [[0, 0, 0], [1, 1, 1]], "units": "mm"}))
     out = tmp_path / "out"
     fmt = dict(out=out, bad_json=bad_json, bad_curve=bad_curve, three_axes=three)
     assert main([a.format(**fmt) for a in args]) == 2
@@ -200,7 +201,11 @@ def test_run_reads_a_gcode_contour(tmp_path):
     assert main(["run", "examples/butterfly.ngc#1", "--feed", "0.05m/s", "--out",
                  str(tmp_path), "--no-figures"]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["path"] == "examples/butterfly.ngc#1" and summary["feed"] == 5e4
+    # the file's F600 (10 mm/s = 1e4 pulse/s) is lower than --feed: it rules (issue 11)
+    assert summary["path"] == "examples/butterfly.ngc#1" and summary["feed"] == 1e4
+    # every interpolator follows the per-piece limit itself
+    assert summary["feed_used"] == ("the lower of the file's programmed feed (10000 pulse/s) and "
+                                    "--feed 50000 pulse/s per piece")
 
 
 def test_bound_prints_the_time_optimal_bound(capsys):
@@ -294,3 +299,47 @@ def test_trace_options(tmp_path, capsys, monkeypatch):
     size = (tmp_path / "big" / "trace.csv").stat().st_size
     mb = float(err.split(" MB")[0].split("about ")[-1].replace(",", ""))
     assert mb == pytest.approx(size / 1e6, rel=0.2, abs=0.01)
+
+
+# ---------------------------------------------------------------- path files: units, feed
+def test_contours_lists_index_pieces_length_box_units_and_feed(capsys):
+    from pathlib import Path
+
+    ngc = Path(__file__).resolve().parents[1] / "examples" / "butterfly.ngc"
+    assert main(["contours", str(ngc)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].endswith("5 contours (choose one with " + str(ngc) + "#k)")
+    rows = [line for line in out if line.startswith("| ") and line[2].isdigit()]
+    assert [r.split(" | ")[0] for r in rows] == ["| 1", "| 2", "| 3", "| 4", "| 5"]
+    assert all(r.endswith("| mm | F600 mm/min |") for r in rows)
+
+
+def test_gcode_feed_is_optional_and_capped_and_units_override(capsys):
+    from pathlib import Path
+
+    ngc = str(Path(__file__).resolve().parents[1] / "examples" / "butterfly.ngc") + "#4"
+    assert main(["bound", ngc]) == 0
+    programmed = float(capsys.readouterr().out)
+    assert main(["bound", ngc, "--feed", "5mm/s"]) == 0  # lower than F600 = 10 mm/s
+    capped = float(capsys.readouterr().out)
+    assert main(["bound", ngc, "--feed", "1m/s"]) == 0  # higher: the file's F rules
+    assert float(capsys.readouterr().out) == programmed
+    assert capped > 1.9 * programmed
+    # read in inches: 25.4 x longer, capped at 10 mm/s (below F600 in/min): 25.4 / 2 x the
+    # time at 5 mm/s (the feed, not the drive, limits this slow move)
+    assert main(["bound", ngc, "--units", "in", "--feed", "10mm/s"]) == 0
+    assert float(capsys.readouterr().out) == pytest.approx(capped * 25.4 / 2, rel=1e-3)
+    assert main(["bound", "die-bonder-pi"]) == 2
+    assert "--feed is required: die-bonder-pi gives no programmed feed" in capsys.readouterr().err
+
+
+def test_warnings_are_one_line_without_source_echo(tmp_path, capsys):
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text("G0 X0 Y0\nM3 S1000\nG1 X5 F100\nM2\n")
+    assert main(["contours", str(ngc)]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        f"nurbsmotion: warning: {ngc}, line 1: no G20/G21 before the first move; reading millimetres (G21)",
+        f"nurbsmotion: warning: {ngc}, line 2: M3/M4/M5 spindle skipped: it does not change the path",
+        f"nurbsmotion: warning: {ngc}, line 2: S spindle speed skipped: it does not change the path",
+    ]

@@ -202,3 +202,23 @@ def test_every_interpolator_runs_with_every_law():
             tr = run(path, m, 3e5, name)
             assert tr.u[-1] == 1.0 and np.all(np.isfinite(tr.drive))
             assert tr.settled_index is not None, (m.controller, name, tr.message)
+
+
+def test_every_interpolator_keeps_a_per_piece_feed_limit():
+    """The programmed feed of each piece (G-code F) is a speed limit along it for every
+    interpolator: on the Pi's transfer piece at 0.1 m/s and 0.5 m/s elsewhere, the setpoint
+    never moves faster than the piece's limit (first-order steps of paper and taylor1 are
+    exact on these straight-ish spans to a few per cent: 2 % allowance)."""
+    from nurbsmotion.feed import FeedLimit
+
+    m = die_bonder()
+    pi = nm.make_die_bonder_pi()
+    limit = FeedLimit([0.0, 1 / 3, 2 / 3, 1.0], [5e5, 1e5, 5e5])
+    for name in ("taylor1", "paper", "planned"):
+        tr = run(pi, m, limit, name)
+        k = np.arange(1, tr.finished_index)
+        speed = np.linalg.norm(np.diff(tr.position_command, axis=0), axis=1)[k - 1] / 1e-3
+        cap = np.maximum(limit(tr.u[k - 1]), limit(tr.u[k]))  # a step may cross a corner
+        assert np.all(speed <= cap * 1.02 + 1.0), name
+        middle = (tr.u[k - 1] > 0.4) & (tr.u[k - 1] < 0.6)
+        assert np.max(speed[middle]) <= 1e5 * 1.02, name

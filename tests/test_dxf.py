@@ -25,7 +25,11 @@ def drawing():
 def test_spline_round_trip(tmp_path, name):
     curve = builtin_path(name)
     file = save_path(curve, tmp_path / "p.dxf")
-    (back,) = load_dxf(file)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        (back,) = load_dxf(file)
+    assert back.units == "mm"
+    assert bool(caught) == (curve.units != "mm")
     size = np.max(np.ptp(curve.control_points, axis=0))
     assert back.degree == curve.degree
     np.testing.assert_allclose(back.knots, curve.knots, rtol=0, atol=1e-15)
@@ -33,7 +37,7 @@ def test_spline_round_trip(tmp_path, name):
     np.testing.assert_allclose(back.weights, curve.weights, rtol=1e-15)
     u = np.linspace(0, 1, 1001)
     assert np.max(np.abs(back(u) - curve(u))) <= 1e-9 * size
-    assert back.units == ("mm" if curve.units == "mm" else None)  # DXF has no 'pulse'
+    # DXF has no 'pulse': such a drawing declares no unit and reads as mm with a warning
 
 
 def test_lines_arcs_and_bulges_chain_in_any_order_and_direction(tmp_path):
@@ -46,7 +50,7 @@ def test_lines_arcs_and_bulges_chain_in_any_order_and_direction(tmp_path):
     msp.add_text("slot")
     file = tmp_path / "slot.dxf"
     doc.saveas(file)
-    with pytest.warns(DxfWarning, match="ignored annotation entities: 1 TEXT"):
+    with pytest.warns(DxfWarning, match="1 TEXT entity skipped"):
         (c,) = load_dxf(file)
     assert c.units == "mm" and c.name == "slot#1"
     assert c.length == pytest.approx(2 * 20 + 2 * math.pi * 5, rel=1e-12)
@@ -78,12 +82,14 @@ def test_mirrored_arc_and_circle(tmp_path):
 @pytest.mark.parametrize(
     "build,pattern",
     [
-        (lambda msp: msp.add_spline(fit_points=[(0, 0), (1, 1), (2, 0), (3, 1)]), r"SPLINE #\w+ is defined by 4 fit points only"),
-        (lambda msp: msp.add_text("hello"), r"no usable entity"),
-        (lambda msp: msp.add_ellipse((0, 0), (2, 0), 0.5), r"ELLIPSE #\w+: ELLIPSE entities are not supported"),
-        (lambda msp: msp.add_arc((0, 0), 1, 0, 90, dxfattribs={"extrusion": (1, 0, 0)}), r"ARC #\w+ is not in the XY plane"),
-        (lambda msp: msp.add_spline([(0, 0, 0), (1, 1, 1), (2, 0, 0), (3, 1, 0)]).set_closed([(0, 0, 0), (1, 1, 0), (2, 0, 0), (3, 1, 0)]), r"SPLINE #\w+: knot vector is not clamped"),
-        (lambda msp: msp.add_rational_spline([(0, 0), (1, 1), (2, 0)], [1, -1, 1], degree=2), r"SPLINE #\w+: weight 1 is -1"),
+        (lambda msp: msp.add_text("hello"), r"no path entity in the model space"),
+        (lambda msp: msp.add_arc((0, 0), 1, 0, 90, dxfattribs={"extrusion": (1, 0, 0)}), r"ARC #\w+ is not flat: Z runs from"),
+        (lambda msp: msp.add_rational_spline([(0, 0), (1, 1), (2, 0)], [1, -1, 1], degree=2), r"SPLINE #\w+: weights must be finite and > 0"),
+        (lambda msp: msp.add_arc((0, 0), -5, 0, 90), r"ARC #\w+: radius -5 must be > 0"),
+        (lambda msp: msp.add_circle((0, 0), 0), r"CIRCLE #\w+: radius 0 must be > 0"),
+        (lambda msp: msp.add_lwpolyline([(0, 0, 1e300), (1, 0, 0)], format="xyb"), r"LWPOLYLINE #\w+: bulge 1e\+300 is beyond the largest read, 1e\+06"),
+        (lambda msp: msp.add_lwpolyline([(0, 0, math.inf), (1, 0, 0)], format="xyb"), r"LWPOLYLINE #\w+: bulge inf is not finite"),
+        (lambda msp: msp.add_line((0, 0), (1e300, 0)), r"LINE #\w+: a point \[1e\+300, 0.0, 0.0\] is not finite or beyond"),
     ],
 )
 def test_unusable_entities_are_named(tmp_path, build, pattern):
@@ -117,3 +123,175 @@ def test_export_refuses_three_axes(tmp_path):
     with pytest.raises(PathFileError, match="writes XY paths; the curve has 3 axes"):
         save_dxf(c3, tmp_path / "c.dxf")
     assert list(tmp_path.iterdir()) == []
+
+
+# ---------------------------------------------------------------- ezdxf as the reference
+def distance_to(curves, points):
+    from linuxcnc_reference import distances_to_path
+
+    return distances_to_path(np.asarray(points, dtype=float), curves)
+
+
+def ezdxf_points(entity, n: int = 200) -> np.ndarray:
+    """Points of an entity as ezdxf itself evaluates it, shape (n, 3)."""
+    kind = entity.dxftype()
+    if kind == "SPLINE":
+        tool = entity.construction_tool()
+        return np.array(list(tool.points(np.linspace(tool.knots()[tool.degree], tool.knots()[-tool.degree - 1], n))))
+    if kind == "ELLIPSE":
+        e = entity.construction_tool()
+        t1 = e.end_param if e.end_param > e.start_param else e.end_param + 2 * math.pi
+        return np.array(list(e.vertices(np.linspace(e.start_param, t1, n))))
+    if kind in ("ARC", "CIRCLE"):  # ezdxf's vertices() in WCS at angles in degrees
+        if kind == "CIRCLE":
+            return np.array(list(entity.vertices(np.linspace(0.0, 360.0, n))))
+        a0, a1 = entity.dxf.start_angle, entity.dxf.end_angle
+        a1 = a1 if a1 > a0 else a1 + 360.0
+        return np.array(list(entity.vertices(np.linspace(a0, a1, n))))
+    return np.array([tuple(v) for v in entity.flattening(0.001)]) if hasattr(entity, "flattening") else None
+
+
+def closed(spline, points, degree, weights=None):
+    if weights is None:
+        spline.set_closed(points, degree=degree)
+    else:
+        spline.set_closed_rational(points, weights, degree=degree)
+    return spline
+
+
+@pytest.mark.parametrize("build", [
+    lambda msp: msp.add_spline(fit_points=[(0, 0), (1, 1), (2, 0), (3, 1), (5, -2)]),
+    lambda msp: msp.add_ellipse((1, 2), (3, 1), 0.4, start_param=0.3, end_param=4.0),
+    lambda msp: msp.add_ellipse((0, 0, 0), (2, 0, 0), 0.5),
+    lambda msp: closed(msp.add_spline(), [(0, 0, 0), (4, 0, 0), (5, 3, 0), (2, 5, 0), (-1, 3, 0)], degree=3),
+    lambda msp: closed(msp.add_spline(), [(0, 0, 0), (4, 0, 0), (5, 3, 0), (2, 5, 0), (-1, 3, 0)], degree=2,
+                       weights=[1, 2, 0.5, 1, 3]),
+    lambda msp: msp.add_open_spline([(0, 0), (4, 0), (5, 3), (2, 5), (-1, 3)], degree=3),
+    lambda msp: msp.add_arc((3, 4), 2.5, 200, 30),
+], ids=["fit-points", "elliptic-arc", "ellipse", "closed-periodic", "closed-rational", "open-unclamped", "arc-wrapping"])
+def test_entities_equal_ezdxfs_evaluation(tmp_path, build):
+    """Each curve entity's path passes through ezdxf's own points within 1e-9 of its size."""
+    doc, msp = drawing()
+    entity = build(msp)
+    file = tmp_path / "e.dxf"
+    doc.saveas(file)
+    (curve,) = load_dxf(file)
+    pts = ezdxf_points(entity)[:, :2]
+    size = np.max(np.ptp(pts, axis=0))
+    assert np.max(distance_to([curve], pts)) <= 1e-9 * size
+    # and the ends are ezdxf's ends
+    np.testing.assert_allclose(curve(np.array([0.0, 1.0])), pts[[0, -1]], atol=1e-9 * size)
+
+
+def test_r12_polyline_with_bulges_and_3d_entities(tmp_path):
+    doc = ezdxf.new("R12")
+    msp = doc.modelspace()
+    msp.add_polyline2d([(0, 0, 0, 0, 1.0), (10, 0, 0, 0, 0), (10, 5)], format="xyseb")
+    msp.add_line((10, 5, 0), (10, 5, 3))
+    msp.add_polyline3d([(10, 5, 3), (12, 6, 4), (12, 6, 8)])
+    file = tmp_path / "r12.dxf"
+    doc.saveas(file)
+    with pytest.warns(DxfWarning, match=r"declares no unit \(\$INSUNITS 0\); reading millimetres"):
+        (c3,) = load_dxf(file, axes="xyz")
+    assert c3.units == "mm" and c3.n_axes == 3
+    half = math.pi * 5  # the bulge-1 segment: a half circle of diameter 10
+    assert c3.length == pytest.approx(half + 5 + 3 + math.sqrt(5 + 1) + 4, rel=1e-12)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DxfWarning)
+        with pytest.raises(PathFileError, match=r"LINE #\w+ is not flat: Z runs from 0 to 3; a machine with a Z axis"):
+            load_dxf(file)
+
+
+def test_degenerate_entities_are_skipped_and_annotations_warned_once_per_kind(tmp_path):
+    doc, msp = drawing()
+    for _ in range(300):
+        msp.add_line((1, 1), (1, 1))
+        msp.add_text("t")
+    msp.add_mtext("m")
+    msp.add_point((0, 0))
+    msp.add_line((0, 0), (3, 4))
+    file = tmp_path / "d.dxf"
+    doc.saveas(file)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        (c,) = load_dxf(file)
+    messages = [str(w.message) for w in caught if issubclass(w.category, DxfWarning)]
+    assert c.length == pytest.approx(5.0, rel=1e-15)
+    assert sorted(m.split(": ", 1)[1] for m in messages) == [
+        "1 MTEXT entity skipped (not a path)", "1 POINT entity skipped (not a path)",
+        "300 LINE entities of zero length skipped", "300 TEXT entities skipped (not a path)"]
+    assert all("\n" not in m for m in messages)
+
+
+def test_corrupted_dxf_gives_one_line(tmp_path):
+    doc, msp = drawing()
+    msp.add_line((0, 0), (1, 1))
+    file = tmp_path / "c.dxf"
+    doc.saveas(file)
+    text = file.read_text()
+    cut = tmp_path / "cut.dxf"
+    cut.write_text(text[: len(text) // 3])
+    bad = tmp_path / "bad.dxf"
+    bad.write_text(text.replace("AcDbLine\n 10\n", "AcDbLine\n 10\nnot-a-number\n", 1))
+    for f in (cut, bad):
+        try:
+            load_dxf(f)
+        except PathFileError as exc:
+            assert "\n" not in str(exc) and str(exc).startswith(str(f))
+
+
+# ---------------------------------------------------------------- real-world drawings
+CORPUS = __import__("pathlib").Path(__file__).resolve().parent / "data" / "corpus"
+# "ok: axes" (loads on a machine with these axes) or the reason the file gives for a refusal
+DXF_EXPECTED = {
+    "bjnortier_circlesellipsesarcs.dxf": "ok: xy",
+    "bjnortier_dimensions.dxf": "ok: xy",  # DIMENSION entities skipped with a warning
+    "bjnortier_elliptical-arc1.dxf": "ok: xy",
+    "bjnortier_ellipticalarcs.dxf": "ok: xy",
+    "bjnortier_lwpolylines.dxf": "ok: xy",
+    "bjnortier_splineA.dxf": "ok: xy",
+    "bjnortier_splines.dxf": "ok: xy",
+    "ezdxf_ASCII_R12.dxf": "ok: xy",  # an INSERT skipped with a warning
+    "ezdxf_Leica_Disto_S910.dxf": "ok: xyz",  # 3-D lines from a laser meter
+    "ezdxf_POLI-ALL210_12.DXF": "ok: xyz",  # R12 3-D polylines
+    "ezdxf_AC1003_LINE_Example.dxf": r"cannot read DXF: Missing required y coordinate near line: 60\.",
+    "ezdxf_circle_radius_le_0.dxf": r"CIRCLE #2D: radius 0 must be > 0",
+}
+
+
+@pytest.mark.parametrize("path", sorted(p for p in CORPUS.iterdir() if p.suffix.lower() == ".dxf"),
+                         ids=lambda p: p.name)
+def test_every_corpus_drawing_loads_or_is_refused_for_its_own_reason(path):
+    expected = DXF_EXPECTED[path.name]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        if expected.startswith("ok: "):
+            contours = load_dxf(path, axes=expected[4:])
+            assert contours and all(c.length > 0 for c in contours)
+            assert all(c.n_axes == len(expected[4:]) for c in contours)
+        else:
+            with pytest.raises(PathFileError, match=expected) as info:
+                load_dxf(path)
+            assert "\n" not in str(info.value)
+    assert all("\n" not in str(w.message) for w in caught)
+
+
+@pytest.mark.parametrize("path", sorted(p for p in CORPUS.iterdir() if p.suffix.lower() == ".dxf"
+                                        and DXF_EXPECTED[p.name].startswith("ok")), ids=lambda p: p.name)
+def test_corpus_entities_equal_ezdxfs_evaluation(path):
+    """Every curve entity of the drawing lies on the read contours, within 1e-9 of the
+    drawing size, at ezdxf's own points of it."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        axes = DXF_EXPECTED[path.name][4:]
+        contours = load_dxf(path, axes=axes)
+        doc = ezdxf.readfile(path)
+    size = max(np.max(np.ptp(c.control_points, axis=0)) for c in contours)
+    size = max(size, max(np.max(np.abs(c.control_points)) for c in contours))
+    worst = 0.0
+    for e in doc.modelspace():
+        if e.dxftype() not in ("SPLINE", "ELLIPSE", "ARC", "CIRCLE"):
+            continue
+        pts = ezdxf_points(e, 50)[:, : len(axes)]
+        worst = max(worst, float(np.max(distance_to(contours, pts))))
+    assert worst <= 1e-9 * size

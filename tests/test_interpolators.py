@@ -98,17 +98,17 @@ def test_feed_function_that_stops_is_an_error_not_a_hang():
 def test_piecewise_feed_keeps_each_interval_s_speed():
     """A feed of 2,000 on the first half of a polyline's parameter and 500 on the rest:
     1st-order steps on straight spans travel exactly V*Ts."""
-    from types import SimpleNamespace
+    from nurbsmotion.feed import FeedLimit
 
     path = nm.make_polyline([[0, 0], [100, 0], [100, 100]])
-    feed = SimpleNamespace(breaks=[0.0, 0.5, 1.0], values=[2000.0, 500.0])
+    feed = FeedLimit([0.0, 0.5, 1.0], [2000.0, 500.0])
     series = interpolate(TaylorInterpolator(path, 1e-3, feed, order=1))
     steps = np.diff(path.arc_length(series.u))
     first = series.u[:-1] < 0.5
     np.testing.assert_allclose(steps[first][:-1], 2.0, rtol=1e-9)
     np.testing.assert_allclose(steps[~first][:-1], 0.5, rtol=1e-9)
-    with pytest.raises(InfeasibleError, match="breaks rising from 0 to 1"):
-        TaylorInterpolator(path, 1e-3, SimpleNamespace(breaks=[0.0, 1.0], values=[1.0, 2.0]))
+    with pytest.raises(nm.NurbsmotionError, match="breakpoints"):
+        TaylorInterpolator(path, 1e-3, FeedLimit([0.0, 1.0], [1.0, 2.0]))
 
 
 def test_bad_sample_period_and_method():

@@ -11,6 +11,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from . import units
 from .errors import NurbsmotionError
 from .interpolators import LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
@@ -29,10 +31,89 @@ def parse_feed(text: str) -> tuple[float, str | None]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _load_path(spec: str):
-    from .paths import resolve_path
+def _contour(args, machine: Machine | None = None):
+    """The path named on the command line with its programmed feed (a ``Contour``): read
+    with ``--units`` and, for G-code and DXF, the machine's axes (XY without a machine)."""
+    from .paths import resolve_contour
 
-    return resolve_path(spec)
+    names = [a.lower() for a in machine.axis_names] if machine is not None else ["x", "y"]
+    axes = "".join(names) if all(len(a) == 1 and a in "xyzabcuvw" for a in names) else "xy"
+    return resolve_contour(args.path, axes=axes, units=args.units)
+
+
+def _feed_used(args, contour, cap, scale: float, unit: str):
+    """The feed a command runs at, and a sentence saying which it is.
+
+    ``cap`` is ``--feed`` in the target unit (None if not given), ``scale`` converts the
+    path's units to the target unit (``unit``, e.g. ``"pulse/s"``). Where the file gives a
+    feed (G-code F), it is the limit along the path and ``--feed`` caps it (the lower of the
+    two per piece); where it gives none, ``--feed`` is required.
+
+    Returns
+    -------
+    feed : float or FeedLimit
+    note : str
+    """
+    programmed = contour.feed
+    if programmed is None:
+        if cap is None:
+            raise NurbsmotionError(f"--feed is required: {args.path} gives no programmed feed")
+        return cap, f"--feed {cap:.6g} {unit}"
+    limit = programmed.scaled(scale)
+    span = (f"{limit.lowest:.6g}" if limit.lowest == limit.highest
+            else f"{limit.lowest:.6g} to {limit.highest:.6g}")
+    if cap is None:
+        return limit, f"the file's programmed feed ({span} {unit})"
+    capped = limit.capped(cap)
+    return capped, f"the lower of the file's programmed feed ({span} {unit}) and --feed {cap:.6g} {unit} per piece"
+
+
+def _setup_warnings() -> None:
+    """Warnings (G-code, DXF, path files) as one line each on stderr through ``logging``,
+    without Python's source-line echo (``main`` restores the previous display after)."""
+    import logging
+    import warnings
+
+    class _Stderr(logging.Handler):  # the stderr of the moment (tests swap it)
+        def emit(self, record):
+            print(self.format(record), file=sys.stderr)
+
+    log = logging.getLogger("nurbsmotion")
+    if not any(getattr(h, "nurbsmotion_cli", False) for h in log.handlers):
+        handler = _Stderr()
+        handler.nurbsmotion_cli = True
+        handler.setFormatter(logging.Formatter("nurbsmotion: warning: %(message)s"))
+        log.addHandler(handler)
+        log.propagate = False
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        log.warning(" ".join(str(message).split()))
+
+    warnings.showwarning = show
+
+
+def _cmd_contours(args) -> int:
+    from .paths import load_contours
+
+    contours = load_contours(args.path, axes=args.axes, units=args.units)
+    print(f"{args.path}: {len(contours)} contour{'s' if len(contours) != 1 else ''} "
+          f"(choose one with {args.path}#k)")
+    print("| # | pieces | length | bounding box | units | programmed feed |")
+    print("|---|---|---|---|---|---|")
+    for k, c in enumerate(contours, start=1):
+        curve = c.curve
+        pts = curve(np.linspace(0.0, 1.0, 64 * max(curve.n_control_points, 2)))
+        box = " ".join(f"{n}[{lo:.6g}, {hi:.6g}]" for n, lo, hi in
+                       zip(_axis_names(curve.n_axes), pts.min(axis=0), pts.max(axis=0)))
+        pieces = len(c.feed.speeds) if c.feed is not None else len(curve.sharp_corners()) + 1
+        if c.feed is None:
+            feed = "none"
+        else:
+            lo, hi = c.feed.lowest * 60.0, c.feed.highest * 60.0
+            feed = f"F{lo:.6g}" if lo == hi else f"F{lo:.6g} to F{hi:.6g}"
+            feed += f" {curve.units}/min"
+        print(f"| {k} | {pieces} | {curve.length:.6g} | {box} | {curve.units} | {feed} |")
+    return 0
 
 
 def _cmd_interpolate(args) -> int:
@@ -40,8 +121,12 @@ def _cmd_interpolate(args) -> int:
     from .loop import interpolate
     from .report import check_writable
 
-    curve = _load_path(args.path)
-    feed = units.feed_in_path_units(args.feed, curve)
+    contour = _contour(args)
+    curve = contour.curve
+    cap = None if args.feed is None else units.feed_in_path_units(args.feed, curve)
+    feed, note = _feed_used(args, contour, cap, 1.0, f"{curve.units}/s")
+    if args.method == "uniform" and not isinstance(feed, (int, float)):
+        feed, note = feed.lowest, f"{note}: its lowest value (uniform steps have one feed)"
     out = Path(args.out)
     check_writable([out / "setpoints.csv", out / "setpoints.png"], args.overwrite)
     series = interpolate(make_open_loop(args.method, curve, args.sample_period, feed))
@@ -54,7 +139,7 @@ def _cmd_interpolate(args) -> int:
     plot_setpoints(series, out, axis_names=names, units=curve.units or "pulse")
     fl_max, fl_rms = series.feed_fluctuation()
     print(f"{args.method}: {len(series.t)} samples, cycle time {series.cycle_time:.6g} s, "
-          f"feed fluctuation max {fl_max:.3%} RMS {fl_rms:.3%} -> {out}")
+          f"feed fluctuation max {fl_max:.3%} RMS {fl_rms:.3%}; feed: {note} -> {out}")
     return 0
 
 
@@ -65,12 +150,16 @@ def _axis_names(n: int) -> list[str]:
 def _cmd_bound(args) -> int:
     from .loop import to_pulses
 
-    curve = _load_path(args.path)
     machine = load_machine(args.machine)
+    contour = _contour(args, machine)
+    curve = contour.curve
     machine.check_path(curve.n_axes)
-    feed = units.feed_in_pulses(args.feed, curve, machine)
+    cap = None if args.feed is None else units.feed_in_pulses(args.feed, curve, machine)
+    feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s")
     bound = time_optimal_bound(to_pulses(curve, machine), machine, feed)
     print(f"{bound:.6g}")
+    if contour.feed is not None:
+        print(f"feed: {note}", file=sys.stderr)
     return 0
 
 
@@ -87,13 +176,16 @@ def _progress(args, **kwargs):
 
 
 def _cmd_run(args) -> int:
-    from .loop import run
+    from .loop import run, to_pulses
     from .report import TRACE_FILES, check_writable, summary, write_json
 
-    curve = _load_path(args.path)
     machine = load_machine(args.machine)
+    contour = _contour(args, machine)
+    curve = contour.curve
     machine.check_path(curve.n_axes)
-    feed = units.feed_in_pulses(args.feed, curve, machine)
+    cap = None if args.feed is None else units.feed_in_pulses(args.feed, curve, machine)
+    feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s")
+    feed_number = feed if isinstance(feed, (int, float)) else feed.highest
     unit = units.report_unit(curve.units)
     per_unit = units.pulses_per_report_unit(curve.units, machine)
     out = Path(args.out)
@@ -112,7 +204,7 @@ def _cmd_run(args) -> int:
             bar.set_description(name)
 
         stage(stages[0])
-        trace = run(curve, machine, (feed, "pulse"), args.interpolator)
+        trace = run(to_pulses(curve, machine), machine, feed, args.interpolator)
         bar.update()
         out.mkdir(parents=True, exist_ok=True)
         if trace_file is not None:
@@ -125,18 +217,21 @@ def _cmd_run(args) -> int:
         stage(stages[2])
         metrics = trace.metrics()
         bar.update()
-        data = summary(metrics, interpolator=args.interpolator, feed=feed,
+        data = summary(metrics, interpolator=args.interpolator, feed=feed_number,
                        machine=machine.name, path=args.path, time_optimal_bound=bound,
                        length_unit=unit, pulses_per_length_unit=per_unit)
+        if contour.feed is not None:  # the file gave a feed: say which one ran
+            data["feed_used"] = note
         write_json(data, out / "summary.json", overwrite=args.overwrite)
         bar.update()
         if not args.no_figures:
             stage(stages[4])
-            trace.plot(out, feed=feed, length_unit=unit, overwrite=args.overwrite)
+            trace.plot(out, feed=feed_number, length_unit=unit, overwrite=args.overwrite)
             bar.update()
     sat = metrics.total_saturated_samples
-    print(f"{args.interpolator} on {machine.name} at {feed / per_unit:.4g} {unit}/s "
-          f"({feed:.4g} pulse/s): cycle time {metrics.cycle_time_s:.4g} s "
+    at = (f"{feed / per_unit:.4g} {unit}/s ({feed:.4g} pulse/s)"
+          if contour.feed is None else note)
+    print(f"{args.interpolator} on {machine.name} at {at}: cycle time {metrics.cycle_time_s:.4g} s "
           f"({metrics.cycle_time_s / bound:.3f} x the time-optimal bound), max contour error "
           f"{metrics.max_contour_error / per_unit:.4g} {unit} "
           f"({metrics.max_contour_error:.4g} pulse), {sat} saturated "
@@ -242,7 +337,12 @@ def _parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     feed_help = ("commanded feed: a bare number in the path's units per second (pulse/s for "
                  "a path in pulses), or a speed with a unit: 0.5m/s, 100mm/s, 600mm/min, "
-                 "2in/s, 1e6pulse/s")
+                 "2in/s, 1e6pulse/s; optional where the file gives a feed (G-code F), which "
+                 "it then caps piece by piece")
+    from .paths import PATH_UNITS
+
+    units_help = (f"read the path's numbers in this unit ({', '.join(PATH_UNITS)}), whatever "
+                  "the file says (default: the file's unit; mm, with a warning, if it has none)")
     path_help = ("path: a built-in name (die-bonder-pi, butterfly) or a file .json, .toml, "
                  ".ngc/.nc/.gcode, .dxf; FILE#k picks the k-th contour of a file")
     machine_help = "built-in machine name (die-bonder) or a machine file (.toml/.json)"
@@ -265,7 +365,8 @@ def _parser() -> argparse.ArgumentParser:
 
     i = command("interpolate", "open-loop setpoints of a path at a constant feed")
     i.add_argument("path", help=path_help)
-    i.add_argument("--feed", type=parse_feed, required=True, help=feed_help)
+    i.add_argument("--feed", type=parse_feed, help=feed_help)
+    i.add_argument("--units", choices=PATH_UNITS, help=units_help)
     i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
                    help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
     i.add_argument("--sample-period", type=float, default=1e-3, help="Ts [s]")
@@ -275,7 +376,8 @@ def _parser() -> argparse.ArgumentParser:
     r = command("run", "closed-loop servo simulation of a path on a machine")
     r.add_argument("path", help=path_help)
     r.add_argument("--machine", default="die-bonder", help=machine_help)
-    r.add_argument("--feed", type=parse_feed, required=True, help=feed_help)
+    r.add_argument("--feed", type=parse_feed, help=feed_help)
+    r.add_argument("--units", choices=PATH_UNITS, help=units_help)
     r.add_argument("--interpolator", choices=LOOP_METHODS, default="planned",
                    help="planned: look-ahead, plans every drive within ±Umax; paper: Yeh & "
                    "Sun (2008), saturation-aware one step ahead; taylor1/taylor2: constant "
@@ -302,8 +404,17 @@ def _parser() -> argparse.ArgumentParser:
                 "rest at both ends within the drive limits and the feed")
     b.add_argument("path", help=path_help)
     b.add_argument("--machine", default="die-bonder", help=machine_help)
-    b.add_argument("--feed", type=parse_feed, required=True, help=feed_help)
+    b.add_argument("--feed", type=parse_feed, help=feed_help)
+    b.add_argument("--units", choices=PATH_UNITS, help=units_help)
     b.set_defaults(func=_cmd_bound)
+
+    c = command("contours", "list the contours of a path file: index, pieces, length, "
+                "bounding box, units, programmed feed (pick one with FILE#k)")
+    c.add_argument("path", help="path file (.ngc, .dxf, .json, ...)")
+    c.add_argument("--axes", default="xy", help="the machine's path axes for G-code and DXF, "
+                   "e.g. xy or xyz")
+    c.add_argument("--units", choices=PATH_UNITS, help=units_help)
+    c.set_defaults(func=_cmd_contours)
 
     e = command("reproduce", "the paper's experiment on built-in defaults: the Π and the "
                 "butterfly at three feeds each, taylor1 / paper / planned")
@@ -325,14 +436,20 @@ def _positive_int(text: str) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``nurbsmotion`` command; returns the exit code."""
+    import warnings
+
     parser = _parser()
     args = parser.parse_args(argv)
+    shown = warnings.showwarning
+    _setup_warnings()
     try:
         return args.func(args)
     except (NurbsmotionError, FileExistsError, FileNotFoundError, KeyError, ValueError) as exc:
         msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
         print(f"nurbsmotion {args.command}: error: {msg}", file=sys.stderr)
         return 2
+    finally:
+        warnings.showwarning = shown
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -61,3 +61,8 @@ class InfeasibleError(NurbsmotionError, ValueError):
 
 class OutputExistsError(NurbsmotionError, FileExistsError):
     """An output file already exists and overwriting it was not asked for."""
+
+
+class InvalidFeedError(NurbsmotionError, ValueError):
+    """A feed that is not a positive finite number, a speed with a known unit, or a valid
+    per-piece feed limit."""

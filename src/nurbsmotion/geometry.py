@@ -4,8 +4,8 @@
 ``s(u)``, ``u(s)``, the total length and the list of sharp corners.
 
 Arc length is integrated with 10-point Gauss-Legendre quadrature on an adaptive partition
-of every knot span (a piece is split until the rule and the rule on its two halves agree to
-1e-13 of the total length and C' does not reverse inside it), so ``s(u)`` is accurate to
+of every knot span, split also where C' = 0 (a piece is split until the rule and the rule
+on its two halves agree to 1e-13 of the total length and C' does not reverse inside it), so ``s(u)`` is accurate to
 well below 1e-9 relative. The inverse ``u(s)`` is found by safeguarded Newton iteration
 inside the bracketing piece.
 
@@ -79,7 +79,9 @@ class CurveGeometry:
 
     def __init__(self, curve, rtol: float = 1e-13):
         self.curve = curve
-        bp = curve.breakpoints
+        # |C'| has a kink where C' = 0 (a cusp, a reversal): split there too, so that no
+        # quadrature piece straddles one, however narrow the reversal
+        bp = np.union1d(curve.breakpoints, curve.zero_speed_points)
         a = np.repeat(bp[:-1], 4) + np.tile(np.arange(4) / 4, len(bp) - 1) * np.repeat(
             np.diff(bp), 4
         )
@@ -185,14 +187,15 @@ class CurveGeometry:
         return self.parameter_at(np.linspace(0.0, self.length, n))
 
     def sharp_corners(self, angle_tolerance: float = 1e-6) -> np.ndarray:
-        """Interior breakpoints where the left and right tangents differ by more than
-        ``angle_tolerance`` [rad]. Only knots of full multiplicity can be corners, since
-        elsewhere the curve is C1 and C' never vanishes (checked at construction)."""
+        """Interior parameters where the left and right (limit) tangents differ by more
+        than ``angle_tolerance`` [rad]: knots of full multiplicity, and interior points
+        where C' = 0 (:attr:`NurbsCurve.zero_speed_points`) with a tangent reversal (a
+        cusp). Elsewhere the curve is C1 with C' != 0, so it has no corner."""
         if angle_tolerance not in self._corners:
             c = self.curve
-            candidates = np.array(
-                [b for b in c.breakpoints[1:-1] if c.knot_multiplicity(b) >= c.degree]
-            )
+            full = [b for b in c.breakpoints[1:-1] if c.knot_multiplicity(b) >= c.degree]
+            zero = [u for u in c.zero_speed_points if 0.0 < u < 1.0]
+            candidates = np.unique(np.array(full + zero, dtype=float))
             if candidates.size:
                 angle = c.turning_angle(candidates)
                 candidates = candidates[angle > angle_tolerance]

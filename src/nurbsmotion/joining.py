@@ -63,7 +63,8 @@ def _refit(curve: NurbsCurve, knots: np.ndarray, degree: int) -> NurbsCurve:
     """The curve (or its part over ``[knots[0], knots[-1]]``) in the spline space of
     ``(degree, knots)``, which must contain it."""
     n = len(knots) - degree - 1
-    greville = np.array([np.mean(knots[i + 1 : i + degree + 1]) for i in range(n)])
+    sums = np.concatenate([[0.0], np.cumsum(knots)])
+    greville = (sums[degree + 1 : degree + 1 + n] - sums[1 : 1 + n]) / degree
     greville = np.clip(greville, knots[degree], knots[n])  # the mean of equal knots may round
     H = _homogeneous(curve)(greville)
     from scipy.interpolate import make_interp_spline
@@ -174,6 +175,7 @@ def join_with_edges(
     tolerance: float = DEFAULT_JOIN_TOLERANCE,
     name: str | None = None,
     units: str | None = None,
+    lengths: Sequence[float] | None = None,
 ) -> tuple[NurbsCurve, np.ndarray]:
     """:func:`join`, also returning where each piece starts.
 
@@ -184,6 +186,12 @@ def join_with_edges(
     edges : ndarray, shape (n_pieces + 1,)
         Parameter of the joined curve where piece k starts (``edges[k]``) and ends
         (``edges[k + 1]``); ``edges[0] = 0``, ``edges[-1] = 1``.
+
+    Other Parameters
+    ----------------
+    lengths : sequence of float, optional
+        The pieces' arc lengths where the caller knows them exactly (lines, arcs);
+        ``None`` entries (or no sequence) are computed.
     """
     pieces = list(curves)
     if not pieces:
@@ -220,7 +228,8 @@ def join_with_edges(
 
     p = max(c.degree for c in pieces)
     pieces = [elevate_degree(c, p) for c in pieces]
-    lengths = np.array([c.length for c in pieces])
+    known = list(lengths) if lengths is not None else [None] * len(pieces)
+    lengths = np.array([c.length if k is None else float(k) for c, k in zip(pieces, known)])
     edges = np.concatenate([[0.0], np.cumsum(lengths) / np.sum(lengths)])
     edges[-1] = 1.0
     knots = [np.zeros(p + 1)]

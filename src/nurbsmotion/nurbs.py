@@ -206,6 +206,7 @@ class NurbsCurve:
         self._homogeneous = homogeneous  # [w*P, w], shape (n, n_axes + 1)
         self._spline = self._mirror = None  # scipy reference, built on first use
         self._geometry = None
+        self._zero_speed = None  # zero_speed_points, computed on first use
         self._check_not_degenerate()
 
     # ------------------------------------------------------------------ basic facts
@@ -389,9 +390,14 @@ class NurbsCurve:
         return self.geometry.parameter_at(s)
 
     def tangent(self, u: Any, side: str = "right") -> np.ndarray:
-        """Unit tangent, shape ``shape(u) + (n_axes,)``."""
+        """Unit tangent, shape ``shape(u) + (n_axes,)``; the limit tangent
+        (:meth:`limit_tangent`) where ``C'(u) = 0``."""
         d1 = self(u, 1, side)
-        return d1 / np.linalg.norm(d1, axis=-1, keepdims=True)
+        norm = np.linalg.norm(d1, axis=-1, keepdims=True)
+        scale = float(np.max(np.ptp(self.control_points, axis=0)))
+        if np.any(norm <= 1e-9 * scale):
+            return self.limit_tangent(u, side)
+        return d1 / norm
 
     def curvature(self, u: Any, side: str = "right") -> np.ndarray:
         """Curvature ``|C' x C''| / |C'|^3`` in any dimension [1 / path unit]."""
@@ -451,18 +457,38 @@ class NurbsCurve:
                 f"degenerate curve: all {len(P)} control points coincide at {P[0].tolist()} "
                 "(zero length)"
             )
-        # C'(u) = 0 somewhere (a reversal or a cusp) leaves the curve without a tangent and
-        # makes the Taylor step V*Ts/|C'| divide by zero. On each span the numerator of
-        # C' = (A' w - A w') / w^2 is a polynomial of degree 2p - 2 per axis (A, w: the
-        # homogeneous spline): interpolate it exactly at Chebyshev nodes, take the real
-        # roots of every axis that is not identically zero, and check |C'| there and at
-        # the span's ends (one-sided).
+
+    @property
+    def zero_speed_points(self) -> np.ndarray:
+        """Parameters where ``C'(u) = 0`` (to 1e-9 of the curve's size), sorted, shape (k,).
+
+        Such points are accepted (a control point repeated at an end or inside, as CAM
+        and LinuxCNC's own G5.2 examples write them): the curve keeps its exact geometry.
+        There the tangent is the limit tangent (:meth:`limit_tangent`); where the limit
+        tangents from both sides differ (a cusp, a genuine reversal) the point is a sharp
+        corner (:meth:`sharp_corners`). Computed on first use: on each span the numerator
+        of ``C' = (A' w - A w') / w^2`` is a polynomial of degree ``2p - 2`` per axis
+        (``A, w``: the homogeneous spline), interpolated exactly at Chebyshev nodes; its
+        real roots and the span's ends (one-sided) are the candidates.
+        """
+        if self._zero_speed is None:
+            self._zero_speed = self._find_zero_speed()
+        return self._zero_speed.copy()
+
+    def _find_zero_speed(self) -> np.ndarray:
+        P = self.control_points
+        scale = float(np.max(np.ptp(P, axis=0)))
         p = self.degree
-        nodes = np.polynomial.chebyshev.chebpts1(2 * p - 1)
         bp = self.breakpoints
+        if p == 1:  # C' is constant on each span: zero where two control points coincide
+            same = np.all(P[1:] == P[:-1], axis=1)
+            t = self.knots  # span i, from P_i to P_i+1, is [t_(i+1), t_(i+2)]
+            return np.unique(np.concatenate([t[1:-2][same], t[2:-1][same]]))
         from scipy.interpolate import BSpline
 
+        nodes = np.polynomial.chebyshev.chebpts1(2 * p - 1)
         weight = BSpline(self.knots, self.weights, p)
+        found = []
         for a, b in zip(bp[:-1], bp[1:]):
             uu = 0.5 * (a + b) + 0.5 * (b - a) * nodes
             numerator = self(uu, 1) * weight(uu)[:, None] ** 2  # = A'w - Aw'
@@ -479,13 +505,43 @@ class NurbsCurve:
             speed = np.empty(cand.size)
             speed[inner] = np.linalg.norm(self(cand[inner], 1, "right"), axis=-1)
             speed[~inner] = np.linalg.norm(self(cand[~inner], 1, "left"), axis=-1)
-            if np.min(speed) <= 1e-9 * scale:
-                i = int(np.argmin(speed))
-                raise InvalidCurveError(
-                    f"degenerate curve: C'(u) = 0 at u = {cand[i]:.6g} (span [{a:.6g}, "
-                    f"{b:.6g}]), so the curve has no tangent there (it stops or reverses) and "
-                    "a Taylor step would divide by zero; check for repeated control points"
-                )
+            found.extend(cand[speed <= 1e-9 * scale])
+        if not found:
+            return np.zeros(0)
+        u = np.sort(np.array(found))
+        return u[np.concatenate([[True], np.diff(u) > 1e-12])]
+
+    def limit_tangent(self, u: Any, side: str = "right") -> np.ndarray:
+        """Unit tangent, also where ``C'(u) = 0``: the direction of motion just after
+        (``side="right"``) or just before (``"left"``) ``u``, shape ``shape(u) + (n_axes,)``.
+
+        Where ``|C'(u)|`` vanishes, the first non-zero derivative ``C^(k)`` gives it:
+        ``C'(u + h) ~ C^(k)(u) h^(k-1) / (k-1)!``, so the right limit is ``C^(k)`` and the
+        left limit ``(-1)^(k-1) C^(k)``. Beyond the third derivative the direction of
+        the chord to a point 1e-6 away in the parameter is used.
+        """
+        uu = np.asarray(u, dtype=float)
+        d = self.derivatives(uu.ravel(), 3, side)  # (4, m, axes)
+        scale = float(np.max(np.ptp(self.control_points, axis=0)))
+        out = d[1].copy()
+        norm = np.linalg.norm(out, axis=-1)
+        todo = norm <= 1e-9 * scale
+        sign = 1.0
+        for k in (2, 3):
+            if not np.any(todo):
+                break
+            sign = 1.0 if side == "right" else (-1.0) ** (k - 1)
+            nk = np.linalg.norm(d[k], axis=-1)
+            use = todo & (nk > 1e-9 * scale)
+            out[use] = sign * d[k][use]
+            todo &= ~use
+        if np.any(todo):
+            flat = uu.ravel()[todo]
+            h = 1e-6 if side == "right" else -1e-6
+            other = np.clip(flat + h, 0.0, 1.0)
+            out[todo] = (self(other) - self(flat)) * np.sign(other - flat)[:, None]
+        out /= np.linalg.norm(out, axis=-1, keepdims=True)
+        return out.reshape(uu.shape + (self.n_axes,))
 
 
 def curvature_from_derivatives(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InfeasibleError
+from .feed import FeedLimit
 from .machine import Machine
 from .nurbs import NurbsCurve
 
@@ -149,8 +150,9 @@ class _Limits:
                 return math.inf, -math.inf
         return lo, hi
 
-    def max_speed(self, feed: float) -> np.ndarray:
-        """The MVC: the largest sd <= F with a non-empty range, per grid point [pulse/s]."""
+    def max_speed(self, feed) -> np.ndarray:
+        """The MVC: the largest sd <= F with a non-empty range, per grid point [pulse/s];
+        ``feed`` is one number or one per grid point."""
         q1, q2, tau, M = self.q1, self.q2, self.tau, self.M
         n = len(q1)
 
@@ -165,7 +167,7 @@ class _Limits:
             still = np.all(self.active | (np.abs(c) <= M), axis=1)
             return still & (lo <= hi)
 
-        top = np.full(n, float(feed))
+        top = np.broadcast_to(np.asarray(feed, dtype=float), (n,)).copy()
         ok = feasible(top)
         lo, hi = np.zeros(n), top.copy()
         for _ in range(60):
@@ -220,8 +222,9 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
         The path [pulse].
     machine : Machine
         tau, Kc, Ke and Umax of every axis.
-    feed : float
-        F [pulse/s], finite and > 0.
+    feed : float or FeedLimit
+        F [pulse/s], finite and > 0; or a piecewise limit ``V <= F(u)`` (the programmed
+        feed of a G-code file, :class:`~nurbsmotion.feed.FeedLimit` scaled to pulse/s).
     drive_fraction : float
         Fraction of Umax the profile may use, in (0, 1]: on the deceleration limit (the
         backward pass) and on the maximum velocity curve.
@@ -251,9 +254,7 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
         If the feed is not finite and > 0, or the drive cannot move along some part of the
         path (its speed limit there is zero).
     """
-    F = float(feed)
-    if not (math.isfinite(F) and F > 0):
-        raise InfeasibleError(f"feed must be finite and > 0, got {feed!r} pulse/s")
+    F = _check_feed(feed)
     fa = drive_fraction if acceleration_fraction is None else acceleration_fraction
     for name, f in (("drive_fraction", drive_fraction), ("acceleration_fraction", fa)):
         if not (0 < f <= 1):
@@ -284,9 +285,10 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
             scale = np.asarray(acceleration_scale(s), float)
         lim_acc = lim if (fa == drive_fraction and acceleration_scale is None) \
             else _Limits(q1, q2, tau, fa * scale[:, None] * M)
-        vmax = lim.max_speed(F)
+        F_here = feed(u) if isinstance(feed, FeedLimit) else F
+        vmax = lim.max_speed(F_here)
         inner = vmax[1:-1]
-        if inner.size and np.min(inner) < min_speed_ratio * F:
+        if inner.size and np.min(inner / np.broadcast_to(F_here, vmax.shape)[1:-1]) < min_speed_ratio:
             i = int(np.argmin(inner)) + 1
             raise InfeasibleError(
                 f"the drive cannot move along the path at s = {s[i]:.6g} pulse "
@@ -297,6 +299,16 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
         b = _passes(lim, lim_acc, (s1 - s0) / (n - 1), vmax**2)
         pieces.append((s, u, np.sqrt(b)))
     return SpeedProfile(tuple(pieces), F, float(drive_fraction))
+
+
+def _check_feed(feed) -> float:
+    """The (highest) feed [pulse/s] of a number or a :class:`~nurbsmotion.feed.FeedLimit`."""
+    if isinstance(feed, FeedLimit):
+        return feed.highest
+    F = float(feed)
+    if not (math.isfinite(F) and F > 0):
+        raise InfeasibleError(f"feed must be finite and > 0, got {feed!r} pulse/s")
+    return F
 
 
 def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,
@@ -314,14 +326,12 @@ def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,
     curve : NurbsCurve
         The path [pulse] (see :func:`nurbsmotion.loop.to_pulses`).
     machine : Machine
-    feed : float
-        F [pulse/s].
+    feed : float or FeedLimit
+        F [pulse/s], or a piecewise limit ``V <= F(u)`` [pulse/s].
     grid_size : int
         Arc-length grid points over the path.
     """
-    F = float(feed)
-    if not (math.isfinite(F) and F > 0):
-        raise InfeasibleError(f"feed must be finite and > 0, got {feed!r} pulse/s")
+    F = _check_feed(feed)
     if machine.max_drive == math.inf:
-        return curve.length / F
+        return feed.duration(curve) if isinstance(feed, FeedLimit) else curve.length / F
     return speed_profile(curve, machine, feed, grid_size=grid_size).duration

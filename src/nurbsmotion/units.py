@@ -15,7 +15,8 @@ from __future__ import annotations
 import math
 import re
 
-from .errors import NurbsmotionError
+from .errors import InvalidFeedError, NurbsmotionError
+from .feed import FeedLimit
 from .machine import LENGTH_UNITS_UM, Machine
 
 __all__ = ["InvalidFeedError", "parse_feed", "feed_in_pulses", "feed_in_path_units",
@@ -24,8 +25,6 @@ __all__ = ["InvalidFeedError", "parse_feed", "feed_in_pulses", "feed_in_path_uni
 _FEED = re.compile(r"^\s*([0-9.eE+-]+)\s*(?:([a-z]+)\s*/\s*(s|min))?\s*$")
 
 
-class InvalidFeedError(NurbsmotionError, ValueError):
-    """A feed that is not a positive finite number or a speed with a known unit."""
 
 
 def parse_feed(text: str) -> tuple[float, str | None]:
@@ -85,14 +84,15 @@ def _parsed(feed) -> tuple[float, str | None]:
     return value, None
 
 
-def feed_in_pulses(feed, curve, machine: Machine) -> float:
+def feed_in_pulses(feed, curve, machine: Machine):
     """A feed in the machine's pulse/s.
 
     Parameters
     ----------
-    feed : float or str or tuple
-        A bare number [path units/s], a text with a unit (``"100mm/s"``), or the pair
-        :func:`parse_feed` returns.
+    feed : float or str or tuple or FeedLimit
+        A bare number [path units/s], a text with a unit (``"100mm/s"``), the pair
+        :func:`parse_feed` returns, or a per-piece limit
+        (:class:`nurbsmotion.feed.FeedLimit`, in path units/s; returned scaled).
     curve : NurbsCurve
         The path as the user gave it (its ``units`` say what a bare number means).
     machine : Machine
@@ -100,9 +100,11 @@ def feed_in_pulses(feed, curve, machine: Machine) -> float:
 
     Returns
     -------
-    float
+    float or FeedLimit
         Commanded feed F [pulse/s].
     """
+    if isinstance(feed, FeedLimit):
+        return feed.scaled(machine.pulses_per_unit(curve.units))
     value, unit = _parsed(feed)
     if unit == "pulse":
         return value

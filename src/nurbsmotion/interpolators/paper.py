@@ -31,8 +31,8 @@ from ..errors import InfeasibleError
 from ..machine import Machine
 from ..nurbs import NurbsCurve
 from .base import (Interpolator, PathData, advance, land, path_data, path_derivatives,
-                   positive_feed, speed_bounds)
-from .taylor import StepState
+                   speed_bounds)
+from .taylor import StepState, feed_at, feed_table, table_duration
 
 __all__ = ["PaperInterpolator"]
 
@@ -40,7 +40,9 @@ __all__ = ["PaperInterpolator"]
 class PaperPlan(NamedTuple):
     path: PathData
     order: int
-    feed: float                 # F [pulse/s]
+    feed_breaks: np.ndarray     # the commanded feed F(u) as a table (taylor.feed_table)
+    feed_start: np.ndarray      # [pulse/s]
+    feed_end: np.ndarray
     mechanical_gain: np.ndarray  # Ke per axis [pulse/rad]
 
 
@@ -53,8 +55,9 @@ class PaperInterpolator(Interpolator):
         The path [pulse].
     machine : Machine
         Ke per axis and Ts (the bounds come from the loop's law and Umax).
-    feed : float
-        Commanded feed F [pulse/s].
+    feed : float or FeedLimit
+        Commanded feed F [pulse/s], or a limit per piece of the path (the paper's V of
+        each step is F at the step's start).
     order : {1, 2}
         Parameter step with Vm: 1 is eq. 3.2, as section 3.4 of the paper states; 2 is
         eq. 3.1, the speed-controlled interpolator the paper builds on [25], which also
@@ -70,16 +73,16 @@ class PaperInterpolator(Interpolator):
         super().__init__(curve, machine.sample_period)
         if order not in (1, 2) or isinstance(order, bool):
             raise InfeasibleError(f"order must be 1 or 2, got {order!r}")
-        self.feed = positive_feed(feed)
         self.order = int(order)
-        self.plan = PaperPlan(path_data(curve, self.order), self.order, self.feed,
-                              np.array(machine.Ke, dtype=float))
+        self.plan = PaperPlan(path_data(curve, self.order), self.order,
+                              *feed_table(feed, curve), np.array(machine.Ke, dtype=float))
 
     def new_state(self) -> StepState:
         return StepState.new(self.plan.path)
 
     def nominal_duration(self) -> float:
-        return self.curve.length / self.feed
+        p = self.plan
+        return table_duration(self.curve, p.feed_breaks, p.feed_start, p.feed_end)
 
 
 @njit(cache=True)
@@ -95,7 +98,7 @@ def paper_step(plan, state, law, law_state, position, velocity, command, bounds)
         n2 += d[1, c] * d[1, c]
     norm = math.sqrt(n2)
     speed_bounds(law, law_state, plan.mechanical_gain, position, velocity, bounds)  # eq. 3.6
-    V = plan.feed
+    V = feed_at(plan.feed_breaks, plan.feed_start, plan.feed_end, u0)[0]
     Vm = np.inf     # eq. 3.10 may also raise the feed, where a bound forces motion
     for j in range(dim):
         Ke = plan.mechanical_gain[j]

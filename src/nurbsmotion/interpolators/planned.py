@@ -60,13 +60,14 @@ from .. import closed_loop, stepping
 from .._kernels import rational_derivatives_into
 from ..control import pid_output, pid_state
 from ..errors import InfeasibleError
+from ..feed import FeedLimit
 from ..geometry import _GL_W, _GL_X
 from ..machine import Machine
 from ..nurbs import NurbsCurve
 from ..planning import SpeedProfile, speed_profile
 from ..servo import ServoPlant
 from .base import (Interpolator, PathData, PathScratch, path_data, path_point,
-                   path_scratch, speed_bounds)
+                   path_scratch, positive_feed, speed_bounds)
 
 __all__ = ["PlannedInterpolator", "DEFAULT_DRIVE_MARGIN", "DEFAULT_ACCELERATION_MARGIN",
            "DEFAULT_MODEL_UNCERTAINTY", "DEFAULT_SMOOTHING_TIME"]
@@ -171,8 +172,9 @@ class PlannedInterpolator(Interpolator):
         The path [pulse].
     machine : Machine
         The model the plan and the safety layer use (gains, tau, Kc, Ke, Umax, Ts).
-    feed : float
-        Commanded feed F [pulse/s], the speed limit along the path.
+    feed : float or FeedLimit
+        Commanded feed F [pulse/s], the speed limit along the path (per piece: a
+        :class:`nurbsmotion.feed.FeedLimit`).
     drive_margin : float
         Fraction of Umax, in (0, 1], the planned drive may use where it brakes an axis and
         on the maximum velocity curve (:data:`DEFAULT_DRIVE_MARGIN`). The rest is left to
@@ -225,9 +227,9 @@ class PlannedInterpolator(Interpolator):
                  safety_layer: bool = True, check_iterations: int = 12,
                  model_uncertainty: float = DEFAULT_MODEL_UNCERTAINTY):
         machine.check_path(curve.n_axes)
-        F = float(feed)
-        if not (math.isfinite(F) and F > 0):
-            raise InfeasibleError(f"feed must be finite and > 0, got {feed!r} pulse/s")
+        # a per-piece limit goes to the speed profile; the lowest feed sizes the grids
+        F = feed if isinstance(feed, FeedLimit) else positive_feed(feed)
+        F_low = F.lowest if isinstance(F, FeedLimit) else F
         if not (0 < drive_margin <= 1):
             raise ValueError(f"drive_margin must lie in (0, 1], got {drive_margin!r}")
         if not (math.isfinite(smoothing_time) and smoothing_time >= 0):
@@ -252,7 +254,7 @@ class PlannedInterpolator(Interpolator):
         if machine.max_drive == math.inf:
             # An ideal drive: only the feed limits the speed (accelerations are unbounded,
             # the smoothing alone shapes them).
-            self._set_plan(self._schedule_unlimited(F, max_samples))
+            self._set_plan(self._schedule_unlimited(F_low, max_samples))
         else:
             self._plan_checked(F, grid_size, max_samples, check_iterations)
 
@@ -266,7 +268,8 @@ class PlannedInterpolator(Interpolator):
         d = self.model_uncertainty
         plants = [(1.0 + a * d, 1.0 + b * d) for a, b in ((1, -1), (1, 1), (-1, -1), (-1, 1))]
         plants = ([(1.0, 1.0)] + plants) if d > 0 else [(1.0, 1.0)]
-        n_grid = int(min(200_000, max(2000, 4 * L / (F * self.sample_period))))
+        F_low = F.lowest if isinstance(F, FeedLimit) else F
+        n_grid = int(min(200_000, max(2000, 4 * L / (F_low * self.sample_period))))
         s_grid = np.linspace(0.0, L, n_grid)
         scale = np.ones(n_grid)
         start = curve(0.0)

@@ -14,6 +14,7 @@ from numba import njit
 
 from .. import stepping
 from ..errors import InfeasibleError
+from ..feed import FeedLimit
 from ..nurbs import NurbsCurve
 from .base import (Interpolator, PathData, PathScratch, advance, land, path_data,
                    path_derivatives, path_scratch, positive_feed)
@@ -40,11 +41,11 @@ def feed_table(feed, curve: NurbsCurve) -> tuple[np.ndarray, np.ndarray, np.ndar
 
     Parameters
     ----------
-    feed : float, callable or piecewise feed
+    feed : float, callable or FeedLimit
         A number [path units/s]; a function of the parameter u (tabulated on
-        :data:`FEED_FUNCTION_SAMPLES` intervals and the curve's knots); or an object with
-        ``breaks`` (m + 1,) rising from 0 to 1 in u and ``values`` (m,), constant on each
-        interval (e.g. the programmed F of each piece of a G-code file).
+        :data:`FEED_FUNCTION_SAMPLES` intervals and the curve's knots); or a
+        :class:`nurbsmotion.feed.FeedLimit`, constant on each interval of u (e.g. the
+        programmed F of each piece of a G-code file).
     curve : NurbsCurve
 
     Returns
@@ -58,14 +59,8 @@ def feed_table(feed, curve: NurbsCurve) -> tuple[np.ndarray, np.ndarray, np.ndar
     InfeasibleError
         Naming the value (and for a function, the parameter) that is not finite and > 0.
     """
-    if hasattr(feed, "breaks") and hasattr(feed, "values"):
-        breaks = np.asarray(feed.breaks, dtype=float)
-        values = np.array([positive_feed(v) for v in np.asarray(feed.values).ravel()])
-        if (breaks.ndim != 1 or breaks.size != values.size + 1 or breaks[0] != 0.0
-                or breaks[-1] != 1.0 or np.any(np.diff(breaks) <= 0)):
-            raise InfeasibleError("a piecewise feed needs breaks rising from 0 to 1, one "
-                                  f"more than its values; got {breaks!r} for {values!r}")
-        return breaks, values, values
+    if isinstance(feed, FeedLimit):  # validated at its construction
+        return feed.breakpoints, feed.speeds, feed.speeds
     if callable(feed):
         u = np.union1d(np.linspace(0.0, 1.0, FEED_FUNCTION_SAMPLES + 1), curve.breakpoints)
         V = np.empty_like(u)
@@ -80,6 +75,20 @@ def feed_table(feed, curve: NurbsCurve) -> tuple[np.ndarray, np.ndarray, np.ndar
         return u, V[:-1], V[1:]
     V = positive_feed(feed)
     return np.array([0.0, 1.0]), np.array([V]), np.array([V])
+
+
+def table_duration(curve: NurbsCurve, breaks, start, end) -> float:
+    """The time along ``curve`` at the lower feed of each interval of a feed table [s]."""
+    s = curve.arc_length(breaks)
+    return float(np.sum(np.diff(s) / np.minimum(start, end)))
+
+
+@njit(cache=True)
+def feed_at(breaks, start, end, u):
+    """V(u) and dV/du of a feed table (:func:`feed_table`) [path units/s, per unit u]."""
+    i = min(max(np.searchsorted(breaks, u, side="right") - 1, 0), breaks.shape[0] - 2)
+    dV_du = (end[i] - start[i]) / (breaks[i + 1] - breaks[i])
+    return start[i] + dV_du * (u - breaks[i]), dV_du
 
 
 class UniformPlan(NamedTuple):
@@ -182,8 +191,7 @@ class TaylorInterpolator(Interpolator):
 
     def nominal_duration(self) -> float:
         p = self.plan
-        s = self.curve.arc_length(p.feed_breaks)
-        return float(np.sum(np.diff(s) / np.minimum(p.feed_start, p.feed_end)))
+        return table_duration(self.curve, p.feed_breaks, p.feed_start, p.feed_end)
 
 
 @njit(cache=True)
@@ -193,10 +201,7 @@ def taylor_step(plan, state, law, law_state, position, velocity, command, bounds
         return stepping.hold_end(plan.path.end, command, bounds)
     u0 = state.u[0]
     bounds[:] = np.nan
-    breaks = plan.feed_breaks
-    i = min(max(np.searchsorted(breaks, u0, side="right") - 1, 0), breaks.shape[0] - 2)
-    dV_du = (plan.feed_end[i] - plan.feed_start[i]) / (breaks[i + 1] - breaks[i])
-    V = plan.feed_start[i] + dV_du * (u0 - breaks[i])
+    V, dV_du = feed_at(plan.feed_breaks, plan.feed_start, plan.feed_end, u0)
     d = path_derivatives(plan.path, u0, plan.order, state.scratch)
     n2 = 0.0
     for c in range(d.shape[1]):

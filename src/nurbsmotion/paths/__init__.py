@@ -5,11 +5,19 @@
 ``.toml``, ``.ngc``/``.nc``/``.gcode``, ``.dxf``).
 """
 
-from .files import PATH_FILE_SUFFIXES, curve_from_dict, load_path, resolve_path, save_path
+from .files import (PATH_FILE_SUFFIXES, PATH_UNITS, Contour, PathWarning, curve_from_dict,
+                    load_contour, load_contours, load_path, resolve_contour, resolve_path,
+                    save_path)
 from .dxf import DxfWarning, load_dxf, save_dxf
 from .gcode import GcodeContour, GcodeProgram, GcodeWarning, load_gcode, save_gcode
 
 __all__ = [
+    "Contour",
+    "PathWarning",
+    "PATH_UNITS",
+    "load_contour",
+    "load_contours",
+    "resolve_contour",
     "load_path",
     "save_path",
     "resolve_path",

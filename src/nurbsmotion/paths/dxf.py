@@ -31,6 +31,7 @@ the same curve to rounding (1e-9 is what the tests ask; in practice it is exact)
 
 from __future__ import annotations
 
+import math
 import os
 import warnings
 from collections import Counter
@@ -41,15 +42,17 @@ import numpy as np
 from .._io import check_input_file, write_output
 from ..errors import InvalidCurveError, PathFileError
 from ..joining import DEFAULT_JOIN_TOLERANCE, join
-from ..nurbs import NurbsCurve, make_line
-from .pieces import arc_by_bulge, arc_by_center
+from ..nurbs import NurbsCurve, make_arc, make_line
+from .gcode import MAX_COORDINATE
+from .pieces import arc_by_bulge
 
-__all__ = ["load_dxf", "save_dxf", "DxfWarning"]
+__all__ = ["load_dxf", "save_dxf", "DxfWarning", "MAX_BULGE"]
 
-_UNITS = {1: "inch", 2: "foot", 4: "mm", 5: "cm", 6: "m", 13: "um"}
+_UNITS = {1: "inch", 4: "mm", 5: "cm", 6: "m", 13: "um"}
 _UNITS_CODE = {v: k for k, v in _UNITS.items()}
-_IGNORED = {"TEXT", "MTEXT", "DIMENSION", "POINT", "HATCH", "INSERT", "LEADER", "MLEADER",
-            "ATTDEF", "SOLID", "VIEWPORT", "IMAGE", "WIPEOUT"}  # fmt: skip
+MAX_BULGE = 1e6
+"""Largest LWPOLYLINE/POLYLINE bulge read (tan of a quarter of the sweep): 1e6 is a sweep
+within 4e-6 rad of a full turn."""
 
 
 class DxfWarning(UserWarning):
@@ -77,126 +80,200 @@ def _read(path: Path):
     _sniff(path)
     try:
         return ezdxf.readfile(path)
-    except (ezdxf.DXFError, OSError, UnicodeError, ValueError) as exc:
-        raise PathFileError(f"cannot read DXF: {exc}", source=str(path)) from None
+    except (ezdxf.DXFError, OSError, UnicodeError, ValueError, TypeError, KeyError, IndexError,
+            AttributeError, EOFError) as exc:
+        raise PathFileError(f"cannot read DXF: {_one_line(exc)}", source=str(path)) from None
+
+
+def _one_line(exc: BaseException) -> str:
+    """An exception's text on one line (ezdxf's messages may span several)."""
+    text = " ".join(str(exc).split())
+    return text or type(exc).__name__
 
 
 def _label(entity) -> str:
     return f"{entity.dxftype()} #{entity.dxf.handle}"
 
 
-def _xy(points, label: str) -> np.ndarray:
+def _wcs(points) -> np.ndarray:
     P = np.asarray([tuple(p) for p in points], dtype=float).reshape(-1, 3)
-    if np.ptp(P[:, 2]) > 0:
-        raise InvalidCurveError(f"{label} is not flat: its points have Z from {P[:, 2].min():g} to {P[:, 2].max():g}")
-    return P[:, :2]
+    if not np.all(np.isfinite(P)) or np.max(np.abs(P), initial=0.0) > MAX_COORDINATE:
+        bad = P[~np.all(np.isfinite(P) & (np.abs(P) <= MAX_COORDINATE), axis=1)][0]
+        raise InvalidCurveError(f"a point {bad.tolist()} is not finite or beyond the largest "
+                                f"coordinate read, {MAX_COORDINATE:g} (MAX_COORDINATE)")
+    return P
 
 
-def _check_flat_ocs(entity, label: str) -> bool:
-    """True when the entity's extrusion is -Z (mirrored OCS); error if not along Z."""
-    extrusion = np.asarray(tuple(entity.dxf.get("extrusion", (0.0, 0.0, 1.0))), dtype=float)
-    if abs(extrusion[0]) > 1e-12 or abs(extrusion[1]) > 1e-12:
-        raise InvalidCurveError(f"{label} is not in the XY plane (extrusion {extrusion.tolist()})")
-    return extrusion[2] < 0
+def _in_ocs(curve: NurbsCurve, entity, elevation: float) -> NurbsCurve:
+    """A curve drawn in the entity's object coordinate system (x, y at ``elevation``)
+    mapped to world coordinates: an affine map, exact on the control points."""
+    P = np.column_stack([curve.control_points, np.full(curve.n_control_points, float(elevation))])
+    W = _wcs(entity.ocs().points_to_wcs(P.tolist()))
+    return NurbsCurve(curve.degree, curve.knots, W, curve.weights, name=curve.name)
+
+
+def _number(entity, value, what: str) -> float:
+    v = float(value)
+    if not math.isfinite(v):
+        raise InvalidCurveError(f"{_label(entity)}: {what} {v!r} is not finite")
+    return v
+
+
+def _bulge_pieces(entity, vertices: list, closed: bool, elevation: float) -> list[NurbsCurve]:
+    """Lines and arcs of a 2-D polyline: ``vertices`` are (x, y, bulge) in the OCS."""
+    label = _label(entity)
+    pts = [(np.array([_number(entity, x, "vertex x"), _number(entity, y, "vertex y")]),
+            _number(entity, b, "bulge")) for x, y, b in vertices]
+    if closed and pts:
+        pts.append((pts[0][0], 0.0))
+    pieces = []
+    for (p, bulge), (q, _) in zip(pts[:-1], pts[1:]):
+        if np.array_equal(p, q):
+            continue  # a repeated vertex is no segment
+        if abs(bulge) > MAX_BULGE:
+            raise InvalidCurveError(f"{label}: bulge {bulge:g} is beyond the largest read, "
+                                    f"{MAX_BULGE:g} (MAX_BULGE; the arc's radius would be "
+                                    f"{np.hypot(*(q - p)) * (1 + bulge * bulge) / (4 * abs(bulge)):.3g})")
+        if bulge:
+            pieces.append(_in_ocs(arc_by_bulge(p, q, bulge, name=label), entity, elevation))
+        else:
+            pieces.append(_in_ocs(make_line(p, q, name=label), entity, elevation))
+    return pieces
+
+
+def _unclamped_to_clamped(degree: int, knots, points: np.ndarray, weights) -> tuple:
+    """A B-spline with any knot vector (a closed or periodic DXF spline), restricted to
+    its domain ``[t_p, t_(n)]`` and written with clamped knots: an exact change of basis
+    (the homogeneous spline interpolated at the Greville abscissae of the new knots)."""
+    from scipy.interpolate import BSpline, make_interp_spline
+
+    t = np.asarray(knots, dtype=float)
+    p = degree
+    n = len(points)
+    w = np.ones(n) if weights is None or len(weights) == 0 else np.asarray(weights, dtype=float)
+    a, b = t[p], t[n]
+    inner = t[p + 1: n]
+    new = np.concatenate([[a] * (p + 1), inner, [b] * (p + 1)])
+    m = len(new) - p - 1
+    greville = np.clip(np.array([np.mean(new[i + 1: i + p + 1]) for i in range(m)]), a, b)
+    H = BSpline(t, np.column_stack([points * w[:, None], w]), p)(greville)
+    fit = make_interp_spline(greville, H, k=p, t=new)
+    return new, fit.c[:, :-1] / fit.c[:, -1:], fit.c[:, -1]
 
 
 def _pieces(entity) -> list[NurbsCurve]:
-    """Path pieces of one usable entity, named by type and handle."""
+    """Path pieces of one entity in world coordinates (3 columns), named by type and
+    handle; an empty list for a degenerate entity of zero length."""
     kind = entity.dxftype()
     label = _label(entity)
     if kind == "LINE":
-        start, end = _xy([entity.dxf.start, entity.dxf.end], label)
-        return [make_line(start, end, name=label)]
+        start, end = _wcs([entity.dxf.start, entity.dxf.end])
+        return [] if np.array_equal(start, end) else [make_line(start, end, name=label)]
     if kind == "SPLINE":
-        if entity.control_point_count() == 0:
-            raise InvalidCurveError(
-                f"{label} is defined by {entity.fit_point_count()} fit points only; its shape "
-                "depends on the CAD system's fitting, so it is not converted: re-export it "
-                "with control points (control vertices)"
-            )
-        weights = list(entity.weights) or None
-        return [
-            NurbsCurve(
-                entity.dxf.degree,
-                list(entity.knots),
-                _xy(entity.control_points, label),
-                weights,
-                name=label,
-            )
-        ]
+        if entity.control_point_count() > 0:  # as stored
+            degree = int(entity.dxf.degree)
+            knots = np.asarray(list(entity.knots), dtype=float)
+            points = _wcs(entity.control_points)
+            weights = np.asarray(list(entity.weights), dtype=float) if len(entity.weights) else None
+        else:  # fit points only: ezdxf's own construction of the curve through them
+            tool = entity.construction_tool()
+            degree = int(tool.degree)
+            knots = np.asarray(tool.knots(), dtype=float)
+            points = _wcs(tool.control_points)
+            weights = np.asarray(tool.weights(), dtype=float) if tool.is_rational else None
+        if weights is not None and not (np.all(np.isfinite(weights)) and np.all(weights > 0)):
+            raise InvalidCurveError(f"{label}: weights must be finite and > 0")
+        if not np.all(np.isfinite(knots)):
+            raise InvalidCurveError(f"{label}: knots must be finite")
+        if len(points) > degree and np.all(np.diff(knots) >= 0) and len(knots) == len(points) + degree + 1 \
+                and not (np.all(knots[:degree + 1] == knots[0]) and np.all(knots[-degree - 1:] == knots[-1])):
+            knots, points, weights = _unclamped_to_clamped(degree, knots, points, weights)
+        if np.ptp(points, axis=0).max(initial=0.0) == 0.0:
+            return []
+        return [NurbsCurve(degree, knots, points, weights, name=label)]
     if kind in ("ARC", "CIRCLE"):
-        mirrored = _check_flat_ocs(entity, label)
-        ocs = entity.ocs()
-        center = np.array(tuple(ocs.to_wcs(entity.dxf.center)))[:2]
+        radius = _number(entity, entity.dxf.radius, "radius")
+        if not 0 < radius <= MAX_COORDINATE:
+            raise InvalidCurveError(f"{label}: radius {radius:g} must be > 0 and at most "
+                                    f"{MAX_COORDINATE:g}")
+        center = np.array([_number(entity, v, "centre") for v in entity.dxf.center])
         if kind == "CIRCLE":
-            start = end = center + [entity.dxf.radius * (-1.0 if mirrored else 1.0), 0.0]
+            a0, a1 = 0.0, 2 * math.pi
         else:
-            start, end = _xy([entity.start_point, entity.end_point], label)
-        return arc_by_center(start, end, center, clockwise=mirrored, name=label)
+            a0 = math.radians(_number(entity, entity.dxf.start_angle, "start angle")) % (2 * math.pi)
+            a1 = math.radians(_number(entity, entity.dxf.end_angle, "end angle")) % (2 * math.pi)
+            if a1 <= a0:
+                a1 += 2 * math.pi
+        return [_in_ocs(p, entity, center[2]) for p in
+                [make_arc(center[:2], radius, a0, a1, name=label)]]
+    if kind == "ELLIPSE":
+        # exact rational form: the unit-circle arc over the ellipse's parameter range,
+        # mapped by the affine map (x, y) -> centre + x major + y minor
+        e = entity.construction_tool()
+        center, major, minor = (np.array(tuple(v), dtype=float) for v in (e.center, e.major_axis, e.minor_axis))
+        t0, t1 = float(e.start_param), float(e.end_param)
+        if not all(map(math.isfinite, (t0, t1))) or np.linalg.norm(major) == 0 or e.ratio <= 0:
+            raise InvalidCurveError(f"{label}: degenerate ellipse (major axis {major.tolist()}, "
+                                    f"ratio {e.ratio!r})")
+        if t1 <= t0:
+            t1 += 2 * math.pi
+        unit = make_arc([0.0, 0.0], 1.0, t0, t1, name=label)
+        P = _wcs(center + unit.control_points[:, :1] * major + unit.control_points[:, 1:] * minor)
+        return [NurbsCurve(2, unit.knots, P, unit.weights, name=label)]
     if kind == "LWPOLYLINE":
-        mirrored = _check_flat_ocs(entity, label)
-        ocs = entity.ocs()
-        elevation = entity.dxf.elevation
-        vertices = [
-            (np.array(tuple(ocs.to_wcs((x, y, elevation))))[:2], -b if mirrored else b)
-            for x, y, b in entity.get_points("xyb")
-        ]
-        if entity.closed:
-            vertices.append((vertices[0][0], 0.0))
-        pieces = []
-        for (p, bulge), (q, _) in zip(vertices[:-1], vertices[1:]):
-            if np.array_equal(p, q):
-                continue  # a repeated vertex is no segment
-            if bulge:
-                pieces.append(arc_by_bulge(p, q, bulge, name=label))
-            else:
-                pieces.append(make_line(p, q, name=label))
-        if not pieces:
-            raise InvalidCurveError(f"{label} has no segment of non-zero length")
-        return pieces
-    raise InvalidCurveError(
-        f"{label}: {kind} entities are not supported (use SPLINE, LINE, ARC, CIRCLE or "
-        "LWPOLYLINE)"
-    )
+        return _bulge_pieces(entity, list(entity.get_points("xyb")), entity.closed, entity.dxf.elevation)
+    if kind == "POLYLINE":
+        if entity.is_2d_polyline:
+            verts = [(v.dxf.location[0], v.dxf.location[1], v.dxf.get("bulge", 0.0)) for v in entity.vertices]
+            return _bulge_pieces(entity, verts, entity.is_closed, entity.dxf.elevation[2])
+        if entity.is_3d_polyline:
+            P = _wcs(entity.points())
+            if entity.is_closed:
+                P = np.vstack([P, P[:1]])
+            keep = np.concatenate([[True], np.any(np.diff(P, axis=0) != 0, axis=1)])
+            P = P[keep]
+            return [make_line(p, q, name=label) for p, q in zip(P[:-1], P[1:])]
+    return None  # not a path entity
 
 
 def _chain(pieces: list[NurbsCurve], tol: float) -> list[list[NurbsCurve]]:
-    """Group pieces into chains whose ends meet, in drawing order where possible."""
-
-    def meets(a, b) -> bool:
-        return float(np.linalg.norm(a - b)) <= tol
-
-    remaining = list(pieces)
+    """Group pieces into chains whose ends meet, in drawing order where possible: each
+    chain grows at its tail, then at its head, with the first unused piece that starts or
+    ends there (reversed when needed). Vectorised over the pieces' end points."""
+    starts = np.array([c.control_points[0] for c in pieces])
+    ends = np.array([c.control_points[-1] for c in pieces])
+    used = np.zeros(len(pieces), bool)
     chains = []
-    while remaining:
-        chain = [remaining.pop(0)]
-        grown = True
-        while grown:
-            grown = False
-            for i, piece in enumerate(remaining):
-                head, tail = chain[0].control_points[0], chain[-1].control_points[-1]
-                start, end = piece.control_points[0], piece.control_points[-1]
-                if meets(start, tail):
+    for first in range(len(pieces)):
+        if used[first]:
+            continue
+        used[first] = True
+        chain = [pieces[first]]
+        for at_tail in (True, False):
+            while True:
+                point = chain[-1].control_points[-1] if at_tail else chain[0].control_points[0]
+                near_s = ~used & (np.linalg.norm(starts - point, axis=1) <= tol)
+                near_e = ~used & (np.linalg.norm(ends - point, axis=1) <= tol)
+                hit = np.flatnonzero(near_s | near_e)
+                if hit.size == 0:
+                    break
+                i = int(hit[0])
+                used[i] = True
+                piece = pieces[i]
+                forward = near_s[i] if at_tail else near_e[i]
+                piece = piece if forward else piece.reversed()
+                if at_tail:
                     chain.append(piece)
-                elif meets(end, tail):
-                    chain.append(piece.reversed())
-                elif meets(end, head):
-                    chain.insert(0, piece)
-                elif meets(start, head):
-                    chain.insert(0, piece.reversed())
                 else:
-                    continue
-                remaining.pop(i)
-                grown = True
-                break
+                    chain.insert(0, piece)
         chains.append(chain)
     return chains
 
 
 def load_dxf(
-    file: str | os.PathLike, *, tolerance: float = DEFAULT_JOIN_TOLERANCE
+    file: str | os.PathLike, *, tolerance: float = DEFAULT_JOIN_TOLERANCE, axes: str = "xy"
 ) -> list[NurbsCurve]:
-    """Read the XY contours of a DXF drawing's model space (see the module docstring).
+    """Read the contours of a DXF drawing's model space (see the module docstring).
 
     Parameters
     ----------
@@ -205,51 +282,86 @@ def load_dxf(
     tolerance : float
         Largest gap between entity ends that still chains them, relative to the drawing
         size (the largest extent of all control points).
+    axes : {"xy", "xyz"}
+        The machine's axes: ``"xy"`` reads flat entities (each at a constant Z) as 2-axis
+        paths; ``"xyz"`` reads 3-D paths.
 
     Returns
     -------
     list of NurbsCurve
         One joined curve per contour, named ``"<file stem>#k"``, in the ``$INSUNITS``
-        units (None when the drawing is unitless).
+        units (mm, with a :class:`DxfWarning`, when the drawing declares none).
 
     Raises
     ------
     PathFileError
-        If the file is not a readable DXF, has no usable entity, or an entity cannot be
-        converted (naming its type and handle).
+        One line naming the file (and the entity's type and handle): not a readable DXF,
+        no path entity, an entity that cannot be converted or a bad value in it.
     """
+    import ezdxf
+
     path = check_input_file(file)
+    axes = str(axes).lower()
+    if axes not in ("xy", "xyz"):
+        raise PathFileError(f"DXF paths have the axes xy or xyz, not {axes!r}", str(path))
     doc = _read(path)
-    units = _UNITS.get(doc.header.get("$INSUNITS", 0))
+    code = doc.header.get("$INSUNITS", 0)
+    if code in (0, None):
+        units = "mm"
+        _warn(f"{path}: the drawing declares no unit ($INSUNITS {code}); reading millimetres "
+              "(give --units to choose)")
+    elif code in _UNITS:
+        units = _UNITS[code]
+    else:
+        raise PathFileError(f"drawing unit $INSUNITS = {code!r} is not one of the units read "
+                            f"({', '.join(f'{k} = {v}' for k, v in sorted(_UNITS.items()))}); give "
+                            "--units to read its numbers in another unit", str(path))
     pieces: list[NurbsCurve] = []
-    ignored: Counter = Counter()
+    skipped: Counter = Counter()
+    degenerate: Counter = Counter()
     for entity in doc.modelspace():
-        if entity.dxftype() in _IGNORED:
-            ignored[entity.dxftype()] += 1
-            continue
         try:
-            pieces.extend(_pieces(entity))
-        except InvalidCurveError as exc:
-            message = str(exc)
+            found = _pieces(entity)
+            if found is None:
+                skipped[entity.dxftype()] += 1
+                continue
+            if not found:
+                degenerate[entity.dxftype()] += 1
+            for piece in found:
+                z = piece.control_points[:, 2]
+                if axes == "xy" and np.ptp(z) > 1e-12 * max(1.0, np.max(np.abs(z))):
+                    raise InvalidCurveError(
+                        f"{_label(entity)} is not flat: Z runs from {z.min():g} to {z.max():g}; a "
+                        "machine with a Z axis (xyz) can read it")
+                keep = 2 if axes == "xy" else 3
+                pieces.append(NurbsCurve(piece.degree, piece.knots, piece.control_points[:, :keep],
+                                         piece.weights, name=piece.name))
+        except (InvalidCurveError, ValueError, TypeError, AttributeError, IndexError, KeyError,
+                ZeroDivisionError, OverflowError, ezdxf.DXFError) as exc:
+            message = _one_line(exc)
             if not message.startswith(_label(entity)):
                 message = f"{_label(entity)}: {message}"
             raise PathFileError(message, source=str(path)) from None
-    if ignored:
-        listing = ", ".join(f"{n} {kind}" for kind, n in sorted(ignored.items()))
-        warnings.warn(f"{path}: ignored annotation entities: {listing}", DxfWarning, stacklevel=2)
+    for kind, n in sorted(skipped.items()):
+        _warn(f"{path}: {n} {kind} entit{'y' if n == 1 else 'ies'} skipped (not a path)")
+    for kind, n in sorted(degenerate.items()):
+        _warn(f"{path}: {n} {kind} entit{'y' if n == 1 else 'ies'} of zero length skipped")
     if not pieces:
         raise PathFileError(
-            "no usable entity in the model space (SPLINE, LINE, ARC, CIRCLE or LWPOLYLINE)",
-            source=str(path),
-        )
+            "no path entity in the model space (LINE, ARC, CIRCLE, ELLIPSE, SPLINE, LWPOLYLINE, "
+            "POLYLINE)", source=str(path))
     size = float(np.max(np.ptp(np.vstack([c.control_points for c in pieces]), axis=0)))
     contours = []
     for k, chain in enumerate(_chain(pieces, tolerance * size)):
         try:
             contours.append(join(chain, tolerance=tolerance, name=f"{path.stem}#{k + 1}", units=units))
         except InvalidCurveError as exc:
-            raise PathFileError(f"cannot join contour {k + 1}: {exc}", source=str(path)) from None
+            raise PathFileError(f"cannot join contour {k + 1}: {_one_line(exc)}", source=str(path)) from None
     return contours
+
+
+def _warn(message: str) -> None:
+    warnings.warn(message, DxfWarning, stacklevel=3)
 
 
 def save_dxf(curve: NurbsCurve, file: str | os.PathLike, *, overwrite: bool = False) -> Path:

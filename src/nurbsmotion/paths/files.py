@@ -33,12 +33,16 @@ import math
 import os
 import re
 import sys
+import warnings
 from pathlib import Path
 from typing import Any
 
 import tomli_w
 
+from dataclasses import dataclass
+
 from .._io import check_input_file, write_output
+from ..feed import FeedLimit
 from ..errors import InvalidCurveError, PathFileError
 from ..nurbs import BUILTIN_PATHS, NurbsCurve, builtin_path
 
@@ -48,6 +52,10 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 __all__ = [
+    "Contour",
+    "load_contours",
+    "PathWarning",
+    "PATH_UNITS",
     "load_path",
     "save_path",
     "resolve_path",
@@ -59,9 +67,38 @@ __all__ = [
 MAX_PATH_FILE_BYTES = 32_000_000
 """Largest JSON/TOML path file read [byte]; a 10^5-point path takes about 5 MB."""
 
-_GCODE_SUFFIXES = (".ngc", ".nc", ".gcode")
+_GCODE_SUFFIXES = (".ngc", ".nc", ".gcode", ".tap", ".cnc")
 PATH_FILE_SUFFIXES = (".json", ".toml", ".dxf") + _GCODE_SUFFIXES
 """File name endings :func:`load_path` and :func:`resolve_path` understand."""
+
+PATH_UNITS = ("mm", "cm", "m", "um", "in", "inch", "pulse")
+"""Units a path may be given in (``--units``): lengths of :data:`nurbsmotion.machine.
+LENGTH_UNITS_UM` and ``pulse`` (the machine's encoder pulse)."""
+
+
+class PathWarning(UserWarning):
+    """A path file was read under an assumption (e.g. no unit given: millimetres)."""
+
+
+@dataclass(frozen=True)
+class Contour:
+    """One path of a file, with what the file says about it.
+
+    Attributes
+    ----------
+    curve : NurbsCurve
+        The path [``curve.units``].
+    feed : FeedLimit or None
+        The programmed feed along it [path units / s] (G-code F words); None when the
+        file gives none.
+    source : str
+        The file (or built-in name) and contour, e.g. ``"part.ngc#2"``.
+    """
+
+    curve: NurbsCurve
+    feed: FeedLimit | None
+    source: str
+
 
 _REQUIRED = ("degree", "knots", "control_points")
 _OPTIONAL = ("weights", "name", "units", "source", "description")
@@ -152,6 +189,11 @@ def curve_from_dict(
         fields = _check_fields(data)
     except _FieldError as exc:
         raise PathFileError(str(exc), source=source, line=_line_of(text, exc.field, toml)) from None
+    units = fields.get("units")
+    if units is None:
+        units = "mm"
+        warnings.warn(f"{source or 'path'}: no 'units' field; reading millimetres (give --units "
+                      "to choose)", PathWarning, stacklevel=3)
     try:
         return NurbsCurve(
             fields["degree"],
@@ -159,7 +201,7 @@ def curve_from_dict(
             fields["control_points"],
             fields.get("weights"),
             name=fields.get("name"),
-            units=fields.get("units"),
+            units=units,
         )
     except InvalidCurveError as exc:
         raise PathFileError(f"invalid curve: {exc}", source=source) from None
@@ -277,17 +319,23 @@ def save_path(curve: NurbsCurve, file: str | os.PathLike, *, overwrite: bool = F
 _CONTOUR_SELECTOR = re.compile(r"^(?P<file>.+)#(?P<index>\d+)$")
 
 
-def load_path(file: str | os.PathLike) -> NurbsCurve:
+def load_path(file: str | os.PathLike, *, axes: str = "xy", units: str | None = None) -> NurbsCurve:
     """Read one path from a file, dispatching on its ending.
 
     Parameters
     ----------
     file : str or path-like
         ``*.json`` or ``*.toml`` (the formats of this module), ``*.ngc``, ``*.nc``,
-        ``*.gcode`` (G-code, see :mod:`nurbsmotion.paths.gcode`) or ``*.dxf``
-        (see :mod:`nurbsmotion.paths.dxf`). A G-code or DXF file may hold several
-        separate contours (cut apart by rapid moves, Z moves, or gaps); then append
-        ``#k`` to the name to choose the k-th (1-based), e.g. ``"butterfly.ngc#2"``.
+        ``*.gcode``, ``*.tap``, ``*.cnc`` (G-code, see :mod:`nurbsmotion.paths.gcode`) or
+        ``*.dxf`` (see :mod:`nurbsmotion.paths.dxf`). A G-code or DXF file may hold several
+        separate contours (cut apart by rapid moves, moves of other axes, or gaps); then
+        append ``#k`` to the name to choose the k-th (1-based), e.g. ``"butterfly.ngc#2"``.
+    axes : str
+        The machine's axes that form the path (``"xy"``, ``"xyz"``, ...) of a G-code or DXF
+        file; a JSON/TOML path has the axes it lists.
+    units : str, optional
+        Read the file's numbers in these units (one of :data:`PATH_UNITS`), whatever the
+        file says; by default the file's own, or mm with a :class:`PathWarning`.
 
     Returns
     -------
@@ -299,32 +347,63 @@ def load_path(file: str | os.PathLike) -> NurbsCurve:
         One clear message naming the file (and line or entity) for a missing file, a
         syntax error, a bad field, an invalid curve, or an ambiguous multi-contour file.
     """
+    return load_contour(file, axes=axes, units=units).curve
+
+
+def load_contour(file: str | os.PathLike, *, axes: str = "xy", units: str | None = None) -> Contour:
+    """:func:`load_path`, also returning the file's programmed feed (a :class:`Contour`)."""
     spec = os.fspath(file)
     index = None
     match = _CONTOUR_SELECTOR.match(spec)
     if match and not Path(spec).exists():
         spec, index = match.group("file"), int(match.group("index"))
-    path = Path(spec)
+    contours = load_contours(spec, axes=axes, units=units)
+    chosen = _choose_contour([c.curve for c in contours], index, spec)
+    return next(c for c in contours if c.curve is chosen)
+
+
+def load_contours(file: str | os.PathLike, *, axes: str = "xy", units: str | None = None) -> list[Contour]:
+    """Every contour of a path file, with its programmed feed (see :func:`load_path`)."""
+    path = Path(file)
+    if units is not None and units not in PATH_UNITS:
+        raise PathFileError(f"unit {units!r} is not one of {', '.join(PATH_UNITS)}", str(path))
     suffix = path.suffix.lower()
     if suffix in (".json", ".toml"):
-        if index is not None and index != 1:
-            raise PathFileError(f"holds one path; there is no contour #{index}", str(path))
-        return _read_json(path) if suffix == ".json" else _read_toml(path)
-    if suffix in _GCODE_SUFFIXES:
-        from .gcode import load_gcode
+        with warnings.catch_warnings():
+            if units is not None:  # the override makes the assumption moot
+                warnings.simplefilter("ignore", PathWarning)
+            curve = _read_json(path) if suffix == ".json" else _read_toml(path)
+        found = [Contour(curve, None, str(path))]
+    elif suffix in _GCODE_SUFFIXES:
+        from .gcode import GcodeWarning, load_gcode
 
-        contours = [c.curve for c in load_gcode(path).contours]
+        with warnings.catch_warnings():
+            if units is not None:
+                warnings.filterwarnings("ignore", "no G20/G21", GcodeWarning)
+            program = load_gcode(path, axes=axes)
+        found = [Contour(c.curve, c.feed_limit, f"{path}#{k + 1}")
+                 for k, c in enumerate(program.contours)]
     elif suffix == ".dxf":
-        from .dxf import load_dxf
+        from .dxf import DxfWarning, load_dxf
 
-        contours = list(load_dxf(path))
+        with warnings.catch_warnings():
+            if units is not None:
+                warnings.filterwarnings("ignore", ".*declares no unit", DxfWarning)
+            found = [Contour(c, None, f"{path}#{k + 1}") for k, c in enumerate(load_dxf(path, axes=axes))]
     else:
         raise PathFileError(
             f"unknown path file ending {suffix!r}; expected one of "
             f"{', '.join(PATH_FILE_SUFFIXES)} or a built-in name ({', '.join(BUILTIN_PATHS)})",
             source=str(path),
         )
-    return _choose_contour(contours, index, str(path))
+    if units is not None:
+        found = [Contour(_relabel(c.curve, units), c.feed, c.source) for c in found]
+    return found
+
+
+def _relabel(curve: NurbsCurve, units: str) -> NurbsCurve:
+    return NurbsCurve(curve.degree, curve.knots, curve.control_points, curve.weights,
+                      name=curve.name, units=units)
 
 
 def _choose_contour(contours: list[NurbsCurve], index: int | None, source: str) -> NurbsCurve:
@@ -346,7 +425,7 @@ def _choose_contour(contours: list[NurbsCurve], index: int | None, source: str) 
     return contours[index - 1]
 
 
-def resolve_path(spec: str) -> NurbsCurve:
+def resolve_path(spec: str, *, axes: str = "xy", units: str | None = None) -> NurbsCurve:
     """A path from a built-in name (``"die-bonder-pi"``, ``"butterfly"``) or a file name.
 
     This is what the command line calls for its ``PATH`` argument. A built-in name wins
@@ -363,11 +442,21 @@ def resolve_path(spec: str) -> NurbsCurve:
     PathFileError
         If ``spec`` is neither a built-in name nor a readable path file.
     """
+    return resolve_contour(spec, axes=axes, units=units).curve
+
+
+def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None) -> Contour:
+    """:func:`resolve_path`, also returning the file's programmed feed (a :class:`Contour`)."""
     if spec in BUILTIN_PATHS and not Path(spec).exists():
-        return builtin_path(spec)
+        curve = builtin_path(spec)
+        if units is not None:
+            if units not in PATH_UNITS:
+                raise PathFileError(f"unit {units!r} is not one of {', '.join(PATH_UNITS)}")
+            curve = _relabel(curve, units)
+        return Contour(curve, None, spec)
     if not Path(spec).suffix and not _CONTOUR_SELECTOR.match(spec):
         raise PathFileError(
             f"{spec!r} is neither a built-in path ({', '.join(BUILTIN_PATHS)}) nor a file "
             f"name with an ending ({', '.join(PATH_FILE_SUFFIXES)})"
         )
-    return load_path(spec)
+    return load_contour(spec, axes=axes, units=units)

@@ -2,36 +2,42 @@
 
 Reading
 -------
-:func:`load_gcode` reads the motion of a program in the XY plane and returns a
+:func:`load_gcode` reads the motion of a program along the path axes and returns a
 :class:`GcodeProgram`: the *contours* it cuts, each one :class:`NurbsCurve` built by
 :func:`nurbsmotion.joining.join` from the program's feed moves, plus the programmed feed
 of every piece.
 
 What is read
-    ``G0`` rapid and ``G1`` linear moves; ``G2``/``G3`` arcs in centre format (``I J``,
-    incremental by default, absolute under ``G90.1``) or radius format (``R``, negative
-    for more than a half turn), with ``P`` turns, as exact rational arcs; ``G5`` cubic
-    and ``G5.1`` quadratic splines (LinuxCNC); ``G5.2``/``G5.3`` NURBS blocks (LinuxCNC);
-    ``G06.2`` NURBS (Fanuc); ``F`` feed (units per minute, ``G94``); ``G20``/``G21``;
-    ``G90``/``G91``; ``G17``; ``N`` line numbers; comments in ``( )`` and after ``;``;
-    ``%`` lines. Accepted because they do not change the XY path: ``G40 G49 G54 G61
-    G61.1 G64 G80 G94``, ``M0 M1 M3 M4 M5 M6 M7 M8 M9``, ``S`` and ``T`` words. ``M2``
-    or ``M30`` ends the program. ``G4`` (dwell) ends the current contour.
-    Anything else (other G/M codes, parameters ``#``, expressions ``[ ]``, O-words, block
-    delete ``/``, a second plane, a helix, inverse-time feed) is a :class:`PathFileError`
-    naming the line: nothing is skipped silently.
+    The language (parameters, expressions, O-word subroutines and control flow) is
+    executed by :mod:`nurbsmotion.paths.ngc`; this module turns the executed blocks into
+    motion, in LinuxCNC's canonical coordinates (G5x + G92 offsets and the XY rotation of
+    ``G10 L2 R`` applied, as AXIS draws them): ``G0`` and ``G1``; ``G2``/``G3`` in the
+    G17/G18/G19 plane in centre format (incremental, or absolute under ``G90.1``) or radius
+    format, with ``P`` turns, as exact rational arcs, as a helix (C1 cubic pieces within
+    :data:`HELIX_TOLERANCE` of the radius) when another axis moves along, or as a spiral
+    when the end radius differs from the start radius within LinuxCNC's tolerance; ``G5``
+    and ``G5.1`` (XY); ``G5.2``/``G5.3`` and ``G6.2`` (``P`` order, ``Q`` method, ``K``
+    knots, ``R`` weights; Fanuc ``G06.2`` alike) in the XY, YZ and ZX planes; ``F`` under
+    ``G94`` (units per minute) or ``G93`` (inverse time); ``G20``/``G21``; ``G90``/``G91``;
+    ``G53``; ``G54``-``G59.3``; ``G10 L2/L20``; ``G92``, ``G92.1``/``.2``/``.3``;
+    ``G28``/``G30`` (a rapid through the given point to the stored home: a new contour);
+    polar ``@``/``^``. Words that do not change the path are skipped, each kind reported
+    once as a :class:`GcodeWarning` (one line). ``M2``/``M30`` end the program; ``G4``
+    (dwell) ends the contour. What would change the path but is not read (cutter
+    compensation, canned cycles, spindle-synchronised motion, probing, UVW planes) is a
+    :class:`PathFileError` naming the line.
 
 Contours
-    A 2-axis XY path cannot hold a lift or a plunge. A contour is therefore a maximal run
-    of XY feed moves at a constant Z; a rapid move (``G0``) or any move that changes Z
-    ends it, and the next feed move starts a new one. A feed move that changes X/Y and Z
-    together (a ramp or helix) is refused. The sample ``examples/butterfly.ngc`` thus gives
-    five contours. :func:`nurbsmotion.paths.resolve_path` asks the user to pick one
-    (``file.ngc#k``) when there are several, rather than guessing.
+    The machine's axes decide which coordinates form the path (``axes``, default
+    ``"xy"``). A contour is a maximal run of feed moves of those axes; a rapid move, or a
+    move of an axis outside the path, ends it. A feed move of an outside axis together with
+    path axes (a helix on a 2-axis machine, a rotary axis) is refused, naming the machine
+    that could follow it. :func:`nurbsmotion.paths.resolve_path` asks the user to pick one
+    contour (``file.ngc#k``) when there are several, rather than guessing.
 
 LinuxCNC G5.2 (2.9, read from ``interp_convert.cc`` and ``nurbs_additional_functions.cc``)
     The current position is the first control point; ``G5.2 P-`` without X/Y sets its
-    weight. Every later point needs X, Y and a positive P. ``L`` sets the order only when
+    weight (a first listed point equal to it repeats it: C'(0) = 0, kept as given). Every later point needs X, Y and a positive P. ``L`` sets the order only when
     ``L > 3`` (default 3, i.e. quadratic). The knot vector is implicit and open-uniform
     over integers: ``k`` zeros, ``1 .. n-k+1``, ``k`` times ``n-k+2`` for ``n + 1``
     control points of order ``k`` (``knot_vector_creator``). Under ``G91`` every control
@@ -66,7 +72,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -75,9 +80,11 @@ import numpy as np
 
 from .._io import check_input_file, write_output
 from ..errors import InvalidCurveError, PathFileError
+from ..feed import FeedLimit
 from ..joining import bezier_segments, elevate_degree, join_with_edges
-from ..nurbs import NurbsCurve, make_line
-from .pieces import arc_by_center, arc_by_radius
+from ..nurbs import NurbsCurve, make_polyline
+from .ngc import MAX_LINE_LENGTH, Program, split_lines
+from .pieces import arc_by_center
 
 __all__ = [
     "GcodeContour",
@@ -89,9 +96,6 @@ __all__ = [
     "format_number",
     "MAX_LINE_LENGTH",
 ]
-
-MAX_LINE_LENGTH = 256
-"""Longest line read [characters]; LinuxCNC's own limit (LINELEN) is 255."""
 
 _INCH = 25.4  # [mm / inch]
 
@@ -125,6 +129,17 @@ class GcodeContour:
     def feed(self) -> np.ndarray:
         """Programmed feed of each piece [program units / s], shape (n_pieces,)."""
         return self.programmed_feed / 60.0
+
+    @property
+    def feed_limit(self) -> FeedLimit:
+        """The programmed feed as a :class:`~nurbsmotion.feed.FeedLimit` [program units / s]
+        (pieces whose edges coincide to rounding merged, keeping the lower feed)."""
+        edges, feed = np.asarray(self.piece_edges, float), self.feed
+        keep = np.concatenate([[True], np.diff(edges) > 0])
+        keep[-1] = True
+        idx = np.flatnonzero(keep)
+        speeds = np.minimum.reduceat(feed, idx[:-1]) if len(idx) > 1 else feed[:1]
+        return FeedLimit(edges[idx], speeds[: len(idx) - 1])
 
     def feed_at(self, u) -> np.ndarray:
         """Programmed feed [program units / s] of the piece containing each ``u`` in
@@ -167,109 +182,146 @@ def linuxcnc_knots(n_points: int, order: int) -> np.ndarray:
     ).astype(float)
 
 
-# ---------------------------------------------------------------------- tokenizer
-_WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+))")
-
-
-def _strip_comments(text: str, line: int, source: str) -> str:
-    out = []
-    i = 0
-    while i < len(text):
-        ch = text[i]
-        if ch == ";":
-            break
-        if ch == "(":
-            close = text.find(")", i + 1)
-            if close < 0:
-                raise PathFileError("comment '(' is not closed on this line", source, line)
-            if "(" in text[i + 1 : close]:
-                raise PathFileError("nested comments are not allowed", source, line)
-            i = close + 1
-            continue
-        out.append(ch)
-        i += 1
-    return "".join(out)
-
-
-def _words(text: str, line: int, source: str) -> list[tuple[str, float]]:
-    code = "".join(_strip_comments(text, line, source).split()).upper()
-    words = []
-    pos = 0
-    while pos < len(code):
-        match = _WORD.match(code, pos)
-        if not match:
-            bad = code[pos : pos + 20]
-            hint = ""
-            if "#" in bad or "[" in bad or bad[0] == "O":
-                hint = " (parameters, expressions and O-words are not supported)"
-            raise PathFileError(f"cannot read {bad!r}{hint}", source, line)
-        words.append((match.group(1), float(match.group(2))))
-        pos = match.end()
-    return words
-
-
-def _lines(path: Path):
-    """(line number, text) of each line, decoded lazily with a length cap."""
-    with open(path, "rb") as f:
-        number = 0
-        while True:
-            raw = f.readline(MAX_LINE_LENGTH + 2)
-            if not raw:
-                return
-            number += 1
-            if len(raw.rstrip(b"\r\n")) > MAX_LINE_LENGTH:
-                raise PathFileError(
-                    f"line is longer than {MAX_LINE_LENGTH} characters; is this a G-code file?",
-                    str(path),
-                    number,
-                )
-            try:
-                yield number, raw.decode("ascii").rstrip("\r\n")
-            except UnicodeDecodeError:
-                raise PathFileError(
-                    "line holds non-ASCII bytes; is this a G-code file?", str(path), number
-                ) from None
-
-
 # ---------------------------------------------------------------------- reader
+_AXES = "XYZABCUVW"
+_PLANES = {17.0: (0, 1, 2, "I", "J"), 18.0: (2, 0, 1, "K", "I"), 19.0: (1, 2, 0, "J", "K")}
+"""G17/G18/G19: (first axis, second axis, linear axis, first offset word, second offset
+word), as LinuxCNC's convert_arc passes them (XZ is (Z, X): G2 is clockwise seen from +Y)."""
 _MOTION = {0.0: "G0", 1.0: "G1", 2.0: "G2", 3.0: "G3", 5.0: "G5", 5.1: "G5.1",
-           5.2: "G5.2", 5.3: "G5.3", 6.2: "G06.2"}  # fmt: skip
-_HARMLESS_G = {17.0, 40.0, 49.0, 54.0, 61.0, 61.1, 64.0, 80.0, 94.0}
-_HARMLESS_M = {0.0, 1.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0}
+           5.2: "G5.2", 5.3: "G5.3", 6.2: "G6.2"}  # fmt: skip
+_COORD_SYSTEMS = {54.0: 1, 55.0: 2, 56.0: 3, 57.0: 4, 58.0: 5, 59.0: 6, 59.1: 7, 59.2: 8, 59.3: 9}
+_SKIPPED_G = {
+    4.0: "G4 dwell", 40.0: None, 43.0: "G43 tool length offset (not applied)",
+    43.1: "G43.1 tool length offset (not applied)", 43.2: "G43.2 tool length offset (not applied)",
+    49.0: None, 61.0: None, 61.1: None, 64.0: "G64 path blending tolerance",
+    80.0: None, 94.0: None, 96.0: "G96 constant surface speed", 97.0: "G97 spindle RPM mode",
+    98.0: None, 99.0: None, 7.0: "G7 lathe diameter mode", 8.0: "G8 lathe radius mode",
+    17.0: None, 18.0: None, 19.0: None,
+}  # fmt: skip
+_REFUSED_G = {
+    41.0: "cutter radius compensation changes the path", 42.0: "cutter radius compensation changes the path",
+    41.1: "cutter radius compensation changes the path", 42.1: "cutter radius compensation changes the path",
+    95.0: "feed per revolution is not read; use G94 (units per minute)",
+    17.1: "the UVW planes are not read", 18.1: "the UVW planes are not read", 19.1: "the UVW planes are not read",
+    33.0: "spindle-synchronised motion is not read", 33.1: "rigid tapping is not read",
+    76.0: "canned cycles are not read", 38.2: "probing is not read", 38.3: "probing is not read",
+    38.4: "probing is not read", 38.5: "probing is not read",
+    **{float(g): "canned cycles are not read" for g in (73, 74, 81, 82, 83, 84, 85, 86, 87, 88, 89)},
+}  # fmt: skip
 _END_M = {2.0, 30.0}
+_SKIPPED_M = {0.0: "M0 pause", 1.0: "M1 optional pause", 3.0: "M3/M4/M5 spindle",
+              4.0: "M3/M4/M5 spindle", 5.0: "M3/M4/M5 spindle", 6.0: "M6 tool change",
+              7.0: "M7/M8/M9 coolant", 8.0: "M7/M8/M9 coolant", 9.0: "M7/M8/M9 coolant",
+              60.0: "M60 pallet change", 61.0: "M61 tool number"}  # fmt: skip
+_SKIPPED_M_RANGES = ((48, 53, "M48-M53 override switches"), (62, 68, "M62-M68 digital/analog I/O"),
+                     (70, 73, "M70-M73 modal state save/restore"), (100, 199, "M100-M199 user commands"))
+_MOTION_WORDS = {"G0": "", "G1": "", "G2": "IJKRP", "G3": "IJKRP", "G5": "IJPQ", "G5.1": "IJ",
+                 "G5.2": "PL", "G6.2": "PQKRL"}  # fmt: skip
+MAX_COORDINATE = 1e9
+"""Largest coordinate, centre offset or radius read [program units]: beyond it a path of
+ordinary size cannot be computed to 1e-9 of its size in double precision."""
+MAX_ARC_TURNS = 100
+"""Most turns (``P``) a G2/G3 arc may have."""
+HELIX_TOLERANCE = 1e-9
+"""Largest distance of a helix's cubic approximation from the true helix, relative to
+its radius."""
 
 
 def _g_name(value: float) -> str:
     return f"G{value:g}"
 
 
-class _Reader:
-    """State machine over the lines of one program."""
+def _skipped_m(m: float) -> str | None:
+    if m in _SKIPPED_M:
+        return _SKIPPED_M[m]
+    for lo, hi, name in _SKIPPED_M_RANGES:
+        if lo <= m <= hi and m == int(m):
+            return name
+    return None
 
-    def __init__(self, source: str):
+
+def _embed(curve: NurbsCurve, base: np.ndarray, cols: tuple) -> NurbsCurve:
+    """A planar curve placed in ``len(base)`` dimensions: its two coordinates go to
+    ``cols``, the others stay at ``base``."""
+    P = np.repeat(base[None, :], curve.n_control_points, axis=0)
+    P[:, list(cols)] = curve.control_points
+    return NurbsCurve(curve.degree, curve.knots, P, curve.weights)
+
+
+def helix(center, radius0: float, radius1: float, a0: float, sweep: float, start: np.ndarray,
+          end: np.ndarray, cols: tuple, name: str | None = None) -> NurbsCurve:
+    """A helix (or spiral) as a C1 piecewise cubic: angle ``a0 -> a0 + sweep`` [rad]
+    round ``center`` in the coordinates ``cols``, radius ``radius0 -> radius1`` and every
+    other coordinate ``start -> end`` linearly in the angle. Cubic Hermite pieces of
+    angle ``h`` deviate at most ``r h^4 / 384`` from the helix; ``h`` is chosen so that
+    this stays below :data:`HELIX_TOLERANCE` times the radius."""
+    r = max(radius0, radius1)
+    h = (384.0 * HELIX_TOLERANCE) ** 0.25
+    n = max(1, math.ceil(abs(sweep) / h))
+    t = np.linspace(0.0, 1.0, n + 1)
+    ang = a0 + sweep * t
+    rad = radius0 + (radius1 - radius0) * t
+    P = start[None, :] + t[:, None] * (end - start)[None, :]
+    D = np.repeat(((end - start) / sweep)[None, :], n + 1, axis=0)  # d/dangle
+    c, s = np.cos(ang), np.sin(ang)
+    dr = (radius1 - radius0) / sweep
+    i, j = cols
+    P[:, i], P[:, j] = center[0] + rad * c, center[1] + rad * s
+    D[:, i], D[:, j] = dr * c - rad * s, dr * s + rad * c
+    step = sweep / n
+    ctrl = np.empty((3 * n + 1, len(start)))
+    ctrl[0::3] = P
+    ctrl[1::3] = P[:-1] + D[:-1] * step / 3
+    ctrl[2::3] = P[1:] - D[1:] * step / 3
+    ctrl[-1] = end if np.allclose(P[-1], end, rtol=0, atol=1e-9 * max(r, 1.0)) else P[-1]
+    knots = np.concatenate([[0.0] * 4, np.repeat(t[1:-1], 3), [1.0] * 4])
+    return NurbsCurve(3, knots, ctrl, name=name)
+
+
+class _Reader:
+    """The motion layer: executes blocks from :class:`ngc.Program` and collects pieces."""
+
+    def __init__(self, source: str, axes: str):
         self.source = source
+        self.axes = [_AXES.index(a.upper()) for a in axes]
         self.units: str | None = None  # output units
         self.input_inch: bool | None = None
         self.absolute = True
         self.arc_absolute = False
-        self.position = np.zeros(3)  # x, y, z [output units]
+        self.plane = 17.0
+        self.position = np.zeros(9)  # absolute position of X..W [output units]
         self.feed = 0.0  # [output units / min]
+        self.inverse_time = False  # G93
+        self.feed_word = 0.0  # F of this line under G93 [1/min]
+        self.f_on_line = False
         self.motion: str | None = None
-        self.pieces: list[tuple[NurbsCurve, int, float]] = []
+        self.pieces: list = []  # (curve or ("line", start, end), line, feed)
         self.contours: list[GcodeContour] = []
         self.warnings: list[str] = []
-        self.block: dict | None = None  # open G5.2 or G06.2 block
-        self._g5_pq: np.ndarray | None = None  # last G5's P Q, for a G5 without I J
+        self.warned: set = set()
+        self.block: dict | None = None  # open G5.2 or G6.2 block
+        self._g5_pq: np.ndarray | None = None
         self.line = 0
+        self.program: Program | None = None
+        self.frame_changes = 0  # bumped by blocks that change offsets or the coordinate system
+        self._frame_key = None
+        self._frame = self._identity = None
+        self.on_path = np.zeros(9, bool)
+        self.on_path[self.axes] = True
+        self._k = None  # (input inch, output units) -> lengths()
 
     # -- helpers
     def error(self, message: str, line: int | None = None) -> PathFileError:
         return PathFileError(message, self.source, line if line is not None else self.line)
 
-    def warn(self, message: str) -> None:
+    def warn(self, message: str, kind: str | None = None) -> None:
+        if kind is not None:
+            if kind in self.warned:
+                return
+            self.warned.add(kind)
         text = f"{self.source}, line {self.line}: {message}"
         self.warnings.append(text)
-        warnings.warn(text, GcodeWarning, stacklevel=4)
+        warnings.warn(text, GcodeWarning, stacklevel=2)
 
     def scale(self) -> float:
         if self.units is None:
@@ -280,65 +332,188 @@ class _Reader:
             return 1.0
         return _INCH if self.input_inch else 1.0 / _INCH
 
-    def target(self, words: dict, base: np.ndarray | None = None) -> np.ndarray:
-        """End point of a move from its X/Y/Z words [output units]: absolute under G90,
-        relative to ``base`` (default: the current position) under G91."""
+    def frame(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """The active G5x offset, G92 offset (X..W, [output units]) and XY rotation [deg]
+        (parameters #5221.. per system, #5211.., #5210), as LinuxCNC keeps them; cached
+        until a block or an assignment changes them."""
+        key = (self.program.frame_version, self.frame_changes)
+        if self._frame_key != key:
+            self._frame = self._read_frame()
+            self._frame_key = key
+            g5x, g92, rot = self._frame
+            self._identity = not (rot or np.any(g5x) or np.any(g92))
+        return self._frame
+
+    def _read_frame(self) -> tuple[np.ndarray, np.ndarray, float]:
+        n = self.program.numbered
+        system = int(n[5220]) or 1
+        base = 5201 + 20 * system
+        g92 = np.array(n[5211:5220]) if n[5210] else np.zeros(9)
+        return np.array(n[base: base + 9]), g92, n[base + 9]
+
+    def to_program(self, p: np.ndarray) -> np.ndarray:
+        """Absolute (machine) coordinates -> program coordinates (LinuxCNC's unrotate)."""
+        g5x, g92, rot = self.frame()
+        if self._identity:
+            return p.copy()
+        q = p - g5x
+        if rot:
+            c, s = math.cos(math.radians(rot)), math.sin(math.radians(rot))
+            q[0], q[1] = c * q[0] + s * q[1], -s * q[0] + c * q[1]
+        return q - g92
+
+    def to_absolute(self, q: np.ndarray) -> np.ndarray:
+        """Program coordinates (shape (..., 9)) -> absolute: + G92, rotate XY, + G5x."""
+        g5x, g92, rot = self.frame()
+        if self._identity:
+            return q
+        p = q + g92
+        if rot:
+            c, s = math.cos(math.radians(rot)), math.sin(math.radians(rot))
+            p = p.copy()
+            p[..., 0], p[..., 1] = c * (q[..., 0] + g92[0]) - s * (q[..., 1] + g92[1]), \
+                s * (q[..., 0] + g92[0]) + c * (q[..., 1] + g92[1])
+        return p + g5x
+
+    def system_parameter(self, name: str) -> float | None:
+        """``#<_x>`` .. ``#<_w>`` and a few modal flags, for the language layer."""
+        if len(name) == 2 and name[1].upper() in _AXES:
+            i = _AXES.index(name[1].upper())
+            k = 1.0 / self.scale() if self.units and i not in (3, 4, 5) else 1.0
+            return float(self.to_program(self.position)[i] * k)
+        flags = {"_metric": not self.input_inch, "_imperial": bool(self.input_inch),
+                 "_absolute": self.absolute, "_incremental": not self.absolute}
+        if name in flags:
+            return float(flags[name])
+        if name == "_feed":
+            return self.feed
+        return None
+
+    def value(self, letter: str, v: float) -> float:
+        if not abs(v) <= MAX_COORDINATE:
+            raise self.error(f"{letter}{v:g} is beyond the largest coordinate read, "
+                             f"{MAX_COORDINATE:g} (MAX_COORDINATE)")
+        return v
+
+    def lengths(self) -> np.ndarray:
+        """Factor from the words' units to output units for X..W (1 for rotary A B C)."""
         k = self.scale()
-        end = self.position.copy()
-        ref = self.position if base is None else base
-        for axis, letter in enumerate("XYZ"):
+        if self._k is None or self._k[0] != k:
+            self._k = (k, np.array([k, k, k, 1.0, 1.0, 1.0, k, k, k]))
+        return self._k[1]
+
+    def target(self, words: dict, base: np.ndarray | None = None, machine: bool = False) -> np.ndarray:
+        """End point of a move from its axis words [absolute, output units]: absolute under
+        G90, relative to ``base`` (default: the current position) under G91; polar ``@``
+        (radius) and ``^`` (angle, degrees) in the XY plane as LinuxCNC reads them;
+        ``machine``: the words are machine coordinates (G53)."""
+        k = self.lengths()
+        if machine:
+            end = self.position.copy()
+            for axis, letter in enumerate(_AXES):
+                if letter in words:
+                    end[axis] = k[axis] * self.value(letter, words[letter])
+            return end
+        cur = self.to_program(self.position)
+        ref = cur if base is None else self.to_program(base)
+        end = cur.copy()
+        for axis, letter in enumerate(_AXES):
             if letter in words:
-                end[axis] = k * words[letter] + (0.0 if self.absolute else ref[axis])
-        return end
+                v = k[axis] * self.value(letter, words[letter])
+                end[axis] = v if self.absolute else ref[axis] + v
+        if "@" in words or "^" in words:
+            if "X" in words or "Y" in words:
+                raise self.error("polar coordinates @ ^ cannot be given with X or Y")
+            r0, t0 = math.hypot(cur[0], cur[1]), math.degrees(math.atan2(cur[1], cur[0]))
+            r = k[0] * self.value("@", words["@"]) + (0.0 if self.absolute else r0) if "@" in words else r0
+            t = self.value("^", words["^"]) + (0.0 if self.absolute else t0) if "^" in words else t0
+            end[0], end[1] = r * math.cos(math.radians(t)), r * math.sin(math.radians(t))
+        return self.to_absolute(end)
 
-    def add_piece(self, curve: NurbsCurve, line: int) -> None:
-        if self.feed <= 0:
+    def add_piece(self, piece, line: int, length: float | None = None) -> None:
+        """Add a piece with the feed in force; ``length`` is its arc length where known
+        exactly (a line, an arc). Under G93 (inverse time) F is 1 / the move's duration
+        [1/min], so the piece's feed is its length times F."""
+        feed = self.feed
+        if self.inverse_time:
+            if not self.f_on_line:
+                raise self.error("inverse-time feed (G93) needs an F word on every feed move")
+            if length is None:
+                length = piece.length
+            feed = self.feed_word * length
+        if feed <= 0:
             raise self.error("feed move without a feed rate: no F word (or F0) before it", line)
-        self.pieces.append((curve, line, self.feed))
+        self.pieces.append((piece, line, feed, length))
 
-    def end_contour(self) -> None:
-        if not self.pieces:
-            return
-        curves = [c for c, _, _ in self.pieces]
-        try:
-            curve, edges = join_with_edges(
-                curves, name=f"{Path(self.source).stem}#{len(self.contours) + 1}", units=self.units
-            )
-        except InvalidCurveError as exc:
-            raise self.error(f"cannot join the moves into one path: {exc}", self.pieces[0][1]) from None
-        self.contours.append(
-            GcodeContour(
-                curve,
-                edges,
-                np.array([f for _, _, f in self.pieces]),
-                tuple(n for _, n, _ in self.pieces),
-            )
-        )
-        self.pieces = []
+    def add_curve(self, curve: NurbsCurve, line: int, length: float | None = None) -> None:
+        """Add a piece given in program coordinates X..W (9 columns)."""
+        P = self.to_absolute(curve.control_points)
+        piece = self.make(lambda: NurbsCurve(curve.degree, curve.knots, P[:, self.axes],
+                                             curve.weights, name=f"line {line}"), line)
+        self.add_piece(piece, line, length)
 
     def make(self, build, line: int):
-        """Run a piece constructor, turning InvalidCurveError into a PathFileError."""
         try:
             return build()
         except InvalidCurveError as exc:
             raise self.error(str(exc), line) from None
 
-    # -- one line
-    def read_line(self, words: list[tuple[str, float]]) -> bool:
-        """Process one line; return False when the program ends (M2/M30)."""
-        gs = [v for k, v in words if k == "G"]
-        ms = [v for k, v in words if k == "M"]
-        rest: dict[str, float] = {}
-        for k, v in words:
-            if k in "GMN":
-                continue
-            if k in rest:
-                raise self.error(f"word {k} appears twice")
-            rest[k] = v
+    def end_contour(self) -> None:
+        if not self.pieces:
+            return
+        name = f"{Path(self.source).stem}#{len(self.contours) + 1}"
+        runs, run_lines, known = [], [], []  # consecutive lines become one polyline
+        for piece, line, feed, length in self.pieces:
+            if isinstance(piece, tuple):
+                if runs and isinstance(runs[-1], list):
+                    runs[-1].append(piece[2])
+                    run_lines[-1].append((line, feed))
+                    continue
+                runs.append([piece[1], piece[2]])
+                run_lines.append([(line, feed)])
+            else:
+                runs.append(piece)
+                run_lines.append([(line, feed)])
+            known.append(length)
+        curves = []
+        for k, r in enumerate(runs):
+            if isinstance(r, list):
+                P = np.array(r)[:, self.axes]
+                curves.append(make_polyline(P))
+                known[k] = float(np.sum(np.linalg.norm(np.diff(P, axis=0), axis=1)))
+            else:
+                curves.append(r)
+        try:
+            if len(curves) == 1:
+                c = curves[0]
+                curve = NurbsCurve(c.degree, c.knots, c.control_points, c.weights, name=name, units=self.units)
+                edges = np.array([0.0, 1.0])
+            else:
+                curve, edges = join_with_edges(curves, name=name, units=self.units, lengths=known)
+        except InvalidCurveError as exc:
+            raise self.error(f"cannot join the moves into one path: {exc}", self.pieces[0][1]) from None
+        all_edges, feeds, lines = [0.0], [], []
+        for c, (a, b), info in zip(curves, zip(edges[:-1], edges[1:]), run_lines):
+            if len(info) > 1:  # a polyline run: its segments by chord length
+                inner = c.knots[2:-2]
+                all_edges.extend(a + (b - a) * inner)
+            all_edges.append(b)
+            feeds.extend(f for _, f in info)
+            lines.extend(n for n, _ in info)
+        self.contours.append(GcodeContour(curve, np.array(all_edges), np.array(feeds), tuple(lines)))
+        self.pieces = []
 
+    # -- one block
+    def read(self, block) -> bool:
+        """Process one block; return False when the program ends (M2/M30)."""
+        self.line = block.line
+        rest = dict(block.words)
+        if "$$" in rest:
+            self.warn("GRBL '$' settings lines skipped", "$$")
+            return True
         motion = None
-        dwell = False
-        for g in gs:
+        special = None  # a non-modal G code of group 0 that uses the axis words
+        for g in block.g:
             g = round(g, 4)
             if g in _MOTION:
                 if motion is not None:
@@ -352,85 +527,171 @@ class _Reader:
                 self.absolute = g == 90.0
             elif g in (90.1, 91.1):
                 self.arc_absolute = g == 90.1
-            elif g == 4.0:
-                dwell = True
-            elif g in (18.0, 19.0):
-                raise self.error(f"{_g_name(g)} selects another plane; only the XY plane (G17) is read")
-            elif g == 93.0 or g == 95.0:
-                raise self.error(f"{_g_name(g)} feed mode is not supported; use G94 (units per minute)")
-            elif g not in _HARMLESS_G:
-                raise self.error(f"{_g_name(g)} is not supported")
-        for m in ms:
-            if m not in _HARMLESS_M | _END_M:
-                raise self.error(f"M{m:g} is not supported")
-        for letter in ("S", "T"):
-            rest.pop(letter, None)
-        if dwell:
-            rest.pop("P", None)
-            self.end_contour()
-        if 64.0 in gs:
-            rest.pop("P", None), rest.pop("Q", None)
+            elif g in (93.0, 94.0):
+                self.inverse_time = g == 93.0
+            elif g in (17.0, 18.0, 19.0):
+                self.plane = g
+            elif g in _COORD_SYSTEMS:
+                self.program.numbered[5220] = float(_COORD_SYSTEMS[g])
+                self.frame_changes += 1
+            elif g in (10.0, 28.0, 28.1, 30.0, 30.1, 53.0, 92.0, 92.1, 92.2, 92.3):
+                if special is not None:
+                    raise self.error(f"two codes of group 0 on one line: {_g_name(special)} and {_g_name(g)}")
+                special = g
+            elif g in _REFUSED_G:
+                raise self.error(f"{_g_name(g)}: {_REFUSED_G[g]}")
+            elif g in _SKIPPED_G:
+                if _SKIPPED_G[g]:
+                    self.warn(f"{_SKIPPED_G[g]} skipped: it does not change the path", _g_name(g))
+                if g == 4.0:
+                    rest.pop("P", None)
+                    self.end_contour()
+                elif g == 64.0:
+                    rest.pop("P", None), rest.pop("Q", None)
+                elif g in (43.0, 43.2):
+                    rest.pop("H", None)
+                elif g == 43.1:
+                    for a in "XYZABCUVW":
+                        rest.pop(a, None)
+            else:
+                raise self.error(f"{_g_name(g)} is not a LinuxCNC G code this reader knows")
+        for m in block.m:
+            if m in _END_M:
+                continue
+            name = _skipped_m(m)
+            if name is None:
+                raise self.error(f"M{m:g} is not an M code this reader knows")
+            self.warn(f"{name} skipped: it does not change the path", name)
+            if m >= 48:  # the words of M48-M53, M61-M68 (P, Q, E, L, R) go with them
+                for letter in "PEQLR":
+                    rest.pop(letter, None)
+        for letter, what in (("S", "S spindle speed"), ("T", "T tool number"), ("H", "H tool offset"),
+                             ("D", "D cutter radius"), ("$", "$ spindle selector")):
+            if letter in rest:
+                rest.pop(letter)
+                self.warn(f"{what} skipped: it does not change the path", letter)
+        self.f_on_line = "F" in rest
         if "F" in rest:
-            if rest["F"] < 0:
-                raise self.error(f"negative feed F{rest['F']:g}")
-            self.scale_feed(rest.pop("F"))
+            f = rest.pop("F")
+            if not (0 <= f <= MAX_COORDINATE):
+                raise self.error(f"feed F{f:g} must be >= 0 and at most {MAX_COORDINATE:g}")
+            if self.inverse_time:
+                self.feed_word = f
+            else:
+                self.feed = f * (1.0 if self.units is None else self.scale())
 
-        if self.block is not None and (motion is not None and motion not in ("G5.2", "G5.3")
-                                       and self.block["kind"] == "G5.2"):  # fmt: skip
-            raise self.error(
-                f"the G5.2 block opened on line {self.block['line']} is not closed with G5.3 "
-                f"before this {motion}"
-            )
-        if self.block is not None and self.block["kind"] == "G06.2" and motion is not None:
-            self.close_fanuc()
+        if self.block is not None and self.block["kind"] == "G5.2" and motion not in (None, "G5.2", "G5.3"):
+            raise self.error(f"the G5.2 block opened on line {self.block['line']} is not closed "
+                             f"with G5.3 before this {motion}")
+        if self.block is not None and self.block["kind"] == "G6.2" and motion not in (None, "G6.2"):
+            self.close_g6()
         if motion is not None:
             self.motion = motion
+        if special is not None:
+            self.non_modal(special, rest)
+            self.frame_changes += 1
+            rest = {}
 
         if motion == "G5.3":
-            self.close_nurbs(rest)
+            self.close_g5(rest)
         elif self.motion == "G5.2" and (motion == "G5.2" or self.block is not None or rest):
-            self.nurbs_point(rest, opening=motion == "G5.2" and self.block is None)
-        elif self.motion == "G06.2" and (motion == "G06.2" or rest):
-            self.fanuc_point(rest, opening=motion == "G06.2")
+            self.g5_point(rest, opening=self.block is None)
+        elif self.motion == "G6.2" and (motion == "G6.2" or rest):
+            self.g6_point(rest, opening=self.block is None)
         elif rest or motion in ("G2", "G3"):
             self.move(rest)
+        return not any(m in _END_M for m in block.m)
 
-        if any(m in _END_M for m in ms):
-            return False
-        return True
-
-    def scale_feed(self, f: float) -> None:
-        k = 1.0 if self.units is None else self.scale()
-        self.feed = f * k
+    # -- group 0: G10 G28 G30 G53 G92
+    def non_modal(self, g: float, w: dict) -> None:
+        n = self.program.numbered
+        k = self.scale()
+        if g == 53.0:
+            if not self.absolute:
+                raise self.error("G53 needs absolute mode G90")
+            self.move(w, machine=True)
+        elif g in (28.0, 30.0):
+            home = 5161 if g == 28.0 else 5181
+            self.end_contour()
+            if w:
+                self.position = self.target(w)
+            self.position = np.array(n[home: home + 9]) * self.lengths()
+        elif g in (28.1, 30.1):
+            home = 5161 if g == 28.1 else 5181
+            n[home: home + 9] = list(self.position / self.lengths())
+        elif g == 92.0:
+            if not w:
+                raise self.error("G92 needs at least one axis word")
+            _, g92, _ = self.frame()
+            unshifted = self.to_program(self.position) + g92
+            for axis, letter in enumerate(_AXES):
+                if letter in w:
+                    g92[axis] = unshifted[axis] - self.value(letter, w[letter]) * self.lengths()[axis]
+            n[5211:5220] = list(g92)
+            n[5210] = 1.0
+        elif g in (92.1, 92.2):
+            n[5210] = 0.0
+            if g == 92.1:
+                n[5211:5220] = [0.0] * 9
+        elif g == 92.3:
+            n[5210] = 1.0
+        else:  # G10
+            L = w.pop("L", None)
+            if L in (1.0, 10.0, 11.0):
+                self.warn(f"G10 L{L:g} tool table entries skipped: tool offsets are not applied", "G10 tool")
+                return
+            if L not in (2.0, 20.0):
+                raise self.error(f"G10 L{L if L is None else format(L, 'g')} is not read (G10 L2/L20 are)")
+            p = w.pop("P", 0.0)
+            if p != int(p) or not 0 <= p <= 9:
+                raise self.error(f"G10 L{L:g} P{p:g}: coordinate system must be 0..9")
+            system = int(p) or int(n[5220]) or 1
+            base = 5201 + 20 * system
+            if "R" in w:
+                n[base + 9] = w.pop("R")
+            extra = sorted(set(w) - set(_AXES))
+            if extra:
+                raise self.error(f"word(s) {', '.join(extra)} not allowed with G10")
+            for axis, letter in enumerate(_AXES):
+                if letter in w:
+                    v = self.value(letter, w[letter]) * self.lengths()[axis]
+                    if L == 2.0:
+                        n[base + axis] = v
+                    else:  # L20: the current point gets coordinate v
+                        g92 = n[5211 + axis] if n[5210] else 0.0
+                        n[base + axis] = self.position[axis] - g92 - v
 
     # -- G0 G1 G2 G3 G5 G5.1
-    def move(self, w: dict) -> None:
+    def move(self, w: dict, machine: bool = False) -> None:
         kind = self.motion
         if kind is None:
             raise self.error(f"axis words {sorted(w)} without a motion mode (G0/G1/...)")
-        allowed = {"G0": "XYZ", "G1": "XYZ", "G2": "XYZIJRP", "G3": "XYZIJRP",
-                   "G5": "XYIJPQ", "G5.1": "XYIJ"}[kind]  # fmt: skip
-        extra = sorted(set(w) - set(allowed))
+        extra = sorted(set(w) - set(_AXES) - set(_MOTION_WORDS[kind]))
         if extra:
-            raise self.error(f"word(s) {', '.join(extra)} not supported with {kind}")
-        end = self.target(w)
+            raise self.error(f"word(s) {', '.join(extra)} not read with {kind}")
+        if kind in ("G5", "G5.1") and self.plane != 17.0:
+            raise self.error(f"{kind} is only allowed in the XY plane (G17), as in LinuxCNC")
+        end = self.target(w, machine=machine)
         start = self.position
-        moves_xy = not np.array_equal(end[:2], start[:2])
-        moves_z = end[2] != start[2]
+        changed = end != start
+        on_path = self.on_path
+        moves_path, moves_other = bool((changed & on_path).any()), bool((changed & ~on_path).any())
         line = self.line
         if kind == "G0":
-            if moves_xy or moves_z:
+            if moves_path or moves_other:
                 self.end_contour()
-        elif moves_z:
-            if kind != "G1" or moves_xy:
-                raise self.error(
-                    f"{kind} moves Z together with X/Y (a ramp or helix); only XY paths at "
-                    "constant Z are read"
-                )
-            self.end_contour()  # a plunge or lift at fixed XY ends the contour
+        elif moves_other and (moves_path or kind in ("G2", "G3")):
+            others = "".join(_AXES[i] for i in np.flatnonzero(changed & ~on_path))
+            raise self.error(
+                f"{kind} moves {others} together with the path axes {''.join(_AXES[i] for i in self.axes)}; "
+                f"a machine with the axes {''.join(sorted(set(_AXES[i] for i in self.axes) | set(others), key=_AXES.index))} "
+                "can follow it")
+        elif moves_other:
+            self.end_contour()  # a plunge or lift of an axis outside the path ends the contour
         elif kind == "G1":
-            if moves_xy:
-                self.add_piece(self.make(lambda: make_line(start[:2], end[:2], name=f"line {line}"), line), line)
+            if moves_path:
+                length = math.dist(end[self.axes], start[self.axes]) if self.inverse_time else None
+                self.add_piece(("line", start, end), line, length)
         elif kind in ("G2", "G3"):
             self.arc(w, start, end)
         else:
@@ -440,216 +701,261 @@ class _Reader:
         self.position = end
 
     def arc(self, w: dict, start: np.ndarray, end: np.ndarray) -> None:
+        """G2/G3 in the selected plane, computed in program coordinates as LinuxCNC does:
+        an exact arc when only the plane's axes move, else a helix; a spiral when the
+        end radius differs from the start radius within LinuxCNC's tolerance."""
         clockwise = self.motion == "G2"
         k = self.scale()
         line = self.line
+        i1, i2, lin, o1, o2 = _PLANES[self.plane]
         turns = w.get("P", 1.0)
         if turns != int(turns) or turns < 1:
             raise self.error(f"arc turns P{turns:g} must be a whole number >= 1")
+        if turns > MAX_ARC_TURNS:
+            raise self.error(f"arc turns P{turns:g} are more than the {MAX_ARC_TURNS} read "
+                             "(MAX_ARC_TURNS)")
+        wrong = "IJK"[lin]
+        if wrong in w:
+            raise self.error(f"{wrong} word not allowed with an arc in the {_g_name(self.plane)} plane")
+        ps, pe = self.to_program(start), self.to_program(end)
+        s2, e2 = ps[[i1, i2]], pe[[i1, i2]]
         if "R" in w:
-            if "I" in w or "J" in w:
-                raise self.error("arc with both R and I/J")
-            if turns != 1:
-                raise self.error("P turns need the centre format (I J)")
-            build = lambda: arc_by_radius(start[:2], end[:2], k * w["R"], clockwise=clockwise,
-                                          name=f"line {line}")  # fmt: skip
-            self.add_piece(self.make(build, line), line)
-            return
-        if "I" not in w and "J" not in w:
-            raise self.error(f"{self.motion} needs I/J (centre) or R (radius)")
-        if self.arc_absolute:
-            if not ("I" in w and "J" in w):
-                raise self.error("absolute arc centre (G90.1) needs both I and J")
-            center = np.array([k * w["I"], k * w["J"]])
+            if o1 in w or o2 in w:
+                raise self.error("arc with both R and a centre offset")
+            r = k * self.value("R", w["R"])
+            d = float(np.hypot(*(e2 - s2)))
+            if d == 0.0:
+                raise self.error("a radius-format arc cannot end where it starts")
+            if d > 2 * abs(r) * (1 + 1e-9):
+                raise self.error(f"arc radius {abs(r):g} is too small for the chord of length {d:g}")
+            h = math.sqrt(max(r * r - d * d / 4, 0.0))
+            left = np.array([-(e2 - s2)[1], (e2 - s2)[0]]) / d
+            side = 1.0 if (not clockwise) == (r > 0) else -1.0
+            center = (s2 + e2) / 2 + side * h * left
         else:
-            center = start[:2] + k * np.array([w.get("I", 0.0), w.get("J", 0.0)])
-        r1 = float(np.hypot(*(start[:2] - center)))
-        r2 = float(np.hypot(*(end[:2] - center)))
-        # LinuxCNC's check: |r2 - r1| > 0.5 mm, or > 0.005 mm and > 0.1 % of the radius
-        mm = 1.0 if self.units == "mm" else 1.0 / _INCH
+            if o1 not in w and o2 not in w:
+                raise self.error(f"{self.motion} needs {o1}/{o2} (centre) or R (radius) in the "
+                                 f"{_g_name(self.plane)} plane")
+            off = np.array([k * self.value(o1, w.get(o1, 0.0)), k * self.value(o2, w.get(o2, 0.0))])
+            if self.arc_absolute and not (o1 in w and o2 in w):
+                raise self.error(f"absolute arc centre (G90.1) needs both {o1} and {o2}")
+            center = off if self.arc_absolute else s2 + off
+        r1 = float(np.hypot(*(s2 - center)))
+        r2 = float(np.hypot(*(e2 - center)))
+        if r1 == 0.0:
+            raise self.error(f"arc centre {center.tolist()} coincides with its start point")
+        # LinuxCNC's check (interp_arc.cc): |r2 - r1| > 100 tol, or > tol and > 0.1 %
+        tol = (2 * 0.01 * math.sqrt(2)) * (1.0 if self.units == "mm" else 1.0 / _INCH)
         diff = abs(r2 - r1)
-        if diff > 0.5 * mm or (diff > 0.005 * mm and diff > 0.001 * r1):
+        if diff > 100 * tol or (diff > tol and diff / max(r1, r2) > 0.001):
             raise self.error(
-                f"radius to end of arc differs from radius to start: start {start[:2].tolist()} "
-                f"centre {center.tolist()} end {end[:2].tolist()} r1 {r1:.6g} r2 {r2:.6g}"
-            )
-        build = lambda: arc_by_center(start[:2], end[:2], center, clockwise=clockwise,
-                                      turns=int(turns), name=f"line {line}")  # fmt: skip
-        for piece in self.make(build, line):
-            self.add_piece(piece, line)
+                f"radius to end of arc differs from radius to start: start {s2.tolist()} "
+                f"centre {center.tolist()} end {e2.tolist()} r1 {r1:.6g} r2 {r2:.6g}")
+        if i1 not in self.axes or i2 not in self.axes:
+            raise self.error(f"an arc in the {_g_name(self.plane)} plane needs the axes "
+                             f"{_AXES[i1]}{_AXES[i2]} in the path (the path has "
+                             f"{''.join(_AXES[i] for i in self.axes)})")
+        linear = bool(np.any(np.delete(pe != ps, [i1, i2])))
+        if not linear and diff <= 1e-12 * r1:
+            build = lambda: arc_by_center(s2, e2, center, clockwise=clockwise, turns=int(turns))
+            for piece in self.make(build, line):  # rational quadratics: sweep 2 acos(w_mid) each
+                sweep = 2.0 * float(np.sum(np.arccos(np.clip(piece.weights[1::2], -1.0, 1.0))))
+                self.add_curve(_embed(piece, ps, (i1, i2)), line, r1 * sweep)
+            return
+        a0 = math.atan2(s2[1] - center[1], s2[0] - center[0])
+        a1 = math.atan2(e2[1] - center[1], e2[0] - center[0])
+        sweep = (a0 - a1) % (2 * math.pi) if clockwise else (a1 - a0) % (2 * math.pi)
+        if sweep == 0.0:
+            sweep = 2 * math.pi
+        sweep = (sweep + 2 * math.pi * (int(turns) - 1)) * (-1.0 if clockwise else 1.0)
+        self.add_curve(self.make(lambda: helix(center, r1, r2, a0, sweep, ps, pe, (i1, i2)), line), line)
 
     def spline(self, kind: str, w: dict, start: np.ndarray, end: np.ndarray) -> None:
         k = self.scale()
         line = self.line
+        ps = self.to_program(start)
+        s2, e2 = ps[[0, 1]], self.to_program(end)[[0, 1]]
         if kind == "G5.1":
             if "I" not in w and "J" not in w:
                 raise self.error("G5.1 needs I and/or J")
-            ctrl = [start[:2], start[:2] + k * np.array([w.get("I", 0.0), w.get("J", 0.0)]), end[:2]]
+            ctrl = [s2, s2 + k * np.array([w.get("I", 0.0), w.get("J", 0.0)]), e2]
         else:
             if not ("P" in w and "Q" in w):
                 raise self.error("G5 needs both P and Q")
             if ("I" in w) != ("J" in w):
                 raise self.error("G5 needs both I and J, or neither")
             if "I" in w:
-                first = k * np.array([w["I"], w["J"]])
+                first = k * np.array([self.value("I", w["I"]), self.value("J", w["J"])])
             elif self._g5_pq is not None:
                 first = -self._g5_pq
             else:
                 raise self.error("the first G5 of a series needs I and J")
-            self._g5_pq = k * np.array([w["P"], w["Q"]])
-            ctrl = [start[:2], start[:2] + first, end[:2] + self._g5_pq, end[:2]]
+            self._g5_pq = k * np.array([self.value("P", w["P"]), self.value("Q", w["Q"])])
+            ctrl = [s2, s2 + first, e2 + self._g5_pq, e2]
         p = len(ctrl) - 1
-        build = lambda: NurbsCurve(p, [0.0] * (p + 1) + [1.0] * (p + 1), ctrl, name=f"line {line}")
-        self.add_piece(self.make(build, line), line)
+        curve = self.make(lambda: NurbsCurve(p, [0.0] * (p + 1) + [1.0] * (p + 1), ctrl), line)
+        self.add_curve(_embed(curve, ps, (0, 1)), line)
 
-    # -- LinuxCNC G5.2 / G5.3
-    def nurbs_point(self, w: dict, opening: bool) -> None:
-        extra = sorted(set(w) - set("XYZPL"))
+    # -- LinuxCNC G5.2 / G5.3: (first, second) = (X, Y), (Y, Z) or (Z, X) as LinuxCNC
+    def g5_axes(self) -> tuple:
+        return {17.0: (0, 1), 19.0: (1, 2), 18.0: (2, 0)}[self.plane]
+
+    def g5_point(self, w: dict, opening: bool) -> None:
+        a, b = self.g5_axes()
+        la, lb = _AXES[a], _AXES[b]
+        extra = sorted(set(w) - set(_AXES) - set("PL"))
         if extra:
             raise self.error(f"word(s) {', '.join(extra)} not allowed in a G5.2 block")
-        if ("X" in w) != ("Y" in w):
-            raise self.error("a G5.2 control point needs both X and Y")
-        if "Z" in w:
-            self.warn("Z word inside a G5.2 block is ignored (LinuxCNC reads XY only)")
+        if (la in w) != (lb in w):
+            raise self.error(f"a G5.2 control point needs both {la} and {lb}")
+        others = sorted(set(w) & set(_AXES) - {la, lb})
+        if others:
+            self.warn(f"{', '.join(others)} word inside a G5.2 block is ignored (LinuxCNC reads "
+                      f"{la}{lb} only in the {_g_name(self.plane)} plane)", "G5.2 other axes")
         if opening:
             w0 = 1.0
-            if "P" in w and "X" not in w:
+            if "P" in w and la not in w:
                 w0 = w["P"]
-                if w0 <= 0:
+                if not 0 < w0 <= MAX_COORDINATE:
                     raise self.error(f"weight P{w0:g} of the first control point must be positive")
-            self.block = {"kind": "G5.2", "line": self.line, "order": 3,
-                          "base": self.position.copy(), "points": [self.position[:2].copy()],
+            self.block = {"kind": "G5.2", "line": self.line, "order": 3, "plane": (a, b),
+                          "base": self.position.copy(), "points": [self.position.copy()],
                           "weights": [w0]}  # fmt: skip
-        b = self.block
+        bl = self.block
         if "L" in w:
-            if w["L"] != int(w["L"]):
-                raise self.error(f"order L{w['L']:g} must be a whole number")
+            if w["L"] != int(w["L"]) or w["L"] > 64:
+                raise self.error(f"order L{w['L']:g} must be a whole number (at most 64)")
             if w["L"] > 3:
-                b["order"] = int(w["L"])
-        if "X" in w:
+                bl["order"] = int(w["L"])
+        if la in w:
             if "P" not in w:
                 if not opening:
                     raise self.error("a G5.2 control point after the first line needs a weight P")
-                self.warn(
-                    "X/Y on the opening G5.2 line without P: weight 1, as the LinuxCNC manual "
-                    "says (the LinuxCNC 2.9 interpreter would store -1)"
-                )
+                self.warn(f"{la}/{lb} on the opening G5.2 line without P: weight 1, as the "
+                          "LinuxCNC manual says", "G5.2 no P")
             weight = w.get("P", 1.0)
-            if weight <= 0:
+            if not 0 < weight <= MAX_COORDINATE:
                 raise self.error(f"weight P{weight:g} must be positive")
-            xy = {k: v for k, v in w.items() if k in "XY"}
-            b["points"].append(self.target(xy, base=b["base"])[:2])
-            b["weights"].append(weight)
+            bl["points"].append(self.target({la: w[la], lb: w[lb]}, base=bl["base"]))
+            bl["weights"].append(weight)
         elif "P" in w and not opening:
-            raise self.error("P without X and Y is only allowed on the opening G5.2 line")
+            raise self.error(f"P without {la} and {lb} is only allowed on the opening G5.2 line")
 
-    def close_nurbs(self, w: dict) -> None:
-        b = self.block
-        if b is None or b["kind"] != "G5.2":
+    def close_g5(self, w: dict) -> None:
+        bl = self.block
+        if bl is None or bl["kind"] != "G5.2":
             raise self.error("G5.3 without an open G5.2 block")
         if w:
             raise self.error(f"word(s) {', '.join(sorted(w))} not allowed with G5.3")
-        points, order = np.array(b["points"]), b["order"]
+        points, order = np.array(bl["points"]), bl["order"]
         if len(points) < order:
             raise self.error(
-                f"the G5.2 block opened on line {b['line']} has {len(points)} control points "
-                f"(counting the start point); order L = {order} needs at least {order}"
-            )
-        line = b["line"]
-        build = lambda: NurbsCurve(order - 1, linuxcnc_knots(len(points), order), points,
-                                   b["weights"], name=f"line {line}")  # fmt: skip
+                f"the G5.2 block opened on line {bl['line']} has {len(points)} control points "
+                f"(counting the start point); order L = {order} needs at least {order}")
+        line = bl["line"]
         self.block = None
-        self.add_piece(self.make(build, line), line)
-        self.position = np.array([*points[-1], self.position[2]])
         self.motion = None
+        self.finish_nurbs(lambda: NurbsCurve(order - 1, linuxcnc_knots(len(points), order), points,
+                                             bl["weights"]), bl["plane"], points[-1], line)
 
-    # -- Fanuc G06.2
-    def fanuc_point(self, w: dict, opening: bool) -> None:
-        extra = sorted(set(w) - set("XYZKRP"))
+    def finish_nurbs(self, build, plane: tuple, last: np.ndarray, line: int) -> None:
+        """Add a G5.2/G6.2 curve whose control points are absolute X..W rows. A first
+        control point repeating the start (LinuxCNC's own examples) gives C'(0) = 0, which
+        the path keeps (see NurbsCurve)."""
+        if not set(plane) <= set(self.axes):
+            raise self.error(f"the curve lies in the {''.join(_AXES[i] for i in plane)} plane but "
+                             f"the path has the axes {''.join(_AXES[i] for i in self.axes)}")
+        curve = self.make(build, line)
+        piece = self.make(lambda: NurbsCurve(curve.degree, curve.knots, curve.control_points[:, self.axes],
+                                             curve.weights, name=f"line {line}"), line)
+        self.add_piece(piece, line, piece.length if self.inverse_time else None)
+        self.position = np.array(last, dtype=float)
+
+    # -- G6.2 (LinuxCNC) / G06.2 (Fanuc)
+    def g6_point(self, w: dict, opening: bool) -> None:
+        a, b = self.g5_axes()
+        la, lb = _AXES[a], _AXES[b]
+        extra = sorted(set(w) - set(_AXES) - set("KRPQL"))
         if extra:
-            raise self.error(f"word(s) {', '.join(extra)} not allowed in a G06.2 block")
+            raise self.error(f"word(s) {', '.join(extra)} not allowed in a G6.2 block")
         if opening:
             order = w.get("P", 4.0)
-            if order != int(order) or order < 2:
-                raise self.error(f"G06.2 order P{order:g} must be a whole number >= 2")
-            self.block = {"kind": "G06.2", "line": self.line, "order": int(order), "points": [],
-                          "weights": [], "knots": [], "tail": 0}  # fmt: skip
-        elif "P" in w:
-            raise self.error("the G06.2 order P may only be given on the G06.2 line")
-        b = self.block
-        if b is None:
-            raise self.error("G06.2 data after the block was closed; start a new one with G06.2")
+            if order != int(order) or not 2 <= order <= 64:
+                raise self.error(f"G6.2 order P{order:g} must be a whole number in 2..64")
+            q = w.get("Q", 1.0)
+            if q not in (1.0, 2.0, 3.0):
+                raise self.error(f"G6.2 Q{q:g} must be 1, 2 or 3 (LinuxCNC's interpolation method)")
+            self.block = {"kind": "G6.2", "line": self.line, "order": int(order), "points": [],
+                          "weights": [], "knots": [], "tail": 0, "plane": (a, b)}  # fmt: skip
+        elif "P" in w or "Q" in w:
+            raise self.error("the G6.2 order P and method Q may only be given on the opening line")
+        bl = self.block
         if "K" not in w and not opening:
-            raise self.error("every G06.2 block needs a knot K")
-        if "Z" in w and self.target({"Z": w["Z"]})[2] != self.position[2]:
-            raise self.error("Z moves inside G06.2 are not supported (XY paths only)")
+            raise self.error("every G6.2 block needs a knot K")
+        others = set(w) & set(_AXES) - {la, lb}
+        if others and np.any(self.target({x: w[x] for x in others}) != self.position):
+            raise self.error(f"{', '.join(sorted(others))} moves inside G6.2 are not read "
+                             f"(the curve lies in the {la}{lb} plane)")
         weight = w.get("R", 1.0)
-        if weight <= 0:
+        if not 0 < weight <= MAX_COORDINATE:
             raise self.error(f"weight R{weight:g} must be positive")
-        if "X" in w or "Y" in w:
-            if b["tail"]:
-                raise self.error("G06.2 control point after the knot-only blocks")
-            point = self.target({k: v for k, v in w.items() if k in "XY"})[:2]
-            if opening and np.max(np.abs(point - self.position[:2])) > 1e-9 * max(1.0, np.max(np.abs(point))):
-                raise self.error(
-                    f"the first G06.2 control point {point.tolist()} is not the current "
-                    f"position {self.position[:2].tolist()}"
-                )
-            b["points"].append(point)
-            b["weights"].append(weight)
-        elif opening:  # the current position is the first control point
-            b["points"].append(self.position[:2].copy())
-            b["weights"].append(weight)
+        if la in w or lb in w:
+            if bl["tail"]:
+                raise self.error("G6.2 control point after the knot-only blocks")
+            point = self.target({x: w[x] for x in (la, lb) if x in w})
+            here = self.position
+            if opening and np.max(np.abs(point - here)) > 1e-9 * max(1.0, np.max(np.abs(point))):
+                raise self.error(f"the first G6.2 control point {point[[a, b]].tolist()} is not the "
+                                 f"current position {here[[a, b]].tolist()}")
+            bl["points"].append(point)
+            bl["weights"].append(weight)
+        elif opening:
+            bl["points"].append(self.position.copy())
+            bl["weights"].append(weight)
         else:
-            b["tail"] += 1
-        b["knots"].append(w.get("K"))
-        if b["knots"][0] is None and len(b["knots"]) > 1:
-            b["knots"][0] = b["knots"][1]  # "omitted in the first block": the second's value
-        if b["tail"] == b["order"]:
-            self.close_fanuc()
+            bl["tail"] += 1
+        bl["knots"].append(w.get("K"))
+        if bl["knots"][0] is None and len(bl["knots"]) > 1:
+            bl["knots"][0] = bl["knots"][1]
+        if bl["tail"] == bl["order"]:
+            self.close_g6()
 
-    def close_fanuc(self) -> None:
-        b = self.block
+    def close_g6(self) -> None:
+        bl = self.block
         self.block = None
         self.motion = None
-        line = b["line"]
-        points, order, knots = np.array(b["points"]), b["order"], b["knots"]
+        line = bl["line"]
+        points, order, knots = np.array(bl["points"]), bl["order"], bl["knots"]
         n = len(points)
         if len(knots) != n + order:
-            raise self.error(
-                f"the G06.2 block of line {line} has {len(knots)} knots, expected "
-                f"{n + order} = control points ({n}) + order ({order})",
-                line,
-            )
+            raise self.error(f"the G6.2 block of line {line} has {len(knots)} knots, expected "
+                             f"{n + order} = control points ({n}) + order ({order})", line)
         if len(set(knots[:order])) != 1 or len(set(knots[-order:])) != 1:
-            raise self.error(
-                f"the G06.2 block of line {line} must start and end with {order} equal knots "
-                f"(clamped ends), got {knots[:order]} ... {knots[-order:]}",
-                line,
-            )
-        build = lambda: NurbsCurve(order - 1, knots, points, b["weights"], name=f"line {line}")
-        self.add_piece(self.make(build, line), line)
-        self.position = np.array([*points[-1], self.position[2]])
+            raise self.error(f"the G6.2 block of line {line} must start and end with {order} equal "
+                             f"knots (clamped ends), got {knots[:order]} ... {knots[-order:]}", line)
+        self.finish_nurbs(lambda: NurbsCurve(order - 1, knots, points, bl["weights"]), bl["plane"],
+                          points[-1], line)
 
     def finish(self) -> None:
         if self.block is not None and self.block["kind"] == "G5.2":
-            raise self.error(
-                f"the G5.2 block opened on line {self.block['line']} is never closed with G5.3 "
-                "(truncated program?)",
-                self.block["line"],
-            )
+            raise self.error(f"the G5.2 block opened on line {self.block['line']} is never closed "
+                             "with G5.3 (truncated program?)", self.block["line"])
         if self.block is not None:
-            self.close_fanuc()
+            self.close_g6()
         self.end_contour()
 
 
-def load_gcode(file: str | os.PathLike) -> GcodeProgram:
-    """Read the XY contours of a G-code program (see the module docstring).
+def load_gcode(file: str | os.PathLike, axes: str = "xy") -> GcodeProgram:
+    """Read the contours of a G-code program (see the module docstring).
 
     Parameters
     ----------
     file : str or path-like
         The program.
+    axes : str
+        The machine's axes that form the path, in order, from ``XYZABCUVW`` (e.g. ``"xy"``
+        for a 2-axis machine, ``"xyz"`` for a 3-axis one). A move of any other axis ends
+        the contour; a feed move of another axis together with path axes is refused.
 
     Returns
     -------
@@ -659,26 +965,25 @@ def load_gcode(file: str | os.PathLike) -> GcodeProgram:
     Raises
     ------
     PathFileError
-        At the first unsupported or malformed line, naming it; nothing is skipped.
-        Reading is line by line with lines capped at :data:`MAX_LINE_LENGTH`, so a huge
-        file of garbage fails at once.
+        At the first malformed line or the first thing that changes the path but is not
+        read, naming the file, the line and the value.
     """
     path = check_input_file(file)
-    reader = _Reader(str(path))
-    for number, text in _lines(path):
-        reader.line = number
-        stripped = text.strip()
-        if stripped == "%" or not stripped:
-            continue
-        if stripped.startswith("/"):
-            raise reader.error("block delete '/' is not supported")
-        if not reader.read_line(_words(text, number, str(path))):
+    axes = str(axes).upper()
+    if not axes or len(set(axes)) != len(axes) or not set(axes) <= set(_AXES):
+        raise PathFileError(f"path axes {axes!r} must be distinct letters of {_AXES}", str(path))
+    reader = _Reader(str(path), axes)
+    lines = split_lines(path.read_bytes(), str(path))
+    program = Program(lines, str(path), reader.system_parameter)
+    reader.program = program
+    for block in program.blocks():
+        if not reader.read(block):
             break
     reader.finish()
     if not reader.contours:
-        raise PathFileError("the program has no XY feed move to make a path from", str(path))
+        raise PathFileError(f"the program has no feed move of the path axes {axes} to make a path from",
+                            str(path))
     return GcodeProgram(tuple(reader.contours), reader.units or "mm", str(path), tuple(reader.warnings))
-
 
 # ---------------------------------------------------------------------- writer
 def format_number(x: float, decimals: int) -> str:

@@ -1,0 +1,79 @@
+"""Dump the points LinuxCNC's own interpreter computes for a G-code program, as JSON.
+
+Runs under Debian's /usr/bin/python3 with the ``gcode`` module of ``linuxcnc-uspace``
+(the one AXIS uses for its preview): ``gcode.parse(file, canon, "G21", "")`` with a canon
+that records every move the way AXIS's ``rs274.glcanon`` does — program coordinates
+translated by the G92 and G5x offsets, arcs cut into points by ``gcode.arc_to_segments``
+— converted from the module's inches to mm. Usage::
+
+    /usr/bin/python3 linuxcnc_points.py PROGRAM.ngc > points.json
+
+Output: ``{"error": null | "message", "moves": [[kind, line, [x, y, z, a, b, c, u, v, w]],
+...]}`` with kind ``"feed"``, ``"traverse"`` or ``"arc"`` (arc points), in mm.
+"""
+
+import json
+import sys
+
+import gcode
+from rs274.interpret import ArcsToSegmentsMixin, Translated
+
+
+class Canon(Translated, ArcsToSegmentsMixin):
+    def __init__(self):
+        self.moves = []
+        self.lineno = 0
+        self.lo = (0.0,) * 9
+        self.arcdivision = 64
+        self.parameter_file = ""
+
+    def __getattr__(self, name):  # every canon call we do not need: a no-op
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return lambda *args, **kw: None
+
+    def next_line(self, state):
+        self.lineno = state.sequence_number
+
+    def get_external_length_units(self):
+        return 0.03937007874015748
+
+    def get_external_angular_units(self):
+        return 1.0
+
+    def get_axis_mask(self):
+        return 511
+
+    def get_block_delete(self):
+        return False
+
+    def get_tool(self, idx):
+        return (-1,) + (0.0,) * 12 + (0,)
+
+    def record(self, kind, point):
+        self.moves.append([kind, self.lineno, [v * 25.4 if i in (0, 1, 2, 6, 7, 8) else v
+                                               for i, v in enumerate(point)]])
+        self.lo = tuple(point)
+
+    def straight_traverse_translated(self, *p):
+        self.record("traverse", p)
+
+    def straight_feed_translated(self, *p):
+        self.record("feed", p)
+
+    def straight_arcsegments(self, segs):
+        for p in segs:
+            self.record("arc", p)
+
+
+def main():
+    canon = Canon()
+    result, seq = gcode.parse(sys.argv[1], canon, "G21", "")
+    error = None
+    if result > gcode.MIN_ERROR:
+        error = f"line {seq}: {gcode.strerror(result)}"
+    json.dump({"error": error, "moves": canon.moves}, sys.stdout)
+
+
+if __name__ == "__main__":
+    main()
