@@ -9,14 +9,19 @@ behind.
 
 from __future__ import annotations
 
+import json
 import os
+import re
+import shutil
+import sys
 import tempfile
 from pathlib import Path
 from typing import Callable, IO
 
 from .errors import OutputExistsError, PathFileError
 
-__all__ = ["check_input_file", "write_output"]
+__all__ = ["check_input_file", "read_text_file", "parse_json_or_toml", "write_output",
+           "OutputFolder"]
 
 
 def check_input_file(file: str | os.PathLike, max_bytes: int | None = None) -> Path:
@@ -41,6 +46,83 @@ def check_input_file(file: str | os.PathLike, max_bytes: int | None = None) -> P
                 source=str(path),
             )
     return path
+
+
+def read_text_file(file: str | os.PathLike, max_bytes: int | None = None) -> str:
+    """The text of a UTF-8 file, checked as :func:`check_input_file` does.
+
+    A leading byte-order mark (which Windows editors write) is dropped, and CRLF and CR
+    line ends are read as LF.
+
+    Raises
+    ------
+    PathFileError
+        Naming the file (and the line) if it is missing, too big or not UTF-8.
+    """
+    path = check_input_file(file, max_bytes)
+    data = path.read_bytes()
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise PathFileError("not a UTF-8 text file", str(path), line) from None
+    return text.replace("\r\n", "\n").replace("\r", "\n")
+
+
+def parse_json_or_toml(text: str, *, toml: bool, source: str, constants: bool = False):
+    """Parse JSON or TOML text; every syntax fault is one :class:`PathFileError`.
+
+    Parameters
+    ----------
+    text : str
+        The file's text.
+    toml : bool
+        TOML if true, else JSON.
+    source : str
+        File name for the messages.
+    constants : bool
+        Accept JSON's non-standard ``NaN``, ``Infinity`` and ``-Infinity``.
+
+    Raises
+    ------
+    PathFileError
+        Naming the file and, where the parser gives it, the line: a syntax error, a
+        non-standard constant, or nesting deeper than the parser's recursion limit.
+    """
+    try:
+        if toml:
+            if sys.version_info >= (3, 11):
+                import tomllib
+            else:  # pragma: no cover - Python 3.10
+                import tomli as tomllib
+            try:
+                return tomllib.loads(text)
+            except tomllib.TOMLDecodeError as exc:
+                match = re.search(r"line (\d+)", str(exc))
+                message = re.sub(r"\s*\(at line \d+, column \d+\)|\s*\(at end of document\)",
+                                 "", str(exc))
+                raise PathFileError(f"not valid TOML: {message}", source,
+                                    int(match.group(1)) if match else None) from None
+        try:
+            return json.loads(text, parse_constant=None if constants else _reject_constant)
+        except json.JSONDecodeError as exc:
+            raise PathFileError(f"not valid JSON: {exc.msg} (column {exc.colno})", source,
+                                exc.lineno) from None
+        except _ConstantError as exc:
+            raise PathFileError(f"not valid JSON: {exc}", source) from None
+    except RecursionError:
+        raise PathFileError(
+            "nested deeper than the parser can follow (lists or tables inside each other "
+            f"about {sys.getrecursionlimit()} deep or more); this is not a path or machine file",
+            source) from None
+
+
+class _ConstantError(ValueError):
+    pass
+
+
+def _reject_constant(name: str):
+    raise _ConstantError(f"{name} is not a number a file may hold")
 
 
 def write_output(

@@ -11,6 +11,7 @@ from __future__ import annotations
 __all__ = [
     "NurbsmotionError",
     "InvalidCurveError",
+    "InvalidArgumentError",
     "InvalidMachineError",
     "PathFileError",
     "InfeasibleError",
@@ -24,6 +25,14 @@ class NurbsmotionError(Exception):
 
 class InvalidCurveError(NurbsmotionError, ValueError):
     """A NURBS curve definition is invalid (knots, weights, control points, degree)."""
+
+
+class InvalidArgumentError(NurbsmotionError, ValueError, TypeError):
+    """A function argument is of the wrong kind or out of range (a curve parameter, a
+    derivative order, a tolerance, a feed, something that is not a curve or a machine).
+
+    Derives from both :class:`ValueError` and :class:`TypeError`, the built-in errors such
+    an argument would otherwise raise."""
 
 
 class InvalidMachineError(NurbsmotionError, ValueError):

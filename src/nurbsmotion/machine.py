@@ -18,21 +18,18 @@ Umax : drive limit [V]; Ts : sample period [s].
 
 from __future__ import annotations
 
-import json
 import math
-import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ._io import parse_json_or_toml, read_text_file
 from .errors import InvalidMachineError, PathFileError
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+MAX_MACHINE_FILE_BYTES = 1_000_000
+"""Largest machine file read [byte] (a machine of 6 axes takes about 1 kB)."""
 
 __all__ = ["Axis", "Machine", "CONTROLLERS", "SPEED_MEASUREMENTS", "LENGTH_UNITS_UM",
            "die_bonder", "builtin_machine", "BUILTIN_MACHINES", "load_machine"]
@@ -47,21 +44,27 @@ LENGTH_UNITS_UM = {"um": 1.0, "mm": 1e3, "cm": 1e4, "m": 1e6, "in": 25_400.0, "i
 """Length units a path may be drawn in, in micrometres."""
 
 
-def _positive(value: Any, name: str) -> float:
+def _number(value: Any, name: str) -> float:
+    """``value`` as a float; booleans and strings are never numbers."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer,
+                                                                   np.floating)):
+        raise InvalidMachineError(
+            f"{name} must be a number, got {value!r:.60} ({type(value).__name__})")
     try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InvalidMachineError(f"{name} must be a number, got {value!r}") from None
+        return float(value)
+    except OverflowError:
+        raise InvalidMachineError(f"{name} is too large for a double: {value!r:.60}") from None
+
+
+def _positive(value: Any, name: str) -> float:
+    v = _number(value, name)
     if not (math.isfinite(v) and v > 0):
         raise InvalidMachineError(f"{name} must be finite and > 0, got {value!r}")
     return v
 
 
 def _non_negative(value: Any, name: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InvalidMachineError(f"{name} must be a number, got {value!r}") from None
+    v = _number(value, name)
     if not (math.isfinite(v) and v >= 0):
         raise InvalidMachineError(f"{name} must be finite and >= 0, got {value!r}")
     return v
@@ -157,6 +160,8 @@ class Machine:
         object.__setattr__(
             self, "pulse_length_um", _positive(self.pulse_length_um, "pulse_length_um")
         )
+        if not isinstance(self.name, str):
+            raise InvalidMachineError(f"name must be a string, got {self.name!r:.60}")
         if self.controller not in CONTROLLERS:
             raise InvalidMachineError(
                 f"controller must be one of {CONTROLLERS}, got {self.controller!r}"
@@ -327,17 +332,10 @@ def load_machine(spec: str | Path) -> Machine:
             f"no such machine file, and not a built-in machine ({', '.join(BUILTIN_MACHINES)})",
             str(spec),
         )
-    text = path.read_text()
-    if path.suffix.lower() == ".toml":
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise PathFileError(f"invalid TOML: {exc}", str(path)) from None
-    elif path.suffix.lower() == ".json":
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise PathFileError(f"invalid JSON: {exc.msg}", str(path), exc.lineno) from None
-    else:
+    suffix = path.suffix.lower()
+    if suffix not in (".toml", ".json"):
         raise PathFileError("machine files must end in .toml or .json", str(path))
+    text = read_text_file(path, MAX_MACHINE_FILE_BYTES)
+    # JSON has no inf; Infinity (as json.dumps writes it) stands for an ideal drive.
+    data = parse_json_or_toml(text, toml=suffix == ".toml", source=str(path), constants=True)
     return Machine.from_dict(data, str(path))

@@ -41,7 +41,7 @@ import numpy as np
 from scipy.interpolate import BSpline
 from scipy.special import comb
 
-from .errors import InvalidCurveError
+from .errors import InvalidArgumentError, InvalidCurveError
 
 __all__ = [
     "NurbsCurve",
@@ -59,15 +59,80 @@ MAX_ORDER = 3
 """Highest derivative order :meth:`NurbsCurve.__call__` evaluates (3 is jerk)."""
 
 
+MAX_DEGREE = 32
+"""Highest degree a curve may have. The check that C' never vanishes (at construction)
+finds the roots of a degree 2p - 2 polynomial per span from its companion matrix; beyond
+a degree-62 polynomial those roots are no longer reliable in double precision, and CAD
+systems stay far below (degree 3 to 11)."""
+
+RELATIVE_ACCURACY = 1e-9
+"""Relative accuracy the geometry promises (arc length, inverse, points)."""
+
+MAX_OFFSET_RATIO = RELATIVE_ACCURACY / np.finfo(float).eps
+"""Largest ratio of a coordinate's magnitude to the curve's extent (about 4.5e6): a
+coordinate carries a rounding error of eps*|x|, which must stay below 1e-9 of the curve's
+size. A 100 mm part may lie up to 450 m from the origin; a part offset by 1e15 is refused.
+The same bound limits max(weight) / min(weight), since a control point's share of the
+rational sum is computed to eps times that ratio."""
+
+MAX_MAGNITUDE = 1e50
+"""Largest magnitude of a coordinate [path units] or weight (and smallest weight is its
+inverse): keeps w*P, |C'|^3 (curvature) and the servo's squares finite in double
+precision, whatever the knot spacing."""
+
+PATH_UNITS = ("pulse", "um", "mm", "cm", "m", "in", "inch")
+"""Length units a curve may be drawn in (``units``); ``None`` means unspecified (pulses
+on a machine)."""
+
+
 def _as_float_array(value: Any, name: str, ndim: int) -> np.ndarray:
+    """``value`` as a float array; booleans and strings are never numbers."""
     try:
-        arr = np.array(value, dtype=float)
+        raw = np.asarray(value)
+        if raw.dtype.kind in "bUSV" or (raw.dtype.kind == "O" and any(
+                isinstance(x, (bool, np.bool_, str, bytes)) for x in raw.ravel())):
+            raise TypeError("not a number")
+        arr = np.array(raw, dtype=float)
+    except OverflowError:
+        raise InvalidCurveError(
+            f"{name} holds a number too large for double precision (limit "
+            f"{MAX_MAGNITUDE:g}): {value!r:.80}") from None
     except (TypeError, ValueError) as exc:
         raise InvalidCurveError(f"{name} must be numeric, got {value!r:.80}") from exc
     if arr.ndim != ndim:
         shape = "(n,)" if ndim == 1 else "(n, n_axes)"
         raise InvalidCurveError(f"{name} must have shape {shape}, got shape {arr.shape}")
     return arr
+
+
+def _check_magnitudes(P: np.ndarray, w: np.ndarray) -> None:
+    """Refuse coordinates and weights beyond what double precision computes to 1e-9."""
+    big = np.abs(P) > MAX_MAGNITUDE
+    if np.any(big):
+        i = _first_bad(np.any(big, axis=1))
+        raise InvalidCurveError(
+            f"control point {i} = {P[i].tolist()} exceeds the largest coordinate magnitude "
+            f"{MAX_MAGNITUDE:g} path units")
+    bad = (w > MAX_MAGNITUDE) | (w < 1.0 / MAX_MAGNITUDE)
+    if np.any(bad):
+        i = _first_bad(bad)
+        raise InvalidCurveError(
+            f"weight {i} is {w[i]:g}; weights must lie in [{1 / MAX_MAGNITUDE:g}, "
+            f"{MAX_MAGNITUDE:g}]")
+    ratio = float(w.max() / w.min())
+    if ratio > MAX_OFFSET_RATIO:
+        raise InvalidCurveError(
+            f"weights range from {w.min():g} to {w.max():g} (ratio {ratio:.3g}); a ratio "
+            f"above {MAX_OFFSET_RATIO:.3g} cannot be computed to {RELATIVE_ACCURACY:g} "
+            "relative accuracy in double precision")
+    extent = float(np.max(np.ptp(P, axis=0)))
+    magnitude = float(np.max(np.abs(P)))
+    if extent > 0 and magnitude > MAX_OFFSET_RATIO * extent:
+        raise InvalidCurveError(
+            f"coordinates reach {magnitude:.6g} but the curve spans only {extent:.6g} path "
+            f"units (ratio {magnitude / extent:.3g}); beyond {MAX_OFFSET_RATIO:.3g} times "
+            f"its size a curve cannot be computed to {RELATIVE_ACCURACY:g} relative accuracy "
+            "in double precision: move it nearer the origin")
 
 
 def _first_bad(mask: np.ndarray) -> int:
@@ -117,13 +182,19 @@ class NurbsCurve:
         units: str | None = None,
     ):
         if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
-            if isinstance(degree, float) and degree.is_integer():
-                degree = int(degree)
-            else:
-                raise InvalidCurveError(f"degree must be an integer >= 1, got {degree!r}")
+            raise InvalidCurveError(
+                f"degree must be an integer >= 1, got {degree!r} ({type(degree).__name__})")
         p = int(degree)
         if p < 1:
             raise InvalidCurveError(f"degree must be an integer >= 1, got {p}")
+        if p > MAX_DEGREE:
+            raise InvalidCurveError(
+                f"degree {p} is above the largest supported degree {MAX_DEGREE} (MAX_DEGREE)")
+        if units is not None and units not in PATH_UNITS:
+            raise InvalidCurveError(
+                f"unit {units!r} is unknown; use one of {', '.join(PATH_UNITS)}")
+        if name is not None and not isinstance(name, str):
+            raise InvalidCurveError(f"name must be a string, got {name!r:.80}")
 
         P = _as_float_array(control_points, "control_points", 2)
         n, n_axes = P.shape
@@ -151,6 +222,7 @@ class NurbsCurve:
             if np.any(w <= 0):
                 i = _first_bad(w <= 0)
                 raise InvalidCurveError(f"weight {i} is {w[i]:g}; weights must be > 0")
+        _check_magnitudes(P, w)
 
         t = _as_float_array(knots, "knots", 1)
         if t.size != n + p + 1:
@@ -265,15 +337,20 @@ class NurbsCurve:
 
     # ------------------------------------------------------------------ evaluation
     def _check_parameter(self, u: Any) -> np.ndarray:
-        uu = np.asarray(u, dtype=float)
+        try:
+            uu = _as_float_array(u, "curve parameter u", np.ndim(u))
+        except InvalidCurveError as exc:
+            raise InvalidArgumentError(str(exc)) from None
         # One min/max pass for the common valid case (NaN fails both comparisons).
         if uu.size and uu.min() >= 0.0 and uu.max() <= 1.0:
             return uu
         if not np.all(np.isfinite(uu)):
-            raise ValueError(f"curve parameter must be finite, got {uu[~np.isfinite(uu)][:3]}")
+            raise InvalidArgumentError(
+                f"curve parameter must be finite, got {uu[~np.isfinite(uu)][:3]}")
         if np.any((uu < 0.0) | (uu > 1.0)):
             bad = uu[(uu < 0.0) | (uu > 1.0)]
-            raise ValueError(f"curve parameter must lie in [0, 1], got {float(bad.flat[0])!r}")
+            raise InvalidArgumentError(
+                f"curve parameter must lie in [0, 1], got {float(bad.flat[0])!r}")
         return uu
 
     def derivatives(self, u: Any, max_order: int = 2, side: str = "right") -> np.ndarray:
@@ -305,10 +382,12 @@ class NurbsCurve:
         return out.reshape((max_order + 1,) + uu.shape + (self.n_axes,))
 
     def _check_derivative_request(self, u: Any, max_order: int, side: str) -> np.ndarray:
-        if not 0 <= max_order <= MAX_ORDER:
-            raise ValueError(f"derivative order must be 0..{MAX_ORDER}, got {max_order}")
+        if (isinstance(max_order, bool) or not isinstance(max_order, (int, np.integer))
+                or not 0 <= max_order <= MAX_ORDER):
+            raise InvalidArgumentError(
+                f"derivative order must be an integer 0..{MAX_ORDER}, got {max_order!r}")
         if side not in ("right", "left"):
-            raise ValueError(f"side must be 'right' or 'left', got {side!r}")
+            raise InvalidArgumentError(f"side must be 'right' or 'left', got {side!r}")
         return self._check_parameter(u)
 
     def _derivatives_reference(self, u: Any, max_order: int = 2,
@@ -405,7 +484,12 @@ class NurbsCurve:
         ndarray, shape (n_corners,)
             Sorted corner parameters in ``(0, 1)``.
         """
-        return self.geometry.sharp_corners(angle_tolerance)
+        tol = angle_tolerance
+        if isinstance(tol, bool) or not isinstance(tol, (int, float, np.integer, np.floating)) \
+                or not 0 <= tol < math.pi:
+            raise InvalidArgumentError(
+                f"angle_tolerance must be a number in [0, pi) rad, got {angle_tolerance!r}")
+        return self.geometry.sharp_corners(float(tol))
 
     def turning_angle(self, u: Any) -> np.ndarray:
         """Angle between the left and right tangents at ``u`` [rad] (0 where smooth)."""
@@ -425,7 +509,9 @@ class NurbsCurve:
 
     def scaled(self, factor: float, units: str | None = None) -> "NurbsCurve":
         """The curve with every coordinate multiplied by ``factor`` (e.g. mm to pulses)."""
-        if not (np.isfinite(factor) and factor > 0):
+        if isinstance(factor, bool) or not isinstance(factor, (int, float, np.integer,
+                                                                np.floating)) \
+                or not (np.isfinite(factor) and factor > 0):
             raise InvalidCurveError(f"scale factor must be finite and > 0, got {factor!r}")
         return NurbsCurve(
             self.degree,
@@ -451,33 +537,88 @@ class NurbsCurve:
         # homogeneous spline): interpolate it exactly at Chebyshev nodes, take the real
         # roots of every axis that is not identically zero, and check |C'| there and at
         # the span's ends (one-sided).
+        # All spans at once, so that a path of 10^6 spans is checked in seconds.
         p = self.degree
         nodes = np.polynomial.chebyshev.chebpts1(2 * p - 1)
         bp = self.breakpoints
-        weight = BSpline(self.knots, self.weights, p)
-        for a, b in zip(bp[:-1], bp[1:]):
-            uu = 0.5 * (a + b) + 0.5 * (b - a) * nodes
-            numerator = self(uu, 1) * weight(uu)[:, None] ** 2  # = A'w - Aw'
-            coef = np.polynomial.chebyshev.chebfit(nodes, numerator, 2 * p - 2)  # (2p-1, axes)
-            candidates = [a, b]
-            big = np.max(np.abs(coef))
-            for j in range(coef.shape[1]):
-                if np.max(np.abs(coef[:, j])) > 1e-12 * big:
-                    r = np.polynomial.chebyshev.chebroots(coef[:, j])
-                    r = r.real[(np.abs(r.imag) < 1e-7) & (np.abs(r.real) <= 1.0)]
-                    candidates.extend(0.5 * (a + b) + 0.5 * (b - a) * r)
-            cand = np.clip(np.array(candidates), a, b)
-            inner = cand < b
-            speed = np.empty(cand.size)
-            speed[inner] = np.linalg.norm(self(cand[inner], 1, "right"), axis=-1)
-            speed[~inner] = np.linalg.norm(self(cand[~inner], 1, "left"), axis=-1)
-            if np.min(speed) <= 1e-9 * scale:
-                i = int(np.argmin(speed))
-                raise InvalidCurveError(
-                    f"degenerate curve: C'(u) = 0 at u = {cand[i]:.6g} (span [{a:.6g}, "
-                    f"{b:.6g}]), so the curve has no tangent there (it stops or reverses) and "
-                    "a Taylor step would divide by zero; check for repeated control points"
-                )
+        a, b = bp[:-1], bp[1:]
+        uu = (0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * nodes  # (spans, nodes)
+        weight = BSpline(self.knots, self.weights, p)(uu.ravel()).reshape(uu.shape)
+        numerator = self(uu.ravel(), 1).reshape(uu.shape + (-1,)) * weight[..., None] ** 2
+        # Chebyshev coefficients of every span and axis, shape (spans, 2p - 1, axes).
+        coef = np.einsum("kn,snj->skj", np.linalg.pinv(
+            np.polynomial.chebyshev.chebvander(nodes, 2 * p - 2)), numerator)
+        big = np.max(np.abs(coef), axis=(1, 2))
+        roots = _chebyshev_roots(np.moveaxis(coef, 2, 1), 1e-12 * big[:, None])
+        # roots: (spans, axes, 2p - 2) in [-1, 1] or NaN; ends of each span one-sided.
+        r = roots.reshape(len(a), -1)
+        cand = np.clip((0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * r,
+                       a[:, None], b[:, None])
+        span = np.broadcast_to(np.arange(len(a))[:, None], cand.shape)
+        ok = ~np.isnan(cand)
+        u_in = np.concatenate([a, cand[ok & (cand < b[:, None])]])
+        s_in = np.concatenate([np.arange(len(a)), span[ok & (cand < b[:, None])]])
+        u_end = np.concatenate([b, cand[ok & (cand >= b[:, None])]])
+        s_end = np.concatenate([np.arange(len(a)), span[ok & (cand >= b[:, None])]])
+        speed = np.concatenate([np.linalg.norm(self(u_in, 1, "right"), axis=-1),
+                                np.linalg.norm(self(u_end, 1, "left"), axis=-1)])
+        where = np.concatenate([u_in, u_end])
+        spans = np.concatenate([s_in, s_end])
+        bad = speed <= 1e-9 * scale
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[np.argmin(where[bad])])
+            k = spans[i]
+            raise InvalidCurveError(
+                f"degenerate curve: C'(u) = 0 at u = {where[i]:.6g} (span [{a[k]:.6g}, "
+                f"{b[k]:.6g}]), so the curve has no tangent there (it stops or reverses) and "
+                "a Taylor step would divide by zero; check for repeated control points"
+            )
+
+
+def _chebyshev_roots(coef: np.ndarray, tol: np.ndarray) -> np.ndarray:
+    """Real roots in [-1, 1] of many Chebyshev series at once.
+
+    Parameters
+    ----------
+    coef : ndarray, shape (..., d + 1)
+        Coefficients, lowest first.
+    tol : ndarray, shape (...)
+        A series whose coefficients are all below ``tol`` is taken as identically zero
+        (no roots); trailing coefficients below it are dropped.
+
+    Returns
+    -------
+    ndarray, shape (..., d)
+        The real roots in [-1, 1], NaN-padded (numpy's ``chebroots``, batched by degree).
+    """
+    shape, d = coef.shape[:-1], coef.shape[-1] - 1
+    c = coef.reshape(-1, d + 1)
+    t = np.broadcast_to(tol, shape).ravel()
+    out = np.full((c.shape[0], max(d, 0)), np.nan)
+    significant = np.abs(c) > t[:, None]
+    degree = np.where(significant.any(axis=1),
+                      d - np.argmax(significant[:, ::-1], axis=1), 0)
+    for n in range(1, d + 1):
+        rows = np.flatnonzero(degree == n)
+        if rows.size == 0:
+            continue
+        cn = c[rows, : n + 1]
+        if n == 1:
+            r = (-cn[:, 0] / cn[:, 1])[:, None].astype(complex)
+        else:
+            # numpy's chebcompanion, stacked: the same matrix, a different last column.
+            mat = np.zeros((n, n))
+            scl = np.array([1.0] + [math.sqrt(0.5)] * (n - 1))
+            top = mat.reshape(-1)[1 :: n + 1]
+            top[0] = math.sqrt(0.5)
+            top[1:] = 0.5
+            mat.reshape(-1)[n :: n + 1] = top
+            mats = np.repeat(mat[None], rows.size, axis=0)
+            mats[:, :, -1] -= (cn[:, :-1] / cn[:, -1:]) * (scl / scl[-1]) * 0.5
+            r = np.linalg.eigvals(mats)
+        real = (np.abs(r.imag) < 1e-7) & (np.abs(r.real) <= 1.0)
+        out[rows, :n] = np.where(real, r.real, np.nan)
+    return out.reshape(shape + (max(d, 0),))
 
 
 def curvature_from_derivatives(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
