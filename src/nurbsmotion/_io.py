@@ -177,3 +177,108 @@ def write_output(
             os.unlink(tmp)
         raise
     return path
+
+
+class OutputFolder:
+    """The files one command writes into a folder: all of them, or none.
+
+    The names a command writes are declared once, up front, and checked before any
+    work: none of them may exist unless ``overwrite`` (so a refused command changes
+    nothing the user has). Inside the ``with`` block the command writes into
+    :attr:`staging`, a hidden temporary folder inside the target folder. When the block
+    completes, every file there is moved into place (a file that was not declared is
+    checked the same way first, so a forgotten name can never overwrite); when it fails
+    or is interrupted, the staging folder is removed and no file appears under a final
+    name (and a folder the command created is removed again if it is empty).
+
+    Parameters
+    ----------
+    folder : path-like
+        The output folder (created, with its parents, on entering the block).
+    names : iterable of str
+        Every file name the command may write there.
+    overwrite : bool
+        Replace existing files of those names.
+
+    Raises
+    ------
+    OutputExistsError
+        If a declared file exists and ``overwrite`` is false.
+    PathFileError
+        If the folder is a file, lies under a file, or cannot be written.
+    """
+
+    def __init__(self, folder, names, *, overwrite: bool = False):
+        self.folder = Path(folder)
+        self.names = tuple(names)
+        self.overwrite = overwrite
+        self.staging: Path | None = None
+        self._created: list[Path] = []
+        self._check_folder()
+        self.check(self.names)
+
+    def _check_folder(self) -> None:
+        folder = self.folder
+        if folder.exists() and not folder.is_dir():
+            raise PathFileError("the output folder is a file, not a folder", source=str(folder))
+        existing = folder
+        while not existing.exists():
+            existing = existing.parent
+        if not existing.is_dir():
+            raise PathFileError(f"cannot create the output folder: {existing} is a file",
+                                source=str(folder))
+        if not os.access(existing, os.W_OK | os.X_OK):
+            raise PathFileError("cannot write to this folder (permission denied)",
+                                source=str(existing))
+
+    def check(self, names) -> None:
+        """Raise :class:`OutputExistsError` if one of ``names`` exists in the folder."""
+        if self.overwrite:
+            return
+        existing = [n for n in names if os.path.lexists(self.folder / n)]
+        if existing:
+            more = f" (and {len(existing) - 1} more of its outputs)" if len(existing) > 1 else ""
+            raise OutputExistsError(
+                f"{self.folder / existing[0]} exists{more}; choose another output folder or "
+                "pass --overwrite"
+            )
+
+    def __enter__(self) -> "OutputFolder":
+        missing = self.folder
+        while not missing.exists():
+            self._created.append(missing)
+            missing = missing.parent
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.staging = Path(tempfile.mkdtemp(prefix=".nurbsmotion-", suffix=".tmp",
+                                             dir=self.folder))
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        ok = False
+        try:
+            if exc_type is None:
+                self._commit()
+                ok = True
+        finally:
+            shutil.rmtree(self.staging, ignore_errors=True)
+            if not ok:
+                for folder in self._created:  # innermost first
+                    try:
+                        folder.rmdir()
+                    except OSError:
+                        break
+        return False
+
+    def _commit(self) -> None:
+        files = sorted(p.name for p in self.staging.iterdir())
+        self.check(files)  # declared or not, and in case one appeared meanwhile
+        moved = []
+        try:
+            for name in files:
+                os.replace(self.staging / name, self.folder / name)
+                moved.append(name)
+        except BaseException:
+            if not self.overwrite:  # the moved ones were new: take them back
+                for name in moved:
+                    os.unlink(self.folder / name)
+            raise

@@ -7,13 +7,19 @@ and turns the library's typed errors into one line on stderr and a non-zero exit
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
+import math
 import re
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
+from ._io import OutputFolder
+from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .errors import NurbsmotionError
 from .interpolators import LOOP_METHODS, OPEN_LOOP_METHODS, interpolate, make_open_loop
 from .machine import LENGTH_UNITS_UM, Machine, load_machine
@@ -84,20 +90,24 @@ def _load_path(spec: str):
 
 def _cmd_interpolate(args) -> int:
     from .export import SetpointArrays, save_setpoints
-    from .report import check_writable
-
-    curve = _load_path(args.path)
-    feed = _feed_in_path_units(args.feed, curve)
-    out = Path(args.out)
-    check_writable([out / "setpoints.csv", out / "setpoints.png"], args.overwrite)
-    series = interpolate(make_open_loop(args.method, curve, args.sample_period, feed))
-    out.mkdir(parents=True, exist_ok=True)
-    names = _axis_names(curve.n_axes)
-    save_setpoints(SetpointArrays(series.t, series.u, series.position, series.feed, names),
-                   out / "setpoints.csv", overwrite=args.overwrite)
     from .plots import plot_setpoints
 
-    plot_setpoints(series, out, axis_names=names)
+    with _outputs(args) as staged:
+        out = staged.staging
+        curve = _load_path(args.path)
+        feed = _feed_in_path_units(args.feed, curve)
+        check_samples(estimate_samples(curve.length, feed, args.sample_period),
+                      limit=args.max_samples, n_axes=curve.n_axes,
+                      what=f"interpolating {curve.length:.6g} {curve.units or 'path units'} "
+                           f"at {feed:g} per s every {args.sample_period:g} s",
+                      option="--max-samples")
+        series = interpolate(make_open_loop(args.method, curve, args.sample_period, feed),
+                             max_samples=args.max_samples)
+        names = _axis_names(curve.n_axes)
+        save_setpoints(SetpointArrays(series.t, series.u, series.position, series.feed, names),
+                       out / "setpoints.csv")
+        plot_setpoints(series, out, axis_names=names)
+    out = Path(args.out)
     fl_max, fl_rms = series.feed_fluctuation()
     print(f"{args.method}: {len(series.t)} samples, cycle time {series.cycle_time:.6g} s, "
           f"feed fluctuation max {fl_max:.3%} RMS {fl_rms:.3%} -> {out}")
@@ -121,29 +131,35 @@ def _cmd_bound(args) -> int:
 
 
 def _cmd_run(args) -> int:
-    from .loop import run
-    from .report import summary, write_json, write_trace_csv, check_writable
+    from .loop import check_run_arguments, run, to_pulses
+    from .report import summary, write_json, write_trace_csv
 
-    curve = _load_path(args.path)
-    machine = load_machine(args.machine)
-    machine.check_path(curve.n_axes)
-    feed = _feed_in_pulses(args.feed, machine, curve)
+    with _outputs(args) as staged:
+        out = staged.staging
+        curve = _load_path(args.path)
+        machine = load_machine(args.machine)
+        machine.check_path(curve.n_axes)
+        feed = _feed_in_pulses(args.feed, machine, curve)
+        check_run_arguments(curve, machine, feed, args.max_samples, option="--max-samples")
+        exports = {fmt: out / EXPORT_FILES[fmt] for fmt in args.export or ()}
+        if "pvt" in exports:
+            length = to_pulses(curve, machine).length
+            check_samples(estimate_samples(length, feed, args.pvt_period),
+                          limit=args.max_samples, n_axes=curve.n_axes,
+                          what=f"the PVT table at --pvt-period {args.pvt_period:g} s",
+                          option="--max-samples (or a longer --pvt-period)")
+        trace = run(curve, machine, feed, args.interpolator, max_samples=args.max_samples)
+        write_trace_csv(trace, out / "trace.csv")
+        if exports:
+            _export_setpoints(trace, curve, machine, exports, args)
+        metrics = trace.metrics()
+        bound = time_optimal_bound(trace.curve, machine, feed)
+        data = summary(metrics, interpolator=args.interpolator, feed=feed,
+                       machine=machine.name, path=args.path, time_optimal_bound=bound)
+        write_json(data, out / "summary.json")
+        if not args.no_figures:
+            trace.plot(out, feed=feed)
     out = Path(args.out)
-    check_writable([out / "trace.csv", out / "summary.json"], args.overwrite)
-    exports = {fmt: out / EXPORT_FILES[fmt] for fmt in args.export or ()}
-    check_writable(exports.values(), args.overwrite)
-    trace = run(curve, machine, feed, args.interpolator)
-    out.mkdir(parents=True, exist_ok=True)
-    write_trace_csv(trace, out / "trace.csv")
-    if exports:
-        _export_setpoints(trace, curve, machine, exports, args)
-    metrics = trace.metrics()
-    bound = time_optimal_bound(trace.curve, machine, feed)
-    data = summary(metrics, interpolator=args.interpolator, feed=feed, machine=machine.name,
-                   path=args.path, time_optimal_bound=bound)
-    write_json(data, out / "summary.json")
-    if not args.no_figures:
-        trace.plot(out, feed=feed)
     sat = metrics.total_saturated_samples
     print(f"{args.interpolator} on {machine.name} at {feed:g} pulse/s: cycle time "
           f"{metrics.cycle_time_s:.4g} s ({metrics.cycle_time_s / bound:.3f} x the "
@@ -179,15 +195,69 @@ def _cmd_reproduce(args) -> int:
     from .experiments import reproduce
 
     t0 = time.perf_counter()
-    result = reproduce(args.out, overwrite=args.overwrite, figures=not args.no_figures)
+    with _outputs(args) as staged:
+        result = reproduce(staged.staging, figures=not args.no_figures)
     print((Path(args.out) / "table.md").read_text())
     print(f"{len(result.rows)} runs, {len(result.files)} files in {args.out} "
           f"({time.perf_counter() - t0:.1f} s)")
     return 0
 
 
+def _outputs_of(args) -> list[str]:
+    """Every file name the command of ``args`` may write: the one list its guard checks."""
+    if args.command == "interpolate":
+        from .plots import SETPOINT_FIGURES
+
+        return ["setpoints.csv", *SETPOINT_FIGURES]
+    if args.command == "run":
+        from .plots import TRACE_FIGURES
+
+        return (["trace.csv", "summary.json"] + [EXPORT_FILES[f] for f in args.export or ()]
+                + ([] if args.no_figures else list(TRACE_FIGURES)))
+    if args.command == "reproduce":
+        from .experiments import reproduce_outputs
+
+        return reproduce_outputs(figures=not args.no_figures)
+    return []
+
+
+def _outputs(args) -> OutputFolder:
+    """The command's output folder: its files checked now, before any work, written
+    through a staging folder and moved into place only when all are complete."""
+    return OutputFolder(args.out, _outputs_of(args), overwrite=args.overwrite)
+
+
+def _positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
+    return value
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (no usage block)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="nurbsmotion",
         description="NURBS interpolation for motion systems whose actuators saturate.",
     )
@@ -200,9 +270,13 @@ def _parser() -> argparse.ArgumentParser:
                    "(die-bonder-pi, butterfly)")
     i.add_argument("--feed", type=parse_feed, required=True, help=feed_help)
     i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2")
-    i.add_argument("--sample-period", type=float, default=1e-3, help="Ts [s] (default 0.001)")
+    i.add_argument("--sample-period", type=_positive_float, default=1e-3,
+                   help="Ts [s] (default 0.001)")
     i.add_argument("--out", required=True, help="output folder")
     i.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    i.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
+                   help="refuse, before any work, a move estimated to take more samples "
+                     f"than this (default {MAX_SAMPLES:.0e}, about 2.8 h at 1 ms)")
     i.set_defaults(func=_cmd_interpolate)
 
     r = sub.add_parser("run", help="closed-loop servo simulation of a path on a machine")
@@ -218,8 +292,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="also write the commanded setpoints (up to the end point, in the "
                    "path's units): csv, npz, pvt (position-velocity-time table), gcode "
                    "(LinuxCNC G1 per sample); repeat for several")
-    r.add_argument("--pvt-period", type=float, default=0.01,
+    r.add_argument("--pvt-period", type=_positive_float, default=0.01,
                    help="period of the PVT table [s] (default 0.01)")
+    r.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
+                   help="refuse, before any work, a move estimated to take more samples "
+                     f"than this (default {MAX_SAMPLES:.0e}, about 2.8 h at 1 ms)")
     r.set_defaults(func=_cmd_run)
 
     b = sub.add_parser("bound", help="print the time-optimal bound of a path [s]: the "
@@ -238,16 +315,75 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _one_line(text) -> str:
+    """``text`` on one line (a library's message may embed newlines)."""
+    return " ".join(str(text).split())
+
+
+def _message(exc: BaseException) -> str:
+    """What went wrong, for a user: the typed error's text, or a plain sentence."""
+    if isinstance(exc, KeyError) and exc.args:
+        return str(exc.args[0])
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{exc.strerror}: {exc.filename}" if exc.filename else exc.strerror
+    if isinstance(exc, MemoryError):
+        return "out of memory; lower --max-samples or use a higher feed"
+    if isinstance(exc, RecursionError):
+        return "input nested too deeply to process"
+    if isinstance(exc, OverflowError):
+        return f"a number is too large for double precision ({exc})"
+    return str(exc) or type(exc).__name__
+
+
+@contextlib.contextmanager
+def _one_line_warnings(command: str):
+    """Warnings and log records as one line each on stderr, without the source echo."""
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"nurbsmotion {command}: warning: {_one_line(message)}", file=sys.stderr)
+
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter(f"nurbsmotion {command}: %(levelname)s: "
+                                           "%(message)s"))
+    logger = logging.getLogger("nurbsmotion")
+    saved = warnings.showwarning
+    warnings.showwarning = show
+    logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        warnings.showwarning = saved
+        logger.removeHandler(handler)
+
+
+USER_ERRORS = (NurbsmotionError, OSError, KeyError, ValueError, ArithmeticError,
+               RecursionError, MemoryError)
+"""Errors reported as one line and exit code 2: the library's typed errors, and what
+the system, the parsers and the arithmetic raise on a bad file, folder or number."""
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``nurbsmotion`` command; returns the exit code."""
+    """Entry point of the ``nurbsmotion`` command; returns the exit code.
+
+    0 on success; 2 with one line on stderr for a bad input (nothing is written); 130
+    when interrupted (Ctrl-C; nothing is written); 1 for an internal error.
+    """
     parser = _parser()
     args = parser.parse_args(argv)
-    try:
-        return args.func(args)
-    except (NurbsmotionError, FileExistsError, FileNotFoundError, KeyError, ValueError) as exc:
-        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        print(f"nurbsmotion {args.command}: error: {msg}", file=sys.stderr)
-        return 2
+    with _one_line_warnings(args.command):
+        try:
+            return args.func(args)
+        except KeyboardInterrupt:
+            print(f"nurbsmotion {args.command}: interrupted; no output was written",
+                  file=sys.stderr)
+            return 130
+        except USER_ERRORS as exc:
+            print(f"nurbsmotion {args.command}: error: {_one_line(_message(exc))}",
+                  file=sys.stderr)
+            return 2
+        except Exception as exc:  # a bug: still one line, and a distinct exit code
+            print(f"nurbsmotion {args.command}: internal error: {type(exc).__name__}: "
+                  f"{_one_line(exc)}", file=sys.stderr)
+            return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

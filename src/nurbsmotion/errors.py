@@ -16,6 +16,7 @@ __all__ = [
     "PathFileError",
     "InfeasibleError",
     "OutputExistsError",
+    "WorkLimitError",
 ]
 
 
@@ -70,3 +71,8 @@ class InfeasibleError(NurbsmotionError, ValueError):
 
 class OutputExistsError(NurbsmotionError, FileExistsError):
     """An output file already exists and overwriting it was not asked for."""
+
+
+class WorkLimitError(NurbsmotionError, ValueError):
+    """A command would compute more samples (or memory) than a documented limit allows
+    (:mod:`nurbsmotion.budget`)."""

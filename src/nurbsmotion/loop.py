@@ -21,15 +21,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from .control import ControlLaw
-from .errors import InfeasibleError
+from .budget import MAX_SAMPLES, check_samples, estimate_samples
+from .errors import InfeasibleError, InvalidArgumentError
 from .interpolators import (Interpolator, LoopState, PaperInterpolator,
                             PlannedInterpolator, Status, TaylorInterpolator,
                             make_interpolator)
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .servo import ServoPlant
+from .stability import check_closed_loop_stable
 
-__all__ = ["Trace", "simulate", "run", "to_pulses"]
+__all__ = ["Trace", "simulate", "run", "check_run_arguments", "to_pulses"]
 
 
 def to_pulses(curve: NurbsCurve, machine: Machine) -> NurbsCurve:
@@ -449,7 +451,7 @@ def _simulate_compiled(interpolator, compiled_feed, machine, plant, start, n_set
 
 
 def run(curve: NurbsCurve, machine: Machine, feed: float, interpolator: str = "paper",
-        **simulate_options) -> Trace:
+        *, max_samples: int = MAX_SAMPLES, **simulate_options) -> Trace:
     """Run a path on a machine with a named interpolator.
 
     Parameters
@@ -461,10 +463,51 @@ def run(curve: NurbsCurve, machine: Machine, feed: float, interpolator: str = "p
         Commanded feed F [pulse/s].
     interpolator : str
         One of :data:`nurbsmotion.interpolators.LOOP_METHODS`.
+    max_samples : int
+        Refuse (:class:`~nurbsmotion.errors.WorkLimitError`) a move that would take more
+        samples than this, before any work (:data:`nurbsmotion.budget.MAX_SAMPLES`).
     **simulate_options
-        Passed to :func:`simulate` (``plant``, ``settle_time``, ``max_samples``,
-        ``compiled``).
+        Passed to :func:`simulate` (``plant``, ``settle_time``, ``compiled``).
+
+    Raises
+    ------
+    InvalidArgumentError, InvalidMachineError, WorkLimitError
+        From :func:`check_run_arguments`, before any work.
+    InfeasibleError
+        If the interpolator cannot advance, or the loop diverges.
     """
+    check_run_arguments(curve, machine, feed, max_samples)
     path = to_pulses(curve, machine)
-    return simulate(make_interpolator(interpolator, path, machine, feed), machine,
-                    **simulate_options)
+    trace = simulate(make_interpolator(interpolator, path, machine, feed), machine,
+                     **simulate_options)
+    if not (np.all(np.isfinite(trace.position)) and np.all(np.isfinite(trace.drive))):
+        raise InfeasibleError(
+            f"the closed loop diverged (non-finite positions or drives) running "
+            f"{interpolator} on machine {machine.name!r}")
+    return trace
+
+
+def check_run_arguments(curve, machine, feed, max_samples: int = MAX_SAMPLES, *,
+                        option: str = "max_samples") -> None:
+    """The checks :func:`run` makes before any work: typed errors naming the value.
+
+    ``curve`` must be a :class:`NurbsCurve` and ``machine`` a :class:`Machine` with a
+    stable closed loop (:func:`nurbsmotion.stability.check_closed_loop_stable`); ``feed``
+    a finite number > 0 [pulse/s]; and the move at most ``max_samples`` samples long
+    (:func:`nurbsmotion.budget.check_samples`; ``option`` names the way to raise it).
+    """
+    if not isinstance(curve, NurbsCurve):
+        raise InvalidArgumentError(f"curve must be a NurbsCurve, got {curve!r:.60}")
+    if not isinstance(machine, Machine):
+        raise InvalidArgumentError(f"machine must be a Machine, got {machine!r:.60}")
+    if isinstance(feed, (bool, np.bool_)) or not isinstance(feed, (int, float, np.integer,
+                                                                 np.floating)):
+        raise InvalidArgumentError(f"feed must be a number [pulse/s], got {feed!r:.60}")
+    if not (math.isfinite(feed) and feed > 0):
+        raise InvalidArgumentError(f"feed must be finite and > 0 [pulse/s], got {feed!r}")
+    check_closed_loop_stable(machine)
+    length = to_pulses(curve, machine).length
+    check_samples(estimate_samples(length, float(feed), machine.sample_period),
+                  limit=max_samples, n_axes=curve.n_axes,
+                  what=f"a {length:.6g}-pulse move at {feed:g} pulse/s with Ts = "
+                       f"{machine.sample_period:g} s", option=option)

@@ -23,9 +23,23 @@ from pathlib import Path
 
 import numpy as np
 
+from ._io import write_output
 from .metrics import nearest_parameter
 
-__all__ = ["plot_trace", "plot_setpoints", "plot_comparison"]
+__all__ = ["plot_trace", "plot_setpoints", "plot_comparison", "TRACE_FIGURES",
+           "SETPOINT_FIGURES", "comparison_figures"]
+
+TRACE_FIGURES = ("contour.png", "following_error.png", "drive.png", "speed.png")
+"""Files :func:`plot_trace` writes (after its ``prefix``)."""
+
+SETPOINT_FIGURES = ("setpoints.png",)
+"""Files :func:`plot_setpoints` writes (after its ``prefix``)."""
+
+
+def comparison_figures(name: str, axis_names) -> list[str]:
+    """Files :func:`plot_comparison` writes for ``name`` and a machine's axes."""
+    return ([f"{name}_contour.png"] + [f"{name}_speed_{a}.png" for a in axis_names]
+            + [f"{name}_drive_{a}.png" for a in axis_names])
 
 _DPI = 110
 _STYLES = (("C0", "-"), ("C3", "--"), ("C2", "-."), ("C1", ":"), ("C4", "-"), ("C5", "--"))
@@ -74,7 +88,9 @@ def _figure(width: float, height: float):
 
 
 def _save(fig, path: Path) -> Path:
-    fig.savefig(path, dpi=_DPI)
+    # Through a temporary name, so an interrupted save leaves no half-written PNG.
+    write_output(path, lambda f: fig.savefig(f, dpi=_DPI, format="png"), overwrite=True,
+                 binary=True)
     fig.clear()  # the figure is not registered anywhere; this frees its artists now
     return path
 
