@@ -51,7 +51,8 @@ def reproduce_outputs(machine: Machine | None = None, experiment=None,
 
         for name, feeds in (experiment or PAPER_EXPERIMENT).items():
             for feed_m_s in feeds:
-                names += comparison_figures(_figure_prefix(name, feed_m_s), machine.axis_names)
+                names += comparison_figures(_figure_prefix(name, feed_m_s),
+                                            machine.axis_names[0])
     return names
 
 

@@ -89,8 +89,8 @@ def _as_float_array(value: Any, name: str, ndim: int) -> np.ndarray:
     """``value`` as a float array; booleans and strings are never numbers."""
     try:
         raw = np.asarray(value)
-        if raw.dtype.kind in "bUSV" or (raw.dtype.kind == "O" and any(
-                isinstance(x, (bool, np.bool_, str, bytes)) for x in raw.ravel())):
+        # numpy turns True into 1 in a list of numbers: look at the Python values too.
+        if raw.dtype.kind in "bUSV" or _holds_non_number(value):
             raise TypeError("not a number")
         arr = np.array(raw, dtype=float)
     except OverflowError:
@@ -103,6 +103,17 @@ def _as_float_array(value: Any, name: str, ndim: int) -> np.ndarray:
         shape = "(n,)" if ndim == 1 else "(n, n_axes)"
         raise InvalidCurveError(f"{name} must have shape {shape}, got shape {arr.shape}")
     return arr
+
+
+def _holds_non_number(value: Any) -> bool:
+    """Whether a (nested) list or tuple holds a boolean or a string."""
+    if isinstance(value, (bool, np.bool_, str, bytes)):
+        return True
+    if isinstance(value, (list, tuple)):
+        return any(_holds_non_number(x) for x in value)
+    if isinstance(value, np.ndarray) and value.dtype.kind == "O":
+        return any(_holds_non_number(x) for x in value.ravel())
+    return False
 
 
 def _check_magnitudes(P: np.ndarray, w: np.ndarray) -> None:

@@ -36,10 +36,10 @@ SETPOINT_FIGURES = ("setpoints.png",)
 """Files :func:`plot_setpoints` writes (after its ``prefix``)."""
 
 
-def comparison_figures(name: str, axis_names) -> list[str]:
-    """Files :func:`plot_comparison` writes for ``name`` and a machine's axes."""
-    return ([f"{name}_contour.png"] + [f"{name}_speed_{a}.png" for a in axis_names]
-            + [f"{name}_drive_{a}.png" for a in axis_names])
+def comparison_figures(name: str, axis_name: str) -> list[str]:
+    """Files :func:`plot_comparison` writes for ``name`` and the axis it draws."""
+    return [f"{name}_contour.png", f"{name}_speed_{axis_name}.png",
+            f"{name}_drive_{axis_name}.png"]
 
 _DPI = 110
 _STYLES = (("C0", "-"), ("C3", "--"), ("C2", "-."), ("C1", ":"), ("C4", "-"), ("C5", "--"))

@@ -82,7 +82,12 @@ def _numbers(value: Any, field: str) -> list[float]:
     for i, x in enumerate(value):
         if not _is_number(x):
             raise _FieldError(field, f"entry {i} is {x!r} ({type(x).__name__}); expected a number")
-        if not math.isfinite(x):
+        try:
+            finite = math.isfinite(x)
+        except OverflowError:  # an integer of hundreds of digits
+            raise _FieldError(field, f"entry {i} ({str(x)[:20]}..., {len(str(x))} digits) is "
+                              "too large for double precision") from None
+        if not finite:
             raise _FieldError(field, f"entry {i} is {x!r}; expected a finite number")
     return [float(x) for x in value]
 
