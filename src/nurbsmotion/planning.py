@@ -12,8 +12,9 @@ For a given s and sd this is an interval of sdd per axis; their intersection is 
 admissible acceleration range [amin(s, sd), amax(s, sd)]. The largest sd at which the range
 is not empty (and sd <= F) is the maximum velocity curve (MVC). The time-optimal motion,
 at rest at both ends and at every sharp corner, is found by the classic phase-plane
-method (Bobrow, Dubowsky & Gibson 1985; Shin & McKay 1985) on a uniform arc-length grid
-of each corner-free piece, with b = sd^2 as the state (db/ds = 2*sdd): a backward pass
+method (Bobrow, Dubowsky & Gibson 1985; Shin & McKay 1985) on an arc-length grid of
+each corner-free piece (uniform, refined to ``2p`` intervals in every knot span shorter
+than its spacing, so that no feature of the path falls between grid points), with b = sd^2 as the state (db/ds = 2*sdd): a backward pass
 from the piece's end at the deceleration limit, then a forward pass from its start at the
 acceleration limit, each clipped by the MVC and by the other. Each step uses the smaller
 of the limits at its two ends (a one-step implicit correction); where the MVC itself is
@@ -269,7 +270,8 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
         (same form); ``drive_scale`` by default.
     grid_size : int
         Arc-length grid points over the whole path (each piece gets its share by length,
-        at least 50).
+        at least 50); knot spans with fewer than ``SPAN_POINTS_PER_DEGREE * p`` grid
+        intervals are refined to that many, up to :data:`MAX_GRID_POINTS` in all.
     min_speed_ratio : float
         A speed limit below ``min_speed_ratio*feed`` inside a piece means the drive cannot
         move the path there at all.
@@ -362,13 +364,21 @@ def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,
     feed : float
         F [pulse/s].
     grid_size : int
-        Arc-length grid points over the path.
+        Arc-length grid points over the path (refined in short knot spans, see
+        :func:`speed_profile`).
+
+    Raises
+    ------
+    InfeasibleError
+        If the feed is not finite and > 0, the drive cannot move along the path, the
+        path needs more than :data:`MAX_GRID_POINTS` grid points, or the bound is not a
+        finite time (a feed of 1e-320).
     """
     F = float(feed)
     if not (math.isfinite(F) and F > 0):
         raise InfeasibleError(f"feed must be finite and > 0, got {feed!r} pulse/s")
-    if machine.max_drive == math.inf:
-        bound = curve.length / F
+    if machine.max_drive == math.inf or not math.isfinite(curve.length / F):
+        bound = curve.length / F  # a lower bound; not finite: refused below, at once
     else:
         bound = speed_profile(curve, machine, feed, grid_size=grid_size).duration
     if not (math.isfinite(bound) and bound > 0):
