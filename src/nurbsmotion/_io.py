@@ -103,13 +103,15 @@ def parse_json_or_toml(text: str, *, toml: bool, source: str, constants: bool = 
                                  "", str(exc))
                 raise PathFileError(f"not valid TOML: {message}", source,
                                     int(match.group(1)) if match else None) from None
+            except ValueError as exc:  # an integer beyond Python's digit limit
+                raise PathFileError(f"not valid TOML: {_one_line(exc)}", source) from None
         try:
             return json.loads(text, parse_constant=None if constants else _reject_constant)
         except json.JSONDecodeError as exc:
             raise PathFileError(f"not valid JSON: {exc.msg} (column {exc.colno})", source,
                                 exc.lineno) from None
-        except _ConstantError as exc:
-            raise PathFileError(f"not valid JSON: {exc}", source) from None
+        except ValueError as exc:  # NaN/Infinity refused, or an integer beyond the digit limit
+            raise PathFileError(f"not valid JSON: {_one_line(exc)}", source) from None
     except RecursionError:
         raise PathFileError(
             "nested deeper than the parser can follow (lists or tables inside each other "
@@ -117,12 +119,12 @@ def parse_json_or_toml(text: str, *, toml: bool, source: str, constants: bool = 
             source) from None
 
 
-class _ConstantError(ValueError):
-    pass
-
-
 def _reject_constant(name: str):
-    raise _ConstantError(f"{name} is not a number a file may hold")
+    raise ValueError(f"{name} is not a number a file may hold")
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
 
 
 def write_output(
