@@ -131,7 +131,7 @@ def _cmd_bound(args) -> int:
 
 
 def _cmd_run(args) -> int:
-    from .loop import check_run_arguments, run, to_pulses
+    from .loop import check_run_arguments, run
     from .report import summary, write_json, write_trace_csv
 
     with _outputs(args) as staged:
@@ -143,7 +143,7 @@ def _cmd_run(args) -> int:
         check_run_arguments(curve, machine, feed, args.max_samples, option="--max-samples")
         exports = {fmt: out / EXPORT_FILES[fmt] for fmt in args.export or ()}
         if "pvt" in exports:
-            length = to_pulses(curve, machine).length
+            length = curve.length * machine.pulses_per_unit(curve.units)  # [pulse]
             check_samples(estimate_samples(length, feed, args.pvt_period),
                           limit=args.max_samples, n_axes=curve.n_axes,
                           what=f"the PVT table at --pvt-period {args.pvt_period:g} s",

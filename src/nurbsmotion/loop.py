@@ -506,7 +506,7 @@ def check_run_arguments(curve, machine, feed, max_samples: int = MAX_SAMPLES, *,
     if not (math.isfinite(feed) and feed > 0):
         raise InvalidArgumentError(f"feed must be finite and > 0 [pulse/s], got {feed!r}")
     check_closed_loop_stable(machine)
-    length = to_pulses(curve, machine).length
+    length = curve.length * machine.pulses_per_unit(curve.units)  # [pulse], cached
     check_samples(estimate_samples(length, float(feed), machine.sample_period),
                   limit=max_samples, n_axes=curve.n_axes,
                   what=f"a {length:.6g}-pulse move at {feed:g} pulse/s with Ts = "

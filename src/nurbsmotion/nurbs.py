@@ -18,6 +18,13 @@ Conventions
   right by default (the span the motion moves into, SPEC section 5), from the left with
   ``side="left"``.
 
+- Limits of double precision are refused at construction with the limit in the message:
+  a degree above :data:`MAX_DEGREE`, coordinates or weights beyond
+  :data:`MAX_MAGNITUDE`, coordinates more than :data:`MAX_OFFSET_RATIO` times the curve's
+  size from the origin (they could not be computed to 1e-9 of that size), weights whose
+  ratio exceeds it, units outside :data:`PATH_UNITS`; booleans and strings are never
+  numbers.
+
 Glossary
 --------
 p : degree; n : number of control points; u : curve parameter in [0, 1];
