@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from ._io import write_output
 from .loop import Trace, run, to_pulses
 from .machine import Machine, die_bonder
 from .nurbs import builtin_path
@@ -101,7 +102,7 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
                 from .plots import plot_comparison
 
                 files += plot_comparison(group, out, _figure_prefix(name, feed_m_s), feed=feed)
-    files.append(write_json(rows, out / "table.json"))
-    (out / "table.md").write_text(markdown_table(rows))
-    files.append(out / "table.md")
+    files.append(write_json(rows, out / "table.json", overwrite=overwrite))
+    table = markdown_table(rows)
+    files.append(write_output(out / "table.md", lambda f: f.write(table), overwrite=overwrite))
     return ExperimentResult(rows, traces, files)

@@ -19,6 +19,7 @@ from typing import Iterable
 
 import numpy as np
 
+from ._io import write_output
 from .errors import OutputExistsError
 
 __all__ = ["SUMMARY_KEYS", "trace_columns", "write_trace_csv", "summary", "write_json",
@@ -57,11 +58,12 @@ def trace_columns(trace) -> tuple[list[str], np.ndarray]:
     return header, np.column_stack(cols)
 
 
-def write_trace_csv(trace, path: Path) -> Path:
-    """Write ``trace.csv`` (full double precision)."""
+def write_trace_csv(trace, path: Path, *, overwrite: bool = False) -> Path:
+    """Write ``trace.csv`` (full double precision), through a temporary name."""
     header, data = trace_columns(trace)
-    np.savetxt(path, data, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
-    return Path(path)
+    return write_output(path, lambda f: np.savetxt(f, data, delimiter=",", comments="",
+                                                   header=",".join(header), fmt="%.17g"),
+                        overwrite=overwrite)
 
 
 def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
@@ -89,10 +91,10 @@ def _json_safe(value):
     return value
 
 
-def write_json(data, path: Path) -> Path:
-    """Write JSON (inf and NaN as null), indented."""
-    Path(path).write_text(json.dumps(_json_safe(data), indent=2) + "\n")
-    return Path(path)
+def write_json(data, path: Path, *, overwrite: bool = False) -> Path:
+    """Write JSON (inf and NaN as null), indented, through a temporary name."""
+    text = json.dumps(_json_safe(data), indent=2) + "\n"
+    return write_output(path, lambda f: f.write(text), overwrite=overwrite)
 
 
 def _fmt(value, digits=3) -> str:
