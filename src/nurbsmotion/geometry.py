@@ -79,6 +79,19 @@ class CurveGeometry:
 
     def __init__(self, curve, rtol: float = 1e-13):
         self.curve = curve
+        self._corners: dict[float, np.ndarray] = {}
+        # Planners invert the same arc-length grids again and again (one per replanning
+        # pass): remember the last few large inversions.
+        self._inverse_cache: OrderedDict[tuple, np.ndarray] = OrderedDict()
+        if curve.degree == 1 and np.all(curve.weights == curve.weights[0]):
+            # A polyline: |C'| is constant on every span, so each span's length is its
+            # chord, exactly; no quadrature table to refine (a 10^6-point polyline is
+            # measured at once).
+            chords = np.linalg.norm(np.diff(curve.control_points, axis=0), axis=1)
+            self._u = curve.knots[1:-1].copy()
+            self._s = np.concatenate([[0.0], np.cumsum(chords)])
+            self.length = float(self._s[-1])
+            return
         bp = curve.breakpoints
         a = np.repeat(bp[:-1], 4) + np.tile(np.arange(4) / 4, len(bp) - 1) * np.repeat(
             np.diff(bp), 4
@@ -107,10 +120,6 @@ class CurveGeometry:
         self._u = np.append(a[order], 1.0)
         self._s = np.concatenate([[0.0], np.cumsum(np.concatenate(done_i)[order])])
         self.length = float(self._s[-1])
-        self._corners: dict[float, np.ndarray] = {}
-        # Planners invert the same arc-length grids again and again (one per replanning
-        # pass): remember the last few large inversions.
-        self._inverse_cache: OrderedDict[tuple, np.ndarray] = OrderedDict()
 
     @property
     def n_pieces(self) -> int:

@@ -112,15 +112,18 @@ def _as_float_array(value: Any, name: str, ndim: int) -> np.ndarray:
     return arr
 
 
+_NOT_NUMBERS = (bool, np.bool_, str, bytes)
+
+
 def _holds_non_number(value: Any) -> bool:
-    """Whether a (nested) list or tuple holds a boolean or a string."""
-    if isinstance(value, (bool, np.bool_, str, bytes)):
-        return True
-    if isinstance(value, (list, tuple)):
-        return any(_holds_non_number(x) for x in value)
-    if isinstance(value, np.ndarray) and value.dtype.kind == "O":
-        return any(_holds_non_number(x) for x in value.ravel())
-    return False
+    """Whether ``value`` (a number, an array or nested lists) holds a boolean or a string."""
+    if isinstance(value, np.ndarray) and value.dtype.kind != "O":
+        return value.dtype.kind in "bUSV"
+    try:
+        items = np.asarray(value, dtype=object)
+    except ValueError:  # ragged: refused when converted
+        return False
+    return any(issubclass(t, _NOT_NUMBERS) for t in set(map(type, items.flat)))
 
 
 def _check_magnitudes(P: np.ndarray, w: np.ndarray) -> None:

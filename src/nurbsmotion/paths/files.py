@@ -79,6 +79,8 @@ def _is_number(x: Any) -> bool:
 def _numbers(value: Any, field: str) -> list[float]:
     if not isinstance(value, list):
         raise _FieldError(field, f"must be a list of numbers, got {type(value).__name__}")
+    if set(map(type, value)) <= {float} and all(map(math.isfinite, value)):
+        return value  # the common case, checked in C loops
     for i, x in enumerate(value):
         if not _is_number(x):
             raise _FieldError(field, f"entry {i} is {x!r} ({type(x).__name__}); expected a number")
