@@ -12,6 +12,7 @@ import json
 import math
 import os
 import warnings
+from datetime import timedelta
 from pathlib import Path
 
 import numpy as np
@@ -109,7 +110,9 @@ def test_a_run_that_fails_after_the_simulation_leaves_nothing(tmp_path, capsys, 
     def fail(*args, **kwargs):
         raise InfeasibleError("planted failure after the simulation")
 
-    monkeypatch.setattr(cli, "time_optimal_bound", fail)
+    import nurbsmotion.report as report
+
+    monkeypatch.setattr(report, "summary", fail)  # after trace.csv is written
     out = tmp_path / "new"
     assert main(["run", "die-bonder-pi", "--feed", "1m/s", "--no-figures", "--out",
                  str(out)]) == 2
@@ -441,7 +444,11 @@ _PATH_DATA = json.loads((ROOT / "src" / "nurbsmotion" / "paths" / "data" /
 _MACHINE_DATA = die_bonder().to_dict()
 
 
-@settings(max_examples=40)
+_BOUNDED = timedelta(seconds=60)
+"""Per generated case: generous on a loaded 2-core machine, but a hang fails."""
+
+
+@settings(max_examples=40, deadline=_BOUNDED)
 @given(st.data(), st.sampled_from([".json", ".toml"]))
 def test_mutated_path_files_load_or_raise_one_typed_error(tmp_path_factory, data, suffix):
     import tomli_w
@@ -465,7 +472,7 @@ def test_mutated_path_files_load_or_raise_one_typed_error(tmp_path_factory, data
         assert math.isfinite(curve.length) and curve.length > 0
 
 
-@settings(max_examples=40)
+@settings(max_examples=40, deadline=_BOUNDED)
 @given(st.data(), st.sampled_from([".json", ".toml"]))
 def test_mutated_machine_files_load_or_raise_one_typed_error(tmp_path_factory, data, suffix):
     import tomli_w
@@ -482,7 +489,7 @@ def test_mutated_machine_files_load_or_raise_one_typed_error(tmp_path_factory, d
     try:
         machine = load_machine(path)
     except PathFileError as exc:
-        assert "\n" not in str(exc)
+        assert "\n" not in str(exc) and str(path) in str(exc)
     else:
         for a in machine.axes:
             for v in (a.time_constant, a.electrical_gain, a.mechanical_gain):
@@ -493,7 +500,8 @@ _NUMBERS = st.sampled_from(["1", "0", "-1", "1e-320", "1e400", "nan", "inf", "1e
                             "abc", "0.5m/s", "1e6", "3parsec/s", "1e15", "0x10", ""])
 
 
-@settings(max_examples=25, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=12, deadline=_BOUNDED,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st.data())
 def test_command_lines_with_extreme_values_exit_0_or_2_in_one_line(tmp_path_factory,
                                                                     capsys, data):
@@ -506,7 +514,7 @@ def test_command_lines_with_extreme_values_exit_0_or_2_in_one_line(tmp_path_fact
         argv += ["--sample-period", data.draw(_NUMBERS), "--out", str(out)]
     if command == "run":
         argv += ["--pvt-period", data.draw(_NUMBERS), "--export", "pvt", "--no-figures",
-                 "--max-samples", "2000", "--out", str(out)]
+                 "--max-samples", "500", "--out", str(out)]
     capsys.readouterr()
     try:
         code = main(argv)

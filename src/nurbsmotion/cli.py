@@ -131,7 +131,7 @@ def _cmd_bound(args) -> int:
 
 
 def _cmd_run(args) -> int:
-    from .loop import check_run_arguments, run
+    from .loop import check_run_arguments, run, to_pulses
     from .report import summary, write_json, write_trace_csv
 
     with _outputs(args) as staged:
@@ -148,12 +148,13 @@ def _cmd_run(args) -> int:
                           limit=args.max_samples, n_axes=curve.n_axes,
                           what=f"the PVT table at --pvt-period {args.pvt_period:g} s",
                           option="--max-samples (or a longer --pvt-period)")
+        # The bound first: a path it cannot be computed for is refused before the run.
+        bound = time_optimal_bound(to_pulses(curve, machine), machine, feed)
         trace = run(curve, machine, feed, args.interpolator, max_samples=args.max_samples)
         write_trace_csv(trace, out / "trace.csv")
         if exports:
             _export_setpoints(trace, curve, machine, exports, args)
         metrics = trace.metrics()
-        bound = time_optimal_bound(trace.curve, machine, feed)
         data = summary(metrics, interpolator=args.interpolator, feed=feed,
                        machine=machine.name, path=args.path, time_optimal_bound=bound)
         write_json(data, out / "summary.json")

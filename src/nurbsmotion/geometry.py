@@ -199,9 +199,8 @@ class CurveGeometry:
         elsewhere the curve is C1 and C' never vanishes (checked at construction)."""
         if angle_tolerance not in self._corners:
             c = self.curve
-            candidates = np.array(
-                [b for b in c.breakpoints[1:-1] if c.knot_multiplicity(b) >= c.degree]
-            )
+            values, counts = np.unique(c.knots, return_counts=True)  # values = breakpoints
+            candidates = values[1:-1][counts[1:-1] >= c.degree]
             if candidates.size:
                 angle = c.turning_angle(candidates)
                 candidates = candidates[angle > angle_tolerance]

@@ -302,6 +302,13 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
     ends = _piece_bounds(curve)
     s_ends = curve.arc_length(ends)
     s_ends[0], s_ends[-1] = 0.0, L
+    least = int(np.sum(np.maximum(50, np.ceil(grid_size * np.diff(s_ends) / L)) + 1))
+    if least > MAX_GRID_POINTS:
+        raise InfeasibleError(
+            f"the path has {len(ends) - 2} sharp corners; its {len(ends) - 1} corner-free "
+            f"pieces need at least {least:.3g} grid points (51 a piece), more than the limit "
+            f"of {MAX_GRID_POINTS:.3g} (planning.MAX_GRID_POINTS); smooth the path or join "
+            "its nearly collinear segments")
     pieces = []
     total_points = 0
     for k in range(len(ends) - 1):
