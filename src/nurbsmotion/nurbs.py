@@ -112,7 +112,7 @@ def _as_float_array(value: Any, name: str, ndim: int) -> np.ndarray:
     return arr
 
 
-_NOT_NUMBERS = (bool, np.bool_, str, bytes)
+_NOT_NUMBERS = (bool, np.bool_, str, bytes, type(None))
 
 
 def _holds_non_number(value: Any) -> bool:
@@ -358,10 +358,13 @@ class NurbsCurve:
 
     # ------------------------------------------------------------------ evaluation
     def _check_parameter(self, u: Any) -> np.ndarray:
-        try:
-            uu = _as_float_array(u, "curve parameter u", np.ndim(u))
-        except InvalidCurveError as exc:
-            raise InvalidArgumentError(str(exc)) from None
+        if isinstance(u, (float, np.ndarray)) and np.asarray(u).dtype.kind == "f":
+            uu = np.asarray(u, dtype=float)  # the hot path: no copy
+        else:
+            try:
+                uu = _as_float_array(u, "curve parameter u", np.ndim(np.asarray(u, object)))
+            except (InvalidCurveError, ValueError) as exc:
+                raise InvalidArgumentError(str(exc)) from None
         # One min/max pass for the common valid case (NaN fails both comparisons).
         if uu.size and uu.min() >= 0.0 and uu.max() <= 1.0:
             return uu
