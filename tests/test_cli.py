@@ -339,7 +339,7 @@ def test_warnings_are_one_line_without_source_echo(tmp_path, capsys):
     assert main(["contours", str(ngc)]) == 0
     err = capsys.readouterr().err.splitlines()
     assert err == [
-        f"nurbsmotion: warning: {ngc}, line 1: no G20/G21 before the first move; reading millimetres (G21)",
-        f"nurbsmotion: warning: {ngc}, line 2: M3/M4/M5 spindle skipped: it does not change the path",
-        f"nurbsmotion: warning: {ngc}, line 2: S spindle speed skipped: it does not change the path",
+        f"nurbsmotion contours: warning: {ngc}, line 1: no G20/G21 before the first move; reading millimetres (G21)",
+        f"nurbsmotion contours: warning: {ngc}, line 2: M3/M4/M5 spindle skipped: it does not change the path",
+        f"nurbsmotion contours: warning: {ngc}, line 2: S spindle speed skipped: it does not change the path",
     ]

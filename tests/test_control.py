@@ -282,11 +282,11 @@ def test_an_unstable_machine_is_refused_with_its_poles():
     x, y = die_bonder().axes
     axes = (Axis("x", 0.31, 2506.17, 1591.5494, 0.0136 * 20, 0.03), y)
     with pytest.raises(InvalidMachineError,
-                       match=r"axis 'x': the closed loop is not stable at Ts = 0.001 s: "
+                       match=r"axis 'x': the closed loop is unstable at Ts = 0.001 s: "
                              r"poles .*largest \|p\| = 1\.[0-9]+, must be < 1"):
         Machine(axes, max_drive=10.0, sample_period=1e-3)
     # the same gains at a far slower sample rate: refused too
-    with pytest.raises(InvalidMachineError, match="not stable at Ts = 1e\\+06 s"):
+    with pytest.raises(InvalidMachineError, match="unstable at Ts = 1e\\+06 s"):
         die_bonder(sample_period=1e6)
 
 

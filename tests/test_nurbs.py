@@ -388,9 +388,11 @@ def test_end_knot_multiplicity_above_p_plus_1_is_rejected_regression():
         NurbsCurve(2, [0, 0, 0, 0, 1, 1, 1], [[0, 0], [1, 0], [2, 1], [3, 0]])
 
 
-def test_integral_float_degree_is_accepted():
-    curve = NurbsCurve(3.0, CUBIC_KNOTS, SQUARE)
-    assert curve.degree == 3 and isinstance(curve.degree, int)
+@pytest.mark.parametrize("degree", [3.0, True, "3", np.float64(3.0)])
+def test_non_integer_degree_is_refused(degree):
+    # Issue 14: degree=3.0 was accepted; a degree is an integer, never a float or a bool.
+    with pytest.raises(InvalidCurveError, match="degree must be an integer"):
+        NurbsCurve(degree, CUBIC_KNOTS, SQUARE)
 
 
 @pytest.mark.parametrize(
@@ -441,7 +443,7 @@ def test_parameter_outside_domain_raises_value_error_naming_it(u, message):
 
 def test_bad_order_or_side_raise_value_error():
     curve = make_line((0.0,), (1.0,))
-    with pytest.raises(ValueError, match=r"derivative order must be 0\.\.3, got 4"):
+    with pytest.raises(ValueError, match=r"derivative order must be an integer 0\.\.3, got 4"):
         curve(0.5, 4)
     with pytest.raises(ValueError, match=r"side must be 'right' or 'left', got 'up'"):
         curve(0.5, 1, side="up")

@@ -109,7 +109,7 @@ def test_machine_file_round_trip_and_errors(tmp_path):
     with pytest.raises(PathFileError, match=r"m.toml: axes\[0\]: axis 'x': time_constant"):
         load_machine(t)
     t.write_text("max_drive = 10\nsample_period = \n")
-    with pytest.raises(PathFileError, match="invalid TOML"):
+    with pytest.raises(PathFileError, match="not valid TOML"):
         load_machine(t)
     with pytest.raises(PathFileError, match="no such machine file"):
         load_machine(tmp_path / "missing.toml")

@@ -9,14 +9,19 @@ behind.
 
 from __future__ import annotations
 
+import json
 import os
+import re
+import shutil
+import sys
 import tempfile
 from pathlib import Path
 from typing import Callable, IO
 
 from .errors import OutputExistsError, PathFileError
 
-__all__ = ["check_input_file", "write_output"]
+__all__ = ["check_input_file", "read_text_file", "parse_json_or_toml", "write_output",
+           "OutputFolder"]
 
 
 def check_input_file(file: str | os.PathLike, max_bytes: int | None = None) -> Path:
@@ -41,6 +46,85 @@ def check_input_file(file: str | os.PathLike, max_bytes: int | None = None) -> P
                 source=str(path),
             )
     return path
+
+
+def read_text_file(file: str | os.PathLike, max_bytes: int | None = None) -> str:
+    """The text of a UTF-8 file, checked as :func:`check_input_file` does.
+
+    A leading byte-order mark (which Windows editors write) is dropped, and CRLF and CR
+    line ends are read as LF.
+
+    Raises
+    ------
+    PathFileError
+        Naming the file (and the line) if it is missing, too big or not UTF-8.
+    """
+    path = check_input_file(file, max_bytes)
+    data = path.read_bytes()
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise PathFileError("not a UTF-8 text file", str(path), line) from None
+    return text.replace("\r\n", "\n").replace("\r", "\n")
+
+
+def parse_json_or_toml(text: str, *, toml: bool, source: str, constants: bool = False):
+    """Parse JSON or TOML text; every syntax fault is one :class:`PathFileError`.
+
+    Parameters
+    ----------
+    text : str
+        The file's text.
+    toml : bool
+        TOML if true, else JSON.
+    source : str
+        File name for the messages.
+    constants : bool
+        Accept JSON's non-standard ``NaN``, ``Infinity`` and ``-Infinity``.
+
+    Raises
+    ------
+    PathFileError
+        Naming the file and, where the parser gives it, the line: a syntax error, a
+        non-standard constant, or nesting deeper than the parser's recursion limit.
+    """
+    try:
+        if toml:
+            if sys.version_info >= (3, 11):
+                import tomllib
+            else:  # pragma: no cover - Python 3.10
+                import tomli as tomllib
+            try:
+                return tomllib.loads(text)
+            except tomllib.TOMLDecodeError as exc:
+                match = re.search(r"line (\d+)", str(exc))
+                message = re.sub(r"\s*\(at line \d+, column \d+\)|\s*\(at end of document\)",
+                                 "", str(exc))
+                raise PathFileError(f"not valid TOML: {message}", source,
+                                    int(match.group(1)) if match else None) from None
+            except ValueError as exc:  # an integer beyond Python's digit limit
+                raise PathFileError(f"not valid TOML: {_one_line(exc)}", source) from None
+        try:
+            return json.loads(text, parse_constant=None if constants else _reject_constant)
+        except json.JSONDecodeError as exc:
+            raise PathFileError(f"not valid JSON: {exc.msg} (column {exc.colno})", source,
+                                exc.lineno) from None
+        except ValueError as exc:  # NaN/Infinity refused, or an integer beyond the digit limit
+            raise PathFileError(f"not valid JSON: {_one_line(exc)}", source) from None
+    except RecursionError:
+        raise PathFileError(
+            "nested deeper than the parser can follow (lists or tables inside each other "
+            f"about {sys.getrecursionlimit()} deep or more); this is not a path or machine file",
+            source) from None
+
+
+def _reject_constant(name: str):
+    raise ValueError(f"{name} is not a number a file may hold")
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
 
 
 def write_output(
@@ -99,3 +183,108 @@ def write_output(
             os.unlink(tmp)
         raise
     return path
+
+
+class OutputFolder:
+    """The files one command writes into a folder: all of them, or none.
+
+    The names a command writes are declared once, up front, and checked before any
+    work: none of them may exist unless ``overwrite`` (so a refused command changes
+    nothing the user has). Inside the ``with`` block the command writes into
+    :attr:`staging`, a hidden temporary folder inside the target folder. When the block
+    completes, every file there is moved into place (a file that was not declared is
+    checked the same way first, so a forgotten name can never overwrite); when it fails
+    or is interrupted, the staging folder is removed and no file appears under a final
+    name (and a folder the command created is removed again if it is empty).
+
+    Parameters
+    ----------
+    folder : path-like
+        The output folder (created, with its parents, on entering the block).
+    names : iterable of str
+        Every file name the command may write there.
+    overwrite : bool
+        Replace existing files of those names.
+
+    Raises
+    ------
+    OutputExistsError
+        If a declared file exists and ``overwrite`` is false.
+    PathFileError
+        If the folder is a file, lies under a file, or cannot be written.
+    """
+
+    def __init__(self, folder, names, *, overwrite: bool = False):
+        self.folder = Path(folder)
+        self.names = tuple(names)
+        self.overwrite = overwrite
+        self.staging: Path | None = None
+        self._created: list[Path] = []
+        self._check_folder()
+        self.check(self.names)
+
+    def _check_folder(self) -> None:
+        folder = self.folder
+        if folder.exists() and not folder.is_dir():
+            raise PathFileError("the output folder is a file, not a folder", source=str(folder))
+        existing = folder
+        while not existing.exists():
+            existing = existing.parent
+        if not existing.is_dir():
+            raise PathFileError(f"cannot create the output folder: {existing} is a file",
+                                source=str(folder))
+        if not os.access(existing, os.W_OK | os.X_OK):
+            raise PathFileError("cannot write to this folder (permission denied)",
+                                source=str(existing))
+
+    def check(self, names) -> None:
+        """Raise :class:`OutputExistsError` if one of ``names`` exists in the folder."""
+        if self.overwrite:
+            return
+        existing = [n for n in names if os.path.lexists(self.folder / n)]
+        if existing:
+            more = f" (and {len(existing) - 1} more of its outputs)" if len(existing) > 1 else ""
+            raise OutputExistsError(
+                f"{self.folder / existing[0]} exists{more}; choose another output folder or "
+                "pass --overwrite"
+            )
+
+    def __enter__(self) -> "OutputFolder":
+        missing = self.folder
+        while not missing.exists():
+            self._created.append(missing)
+            missing = missing.parent
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.staging = Path(tempfile.mkdtemp(prefix=".nurbsmotion-", suffix=".tmp",
+                                             dir=self.folder))
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        ok = False
+        try:
+            if exc_type is None:
+                self._commit()
+                ok = True
+        finally:
+            shutil.rmtree(self.staging, ignore_errors=True)
+            if not ok:
+                for folder in self._created:  # innermost first
+                    try:
+                        folder.rmdir()
+                    except OSError:
+                        break
+        return False
+
+    def _commit(self) -> None:
+        files = sorted(p.name for p in self.staging.iterdir())
+        self.check(files)  # declared or not, and in case one appeared meanwhile
+        moved = []
+        try:
+            for name in files:
+                os.replace(self.staging / name, self.folder / name)
+                moved.append(name)
+        except BaseException:
+            if not self.overwrite:  # the moved ones were new: take them back
+                for name in moved:
+                    os.unlink(self.folder / name)
+            raise

@@ -7,13 +7,19 @@ and turns the library's typed errors into one line on stderr and a non-zero exit
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
+import math
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from . import units
+from ._io import OutputFolder
+from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .errors import NurbsmotionError
 from .interpolators import LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
 from .machine import Machine, load_machine
@@ -68,30 +74,6 @@ def _feed_used(args, contour, cap, scale: float, unit: str):
     return capped, f"the lower of the file's programmed feed ({span} {unit}) and --feed {cap:.6g} {unit} per piece"
 
 
-def _setup_warnings() -> None:
-    """Warnings (G-code, DXF, path files) as one line each on stderr through ``logging``,
-    without Python's source-line echo (``main`` restores the previous display after)."""
-    import logging
-    import warnings
-
-    class _Stderr(logging.Handler):  # the stderr of the moment (tests swap it)
-        def emit(self, record):
-            print(self.format(record), file=sys.stderr)
-
-    log = logging.getLogger("nurbsmotion")
-    if not any(getattr(h, "nurbsmotion_cli", False) for h in log.handlers):
-        handler = _Stderr()
-        handler.nurbsmotion_cli = True
-        handler.setFormatter(logging.Formatter("nurbsmotion: warning: %(message)s"))
-        log.addHandler(handler)
-        log.propagate = False
-
-    def show(message, category, filename, lineno, file=None, line=None):
-        log.warning(" ".join(str(message).split()))
-
-    warnings.showwarning = show
-
-
 def _cmd_contours(args) -> int:
     from .paths import load_contours
 
@@ -119,7 +101,7 @@ def _cmd_contours(args) -> int:
 def _cmd_interpolate(args) -> int:
     from .export import SetpointArrays, save_setpoints
     from .loop import interpolate
-    from .report import check_writable
+    from .plots import plot_setpoints
 
     contour = _contour(args)
     curve = contour.curve
@@ -127,16 +109,21 @@ def _cmd_interpolate(args) -> int:
     feed, note = _feed_used(args, contour, cap, 1.0, f"{curve.units}/s")
     if args.method == "uniform" and not isinstance(feed, (int, float)):
         feed, note = feed.lowest, f"{note}: its lowest value (uniform steps have one feed)"
+    lowest = feed if isinstance(feed, (int, float)) else feed.lowest
+    check_samples(estimate_samples(curve.length, lowest, args.sample_period),
+                  limit=args.max_samples, n_axes=curve.n_axes,
+                  what=f"interpolating {curve.length:.6g} {curve.units or 'path units'} "
+                       f"at {lowest:g} per s every {args.sample_period:g} s",
+                  option="--max-samples")
+    with _outputs(args) as staged:
+        out = staged.staging
+        series = interpolate(make_open_loop(args.method, curve, args.sample_period, feed),
+                             max_samples=args.max_samples)
+        names = _axis_names(curve.n_axes)
+        save_setpoints(SetpointArrays(series.t, series.u, series.position, series.feed, names),
+                       out / "setpoints.csv")
+        plot_setpoints(series, out, axis_names=names, units=curve.units or "pulse")
     out = Path(args.out)
-    check_writable([out / "setpoints.csv", out / "setpoints.png"], args.overwrite)
-    series = interpolate(make_open_loop(args.method, curve, args.sample_period, feed))
-    out.mkdir(parents=True, exist_ok=True)
-    names = _axis_names(curve.n_axes)
-    save_setpoints(SetpointArrays(series.t, series.u, series.position, series.feed, names),
-                   out / "setpoints.csv", overwrite=args.overwrite)
-    from .plots import plot_setpoints
-
-    plot_setpoints(series, out, axis_names=names, units=curve.units or "pulse")
     fl_max, fl_rms = series.feed_fluctuation()
     print(f"{args.method}: {len(series.t)} samples, cycle time {series.cycle_time:.6g} s, "
           f"feed fluctuation max {fl_max:.3%} RMS {fl_rms:.3%}; feed: {note} -> {out}")
@@ -176,8 +163,8 @@ def _progress(args, **kwargs):
 
 
 def _cmd_run(args) -> int:
-    from .loop import run, to_pulses
-    from .report import TRACE_FILES, check_writable, summary, write_json
+    from .loop import check_run_arguments, run, to_pulses
+    from .report import TRACE_FILES, summary, write_json
 
     machine = load_machine(args.machine)
     contour = _contour(args, machine)
@@ -188,32 +175,34 @@ def _cmd_run(args) -> int:
     feed_number = feed if isinstance(feed, (int, float)) else feed.highest
     unit = units.report_unit(curve.units)
     per_unit = units.pulses_per_report_unit(curve.units, machine)
-    out = Path(args.out)
-    trace_file = None if args.no_trace else out / TRACE_FILES[args.trace_format]
-    check_writable([f for f in (trace_file, out / "summary.json") if f], args.overwrite)
-    if not args.no_figures:
-        from .plots import TRACE_FIGURES
-
-        check_writable([out / f for f in TRACE_FIGURES], args.overwrite)
-    exports = {fmt: out / EXPORT_FILES[fmt] for fmt in args.export or ()}
-    check_writable(exports.values(), args.overwrite)
-    stages = ["plan and run the closed loop", "time-optimal bound", "metrics", "summary"]
+    path = to_pulses(curve, machine)
+    check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
+    if "pvt" in (args.export or ()):
+        lowest = feed if isinstance(feed, (int, float)) else feed.lowest
+        check_samples(estimate_samples(path.length, lowest, args.pvt_period),
+                      limit=args.max_samples, n_axes=curve.n_axes,
+                      what=f"the PVT table at --pvt-period {args.pvt_period:g} s",
+                      option="--max-samples (or a longer --pvt-period)")
+    stages = ["time-optimal bound", "plan and run the closed loop", "metrics", "summary"]
     stages += [] if args.no_figures else ["figures"]
-    with _progress(args, total=len(stages), unit="stage", desc=stages[0]) as bar:
+    with _outputs(args) as staged, _progress(args, total=len(stages), unit="stage",
+                                             desc=stages[0]) as bar:
+        out = staged.staging
+        exports = {fmt: out / EXPORT_FILES[fmt] for fmt in args.export or ()}
+
         def stage(name: str) -> None:
             bar.set_description(name)
 
-        stage(stages[0])
-        trace = run(to_pulses(curve, machine), machine, feed, args.interpolator)
+        # The bound first: a path it cannot be computed for is refused before the run.
+        bound = time_optimal_bound(path, machine, feed)
         bar.update()
-        out.mkdir(parents=True, exist_ok=True)
-        if trace_file is not None:
-            _write_trace(args, trace, trace_file, unit, per_unit)
+        stage(stages[1])
+        trace = run(path, machine, feed, args.interpolator, max_samples=args.max_samples)
+        bar.update()
+        if not args.no_trace:
+            _write_trace(args, trace, out / TRACE_FILES[args.trace_format], unit, per_unit)
         if exports:
             _export_setpoints(trace, curve, machine, exports, args)
-        stage(stages[1])
-        bound = time_optimal_bound(trace.curve, machine, feed)
-        bar.update()
         stage(stages[2])
         metrics = trace.metrics()
         bar.update()
@@ -222,12 +211,13 @@ def _cmd_run(args) -> int:
                        length_unit=unit, pulses_per_length_unit=per_unit)
         if contour.feed is not None:  # the file gave a feed: say which one ran
             data["feed_used"] = note
-        write_json(data, out / "summary.json", overwrite=args.overwrite)
+        write_json(data, out / "summary.json")
         bar.update()
         if not args.no_figures:
             stage(stages[4])
-            trace.plot(out, feed=feed_number, length_unit=unit, overwrite=args.overwrite)
+            trace.plot(out, feed=feed_number, length_unit=unit, overwrite=True)
             bar.update()
+    out = Path(args.out)
     sat = metrics.total_saturated_samples
     at = (f"{feed / per_unit:.4g} {unit}/s ({feed:.4g} pulse/s)"
           if contour.feed is None else note)
@@ -286,14 +276,13 @@ def _cmd_reproduce(args) -> int:
     from .experiments import reproduce
 
     t0 = time.perf_counter()
-    with _progress(args, unit="run") as bar:
+    with _outputs(args) as staged, _progress(args, unit="run") as bar:
         def progress(done: int, total: int, label: str) -> None:
             bar.total = total
             bar.set_description(label)
             bar.update(done - bar.n)
 
-        result = reproduce(args.out, overwrite=args.overwrite, figures=not args.no_figures,
-                           progress=progress)
+        result = reproduce(staged.staging, figures=not args.no_figures, progress=progress)
     if not args.quiet:
         print((Path(args.out) / "table.md").read_text())
     print(f"{len(result.rows)} runs, {len(result.files)} files in {args.out} "
@@ -323,10 +312,66 @@ def _version() -> str:
         return __version__
 
 
+def _outputs_of(args) -> list[str]:
+    """Every file name the command of ``args`` may write: the one list its guard checks."""
+    if args.command == "interpolate":
+        from .plots import SETPOINT_FIGURES
+
+        return ["setpoints.csv", *SETPOINT_FIGURES]
+    if args.command == "run":
+        from .plots import TRACE_FIGURES
+
+        from .report import TRACE_FILES
+
+        return (([] if args.no_trace else [TRACE_FILES[args.trace_format]]) + ["summary.json"]
+                + [EXPORT_FILES[f] for f in args.export or ()]
+                + ([] if args.no_figures else list(TRACE_FIGURES)))
+    if args.command == "reproduce":
+        from .experiments import reproduce_outputs
+
+        return reproduce_outputs(figures=not args.no_figures)
+    return []
+
+
+def _outputs(args) -> OutputFolder:
+    """The command's output folder: its files checked now, before any work, written
+    through a staging folder and moved into place only when all are complete."""
+    return OutputFolder(args.out, _outputs_of(args), overwrite=args.overwrite)
+
+
+def _positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
+    return value
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (no usage block)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)\n")
+
+
 def _parser() -> argparse.ArgumentParser:
     from .report import TRACE_FORMATS
 
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="nurbsmotion",
         description="NURBS interpolation for motion systems whose actuators saturate.",
         epilog="Reference: docs/cli.md; file formats: docs/formats.md; the model and every "
@@ -369,7 +414,10 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("--units", choices=PATH_UNITS, help=units_help)
     i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
                    help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
-    i.add_argument("--sample-period", type=float, default=1e-3, help="Ts [s]")
+    i.add_argument("--sample-period", type=_positive_float, default=1e-3, help="Ts [s]")
+    i.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
+                   help="refuse, before any work, a move estimated to take more samples "
+                   "than this (about 2.8 h at 1 ms)")
     common(i, progress=False)  # open loop: done in a moment
     i.set_defaults(func=_cmd_interpolate)
 
@@ -396,8 +444,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="also write the commanded setpoints (up to the end point, in the "
                    "path's units): csv, npz, pvt (position-velocity-time table), gcode "
                    "(LinuxCNC G1 per sample, in mm); repeat for several")
-    r.add_argument("--pvt-period", type=float, default=0.01,
+    r.add_argument("--pvt-period", type=_positive_float, default=0.01,
                    help="period of the PVT table [s]")
+    r.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
+                   help="refuse, before any work, a move estimated to take more samples "
+                   "than this (about 2.8 h at 1 ms)")
     r.set_defaults(func=_cmd_run)
 
     b = command("bound", "print the time-optimal bound of a path [s]: the least time at "
@@ -424,32 +475,78 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _positive_int(text: str) -> int:
+def _one_line(text) -> str:
+    """``text`` on one line (a library's message may embed newlines)."""
+    return " ".join(str(text).split())
+
+
+def _message(exc: BaseException) -> str:
+    """What went wrong, for a user: the typed error's text, or a plain sentence."""
+    if isinstance(exc, KeyError) and exc.args:
+        return str(exc.args[0])
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{exc.strerror}: {exc.filename}" if exc.filename else exc.strerror
+    if isinstance(exc, MemoryError):
+        return "out of memory; lower --max-samples or use a higher feed"
+    if isinstance(exc, RecursionError):
+        return "input nested too deeply to process"
+    if isinstance(exc, OverflowError):
+        return f"a number is too large for double precision ({exc})"
+    return str(exc) or type(exc).__name__
+
+
+@contextlib.contextmanager
+def _one_line_warnings(command: str):
+    """Warnings and log records as one line each on stderr, without the source echo."""
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"nurbsmotion {command}: warning: {_one_line(message)}", file=sys.stderr)
+
+    class _Stderr(logging.Handler):  # the stderr of the moment (tests swap it)
+        def emit(self, record):
+            print(f"nurbsmotion {command}: {record.levelname.lower()}: "
+                  f"{_one_line(record.getMessage())}", file=sys.stderr)
+
+    handler = _Stderr()
+    logger = logging.getLogger("nurbsmotion")
+    saved = warnings.showwarning
+    warnings.showwarning = show
+    logger.addHandler(handler)
     try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
-    return value
+        yield
+    finally:
+        warnings.showwarning = saved
+        logger.removeHandler(handler)
+
+
+USER_ERRORS = (NurbsmotionError, OSError, KeyError, ValueError, ArithmeticError,
+               RecursionError, MemoryError)
+"""Errors reported as one line and exit code 2: the library's typed errors, and what
+the system, the parsers and the arithmetic raise on a bad file, folder or number."""
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``nurbsmotion`` command; returns the exit code."""
-    import warnings
+    """Entry point of the ``nurbsmotion`` command; returns the exit code.
 
+    0 on success; 2 with one line on stderr for a bad input (nothing is written); 130
+    when interrupted (Ctrl-C; nothing is written); 1 for an internal error.
+    """
     parser = _parser()
     args = parser.parse_args(argv)
-    shown = warnings.showwarning
-    _setup_warnings()
-    try:
-        return args.func(args)
-    except (NurbsmotionError, FileExistsError, FileNotFoundError, KeyError, ValueError) as exc:
-        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        print(f"nurbsmotion {args.command}: error: {msg}", file=sys.stderr)
-        return 2
-    finally:
-        warnings.showwarning = shown
+    with _one_line_warnings(args.command):
+        try:
+            return args.func(args)
+        except KeyboardInterrupt:
+            print(f"nurbsmotion {args.command}: interrupted; no output was written",
+                  file=sys.stderr)
+            return 130
+        except USER_ERRORS as exc:
+            print(f"nurbsmotion {args.command}: error: {_one_line(_message(exc))}",
+                  file=sys.stderr)
+            return 2
+        except Exception as exc:  # a bug: still one line, and a distinct exit code
+            print(f"nurbsmotion {args.command}: internal error: {type(exc).__name__}: "
+                  f"{_one_line(exc)}", file=sys.stderr)
+            return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

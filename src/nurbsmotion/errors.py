@@ -11,10 +11,13 @@ from __future__ import annotations
 __all__ = [
     "NurbsmotionError",
     "InvalidCurveError",
+    "InvalidArgumentError",
     "InvalidMachineError",
     "PathFileError",
     "InfeasibleError",
     "OutputExistsError",
+    "WorkLimitError",
+    "InvalidFeedError",
 ]
 
 
@@ -24,6 +27,14 @@ class NurbsmotionError(Exception):
 
 class InvalidCurveError(NurbsmotionError, ValueError):
     """A NURBS curve definition is invalid (knots, weights, control points, degree)."""
+
+
+class InvalidArgumentError(NurbsmotionError, ValueError, TypeError):
+    """A function argument is of the wrong kind or out of range (a curve parameter, a
+    derivative order, a tolerance, a feed, something that is not a curve or a machine).
+
+    Derives from both :class:`ValueError` and :class:`TypeError`, the built-in errors such
+    an argument would otherwise raise."""
 
 
 class InvalidMachineError(NurbsmotionError, ValueError):
@@ -63,6 +74,9 @@ class OutputExistsError(NurbsmotionError, FileExistsError):
     """An output file already exists and overwriting it was not asked for."""
 
 
-class InvalidFeedError(NurbsmotionError, ValueError):
+class InvalidFeedError(InvalidArgumentError):
     """A feed that is not a positive finite number, a speed with a known unit, or a valid
     per-piece feed limit."""
+class WorkLimitError(NurbsmotionError, ValueError):
+    """A command would compute more samples (or memory) than a documented limit allows
+    (:mod:`nurbsmotion.budget`)."""

@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Callable
 
 from ._io import write_output
-
 from .loop import Trace, run, to_pulses
 from .machine import Machine, die_bonder
 from .nurbs import builtin_path
@@ -23,7 +22,7 @@ from .planning import time_optimal_bound
 from .report import check_writable, markdown_table, summary, write_json
 from .units import pulses_per_report_unit, report_unit
 
-__all__ = ["PAPER_EXPERIMENT", "ExperimentResult", "reproduce"]
+__all__ = ["PAPER_EXPERIMENT", "ExperimentResult", "reproduce", "reproduce_outputs"]
 
 PAPER_EXPERIMENT = {
     "die-bonder-pi": (0.2, 0.5, 1.0),
@@ -43,6 +42,25 @@ class ExperimentResult:
     rows: list
     traces: dict
     files: list
+
+
+def reproduce_outputs(machine: Machine | None = None, experiment=None,
+                      figures: bool = True) -> list[str]:
+    """Names of every file :func:`reproduce` writes with these arguments."""
+    machine = machine or die_bonder()
+    names = ["table.md", "table.json"]
+    if figures:
+        from .plots import comparison_figures
+
+        for name, feeds in (experiment or PAPER_EXPERIMENT).items():
+            for feed_m_s in feeds:
+                names += comparison_figures(_figure_prefix(name, feed_m_s),
+                                            machine.axis_names)
+    return names
+
+
+def _figure_prefix(name: str, feed_m_s: float) -> str:
+    return f"{name}_{feed_m_s:g}ms"
 
 
 def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
@@ -72,7 +90,8 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
     machine = machine or die_bonder()
     experiment = experiment or PAPER_EXPERIMENT
     out = Path(out_dir)
-    check_writable([out / "table.md", out / "table.json"], overwrite)
+    check_writable([out / f for f in reproduce_outputs(machine, experiment, figures)],
+                   overwrite)
     out.mkdir(parents=True, exist_ok=True)
     pulses_per_m = machine.pulses_per_unit("m")
     total = sum(len(f) for f in experiment.values()) * (len(interpolators) + bool(figures))
@@ -105,8 +124,8 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
             if figures:
                 from .plots import plot_comparison
 
-                files += plot_comparison(group, out, f"{name}_{feed_m_s:g}ms", feed=feed,
-                                         length_unit=unit)
+                files += plot_comparison(group, out, _figure_prefix(name, feed_m_s),
+                                         feed=feed, length_unit=unit)
                 step(f"{name} {feed_m_s:g} m/s figures")
     files.append(write_json(rows, out / "table.json", overwrite=overwrite))
     table = markdown_table(rows)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InvalidFeedError, NurbsmotionError
+from .errors import InvalidFeedError
 
 __all__ = ["FeedLimit", "InvalidFeedError"]
 

@@ -79,6 +79,19 @@ class CurveGeometry:
 
     def __init__(self, curve, rtol: float = 1e-13):
         self.curve = curve
+        self._corners: dict[float, np.ndarray] = {}
+        # Planners invert the same arc-length grids again and again (one per replanning
+        # pass): remember the last few large inversions.
+        self._inverse_cache: OrderedDict[tuple, np.ndarray] = OrderedDict()
+        if curve.degree == 1 and np.all(curve.weights == curve.weights[0]):
+            # A polyline: |C'| is constant on every span, so each span's length is its
+            # chord, exactly; no quadrature table to refine (a 10^6-point polyline is
+            # measured at once).
+            chords = np.linalg.norm(np.diff(curve.control_points, axis=0), axis=1)
+            self._u = curve.knots[1:-1].copy()
+            self._s = np.concatenate([[0.0], np.cumsum(chords)])
+            self.length = float(self._s[-1])
+            return
         # |C'| has a kink where C' = 0 (a cusp, a reversal): split there too, so that no
         # quadrature piece straddles one, however narrow the reversal
         bp = np.union1d(curve.breakpoints, curve.zero_speed_points)
@@ -109,10 +122,6 @@ class CurveGeometry:
         self._u = np.append(a[order], 1.0)
         self._s = np.concatenate([[0.0], np.cumsum(np.concatenate(done_i)[order])])
         self.length = float(self._s[-1])
-        self._corners: dict[float, np.ndarray] = {}
-        # Planners invert the same arc-length grids again and again (one per replanning
-        # pass): remember the last few large inversions.
-        self._inverse_cache: OrderedDict[tuple, np.ndarray] = OrderedDict()
 
     @property
     def n_pieces(self) -> int:
@@ -193,9 +202,10 @@ class CurveGeometry:
         cusp). Elsewhere the curve is C1 with C' != 0, so it has no corner."""
         if angle_tolerance not in self._corners:
             c = self.curve
-            full = [b for b in c.breakpoints[1:-1] if c.knot_multiplicity(b) >= c.degree]
+            values, counts = np.unique(c.knots, return_counts=True)  # values = breakpoints
+            full = values[1:-1][counts[1:-1] >= c.degree]
             zero = [u for u in c.zero_speed_points if 0.0 < u < 1.0]
-            candidates = np.unique(np.array(full + zero, dtype=float))
+            candidates = np.union1d(full, np.asarray(zero, dtype=float))
             if candidates.size:
                 angle = c.turning_angle(candidates)
                 candidates = candidates[angle > angle_tolerance]

@@ -19,8 +19,10 @@ import numpy as np
 from numba import njit
 
 from . import closed_loop, stepping
+from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .control import PidGains, pid_law, pid_state
-from .errors import InfeasibleError
+from .errors import InfeasibleError, InvalidArgumentError
+from .feed import FeedLimit
 from .interpolators import Interpolator, make_interpolator
 from .machine import Machine
 from .nurbs import NurbsCurve
@@ -29,7 +31,7 @@ from .stepping import Status
 from .units import feed_in_pulses
 
 __all__ = ["Trace", "SetpointSeries", "simulate", "interpolate", "run", "to_pulses",
-           "settle_hold_samples"]
+           "settle_hold_samples", "check_run_arguments"]
 
 
 def to_pulses(curve: NurbsCurve, machine: Machine) -> NurbsCurve:
@@ -390,7 +392,7 @@ def _verdict(rows, machine: Machine, settled: bool, settled_index, n: int, Ts: f
 
 
 def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
-        **simulate_options) -> Trace:
+        *, max_samples: int = MAX_SAMPLES, **simulate_options) -> Trace:
     """Run a path on a machine with a named interpolator.
 
     Parameters
@@ -404,15 +406,62 @@ def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
         (:func:`nurbsmotion.units.feed_in_pulses`).
     interpolator : str
         One of :data:`nurbsmotion.interpolators.LOOP_METHODS`.
+    max_samples : int
+        Refuse (:class:`~nurbsmotion.errors.WorkLimitError`) a move that would take more
+        samples than this, before any work (:data:`nurbsmotion.budget.MAX_SAMPLES`).
     **simulate_options
         Passed to :func:`simulate` (``plant``, ``settle_time``, ``settle_window``,
-        ``settle_limit``, ``max_samples``).
+        ``settle_limit``).
+    max_samples : int
+        Refuse (:class:`~nurbsmotion.errors.WorkLimitError`) a move that would take more
+        samples than this, before any work (:data:`nurbsmotion.budget.MAX_SAMPLES`).
+
+    Raises
+    ------
+    InvalidArgumentError, InvalidMachineError, WorkLimitError
+        From :func:`check_run_arguments`, before any work.
+    InfeasibleError
+        If the interpolator cannot advance, or the loop diverges.
     """
     if not isinstance(curve, NurbsCurve):
-        raise InfeasibleError(f"curve must be a NurbsCurve, got {type(curve).__name__}")
+        raise InvalidArgumentError(f"curve must be a NurbsCurve, got {curve!r:.60}")
     if not isinstance(machine, Machine):
-        raise InfeasibleError(f"machine must be a Machine, got {type(machine).__name__}")
+        raise InvalidArgumentError(f"machine must be a Machine, got {machine!r:.60}")
     feed = feed_in_pulses(feed, curve, machine)
+    check_run_arguments(curve, machine, feed, max_samples)
     path = to_pulses(curve, machine)
-    return simulate(make_interpolator(interpolator, path, machine, feed), machine,
-                    **simulate_options)
+    trace = simulate(make_interpolator(interpolator, path, machine, feed), machine,
+                     **simulate_options)
+    if not (np.all(np.isfinite(trace.position)) and np.all(np.isfinite(trace.drive))):
+        raise InfeasibleError(
+            f"the closed loop diverged (non-finite positions or drives) running "
+            f"{interpolator} on machine {machine.name!r}")
+    return trace
+
+
+def check_run_arguments(curve, machine, feed, max_samples: int = MAX_SAMPLES, *,
+                        option: str = "max_samples") -> None:
+    """The checks :func:`run` makes before any work: typed errors naming the value.
+
+    ``curve`` must be a :class:`NurbsCurve` and ``machine`` a :class:`Machine` (whose
+    closed loop is stable: it was checked when the machine was made); ``feed`` a finite
+    number > 0 [pulse/s] or a :class:`~nurbsmotion.feed.FeedLimit` (its lowest feed sizes
+    the estimate); and the move at most ``max_samples`` samples long
+    (:func:`nurbsmotion.budget.check_samples`; ``option`` names the way to raise it).
+    """
+    if not isinstance(curve, NurbsCurve):
+        raise InvalidArgumentError(f"curve must be a NurbsCurve, got {curve!r:.60}")
+    if not isinstance(machine, Machine):
+        raise InvalidArgumentError(f"machine must be a Machine, got {machine!r:.60}")
+    if isinstance(feed, FeedLimit):
+        feed = feed.lowest
+    if isinstance(feed, (bool, np.bool_)) or not isinstance(feed, (int, float, np.integer,
+                                                                 np.floating)):
+        raise InvalidArgumentError(f"feed must be a number [pulse/s], got {feed!r:.60}")
+    if not (math.isfinite(feed) and feed > 0):
+        raise InvalidArgumentError(f"feed must be finite and > 0 [pulse/s], got {feed!r}")
+    length = curve.length * machine.pulses_per_unit(curve.units)  # [pulse], cached
+    check_samples(estimate_samples(length, float(feed), machine.sample_period),
+                  limit=max_samples, n_axes=curve.n_axes,
+                  what=f"a {length:.6g}-pulse move at {feed:g} pulse/s with Ts = "
+                       f"{machine.sample_period:g} s", option=option)

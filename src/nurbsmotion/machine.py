@@ -18,9 +18,7 @@ Umax : drive limit [V]; Ts : sample period [s].
 
 from __future__ import annotations
 
-import json
 import math
-import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -28,13 +26,12 @@ from typing import Any
 import numpy as np
 
 from .control import PidGains, loop_poles, pid_law
+from ._io import parse_json_or_toml, read_text_file
 from .errors import InvalidMachineError, PathFileError
 from .servo import zoh_matrices
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+MAX_MACHINE_FILE_BYTES = 1_000_000
+"""Largest machine file read [byte] (a machine of 6 axes takes about 1 kB)."""
 
 __all__ = ["Axis", "Machine", "CONTROLLERS", "SPEED_MEASUREMENTS", "LENGTH_UNITS_UM",
            "die_bonder", "builtin_machine", "BUILTIN_MACHINES", "load_machine"]
@@ -51,21 +48,27 @@ LENGTH_UNITS_UM = {"um": 1.0, "mm": 1e3, "cm": 1e4, "m": 1e6, "in": 25_400.0, "i
 """Length units a path may be drawn in, in micrometres."""
 
 
-def _positive(value: Any, name: str) -> float:
+def _number(value: Any, name: str) -> float:
+    """``value`` as a float; booleans and strings are never numbers."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer,
+                                                                   np.floating)):
+        raise InvalidMachineError(
+            f"{name} must be a number, got {value!r:.60} ({type(value).__name__})")
     try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InvalidMachineError(f"{name} must be a number, got {value!r}") from None
+        return float(value)
+    except OverflowError:
+        raise InvalidMachineError(f"{name} is too large for a double: {value!r:.60}") from None
+
+
+def _positive(value: Any, name: str) -> float:
+    v = _number(value, name)
     if not (math.isfinite(v) and v > 0):
         raise InvalidMachineError(f"{name} must be finite and > 0, got {value!r}")
     return v
 
 
 def _non_negative(value: Any, name: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InvalidMachineError(f"{name} must be a number, got {value!r}") from None
+    v = _number(value, name)
     if not (math.isfinite(v) and v >= 0):
         raise InvalidMachineError(f"{name} must be finite and >= 0, got {value!r}")
     return v
@@ -169,6 +172,8 @@ class Machine:
         object.__setattr__(
             self, "pulse_length_um", _positive(self.pulse_length_um, "pulse_length_um")
         )
+        if not isinstance(self.name, str):
+            raise InvalidMachineError(f"name must be a string, got {self.name!r:.60}")
         if self.controller not in CONTROLLERS:
             raise InvalidMachineError(
                 f"controller must be one of {CONTROLLERS}, got {self.controller!r}"
@@ -196,10 +201,11 @@ class Machine:
                                feedback_deriv)
             radius = float(np.max(np.abs(poles)))
             self._arrays["pole_radius"] = max(radius, self._arrays.get("pole_radius", 0.0))
+            self._arrays.setdefault("poles", []).append(poles)
             if not radius < 1.0:
                 shown = ", ".join(f"{p.real:.6g}{p.imag:+.6g}j" for p in poles)
                 raise InvalidMachineError(
-                    f"axis {a.name!r}: the closed loop is not stable at Ts = "
+                    f"axis {a.name!r}: the closed loop is unstable at Ts = "
                     f"{self.sample_period:g} s: poles {shown} (largest |p| = {radius:.6g}, "
                     "must be < 1); change the gains or the sample period")
 
@@ -251,6 +257,11 @@ class Machine:
         return tuple(PidGains.paper_preset(a.position_gain, a.speed_gain, a.time_constant,
                                            a.electrical_gain, a.mechanical_gain,
                                            self.controller == "pd+") for a in self.axes)
+
+    def closed_loop_poles(self) -> list:
+        """Poles of each axis's closed loop (its law and plant, linear, sampled): one
+        complex array per axis (:func:`nurbsmotion.control.loop_poles`)."""
+        return [p.copy() for p in self._arrays["poles"]]
 
     @property
     def loop_pole_radius(self) -> float:
@@ -400,17 +411,10 @@ def load_machine(spec: str | Path) -> Machine:
             f"no such machine file, and not a built-in machine ({', '.join(BUILTIN_MACHINES)})",
             str(spec),
         )
-    text = path.read_text()
-    if path.suffix.lower() == ".toml":
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise PathFileError(f"invalid TOML: {exc}", str(path)) from None
-    elif path.suffix.lower() == ".json":
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise PathFileError(f"invalid JSON: {exc.msg}", str(path), exc.lineno) from None
-    else:
+    suffix = path.suffix.lower()
+    if suffix not in (".toml", ".json"):
         raise PathFileError("machine files must end in .toml or .json", str(path))
+    text = read_text_file(path, MAX_MACHINE_FILE_BYTES)
+    # JSON has no inf; Infinity (as json.dumps writes it) stands for an ideal drive.
+    data = parse_json_or_toml(text, toml=suffix == ".toml", source=str(path), constants=True)
     return Machine.from_dict(data, str(path))

@@ -18,6 +18,13 @@ Conventions
   right by default (the span the motion moves into, SPEC section 5), from the left with
   ``side="left"``.
 
+- Limits of double precision are refused at construction with the limit in the message:
+  a degree above :data:`MAX_DEGREE`, coordinates or weights beyond
+  :data:`MAX_MAGNITUDE`, coordinates more than :data:`MAX_OFFSET_RATIO` times the curve's
+  size from the origin (they could not be computed to 1e-9 of that size), weights whose
+  ratio exceeds it, units outside :data:`PATH_UNITS`; booleans and strings are never
+  numbers.
+
 Glossary
 --------
 p : degree; n : number of control points; u : curve parameter in [0, 1];
@@ -39,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InvalidCurveError
+from .errors import InvalidArgumentError, InvalidCurveError
 
 __all__ = [
     "NurbsCurve",
@@ -57,15 +64,94 @@ MAX_ORDER = 3
 """Highest derivative order :meth:`NurbsCurve.__call__` evaluates (3 is jerk)."""
 
 
+MAX_DEGREE = 32
+"""Highest degree a curve may have. The check that C' never vanishes (at construction)
+finds the roots of a degree 2p - 2 polynomial per span from its companion matrix; beyond
+a degree-62 polynomial those roots are no longer reliable in double precision, and CAD
+systems stay far below (degree 3 to 11)."""
+
+RELATIVE_ACCURACY = 1e-9
+"""Relative accuracy the geometry promises (arc length, inverse, points)."""
+
+MAX_OFFSET_RATIO = RELATIVE_ACCURACY / np.finfo(float).eps
+"""Largest ratio of a coordinate's magnitude to the curve's extent (about 4.5e6): a
+coordinate carries a rounding error of eps*|x|, which must stay below 1e-9 of the curve's
+size. A 100 mm part may lie up to 450 m from the origin; a part offset by 1e15 is refused.
+The same bound limits max(weight) / min(weight), since a control point's share of the
+rational sum is computed to eps times that ratio."""
+
+MAX_MAGNITUDE = 1e50
+"""Largest magnitude of a coordinate [path units] or weight (and smallest weight is its
+inverse): keeps w*P, |C'|^3 (curvature) and the servo's squares finite in double
+precision, whatever the knot spacing."""
+
+PATH_UNITS = ("pulse", "um", "mm", "cm", "m", "in", "inch")
+"""Length units a curve may be drawn in (``units``); ``None`` means unspecified (pulses
+on a machine)."""
+
+
 def _as_float_array(value: Any, name: str, ndim: int) -> np.ndarray:
+    """``value`` as a float array; booleans and strings are never numbers."""
     try:
-        arr = np.array(value, dtype=float)
+        raw = np.asarray(value)
+        # numpy turns True into 1 in a list of numbers: look at the Python values too.
+        if raw.dtype.kind in "bUSV" or _holds_non_number(value):
+            raise TypeError("not a number")
+        arr = np.array(raw, dtype=float)
+    except OverflowError:
+        raise InvalidCurveError(
+            f"{name} holds a number too large for double precision (limit "
+            f"{MAX_MAGNITUDE:g}): {value!r:.80}") from None
     except (TypeError, ValueError) as exc:
         raise InvalidCurveError(f"{name} must be numeric, got {value!r:.80}") from exc
     if arr.ndim != ndim:
         shape = "(n,)" if ndim == 1 else "(n, n_axes)"
         raise InvalidCurveError(f"{name} must have shape {shape}, got shape {arr.shape}")
     return arr
+
+
+_NOT_NUMBERS = (bool, np.bool_, str, bytes, type(None))
+
+
+def _holds_non_number(value: Any) -> bool:
+    """Whether ``value`` (a number, an array or nested lists) holds a boolean or a string."""
+    if isinstance(value, np.ndarray) and value.dtype.kind != "O":
+        return value.dtype.kind in "bUSV"
+    try:
+        items = np.asarray(value, dtype=object)
+    except ValueError:  # ragged: refused when converted
+        return False
+    return any(issubclass(t, _NOT_NUMBERS) for t in set(map(type, items.flat)))
+
+
+def _check_magnitudes(P: np.ndarray, w: np.ndarray) -> None:
+    """Refuse coordinates and weights beyond what double precision computes to 1e-9."""
+    big = np.abs(P) > MAX_MAGNITUDE
+    if np.any(big):
+        i = _first_bad(np.any(big, axis=1))
+        raise InvalidCurveError(
+            f"control point {i} = {P[i].tolist()} exceeds the largest coordinate magnitude "
+            f"{MAX_MAGNITUDE:g} path units")
+    bad = (w > MAX_MAGNITUDE) | (w < 1.0 / MAX_MAGNITUDE)
+    if np.any(bad):
+        i = _first_bad(bad)
+        raise InvalidCurveError(
+            f"weight {i} is {w[i]:g}; weights must lie in [{1 / MAX_MAGNITUDE:g}, "
+            f"{MAX_MAGNITUDE:g}]")
+    ratio = float(w.max() / w.min())
+    if ratio > MAX_OFFSET_RATIO:
+        raise InvalidCurveError(
+            f"weights range from {w.min():g} to {w.max():g} (ratio {ratio:.3g}); a ratio "
+            f"above {MAX_OFFSET_RATIO:.3g} cannot be computed to {RELATIVE_ACCURACY:g} "
+            "relative accuracy in double precision")
+    extent = float(np.max(np.ptp(P, axis=0)))
+    magnitude = float(np.max(np.abs(P)))
+    if extent > 0 and magnitude > MAX_OFFSET_RATIO * extent:
+        raise InvalidCurveError(
+            f"coordinates reach {magnitude:.6g} but the curve spans only {extent:.6g} path "
+            f"units (ratio {magnitude / extent:.3g}); beyond {MAX_OFFSET_RATIO:.3g} times "
+            f"its size a curve cannot be computed to {RELATIVE_ACCURACY:g} relative accuracy "
+            "in double precision: move it nearer the origin")
 
 
 def _first_bad(mask: np.ndarray) -> int:
@@ -115,13 +201,19 @@ class NurbsCurve:
         units: str | None = None,
     ):
         if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
-            if isinstance(degree, float) and degree.is_integer():
-                degree = int(degree)
-            else:
-                raise InvalidCurveError(f"degree must be an integer >= 1, got {degree!r}")
+            raise InvalidCurveError(
+                f"degree must be an integer >= 1, got {degree!r} ({type(degree).__name__})")
         p = int(degree)
         if p < 1:
             raise InvalidCurveError(f"degree must be an integer >= 1, got {p}")
+        if p > MAX_DEGREE:
+            raise InvalidCurveError(
+                f"degree {p} is above the largest supported degree {MAX_DEGREE} (MAX_DEGREE)")
+        if units is not None and units not in PATH_UNITS:
+            raise InvalidCurveError(
+                f"unit {units!r} is unknown; use one of {', '.join(PATH_UNITS)}")
+        if name is not None and not isinstance(name, str):
+            raise InvalidCurveError(f"name must be a string, got {name!r:.80}")
 
         P = _as_float_array(control_points, "control_points", 2)
         n, n_axes = P.shape
@@ -149,6 +241,7 @@ class NurbsCurve:
             if np.any(w <= 0):
                 i = _first_bad(w <= 0)
                 raise InvalidCurveError(f"weight {i} is {w[i]:g}; weights must be > 0")
+        _check_magnitudes(P, w)
 
         t = _as_float_array(knots, "knots", 1)
         if t.size != n + p + 1:
@@ -270,15 +363,23 @@ class NurbsCurve:
 
     # ------------------------------------------------------------------ evaluation
     def _check_parameter(self, u: Any) -> np.ndarray:
-        uu = np.asarray(u, dtype=float)
+        if isinstance(u, (float, np.ndarray)) and np.asarray(u).dtype.kind == "f":
+            uu = np.asarray(u, dtype=float)  # the hot path: no copy
+        else:
+            try:
+                uu = _as_float_array(u, "curve parameter u", np.ndim(np.asarray(u, object)))
+            except (InvalidCurveError, ValueError) as exc:
+                raise InvalidArgumentError(str(exc)) from None
         # One min/max pass for the common valid case (NaN fails both comparisons).
         if uu.size and uu.min() >= 0.0 and uu.max() <= 1.0:
             return uu
         if not np.all(np.isfinite(uu)):
-            raise ValueError(f"curve parameter must be finite, got {uu[~np.isfinite(uu)][:3]}")
+            raise InvalidArgumentError(
+                f"curve parameter must be finite, got {uu[~np.isfinite(uu)][:3]}")
         if np.any((uu < 0.0) | (uu > 1.0)):
             bad = uu[(uu < 0.0) | (uu > 1.0)]
-            raise ValueError(f"curve parameter must lie in [0, 1], got {float(bad.flat[0])!r}")
+            raise InvalidArgumentError(
+                f"curve parameter must lie in [0, 1], got {float(bad.flat[0])!r}")
         return uu
 
     def derivatives(self, u: Any, max_order: int = 2, side: str = "right") -> np.ndarray:
@@ -310,10 +411,12 @@ class NurbsCurve:
         return out.reshape((max_order + 1,) + uu.shape + (self.n_axes,))
 
     def _check_derivative_request(self, u: Any, max_order: int, side: str) -> np.ndarray:
-        if not 0 <= max_order <= MAX_ORDER:
-            raise ValueError(f"derivative order must be 0..{MAX_ORDER}, got {max_order}")
+        if (isinstance(max_order, bool) or not isinstance(max_order, (int, np.integer))
+                or not 0 <= max_order <= MAX_ORDER):
+            raise InvalidArgumentError(
+                f"derivative order must be an integer 0..{MAX_ORDER}, got {max_order!r}")
         if side not in ("right", "left"):
-            raise ValueError(f"side must be 'right' or 'left', got {side!r}")
+            raise InvalidArgumentError(f"side must be 'right' or 'left', got {side!r}")
         return self._check_parameter(u)
 
     def _derivatives_reference(self, u: Any, max_order: int = 2,
@@ -417,7 +520,12 @@ class NurbsCurve:
         ndarray, shape (n_corners,)
             Sorted corner parameters in ``(0, 1)``.
         """
-        return self.geometry.sharp_corners(angle_tolerance)
+        tol = angle_tolerance
+        if isinstance(tol, bool) or not isinstance(tol, (int, float, np.integer, np.floating)) \
+                or not 0 <= tol < math.pi:
+            raise InvalidArgumentError(
+                f"angle_tolerance must be a number in [0, pi) rad, got {angle_tolerance!r}")
+        return self.geometry.sharp_corners(float(tol))
 
     def turning_angle(self, u: Any) -> np.ndarray:
         """Angle between the left and right tangents at ``u`` [rad] (0 where smooth)."""
@@ -437,7 +545,9 @@ class NurbsCurve:
 
     def scaled(self, factor: float, units: str | None = None) -> "NurbsCurve":
         """The curve with every coordinate multiplied by ``factor`` (e.g. mm to pulses)."""
-        if not (np.isfinite(factor) and factor > 0):
+        if isinstance(factor, bool) or not isinstance(factor, (int, float, np.integer,
+                                                                np.floating)) \
+                or not (np.isfinite(factor) and factor > 0):
             raise InvalidCurveError(f"scale factor must be finite and > 0, got {factor!r}")
         return NurbsCurve(
             self.degree,
@@ -478,6 +588,7 @@ class NurbsCurve:
     def _find_zero_speed(self) -> np.ndarray:
         P = self.control_points
         scale = float(np.max(np.ptp(P, axis=0)))
+        # All spans at once, so that a path of 10^6 spans is checked in seconds.
         p = self.degree
         bp = self.breakpoints
         if p == 1:  # C' is constant on each span: zero where two control points coincide
@@ -487,28 +598,29 @@ class NurbsCurve:
         from scipy.interpolate import BSpline
 
         nodes = np.polynomial.chebyshev.chebpts1(2 * p - 1)
-        weight = BSpline(self.knots, self.weights, p)
-        found = []
-        for a, b in zip(bp[:-1], bp[1:]):
-            uu = 0.5 * (a + b) + 0.5 * (b - a) * nodes
-            numerator = self(uu, 1) * weight(uu)[:, None] ** 2  # = A'w - Aw'
-            coef = np.polynomial.chebyshev.chebfit(nodes, numerator, 2 * p - 2)  # (2p-1, axes)
-            candidates = [a, b]
-            big = np.max(np.abs(coef))
-            for j in range(coef.shape[1]):
-                if np.max(np.abs(coef[:, j])) > 1e-12 * big:
-                    r = np.polynomial.chebyshev.chebroots(coef[:, j])
-                    r = r.real[(np.abs(r.imag) < 1e-7) & (np.abs(r.real) <= 1.0)]
-                    candidates.extend(0.5 * (a + b) + 0.5 * (b - a) * r)
-            cand = np.clip(np.array(candidates), a, b)
-            inner = cand < b
-            speed = np.empty(cand.size)
-            speed[inner] = np.linalg.norm(self(cand[inner], 1, "right"), axis=-1)
-            speed[~inner] = np.linalg.norm(self(cand[~inner], 1, "left"), axis=-1)
-            found.extend(cand[speed <= 1e-9 * scale])
-        if not found:
+        a, b = bp[:-1], bp[1:]
+        uu = (0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * nodes  # (spans, nodes)
+        weight = BSpline(self.knots, self.weights, p)(uu.ravel()).reshape(uu.shape)
+        numerator = self(uu.ravel(), 1).reshape(uu.shape + (-1,)) * weight[..., None] ** 2
+        # Chebyshev coefficients of every span and axis, shape (spans, 2p - 1, axes).
+        coef = np.einsum("kn,snj->skj", np.linalg.pinv(
+            np.polynomial.chebyshev.chebvander(nodes, 2 * p - 2)), numerator)
+        big = np.max(np.abs(coef), axis=(1, 2))
+        roots = _chebyshev_roots(np.moveaxis(coef, 2, 1), 1e-12 * big[:, None])
+        # roots: (spans, axes, 2p - 2) in [-1, 1] or NaN; ends of each span one-sided.
+        r = roots.reshape(len(a), -1)
+        cand = np.clip((0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * r,
+                       a[:, None], b[:, None])
+        ok = ~np.isnan(cand)
+        u_in = np.concatenate([a, cand[ok & (cand < b[:, None])]])
+        u_end = np.concatenate([b, cand[ok & (cand >= b[:, None])]])
+        speed = np.concatenate([np.linalg.norm(self(u_in, 1, "right"), axis=-1),
+                                np.linalg.norm(self(u_end, 1, "left"), axis=-1)])
+        where = np.concatenate([u_in, u_end])
+        bad = speed <= 1e-9 * scale
+        if not np.any(bad):
             return np.zeros(0)
-        u = np.sort(np.array(found))
+        u = np.sort(where[bad])
         return u[np.concatenate([[True], np.diff(u) > 1e-12])]
 
     def limit_tangent(self, u: Any, side: str = "right") -> np.ndarray:
@@ -542,6 +654,52 @@ class NurbsCurve:
             out[todo] = (self(other) - self(flat)) * np.sign(other - flat)[:, None]
         out /= np.linalg.norm(out, axis=-1, keepdims=True)
         return out.reshape(uu.shape + (self.n_axes,))
+
+
+def _chebyshev_roots(coef: np.ndarray, tol: np.ndarray) -> np.ndarray:
+    """Real roots in [-1, 1] of many Chebyshev series at once.
+
+    Parameters
+    ----------
+    coef : ndarray, shape (..., d + 1)
+        Coefficients, lowest first.
+    tol : ndarray, shape (...)
+        A series whose coefficients are all below ``tol`` is taken as identically zero
+        (no roots); trailing coefficients below it are dropped.
+
+    Returns
+    -------
+    ndarray, shape (..., d)
+        The real roots in [-1, 1], NaN-padded (numpy's ``chebroots``, batched by degree).
+    """
+    shape, d = coef.shape[:-1], coef.shape[-1] - 1
+    c = coef.reshape(-1, d + 1)
+    t = np.broadcast_to(tol, shape).ravel()
+    out = np.full((c.shape[0], max(d, 0)), np.nan)
+    significant = np.abs(c) > t[:, None]
+    degree = np.where(significant.any(axis=1),
+                      d - np.argmax(significant[:, ::-1], axis=1), 0)
+    for n in range(1, d + 1):
+        rows = np.flatnonzero(degree == n)
+        if rows.size == 0:
+            continue
+        cn = c[rows, : n + 1]
+        if n == 1:
+            r = (-cn[:, 0] / cn[:, 1])[:, None].astype(complex)
+        else:
+            # numpy's chebcompanion, stacked: the same matrix, a different last column.
+            mat = np.zeros((n, n))
+            scl = np.array([1.0] + [math.sqrt(0.5)] * (n - 1))
+            top = mat.reshape(-1)[1 :: n + 1]
+            top[0] = math.sqrt(0.5)
+            top[1:] = 0.5
+            mat.reshape(-1)[n :: n + 1] = top
+            mats = np.repeat(mat[None], rows.size, axis=0)
+            mats[:, :, -1] -= (cn[:, :-1] / cn[:, -1:]) * (scl / scl[-1]) * 0.5
+            r = np.linalg.eigvals(mats)
+        real = (np.abs(r.imag) < 1e-7) & (np.abs(r.real) <= 1.0)
+        out[rows, :n] = np.where(real, r.real, np.nan)
+    return out.reshape(shape + (max(d, 0),))
 
 
 def curvature_from_derivatives(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:

@@ -12,8 +12,9 @@ For a given s and sd this is an interval of sdd per axis; their intersection is 
 admissible acceleration range [amin(s, sd), amax(s, sd)]. The largest sd at which the range
 is not empty (and sd <= F) is the maximum velocity curve (MVC). The time-optimal motion,
 at rest at both ends and at every sharp corner, is found by the classic phase-plane
-method (Bobrow, Dubowsky & Gibson 1985; Shin & McKay 1985) on a uniform arc-length grid
-of each corner-free piece, with b = sd^2 as the state (db/ds = 2*sdd): a backward pass
+method (Bobrow, Dubowsky & Gibson 1985; Shin & McKay 1985) on an arc-length grid of
+each corner-free piece (uniform, refined to ``2p`` intervals in every knot span shorter
+than its spacing, so that no feature of the path falls between grid points), with b = sd^2 as the state (db/ds = 2*sdd): a backward pass
 from the piece's end at the deceleration limit, then a forward pass from its start at the
 acceleration limit, each clipped by the MVC and by the other. Each step uses the smaller
 of the limits at its two ends (a one-step implicit correction); where the MVC itself is
@@ -98,6 +99,35 @@ class SpeedProfile:
         return float(sum(t[-1] for t in self.piece_times()))
 
 
+SPAN_POINTS_PER_DEGREE = 2
+"""Grid points per knot span and per unit of degree: a span's drive limits vary like a
+polynomial of degree about 2p in its parameter, so 2p intervals resolve their shape."""
+
+MAX_GRID_POINTS = 5_000_000
+"""Most grid points of a speed profile (the passes run about 10^5 points per second)."""
+
+
+def _span_points(curve: NurbsCurve, u0: float, u1: float, s: np.ndarray) -> np.ndarray:
+    """Arc lengths [pulse] that refine the grid ``s`` of the piece [u0, u1] in every knot
+    span holding fewer than ``SPAN_POINTS_PER_DEGREE * p`` grid intervals: that many
+    equal arc-length intervals there (its ends included). Empty when no span needs it.
+
+    A fixed grid coarser than the knot spans steps over the path's features (a 25 m path
+    of 5 mm waves gave an infinite or far too long bound); this makes the grid adapt."""
+    bp = curve.breakpoints
+    edges = np.concatenate([[u0], bp[(bp > u0) & (bp < u1)], [u1]])
+    s_edges = curve.arc_length(edges)
+    s_edges[0], s_edges[-1] = s[0], s[-1]
+    m = SPAN_POINTS_PER_DEGREE * curve.degree
+    inside = np.searchsorted(s, s_edges[1:]) - np.searchsorted(s, s_edges[:-1], side="right")
+    short = np.flatnonzero(inside + 1 < m)
+    if short.size == 0:
+        return np.empty(0)
+    frac = np.arange(m + 1) / m
+    a, b = s_edges[short], s_edges[short + 1]
+    return (a[:, None] + (b - a)[:, None] * frac).ravel()
+
+
 def _piece_bounds(curve: NurbsCurve) -> np.ndarray:
     return np.concatenate([[0.0], curve.sharp_corners(), [1.0]])
 
@@ -178,19 +208,23 @@ class _Limits:
         return np.where(ok, top, lo)
 
 
-def _passes(lim: _Limits, lim_acc: _Limits, ds: float, bmax: np.ndarray) -> np.ndarray:
+def _passes(lim: _Limits, lim_acc: _Limits, ds: np.ndarray, bmax: np.ndarray) -> np.ndarray:
     """Backward pass at the deceleration limit of ``lim``, then forward pass at the
-    acceleration limit of ``lim_acc``, on one piece; b = sd^2 at every point."""
+    acceleration limit of ``lim_acc``, on one piece; b = sd^2 at every point.
+
+    ``ds`` [pulse], shape (n - 1,), is the grid spacing (uniform, or refined in short
+    knot spans)."""
+    ds = ds.tolist()
     n = len(bmax)
     back = np.empty(n)
     back[-1] = 0.0
     for i in range(n - 2, -1, -1):
         bn = back[i + 1]
         a = lim.range(i + 1, bn)[0]
-        b = bn - 2.0 * ds * a
+        b = bn - 2.0 * ds[i] * a
         if b > bn:  # implicit correction: the deceleration limit at the earlier point too
             a = max(a, lim.range(i, b)[0])
-            b = bn - 2.0 * ds * a
+            b = bn - 2.0 * ds[i] * a
         # On the MVC the admissible range shrinks to a point whose slope the Euler step does
         # not follow; slide along the MVC instead of falling below it.
         back[i] = min(max(b, min(bn, bmax[i])), bmax[i])
@@ -199,10 +233,10 @@ def _passes(lim: _Limits, lim_acc: _Limits, ds: float, bmax: np.ndarray) -> np.n
     for i in range(n - 1):
         bp = out[i]
         a = lim_acc.range(i, bp)[1]
-        b = bp + 2.0 * ds * a
+        b = bp + 2.0 * ds[i] * a
         if b > bp:
             a = min(a, lim_acc.range(i + 1, b)[1])
-            b = bp + 2.0 * ds * a
+            b = bp + 2.0 * ds[i] * a
         out[i + 1] = min(max(b, min(bp, bmax[i + 1])), back[i + 1])
     return out
 
@@ -239,7 +273,8 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
         (same form); ``drive_scale`` by default.
     grid_size : int
         Arc-length grid points over the whole path (each piece gets its share by length,
-        at least 50).
+        at least 50); knot spans with fewer than ``SPAN_POINTS_PER_DEGREE * p`` grid
+        intervals are refined to that many, up to :data:`MAX_GRID_POINTS` in all.
     min_speed_ratio : float
         A speed limit below ``min_speed_ratio*feed`` inside a piece means the drive cannot
         move the path there at all.
@@ -268,11 +303,30 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
     ends = _piece_bounds(curve)
     s_ends = curve.arc_length(ends)
     s_ends[0], s_ends[-1] = 0.0, L
+    least = int(np.sum(np.maximum(50, np.ceil(grid_size * np.diff(s_ends) / L)) + 1))
+    if least > MAX_GRID_POINTS:
+        raise InfeasibleError(
+            f"the path has {len(ends) - 2} sharp corners; its {len(ends) - 1} corner-free "
+            f"pieces need at least {least:.3g} grid points (51 a piece), more than the limit "
+            f"of {MAX_GRID_POINTS:.3g} (planning.MAX_GRID_POINTS); smooth the path or join "
+            "its nearly collinear segments")
     pieces = []
+    total_points = 0
     for k in range(len(ends) - 1):
         s0, s1 = float(s_ends[k]), float(s_ends[k + 1])
         n = max(50, int(math.ceil(grid_size * (s1 - s0) / L))) + 1
         s = np.linspace(s0, s1, n)
+        ds = np.full(n - 1, (s1 - s0) / (n - 1))
+        finer = _span_points(curve, ends[k], ends[k + 1], s)
+        if finer.size:  # knot spans shorter than the grid spacing: refine there
+            s = np.union1d(s, finer)
+            n, ds = len(s), np.diff(s)
+        total_points += n
+        if total_points > MAX_GRID_POINTS:
+            raise InfeasibleError(
+                f"the path has {len(curve.breakpoints) - 1} knot spans, too many to resolve "
+                f"with {SPAN_POINTS_PER_DEGREE} x degree grid points each within the "
+                f"limit of {MAX_GRID_POINTS:.3g} grid points (planning.MAX_GRID_POINTS)")
         u = np.empty(n)
         u[1:-1] = curve.parameter_at(s[1:-1])
         u[0], u[-1] = ends[k], ends[k + 1]
@@ -296,7 +350,7 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
                 f"{drive_fraction:g} x Umax = {drive_fraction * machine.max_drive:g} V; "
                 "the curvature is too high for the drive"
             )
-        b = _passes(lim, lim_acc, (s1 - s0) / (n - 1), vmax**2)
+        b = _passes(lim, lim_acc, ds, vmax**2)
         pieces.append((s, u, np.sqrt(b)))
     return SpeedProfile(tuple(pieces), F, float(drive_fraction))
 
@@ -329,9 +383,25 @@ def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,
     feed : float or FeedLimit
         F [pulse/s], or a piecewise limit ``V <= F(u)`` [pulse/s].
     grid_size : int
-        Arc-length grid points over the path.
+        Arc-length grid points over the path (refined in short knot spans, see
+        :func:`speed_profile`).
+
+    Raises
+    ------
+    InfeasibleError
+        If the feed is not finite and > 0, the drive cannot move along the path, the
+        path needs more than :data:`MAX_GRID_POINTS` grid points, or the bound is not a
+        finite time (a feed of 1e-320).
     """
     F = _check_feed(feed)
-    if machine.max_drive == math.inf:
-        return feed.duration(curve) if isinstance(feed, FeedLimit) else curve.length / F
-    return speed_profile(curve, machine, feed, grid_size=grid_size).duration
+    if machine.max_drive == math.inf or not math.isfinite(curve.length / F):
+        # a lower bound; not finite: refused below, at once
+        bound = feed.duration(curve) if isinstance(feed, FeedLimit) else curve.length / F
+    else:
+        bound = speed_profile(curve, machine, feed, grid_size=grid_size).duration
+    if not (math.isfinite(bound) and bound > 0):
+        raise InfeasibleError(
+            f"the time-optimal bound is not a finite time ({bound!r} s) for a "
+            f"{curve.length:.6g}-pulse path at {F!r} pulse/s: the feed is too small (or the "
+            "path too long) for double precision")
+    return bound

@@ -41,11 +41,21 @@ from .metrics import nearest_parameter
 from .units import report_unit
 
 __all__ = ["plot_trace", "plot_setpoints", "plot_comparison", "settling_time",
-           "TRACE_FIGURES", "DRIVE_FRAME", "MAX_EVENT_WINDOWS"]
+           "TRACE_FIGURES", "SETPOINT_FIGURES", "DRIVE_FRAME", "MAX_EVENT_WINDOWS",
+           "comparison_figures"]
 
 TRACE_FIGURES = ("contour.png", "following_error.png", "drive.png", "speed.png",
                  "settle.png")
 """Files :func:`plot_trace` writes (after its prefix)."""
+
+SETPOINT_FIGURES = ("setpoints.png",)
+"""Files :func:`plot_setpoints` writes (after its ``prefix``)."""
+
+
+def comparison_figures(name: str, axis_names) -> list[str]:
+    """Files :func:`plot_comparison` writes for ``name`` and the axes it draws (all)."""
+    return ([f"{name}_contour.png"] + [f"{name}_speed_{a}.png" for a in axis_names]
+            + [f"{name}_drive_{a}.png" for a in axis_names])
 
 DRIVE_FRAME = 1.25
 """The drive axes span ±DRIVE_FRAME × Umax: the limit lines and a margin above them."""

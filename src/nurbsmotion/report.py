@@ -337,8 +337,8 @@ def _json_safe(value):
     return value
 
 
-def write_json(data, path: Path, *, overwrite: bool = True) -> Path:
-    """Write JSON (inf and NaN as null), indented, atomically."""
+def write_json(data, path: Path, *, overwrite: bool = False) -> Path:
+    """Write JSON (inf and NaN as null), indented, through a temporary name."""
     text = json.dumps(_json_safe(data), indent=2) + "\n"
     return write_output(path, lambda h: h.write(text), overwrite=overwrite)
 

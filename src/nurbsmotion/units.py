@@ -15,7 +15,9 @@ from __future__ import annotations
 import math
 import re
 
-from .errors import InvalidFeedError, NurbsmotionError
+import numpy as np
+
+from .errors import InvalidFeedError
 from .feed import FeedLimit
 from .machine import LENGTH_UNITS_UM, Machine
 
@@ -74,6 +76,9 @@ def _parsed(feed) -> tuple[float, str | None]:
         return parse_feed(feed)
     if isinstance(feed, tuple):
         return feed
+    if isinstance(feed, (bool, np.bool_)):  # True is no feed
+        raise InvalidFeedError(f"feed must be a number or a text such as '100mm/s', "
+                               f"got {feed!r}")
     try:
         value = float(feed)
     except (TypeError, ValueError):

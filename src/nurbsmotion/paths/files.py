@@ -32,7 +32,6 @@ import json
 import math
 import os
 import re
-import sys
 import warnings
 from pathlib import Path
 from typing import Any
@@ -41,15 +40,10 @@ import tomli_w
 
 from dataclasses import dataclass
 
-from .._io import check_input_file, write_output
+from .._io import parse_json_or_toml, read_text_file, write_output
 from ..feed import FeedLimit
 from ..errors import InvalidCurveError, PathFileError
 from ..nurbs import BUILTIN_PATHS, NurbsCurve, builtin_path
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 __all__ = [
     "Contour",
@@ -122,10 +116,17 @@ def _is_number(x: Any) -> bool:
 def _numbers(value: Any, field: str) -> list[float]:
     if not isinstance(value, list):
         raise _FieldError(field, f"must be a list of numbers, got {type(value).__name__}")
+    if set(map(type, value)) <= {float} and all(map(math.isfinite, value)):
+        return value  # the common case, checked in C loops
     for i, x in enumerate(value):
         if not _is_number(x):
             raise _FieldError(field, f"entry {i} is {x!r} ({type(x).__name__}); expected a number")
-        if not math.isfinite(x):
+        try:
+            finite = math.isfinite(x)
+        except OverflowError:  # an integer of hundreds of digits
+            raise _FieldError(field, f"entry {i} ({str(x)[:20]}..., {len(str(x))} digits) is "
+                              "too large for double precision") from None
+        if not finite:
             raise _FieldError(field, f"entry {i} is {x!r}; expected a finite number")
     return [float(x) for x in value]
 
@@ -208,40 +209,16 @@ def curve_from_dict(
 
 
 # ---------------------------------------------------------------------- JSON / TOML
-def _reject_constant(name: str):
-    raise ValueError(f"{name} is not a number a path file may hold")
-
-
 def _read_json(path: Path) -> NurbsCurve:
-    text = _read_text(path)
-    try:
-        data = json.loads(text, parse_constant=_reject_constant)
-    except json.JSONDecodeError as exc:
-        raise PathFileError(f"not valid JSON: {exc.msg} (column {exc.colno})", str(path), exc.lineno) from None
-    except ValueError as exc:
-        raise PathFileError(f"not valid JSON: {exc}", source=str(path)) from None
+    text = read_text_file(path, MAX_PATH_FILE_BYTES)
+    data = parse_json_or_toml(text, toml=False, source=str(path))
     return curve_from_dict(data, str(path), text, toml=False)
 
 
 def _read_toml(path: Path) -> NurbsCurve:
-    text = _read_text(path)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        match = re.search(r"line (\d+)", str(exc))
-        line = int(match.group(1)) if match else None
-        message = re.sub(r"\s*\(at line \d+, column \d+\)|\s*\(at end of document\)", "", str(exc))
-        raise PathFileError(f"not valid TOML: {message}", str(path), line) from None
+    text = read_text_file(path, MAX_PATH_FILE_BYTES)
+    data = parse_json_or_toml(text, toml=True, source=str(path))
     return curve_from_dict(data, str(path), text, toml=True)
-
-
-def _read_text(path: Path) -> str:
-    check_input_file(path, MAX_PATH_FILE_BYTES)
-    try:
-        return path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        line = path.read_bytes()[: exc.start].count(b"\n") + 1
-        raise PathFileError("not a UTF-8 text file", str(path), line) from None
 
 
 def _file_dict(curve: NurbsCurve) -> dict:
