@@ -20,7 +20,7 @@ import numpy as np
 from . import units
 from ._io import OutputFolder
 from .budget import MAX_SAMPLES, check_samples, estimate_samples
-from .errors import NurbsmotionError
+from .errors import InvalidArgumentError, NurbsmotionError
 from .interpolators import LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
 from .machine import Machine, load_machine
 from .planning import time_optimal_bound
@@ -177,6 +177,12 @@ def _cmd_run(args) -> int:
     per_unit = units.pulses_per_report_unit(curve.units, machine)
     path = to_pulses(curve, machine)
     check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
+    plant = None if args.plant is None else _true_plant(load_machine(args.plant), machine)
+    eps = units.length_in_pulses(args.corner_tolerance, curve, machine, "--corner-tolerance")
+    if eps and args.interpolator != "planned":
+        raise InvalidArgumentError(
+            f"--corner-tolerance applies to the planned interpolator, not {args.interpolator}")
+    options = {"corner_tolerance": eps} if eps else {}
     if "pvt" in (args.export or ()):
         lowest = feed if isinstance(feed, (int, float)) else feed.lowest
         check_samples(estimate_samples(path.length, lowest, args.pvt_period),
@@ -197,7 +203,9 @@ def _cmd_run(args) -> int:
         bound = time_optimal_bound(path, machine, feed)
         bar.update()
         stage(stages[1])
-        trace = run(path, machine, feed, args.interpolator, max_samples=args.max_samples)
+        trace = run(path, machine, feed, args.interpolator, max_samples=args.max_samples,
+                    interpolator_options=options, plant=plant,
+                    settle_window=args.settle_window)
         bar.update()
         if not args.no_trace:
             _write_trace(args, trace, out / TRACE_FILES[args.trace_format], unit, per_unit)
@@ -206,11 +214,13 @@ def _cmd_run(args) -> int:
         stage(stages[2])
         metrics = trace.metrics()
         bar.update()
+        extra = {"plant": machine.name if args.plant is None else args.plant,
+                 "corner_tolerance": eps}
+        if contour.feed is not None:  # the file gave a feed: say which one ran
+            extra["feed_used"] = note
         data = summary(metrics, interpolator=args.interpolator, feed=feed_number,
                        machine=machine.name, path=args.path, time_optimal_bound=bound,
-                       length_unit=unit, pulses_per_length_unit=per_unit)
-        if contour.feed is not None:  # the file gave a feed: say which one ran
-            data["feed_used"] = note
+                       length_unit=unit, pulses_per_length_unit=per_unit, extra=extra)
         write_json(data, out / "summary.json")
         bar.update()
         if not args.no_figures:
@@ -270,6 +280,19 @@ def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None
         else:  # G-code is in mm whatever the path's units
             save_motion_gcode(sp, file, units="mm", overwrite=args.overwrite,
                               scale=scale / machine.pulses_per_unit("mm"))
+
+
+def _true_plant(plant_machine: Machine, machine: Machine):
+    """The plant of ``plant_machine`` (tau, Kc, Ke per axis) with the drive limit and the
+    sample period of ``machine``, the controller's."""
+    from .servo import ServoPlant
+
+    if plant_machine.n_axes != machine.n_axes:
+        raise InvalidArgumentError(
+            f"--plant {plant_machine.name!r} has {plant_machine.n_axes} axes, --machine "
+            f"{machine.name!r} {machine.n_axes}")
+    return ServoPlant(plant_machine.tau, plant_machine.Kc, plant_machine.Ke,
+                      machine.max_drive, machine.sample_period)
 
 
 def _cmd_reproduce(args) -> int:
@@ -350,6 +373,17 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be finite and >= 0, got {text!r}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     """argparse type: an integer >= 1."""
     try:
@@ -427,9 +461,19 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--feed", type=parse_feed, help=feed_help)
     r.add_argument("--units", choices=PATH_UNITS, help=units_help)
     r.add_argument("--interpolator", choices=LOOP_METHODS, default="planned",
-                   help="planned: look-ahead, plans every drive within ±Umax; paper: Yeh & "
-                   "Sun (2008), saturation-aware one step ahead; taylor1/taylor2: constant "
-                   "feed")
+                   help="planned: plans the actual motion within ±Umax and steers the plant "
+                   "along it; paper: Yeh & Sun (2008), saturation-aware one step ahead; "
+                   "taylor1/taylor2: constant feed")
+    r.add_argument("--plant", metavar="MACHINE",
+                   help="simulate a true plant whose tau, Kc, Ke per axis come from this "
+                   "machine (its gains are ignored), while the controller and the planner "
+                   "use --machine (default: the --machine's own plant)")
+    r.add_argument("--corner-tolerance", default="0",
+                   help="planned: how far the motion may leave a sharp corner instead of "
+                   "stopping there, a length (0.5mm, 10um) or a number in the path's units")
+    r.add_argument("--settle-window", type=_non_negative_float, default=1.0,
+                   help="the motion has settled once it stays within this distance of the "
+                   "end point [pulse]")
     common(r)
     r.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     r.add_argument("--no-trace", action="store_true",

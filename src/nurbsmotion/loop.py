@@ -360,7 +360,11 @@ def simulate(
             f"samples ({max_samples * Ts:g} s; u = {u:.6g})")
     settled = code == closed_loop.DONE
     n = rows.u.shape[0]
-    settled_index = n - int(loop.calm[0]) if settled else None
+    settled_index = None
+    if settled:  # the first sample after which the position stays inside the window
+        outside = np.flatnonzero(np.linalg.norm(rows.position - settling.end, axis=1)
+                                 > settle_window)
+        settled_index = int(outside[-1]) + 1 if outside.size else 0
     success, message = _verdict(rows, machine, settled, settled_index, n, Ts, settle_window,
                                 settle_limit)
     return Trace(
@@ -392,7 +396,8 @@ def _verdict(rows, machine: Machine, settled: bool, settled_index, n: int, Ts: f
 
 
 def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
-        *, max_samples: int = MAX_SAMPLES, **simulate_options) -> Trace:
+        *, max_samples: int = MAX_SAMPLES, interpolator_options: dict | None = None,
+        **simulate_options) -> Trace:
     """Run a path on a machine with a named interpolator.
 
     Parameters
@@ -415,6 +420,9 @@ def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
     max_samples : int
         Refuse (:class:`~nurbsmotion.errors.WorkLimitError`) a move that would take more
         samples than this, before any work (:data:`nurbsmotion.budget.MAX_SAMPLES`).
+    interpolator_options : dict, optional
+        Passed to the interpolator (:func:`nurbsmotion.interpolators.make_interpolator`),
+        e.g. ``{"corner_tolerance": 500.0}`` [pulse] for ``planned``.
 
     Raises
     ------
@@ -430,8 +438,9 @@ def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
     feed = feed_in_pulses(feed, curve, machine)
     check_run_arguments(curve, machine, feed, max_samples)
     path = to_pulses(curve, machine)
-    trace = simulate(make_interpolator(interpolator, path, machine, feed), machine,
-                     **simulate_options)
+    trace = simulate(make_interpolator(interpolator, path, machine, feed,
+                                       **(interpolator_options or {})),
+                     machine, **simulate_options)
     if not (np.all(np.isfinite(trace.position)) and np.all(np.isfinite(trace.drive))):
         raise InfeasibleError(
             f"the closed loop diverged (non-finite positions or drives) running "

@@ -89,6 +89,7 @@ def feed_fluctuation(position: np.ndarray, feed: np.ndarray, sample_period: floa
     """Feedrate fluctuation (max |.|, RMS) of SPEC section 9; see
     :meth:`nurbsmotion.loop.SetpointSeries.feed_fluctuation`."""
     k = np.arange(1, finished_index)
+    k = k[feed[k] > 0]  # a step that commands no motion has no fluctuation
     if k.size == 0:
         return 0.0, 0.0
     speed = np.linalg.norm(position[k] - position[k - 1], axis=1) / sample_period

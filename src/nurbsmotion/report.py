@@ -63,7 +63,8 @@ _SUMMARY_UNITS = {
     "feed": "pulse/s", "machine": "name", "path": "name or file",
     "time_optimal_bound_s": "s", "cycle_time_ratio": "1 (cycle time / bound)",
     "length_unit": "name", "limited_samples": "samples", "cornered_samples": "samples",
-    "success": "true or false", "message": "text",
+    "success": "true or false", "message": "text", "plant": "name or file",
+    "corner_tolerance": "pulse", "feed_used": "text",
 }
 
 TRACE_FORMATS = ("csv", "parquet")
@@ -273,7 +274,7 @@ def estimate_trace_bytes(trace, *, fmt: str = "csv", every: int = 1,
 
 def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
             time_optimal_bound: float, length_unit: str | None = None,
-            pulses_per_length_unit: float | None = None) -> dict:
+            pulses_per_length_unit: float | None = None, extra: dict | None = None) -> dict:
     """The ``summary.json`` dictionary.
 
     Keys: :data:`SUMMARY_KEYS` in that order; then, given a ``length_unit`` ``L``,
@@ -295,6 +296,9 @@ def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
         The report unit (``"mm"``, ``"in"``; :func:`nurbsmotion.units.report_unit`).
     pulses_per_length_unit : float, optional
         Pulses per ``length_unit``; required with it.
+    extra : dict, optional
+        Further keys of the run (``plant``, ``corner_tolerance``, ``feed_used``), added
+        before ``units``.
     """
     data = metrics.to_dict()
     data.update(interpolator=interpolator, feed=float(feed), machine=machine, path=path,
@@ -309,6 +313,7 @@ def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
             out[f"{key}_{length_unit}"] = ({a: x * k for a, x in v.items()}
                                            if isinstance(v, dict) else v * k)
         out[f"feed_{length_unit}_per_s"] = out["feed"] * k
+    out.update(extra or {})
     out["units"] = summary_units(out)
     return out
 

@@ -17,11 +17,12 @@ import re
 
 import numpy as np
 
-from .errors import InvalidFeedError
+from .errors import InvalidArgumentError, InvalidFeedError
 from .feed import FeedLimit
 from .machine import LENGTH_UNITS_UM, Machine
 
 __all__ = ["InvalidFeedError", "parse_feed", "feed_in_pulses", "feed_in_path_units",
+           "length_in_pulses",
            "report_unit", "pulses_per_report_unit"]
 
 _FEED = re.compile(r"^\s*([0-9.eE+-]+)\s*(?:([a-z]+)\s*/\s*(s|min))?\s*$")
@@ -87,6 +88,37 @@ def _parsed(feed) -> tuple[float, str | None]:
     if not (math.isfinite(value) and value > 0):
         raise InvalidFeedError(f"feed must be finite and > 0, got {feed!r}")
     return value, None
+
+
+_LENGTH = re.compile(r"^\s*([0-9.eE+-]+)\s*([a-z]*)\s*$")
+
+
+def length_in_pulses(text: str, curve, machine: Machine, what: str = "length") -> float:
+    """A length text in the machine's pulses: ``"0.5mm"``, ``"10um"``, ``"200pulse"``, or
+    a bare number in the path's units (like a bare feed). Must be finite and >= 0.
+
+    Raises
+    ------
+    InvalidArgumentError
+        Naming ``what`` and the text.
+    """
+    m = _LENGTH.match(str(text))
+    value = None
+    if m:
+        try:
+            value = float(m.group(1))
+        except ValueError:
+            value = None
+    if value is None or not (math.isfinite(value) and value >= 0):
+        raise InvalidArgumentError(f"{what} {text!r} is not a length >= 0 such as 0.5mm, "
+                                   "10um or a number in the path's units")
+    unit = m.group(2) or None
+    if unit == "pulse":
+        return value
+    if unit is not None and unit not in LENGTH_UNITS_UM:
+        raise InvalidArgumentError(f"{what} unit {unit!r} unknown; use pulse or one of "
+                                   f"{sorted(LENGTH_UNITS_UM)}")
+    return value * machine.pulses_per_unit(unit or curve.units)
 
 
 def feed_in_pulses(feed, curve, machine: Machine):

@@ -9,6 +9,7 @@
 - ``replay``: a parameter sequence planned elsewhere, fed through the same loop.
 """
 
+from ..errors import InvalidArgumentError
 from .base import Interpolator, Status, taylor_increment
 from .paper import PaperInterpolator
 from .replay import ReplayInterpolator
@@ -35,15 +36,20 @@ def make_open_loop(method: str, curve, sample_period: float, feed) -> Interpolat
     raise ValueError(f"unknown interpolation method {method!r}; choose from {OPEN_LOOP_METHODS}")
 
 
-def make_interpolator(method: str, curve, machine, feed: float) -> Interpolator:
+def make_interpolator(method: str, curve, machine, feed, **options) -> Interpolator:
     """A servo-loop interpolator by name (one of :data:`LOOP_METHODS`).
 
-    ``curve`` is in pulses and ``feed`` in pulse/s; the sample period is the machine's.
+    ``curve`` is in pulses and ``feed`` in pulse/s (or a per-piece ``FeedLimit``); the
+    sample period is the machine's. ``options`` go to the interpolator's constructor
+    (``planned``: ``corner_tolerance`` [pulse], ``tracking_pole``, ...).
     """
+    if method == "planned":
+        return PlannedInterpolator(curve, machine, feed, **options)
+    if method not in LOOP_METHODS:
+        raise InvalidArgumentError(f"unknown interpolator {method!r}; choose from "
+                                   f"{LOOP_METHODS}")
+    if options:
+        raise InvalidArgumentError(f"{method} takes no options, got {sorted(options)}")
     if method == "paper":
         return PaperInterpolator(curve, machine, feed)
-    if method == "planned":
-        return PlannedInterpolator(curve, machine, feed)
-    if method in LOOP_METHODS:
-        return make_open_loop(method, curve, machine.sample_period, feed)
-    raise ValueError(f"unknown interpolator {method!r}; choose from {LOOP_METHODS}")
+    return make_open_loop(method, curve, machine.sample_period, feed)

@@ -1,0 +1,421 @@
+"""The planned motion: the actual position, sample by sample, and the drive that makes it.
+
+The ``planned`` interpolator (issue 10) plans what the machine does, not the setpoint. The
+plant of every axis is known exactly (SPEC section 3): under a zero-order hold, with the
+state ``x = [w, theta]``,
+
+    w[k+1]     = a*w[k] + b0*u[k]
+    theta[k+1] = theta[k] + c*w[k] + b1*u[k]
+
+so a drive sequence u[k] determines the motion, and a motion determines its drive. The plan
+is built offline in four steps:
+
+1. **Path speed.** The time-optimal speed along the path (:func:`planning.speed_profile`:
+   phase-plane passes under the feedforward drive limit ``|tau*xdd + xd| <= f*Umax*Kc*Ke``,
+   ``V <= F``, at rest at both ends and at every sharp corner). Each corner-free piece's
+   time profile s(t) is averaged once over two samples (:data:`SMOOTHING_WIDTH`: the
+   acceleration becomes continuous and the motion has nothing at the Nyquist frequency,
+   which step 3 cannot realise; 2 ms per piece) and sampled every Ts into the desired
+   positions ``y[k] = C(s((k - 3)*Ts))``: the loop's drive u[0] is 0 (it starts at rest)
+   and the inverse of step 3 looks one sample ahead, so the motion starts at sample 3.
+2. **Corner blends** (``corner_tolerance`` eps > 0). The plant is linear, so two motions
+   can be superposed: the next piece starts before the current one has stopped, by the
+   time it takes the current piece to cover its last eps plus the time the next one takes
+   to cover its first eps. At every instant one of the two is within eps of the corner,
+   so the blended position is within eps of the sharp path (a G64-style blend); the
+   overlap is then widened while the measured deviation stays within eps. The drive is
+   the sum of the two pieces' drives, checked in step 4.
+3. **Drive sequence.** Exact inversion of theta -> u is unstable in practice: the sampled
+   plant has a zero at ``-c1/b1`` close to -1, and inverting it rings at the Nyquist
+   frequency. Zero-phase-error tracking (Tomizuka 1987) inverts the speed exactly and the
+   sampling zero by its zero-phase mirror; its small gain error (about ``Ts^2/4`` times the
+   acceleration) is removed by iterating on the commanded positions (a pre-compensation
+   that converges at every frequency the motion contains). The drive, speed and position
+   of every sample follow in closed form (no simulation), and the plant's response to that
+   drive *is* the plan, so it is exactly realisable.
+4. **Drive limit.** Where the drive sequence uses more than ``drive_fraction`` of Umax on
+   some axis (the sampled motion needs a little more than the continuous one, the speed
+   profile's grid may step over a curvature peak, and blends add drives), the drive limit
+   of step 1 is lowered by the square of the excess over the distance the motion covers in
+   a few samples around it, and the plan is rebuilt; where that does not lower the drive
+   (the grid steps over a curvature peak), the grid is refined.
+
+The plan is a :class:`MotionPlan`: arrays only, for the online step.
+
+Glossary
+--------
+s : arc length [pulse]; y : desired axis positions [pulse]; w : motor speed [rad/s];
+theta : axis position [pulse]; u : drive [V]; F : feed [pulse/s]; Ts : sample period [s];
+eps : corner tolerance [pulse].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InfeasibleError
+from .machine import Machine
+from .nurbs import NurbsCurve
+from .planning import SpeedProfile, speed_profile
+from .servo import zoh_matrices
+
+__all__ = ["MotionPlan", "plan_motion", "axis_zoh"]
+
+PRECOMPENSATION_ROUNDS = 6
+"""Rounds of the pre-compensation of step 3. Each round multiplies the position error of
+a motion component of frequency f by about ``(pi*f*Ts)^2``; six rounds leave far below a
+pulse for every motion a drive-limited plan contains."""
+
+OVERSAMPLE = 32
+"""Fine time steps per sample of the averaged time profile (linear interpolation between
+them moves a position by at most ``(Ts/32)^2/8`` times the acceleration: a hundredth of a
+pulse at the die-bonder's full acceleration)."""
+
+SMOOTHING_PASSES = 1
+"""Moving averages of every piece's time profile (step 1): one makes the acceleration
+continuous; each costs SMOOTHING_WIDTH samples per piece."""
+
+SMOOTHING_WIDTH = 2
+"""Width of each moving average [samples]: two samples put its zero at the Nyquist
+frequency, which the sampled plant's zero near -1 cannot follow."""
+
+MAX_GRID_REFINEMENT = 16
+"""The speed profile's grid is refined at most to this many times its given size."""
+
+DRIVE_FIT_ROUNDS = 12
+"""At most this many rebuilds of the plan in step 4."""
+
+
+def axis_zoh(machine: Machine):
+    """Per-axis coefficients ``(a, b0, c, b1)`` of the exact ZOH plant, each shape (n_axes,)."""
+    mats = [zoh_matrices(t, k, e, machine.sample_period)
+            for t, k, e in zip(machine.tau, machine.Kc, machine.Ke)]
+    a = np.array([A[0, 0] for A, _ in mats])
+    c = np.array([A[1, 0] for A, _ in mats])
+    b0 = np.array([B[0] for _, B in mats])
+    b1 = np.array([B[1] for _, B in mats])
+    return a, b0, c, b1
+
+
+@dataclass(frozen=True, eq=False)
+class MotionPlan:
+    """The planned motion of every sample, and the drive that makes it (model's plant).
+
+    Sample 0 is the start, at rest; the loop's first free drive is u[1] (u[0] = 0).
+
+    Attributes
+    ----------
+    position : ndarray, shape (n, n_axes)
+        theta_ff[k], the planned actual position [pulse].
+    speed : ndarray, shape (n, n_axes)
+        w_ff[k], the planned motor speed [rad/s].
+    drive : ndarray, shape (n, n_axes)
+        u_ff[k] [V]; the model's plant driven by it from rest at the start follows
+        ``position`` and ``speed`` exactly. 0 at the last sample (at rest on the end).
+    parameter : ndarray, shape (n,)
+        Curve parameter of the desired position of each sample (for the trace).
+    desired : ndarray, shape (n, n_axes)
+        y[k], the desired position (on the path, or within eps of it in a blend) [pulse].
+    drive_fraction : float
+        The fraction of Umax the drive sequence stays within.
+    corner_times : ndarray, shape (n_corners,)
+        Sample index (fractional) at which the motion is at each stop corner (or at the
+        middle of its blend).
+    sample_period : float
+        Ts [s].
+    corner_tolerance : float
+        eps [pulse] the plan was made with (0: it stops at every sharp corner).
+    """
+
+    position: np.ndarray
+    speed: np.ndarray
+    drive: np.ndarray
+    parameter: np.ndarray
+    desired: np.ndarray
+    drive_fraction: float
+    corner_times: np.ndarray
+    sample_period: float
+    corner_tolerance: float = 0.0
+
+    @property
+    def stop_indices(self) -> np.ndarray:
+        """The first sample at or after each stop corner (none when corners are blended)."""
+        if self.corner_tolerance > 0:
+            return np.zeros(0, dtype=int)
+        return np.ceil(self.corner_times - 1e-9).astype(int)
+
+    @property
+    def n_samples(self) -> int:
+        return len(self.position)
+
+    @property
+    def duration(self) -> float:
+        """Time from the start to the last sample (at rest on the end) [s]."""
+        return (self.n_samples - 1) * self.sample_period
+
+
+def _sample_piece(s: np.ndarray, V: np.ndarray, t: np.ndarray, times: np.ndarray):
+    """s at ``times`` (from the piece's start) along a profile with constant acceleration
+    between grid points (b = V^2 linear in s)."""
+    i = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(t) - 2)
+    ds = s[i + 1] - s[i]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        acc = np.where(ds > 0, (V[i + 1] ** 2 - V[i] ** 2) / (2 * ds), 0.0)
+    dt = np.clip(times - t[i], 0.0, None)
+    out = s[i] + V[i] * dt + 0.5 * acc * dt * dt
+    out = np.minimum(out, s[i + 1])
+    out[times >= t[-1]] = s[-1]
+    out[times <= 0] = s[0]
+    return out
+
+
+def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float, passes: int):
+    """Per corner-free piece: its duration [s], a function ``times -> (positions, u)`` and
+    its length [pulse].
+
+    The piece's s(t) is averaged ``passes`` times over one sample period (a moving average
+    of the time profile, at rest before and after): each pass adds Ts to the piece and one
+    order of continuity, so that after one pass the acceleration is continuous and the
+    sampled motion contains no more than the drive can follow within a sample."""
+    out = []
+    fine = OVERSAMPLE * SMOOTHING_WIDTH
+    h = Ts / OVERSAMPLE
+    for (s, u, V), t in zip(profile.pieces, profile.piece_times()):
+        n_fine = int(math.ceil(t[-1] / h)) + 1
+        tf = np.arange(n_fine) * h
+        sf = _sample_piece(s, V, t, tf)
+        for _ in range(passes):
+            padded = np.concatenate([np.full(fine, s[0]), sf, np.full(fine, s[-1])])
+            csum = np.concatenate([[0.0], np.cumsum(padded - s[0])])
+            sf = s[0] + (csum[fine:] - csum[:-fine]) / fine
+            sf = sf[1:]
+        sf[-1] = s[-1]
+        tf = np.arange(len(sf)) * h
+
+        def motion(times, s=s, u=u, sf=sf, tf=tf):
+            sk = np.interp(times, tf, sf)
+            uk = np.interp(sk, s, u)
+            inner = (sk > s[0]) & (sk < s[-1])
+            if np.any(inner):
+                uk[inner] = np.clip(curve.parameter_at(sk[inner]), u[0], u[-1])
+            return curve(uk), uk
+        out.append((float(tf[-1]), motion, s[-1] - s[0]))
+    return out
+
+
+def _time_to_cover(motion, duration: float, distance: float, from_end: bool,
+                   Ts: float) -> float:
+    """The time a piece takes to cover its first (or last) ``distance`` of arc [s]."""
+    if distance <= 0:
+        return 0.0
+    times = np.linspace(0.0, duration, max(int(duration / Ts * 8), 16) + 1)
+    pts, _ = motion(times)
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(seg)])
+    if from_end:
+        arc = arc[-1] - arc
+        i = np.nonzero(arc <= distance)[0]
+        return float(duration - times[i[0]]) if i.size else duration
+    i = np.nonzero(arc <= distance)[0]
+    return float(times[i[-1]])
+
+
+BLEND_ROUNDS = 5
+"""Rounds that widen a blend until its deviation from the sharp corner reaches eps."""
+
+
+def _blend_overlap(prev_motion, prev_dur, prev_len, motion, dur, length, tolerance, Ts):
+    """How long [s] piece p+1 may start before piece p stops so that the superposed motion
+    stays within ``tolerance`` of the sharp path (module docstring, step 2).
+
+    The overlap starts as the time piece p takes over its last ``d`` plus the time piece
+    p+1 takes over its first ``d`` with d = eps (then one of the two is always within eps
+    of the corner); the actual deviation is measured against points of both pieces and d
+    is widened by the square root of eps over the deviation (the deviation grows with
+    d), keeping the
+    widest overlap whose measured deviation stays within eps (the first one stands on the
+    argument above)."""
+    h = Ts / 16
+    t_prev = np.arange(0.0, prev_dur + h, h)
+    t_next = np.arange(0.0, dur + h, h)
+    path = np.vstack([prev_motion(t_prev)[0], motion(t_next)[0]])
+    corner = prev_motion(np.array([prev_dur]))[0][0]
+    best, d = 0.0, tolerance
+    for _ in range(BLEND_ROUNDS):
+        overlap = min(_time_to_cover(prev_motion, prev_dur, min(d, prev_len / 2), True, Ts)
+                      + _time_to_cover(motion, dur, min(d, length / 2), False, Ts),
+                      prev_dur, dur)
+        if overlap <= 0:
+            return 0.0
+        tau = np.arange(0.0, overlap + h, h)
+        blended = (prev_motion(np.minimum(prev_dur - overlap + tau, prev_dur))[0]
+                   + motion(tau)[0] - corner)
+        gap = np.min(np.linalg.norm(blended[:, None, :] - path[None, :, :], axis=2), axis=1)
+        deviation = float(np.max(gap))  # to the nearest path sample: at least the true one
+        if deviation > tolerance and best > 0:
+            break
+        best = max(best, overlap)
+        if deviation <= 0:
+            break
+        d *= math.sqrt(tolerance / deviation)
+    return best
+
+
+def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, tolerance: float,
+                    lead: int):
+    """y[k] (sum of the pieces, blended at corners), the parameter of each sample, and the
+    time of every corner [samples]. Piece 0 starts at sample ``lead``."""
+    pieces = _piece_motions(curve, profile, Ts, SMOOTHING_PASSES)
+    starts, t0 = [], 0.0
+    corner_times = []
+    for p, (dur, motion, length) in enumerate(pieces):
+        if p > 0:
+            prev_dur, prev_motion, prev_len = pieces[p - 1]
+            overlap = _blend_overlap(prev_motion, prev_dur, prev_len, motion, dur, length,
+                                     tolerance, Ts) if tolerance > 0 else 0.0
+            t0 = starts[-1] + prev_dur - overlap
+            corner_times.append(lead + (t0 + 0.5 * overlap) / Ts)
+        starts.append(t0)
+    total = starts[-1] + pieces[-1][0]
+    n = lead + int(math.ceil(total / Ts - 1e-9)) + 1
+    times = (np.arange(n) - lead) * Ts
+    start = curve(0.0)
+    y = np.broadcast_to(start, (n, curve.n_axes)).copy()
+    param = np.zeros(n)
+    for (dur, motion, _), t0 in zip(pieces, starts):
+        local = times - t0
+        active = local > 0
+        if not np.any(active):
+            continue
+        pts, uk = motion(np.minimum(local[active], dur))
+        base = motion(np.array([0.0]))[0][0]
+        y[active] += pts - base
+        # The parameter of a sample is that of the latest piece that has started.
+        param[active] = uk
+    return y, param, np.array(corner_times)
+
+
+def _realise(y_cmd: np.ndarray, alpha, beta, a, b0):
+    """Speed, position and drive of the model's plant under the zero-phase-error inverse of
+    the commanded positions ``y_cmd`` (shape (n, n_axes), at rest at both ends)."""
+    d = np.diff(y_cmd, axis=0)                       # (n-1, n_axes)
+    dprev = np.vstack([np.zeros((1, d.shape[1])), d[:-1]])
+    w = np.zeros_like(y_cmd)
+    w[:-1] = (beta * dprev + alpha * d) / (alpha + beta) ** 2
+    u = np.zeros_like(y_cmd)
+    u[:-1] = (w[1:] - a * w[:-1]) / b0
+    theta = np.empty_like(y_cmd)
+    theta[0] = y_cmd[0]
+    theta[1:] = y_cmd[0] + np.cumsum(alpha * w[:-1] + beta * w[1:], axis=0)
+    return w, theta, u
+
+
+def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int):
+    """Step 3: the drive sequence whose response follows ``y`` (see module docstring)."""
+    a, b0, c, b1 = axis_zoh(machine)
+    beta = b1 / b0
+    alpha = c - a * beta
+    y_cmd = y.copy()
+    for _ in range(rounds):
+        w, theta, u = _realise(y_cmd, alpha, beta, a, b0)
+        y_cmd = y_cmd + (y - theta)
+        y_cmd[:3] = y[0]          # u[0] = 0 and w[1] = 0: the loop starts at rest
+        y_cmd[-2:] = y[-1]        # at rest on the end
+    return _realise(y_cmd, alpha, beta, a, b0)
+
+
+def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
+                corner_tolerance: float = 0.0, drive_fraction: float = 1.0,
+                grid_size: int = 4000, max_samples: int = 10_000_000) -> MotionPlan:
+    """Plan the actual motion along ``curve`` and the drive that makes it (module docstring).
+
+    Parameters
+    ----------
+    curve : NurbsCurve
+        The path [pulse].
+    machine : Machine
+        The model: tau, Kc, Ke, Umax, Ts.
+    feed : float or FeedLimit
+        F [pulse/s], or a limit per piece of the path.
+    corner_tolerance : float
+        eps [pulse], >= 0: how far the motion may leave a sharp corner (0: stop there).
+    drive_fraction : float
+        Fraction of Umax the planned drive may use, in (0, 1].
+    grid_size : int
+        Arc-length grid of the speed profile.
+    max_samples : int
+        A plan longer than this is refused.
+
+    Raises
+    ------
+    InfeasibleError
+        If the drive cannot move along the path or the plan is too long.
+    """
+    if not (math.isfinite(corner_tolerance) and corner_tolerance >= 0):
+        raise ValueError(f"corner_tolerance must be finite and >= 0, got {corner_tolerance!r}")
+    if not (0 < drive_fraction <= 1):
+        raise ValueError(f"drive_fraction must lie in (0, 1], got {drive_fraction!r}")
+    Ts = machine.sample_period
+    umax = machine.max_drive
+    lead = 3  # u[0] = 0 (the loop starts at rest); the inverse looks one sample ahead
+    eases: list = []  # per round: (centre [pulse], half width [pulse], factor) arrays
+    spacing = 2.0 * curve.length / grid_size
+
+    def drive_scale(s_query):
+        scale = np.ones_like(s_query)
+        for centre, half, factor in eases:
+            near = np.abs(s_query[:, None] - centre[None, :]) < half[None, :]
+            scale *= np.min(np.where(near, factor[None, :], 1.0), axis=1)
+        return scale
+
+    last_use = math.inf
+    widen = 1.0
+    initial_grid = grid_size
+    for _ in range(DRIVE_FIT_ROUNDS):
+        profile = speed_profile(curve, machine, feed, drive_fraction=drive_fraction,
+                                drive_scale=drive_scale if eases else None,
+                                grid_size=grid_size)
+        if profile.duration / Ts > max_samples:
+            raise InfeasibleError(
+                f"the planned motion takes {profile.duration:g} s, more than "
+                f"{max_samples} samples; the feed is too low for this path")
+        y, param, corners = _desired_motion(curve, profile, Ts, corner_tolerance, lead)
+        y = np.vstack([y, np.repeat(y[-1:], 3, axis=0)])
+        param = np.concatenate([param, np.ones(3)])
+        w, theta, u = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS)
+        if not math.isfinite(umax):
+            use = 0.0
+            break
+        per_sample = np.max(np.abs(u), axis=1) / umax
+        use = float(np.max(per_sample))
+        if use <= drive_fraction * (1 + 1e-9):
+            break
+        # Ease the profile's drive limit where the sampled drive exceeds it, over the
+        # distance the motion covers while the smoothing and the inverse see it.
+        k = np.nonzero(per_sample > drive_fraction)[0]
+        speed = np.linalg.norm(y[np.minimum(k + 1, len(y) - 1)] - y[np.maximum(k - 1, 0)],
+                               axis=1) / (2 * Ts)
+        if use >= last_use * (1 - 1e-6):
+            # Easing did not lower the drive: the grid steps over a curvature peak, or
+            # the excess comes from further away. Refine the grid and widen the easing.
+            if grid_size < MAX_GRID_REFINEMENT * initial_grid:
+                grid_size *= 4
+                spacing /= 4
+            widen *= 2.0
+        last_use = use
+        half = np.maximum(speed * Ts * (SMOOTHING_WIDTH + 3) * widen, spacing)
+        factor = (drive_fraction / per_sample[k]) ** 2  # overshoots downwards
+        eases.append((curve.arc_length(param[k]), half, factor))
+    else:
+        if use > 1:
+            raise InfeasibleError(
+                f"the planned drive needs {use:.3g} x Umax after {DRIVE_FIT_ROUNDS} rounds "
+                "of easing the path speed's drive limit where it exceeds it")
+    theta[-1] = y[-1]
+    w[-1] = 0.0
+    return MotionPlan(position=theta, speed=w, drive=u, parameter=param, desired=y,
+                      drive_fraction=drive_fraction, corner_times=corners, sample_period=Ts,
+                      corner_tolerance=float(corner_tolerance))
