@@ -28,7 +28,8 @@ SUMMARY_KEYS = (
     "cycle_time_s", "steps", "max_following_error", "rms_following_error",
     "max_contour_error", "rms_contour_error", "max_drive_ratio", "saturated_samples",
     "feed_fluctuation_max", "feed_fluctuation_rms", "interpolator", "feed", "machine", "path",
-    "time_optimal_bound_s", "cycle_time_ratio",
+    "time_optimal_bound_s", "cycle_time_ratio", "settle_time_s", "settled", "settle_window",
+    "end_overshoot", "corner_overshoot", "move_and_settle_ratio",
 )
 """Keys of ``summary.json``, in order."""
 
@@ -70,12 +71,14 @@ def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
 
     ``feed`` is the commanded feed [pulse/s]; ``time_optimal_bound`` is the SPEC section 9
     bound [s] (:func:`nurbsmotion.planning.time_optimal_bound`), and ``cycle_time_ratio``
-    the cycle time divided by it.
+    the cycle time divided by it; ``move_and_settle_ratio`` is the settle time (SPEC
+    section 10) divided by the bound (``inf`` when the motion did not settle).
     """
     data = metrics.to_dict()
     data.update(interpolator=interpolator, feed=float(feed), machine=machine, path=path,
                 time_optimal_bound_s=float(time_optimal_bound),
-                cycle_time_ratio=metrics.cycle_time_s / time_optimal_bound)
+                cycle_time_ratio=metrics.cycle_time_s / time_optimal_bound,
+                move_and_settle_ratio=metrics.settle_time_s / time_optimal_bound)
     return {k: data[k] for k in SUMMARY_KEYS}
 
 
