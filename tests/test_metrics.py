@@ -23,7 +23,7 @@ CONTOUR_TOL = 1e-6
 """[pulse]: the issue's bound on the contour error's own error."""
 
 
-def reference_distance(curve, points, samples=400_000):
+def reference_distance(curve, points, samples=100_000):
     u = np.linspace(0.0, 1.0, samples)
     u = np.union1d(u, curve.breakpoints)
     C = curve(u)

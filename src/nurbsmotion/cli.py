@@ -1,4 +1,4 @@
-"""Command-line interface: ``nurbsmotion interpolate | run | bound | reproduce``.
+"""Command-line interface: ``nurbsmotion interpolate | run | bound | reproduce | campaign``.
 
 A thin layer over the library: it parses arguments, calls library functions, writes files
 and turns the library's typed errors into one line on stderr and a non-zero exit code.
@@ -186,6 +186,47 @@ def _cmd_reproduce(args) -> int:
     return 0
 
 
+def _cmd_campaign(args) -> int:
+    from .campaign import find_case, load_study, run_study
+
+    study = load_study(args.study)
+    out = Path(args.out) if args.out else Path(args.study).with_suffix("").with_name(
+        Path(args.study).stem + "-campaign")
+    if args.case:
+        return _campaign_case(find_case(study, args.case), out / args.case, args)
+    try:
+        result = run_study(study, out, workers=args.workers, scheduler=args.scheduler,
+                           resume=args.resume, overwrite=args.overwrite,
+                           progress=not args.no_progress)
+    except KeyboardInterrupt:
+        print(f"nurbsmotion campaign: interrupted; the finished cases are in {out}/rows; "
+              f"go on with: nurbsmotion campaign {args.study} --out {out} --resume",
+              file=sys.stderr)
+        return 130
+    print(f"{result.n_cases} cases: {result.computed} run now, {result.skipped} already "
+          f"done, {result.failed} failed, {result.wall_time_s:.1f} s -> {out}/digest.md")
+    return 0
+
+
+def _campaign_case(case, out: Path, args) -> int:
+    """``campaign --case ID``: one case's normal run output."""
+    from .campaign import case_trace
+    from .report import check_writable, write_json, write_trace_csv
+
+    check_writable([out / "trace.csv", out / "summary.json"], args.overwrite)
+    trace, data, _, _ = case_trace(case)
+    out.mkdir(parents=True, exist_ok=True)
+    write_trace_csv(trace, out / "trace.csv")
+    write_json(data, out / "summary.json")
+    if not args.no_figures:
+        trace.plot(out, feed=data["feed"])
+    print(f"{case.case_id}: {case.interpolator} on {case.machine}, {case.path} at "
+          f"{case.feed_value:g} {case.feed_unit}, plant {case.plant.name}: cycle time "
+          f"{data['cycle_time_s']:.4g} s, max contour error {data['max_contour_error']:.4g} "
+          f"pulse -> {out}")
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="nurbsmotion",
@@ -235,6 +276,23 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--overwrite", action="store_true", help="replace existing output files")
     e.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     e.set_defaults(func=_cmd_reproduce)
+
+    c = sub.add_parser("campaign", help="run a study (paths x feeds x machines x plants x "
+                       "interpolators) into a Parquet dataset and a digest")
+    c.add_argument("study", help="study file (.toml; see docs/campaign.md)")
+    c.add_argument("--out", help="output folder (default: the study file's name + "
+                   "'-campaign', beside it)")
+    c.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
+    c.add_argument("--scheduler", help="address of a Dask scheduler (tcp://host:8786): run "
+                   "the cases on that cluster")
+    c.add_argument("--resume", action="store_true", help="keep the finished cases of an "
+                   "existing output folder and run the others")
+    c.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    c.add_argument("--case", help="re-run one case (e.g. c0000042) and write its run output "
+                   "(trace.csv, summary.json, figures) into OUT/ID")
+    c.add_argument("--no-figures", action="store_true", help="with --case: skip the figures")
+    c.add_argument("--no-progress", action="store_true", help="no progress bar")
+    c.set_defaults(func=_cmd_campaign)
     return p
 
 
