@@ -676,6 +676,8 @@ def _execute_pool(cases: list[Case], n_workers: int, function: Callable) -> Iter
                     except BrokenProcessPool:
                         suspects.append(c)
                         continue
+                    except Exception as exc:  # e.g. a result that cannot be pickled
+                        row = _died(c, f"{type(exc).__name__}: {exc}")
                     yield row
                 if suspects:
                     raise BrokenProcessPool
@@ -703,6 +705,7 @@ def _run_alone(case: Case, function: Callable) -> dict:
 
 
 def _died(case: Case, message: str) -> dict:
+    """The row of a case whose worker did not return a row."""
     row = _case_columns(case)
     row.update(status=STATUS_ERROR, error_type=WORKER_DIED, error_message=message,
                case_time_s=math.nan)

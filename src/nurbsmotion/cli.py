@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import signal
 import sys
 import time
 from pathlib import Path
@@ -194,6 +195,8 @@ def _cmd_campaign(args) -> int:
         Path(args.study).stem + "-campaign")
     if args.case:
         return _campaign_case(find_case(study, args.case), out / args.case, args)
+    # A machine that shuts down sends SIGTERM: stop as on Ctrl-C, finished rows written.
+    previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
         result = run_study(study, out, workers=args.workers, scheduler=args.scheduler,
                            resume=args.resume, overwrite=args.overwrite,
@@ -203,9 +206,15 @@ def _cmd_campaign(args) -> int:
               f"go on with: nurbsmotion campaign {args.study} --out {out} --resume",
               file=sys.stderr)
         return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     print(f"{result.n_cases} cases: {result.computed} run now, {result.skipped} already "
           f"done, {result.failed} failed, {result.wall_time_s:.1f} s -> {out}/digest.md")
     return 0
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 def _campaign_case(case, out: Path, args) -> int:
