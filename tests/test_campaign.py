@@ -356,3 +356,13 @@ def test_family_shapes():
         assert np.min(np.diff(tiny.breakpoints)) == pytest.approx(1e-6, rel=1e-6)
         short = random_path("short_moves", seed)
         assert time_optimal_bound(short, die_bonder(), 1e6) < 0.05
+
+
+def test_the_example_study_runs(tmp_path):
+    example = Path(__file__).resolve().parents[1] / "examples" / "study.toml"
+    study = load_study(example)
+    cases = study_cases(study)
+    assert len(cases) == (1 + 4 * 2) * 2 * 1 * 3 * 2
+    assert main(["campaign", str(example), "--out", str(tmp_path), "--case", "c0000000",
+                 "--no-figures"]) == 0
+    assert (tmp_path / "c0000000" / "summary.json").is_file()
