@@ -46,8 +46,8 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 __all__ = ["Study", "Case", "load_study", "study_cases", "run_case", "run_study",
-           "read_rows", "digest", "write_digest", "case_trace", "STATUS_OK", "STATUS_ERROR",
-           "WORKER_DIED"]
+           "read_rows", "digest", "write_digest", "case_trace", "find_case", "STATUS_OK",
+           "STATUS_ERROR", "WORKER_DIED"]
 
 STATUS_OK, STATUS_ERROR = "ok", "error"
 WORKER_DIED = "WorkerDied"
@@ -836,13 +836,9 @@ def digest_markdown(data: dict) -> str:
 
 def find_case(study: Study, case_id: str) -> Case:
     """The case of ``study`` with id ``case_id`` (e.g. ``"c0000042"``)."""
-    for c in study_cases(study) if study.sample is None else _all_cases(study):
+    from dataclasses import replace
+
+    for c in study_cases(replace(study, sample=None)):
         if c.case_id == case_id:
             return c
     raise KeyError(f"no case {case_id!r} in study {study.name!r}")
-
-
-def _all_cases(study: Study) -> list[Case]:
-    from dataclasses import replace
-
-    return study_cases(replace(study, sample=None))
