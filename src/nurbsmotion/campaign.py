@@ -651,38 +651,61 @@ def _execute(cases: list[Case], workers: int | None, scheduler,
     return _execute_pool(cases, n, function)
 
 
+_BATCH = 8
+"""Most cases sent to a worker as one task."""
+
+
+def _batches(cases: list[Case]) -> list[list[Case]]:
+    """Consecutive cases on the same path, machine and feed, at most :data:`_BATCH` a task:
+    one worker then computes their path's tables and time-optimal bound once."""
+    out: list[list[Case]] = []
+    key = None
+    for c in cases:
+        k = (c.path, c.path_family, c.path_seed, c.machine, c.feed_value)
+        if k != key or len(out[-1]) >= _BATCH:
+            out.append([])
+            key = k
+        out[-1].append(c)
+    return out
+
+
+def _run_batch(function: Callable, batch: list[Case]) -> list[dict]:
+    return [function(c) for c in batch]
+
+
 def _execute_pool(cases: list[Case], n_workers: int, function: Callable) -> Iterable[dict]:
-    """Local processes; at most ``4 * n_workers`` cases in flight. When a worker dies
+    """Local processes; at most ``2 * n_workers`` batches in flight. When a worker dies
     (the pool breaks), each case then in flight is run again alone in a fresh process;
     a case whose process dies again is recorded as :data:`WORKER_DIED`."""
     from concurrent.futures.process import BrokenProcessPool
 
-    queue = list(reversed(cases))
+    queue = list(reversed(_batches(cases)))
     suspects: list[Case] = []
-    window = 4 * n_workers
-    while queue:
+    window = 2 * n_workers
+    while queue or suspects:
         pool = cf.ProcessPoolExecutor(n_workers)
         running: dict = {}
         try:
             while queue or running:
                 while queue and len(running) < window:
-                    c = queue.pop()
-                    running[pool.submit(function, c)] = c
+                    batch = queue.pop()
+                    running[pool.submit(_run_batch, function, batch)] = batch
                 finished, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
                 for fut in finished:
-                    c = running.pop(fut)
+                    batch = running.pop(fut)
                     try:
-                        row = fut.result()
+                        rows = fut.result()
                     except BrokenProcessPool:
-                        suspects.append(c)
+                        suspects.extend(batch)
                         continue
                     except Exception as exc:  # e.g. a result that cannot be pickled
-                        row = _died(c, f"{type(exc).__name__}: {exc}")
-                    yield row
+                        rows = [_died(c, f"{type(exc).__name__}: {exc}") for c in batch]
+                    yield from rows
                 if suspects:
                     raise BrokenProcessPool
         except BrokenProcessPool:
-            suspects.extend(running.values())
+            for batch in running.values():
+                suspects.extend(batch)
             running.clear()
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
@@ -713,23 +736,26 @@ def _died(case: Case, message: str) -> dict:
 
 
 def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[dict]:
-    """On a Dask cluster: one task per case (retried once if its worker dies), results
-    gathered here as they finish."""
+    """On a Dask cluster: one task per batch of cases (:func:`_batches`; retried once if
+    its worker dies), results gathered here as they finish."""
     from dask.distributed import Client, as_completed
 
     client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
     try:
-        futures = client.map(function, cases, retries=1, pure=False)
-        by_key = {f.key: c for f, c in zip(futures, cases)}
+        batches = _batches(cases)
+        futures = client.map(_run_batch, [function] * len(batches), batches, retries=1,
+                             pure=False)
+        by_key = {f.key: b for f, b in zip(futures, batches)}
         for fut in as_completed(futures):
-            c = by_key[fut.key]
+            batch = by_key[fut.key]
             try:
-                row = fut.result()
+                rows = fut.result()
             except Exception as exc:  # KilledWorker: the worker died on every attempt
-                row = _died(c, f"{type(exc).__name__}: {exc}")
-                row["attempts"] = 2
+                rows = [_died(c, f"{type(exc).__name__}: {exc}") for c in batch]
+                for row in rows:
+                    row["attempts"] = 2
             fut.release()
-            yield row
+            yield from rows
     finally:
         if client is not scheduler:
             client.close()
