@@ -24,11 +24,15 @@ from pathlib import Path
 
 import _common  # noqa: F401  (puts src/ on the path)
 
+from nurbsmotion import campaign
 from nurbsmotion.campaign import load_study, read_rows, run_study, study_cases
 
 
 def timed(study, cases, **options) -> tuple[float, float, int]:
-    """Wall time [s], summed case time [s] and rows of one run into a fresh folder."""
+    """Wall time [s], summed case time [s] and rows of one run into a fresh folder, with
+    this process's per-path caches emptied (forked workers would inherit them)."""
+    for cached in (campaign._curve, campaign._bound_of):
+        cached.cache_clear()
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         run_study(study, Path(tmp) / "out", progress=False, cases=cases, **options)
