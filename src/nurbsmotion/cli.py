@@ -1,4 +1,4 @@
-"""Command-line interface: ``nurbsmotion interpolate | run | bound | reproduce``.
+"""Command-line interface: ``nurbsmotion interpolate | run | bound | reproduce | campaign``.
 
 A thin layer over the library: it parses arguments, calls library functions, writes files
 and turns the library's typed errors into one line on stderr and a non-zero exit code.
@@ -10,6 +10,7 @@ import argparse
 import contextlib
 import logging
 import math
+import signal
 import sys
 import time
 import warnings
@@ -313,6 +314,54 @@ def _cmd_reproduce(args) -> int:
     return 0
 
 
+def _cmd_campaign(args) -> int:
+    from .campaign import find_case, load_study, run_study
+
+    study = load_study(args.study)
+    out = Path(args.out) if args.out else Path(args.study).with_suffix("").with_name(
+        Path(args.study).stem + "-campaign")
+    if args.case:
+        return _campaign_case(find_case(study, args.case), out / args.case, args)
+    # A machine that shuts down sends SIGTERM: stop as on Ctrl-C, finished rows written.
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        result = run_study(study, out, workers=args.workers, scheduler=args.scheduler,
+                           resume=args.resume, overwrite=args.overwrite,
+                           progress=not args.no_progress)
+    except KeyboardInterrupt:
+        print(f"nurbsmotion campaign: interrupted; the finished cases are in {out}/rows; "
+              f"go on with: nurbsmotion campaign {args.study} --out {out} --resume",
+              file=sys.stderr)
+        return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    print(f"{result.n_cases} cases: {result.computed} run now, {result.skipped} already "
+          f"done, {result.failed} failed, {result.wall_time_s:.1f} s -> {out}/digest.md")
+    return 0
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def _campaign_case(case, out: Path, args) -> int:
+    """``campaign --case ID``: one case's normal run output."""
+    from .campaign import case_trace
+    from .plots import TRACE_FIGURES
+    from .report import write_json, write_trace_csv
+
+    names = ["trace.csv", "summary.json"] + ([] if args.no_figures else list(TRACE_FIGURES))
+    with OutputFolder(out, names, overwrite=args.overwrite) as staged:  # checked first
+        trace, data, _, _ = case_trace(case)
+        write_trace_csv(trace, staged.staging / "trace.csv")
+        write_json(data, staged.staging / "summary.json")
+        if not args.no_figures:
+            trace.plot(staged.staging, feed=data["feed"], overwrite=True)
+    print(f"{case.case_id}: {case.interpolator} on {case.machine}, {case.path} at "
+          f"{case.feed_value:g} {case.feed_unit}, plant {case.plant.name}: cycle time "
+          f"{data['cycle_time_s']:.4g} s, max contour error {data['max_contour_error']:.4g} "
+          f"pulse -> {out}")
+    return 0
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """Shows ``(default: ...)`` for options that have a default worth showing (not for
     required options, flags, or options without a default)."""
@@ -370,17 +419,6 @@ def _positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
-    return value
-
-
-def _non_negative_float(text: str) -> float:
-    """argparse type: a finite number >= 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"must be finite and >= 0, got {text!r}")
     return value
 
 
@@ -471,7 +509,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--corner-tolerance", default="0",
                    help="planned: how far the motion may leave a sharp corner instead of "
                    "stopping there, a length (0.5mm, 10um) or a number in the path's units")
-    r.add_argument("--settle-window", type=_non_negative_float, default=1.0,
+    r.add_argument("--settle-window", type=_positive_float, default=1.0,
                    help="the motion has settled once it stays within this distance of the "
                    "end point [pulse]")
     common(r)
@@ -516,6 +554,24 @@ def _parser() -> argparse.ArgumentParser:
     common(e, out_default="results")
     e.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     e.set_defaults(func=_cmd_reproduce)
+
+    c = command("campaign", "run a study (paths x feeds x machines x plants x "
+                "interpolators) into a Parquet dataset and a digest")
+    c.add_argument("study", help="study file (.toml; see docs/campaign.md)")
+    c.add_argument("--out", help="output folder (default: the study file's name + "
+                   "'-campaign', beside it)")
+    c.add_argument("--workers", type=_positive_int,
+                   help="local worker processes (default: all cores)")
+    c.add_argument("--scheduler", help="address of a Dask scheduler (tcp://host:8786): run "
+                   "the cases on that cluster")
+    c.add_argument("--resume", action="store_true", help="keep the finished cases of an "
+                   "existing output folder and run the others")
+    c.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    c.add_argument("--case", help="re-run one case (e.g. c0000042) and write its run output "
+                   "(trace.csv, summary.json, figures) into OUT/ID")
+    c.add_argument("--no-figures", action="store_true", help="with --case: skip the figures")
+    c.add_argument("--no-progress", action="store_true", help="no progress bar")
+    c.set_defaults(func=_cmd_campaign)
     return p
 
 

@@ -46,7 +46,8 @@ SUMMARY_KEYS = (
     "max_contour_error", "rms_contour_error", "max_drive_ratio", "saturated_samples",
     "feed_fluctuation_max", "feed_fluctuation_rms", "interpolator", "feed", "machine", "path",
     "time_optimal_bound_s", "cycle_time_ratio", "limited_samples", "cornered_samples",
-    "success", "message",
+    "success", "message", "settle_time_s", "settled", "settle_window", "end_overshoot",
+    "corner_overshoot", "move_and_settle_ratio",
 )
 """The first keys of ``summary.json``, in order (contract); more follow, see :func:`summary`."""
 
@@ -64,7 +65,9 @@ _SUMMARY_UNITS = {
     "time_optimal_bound_s": "s", "cycle_time_ratio": "1 (cycle time / bound)",
     "length_unit": "name", "limited_samples": "samples", "cornered_samples": "samples",
     "success": "true or false", "message": "text", "plant": "name or file",
-    "corner_tolerance": "pulse", "feed_used": "text",
+    "corner_tolerance": "pulse", "feed_used": "text", "settle_time_s": "s",
+    "settled": "true or false", "settle_window": "pulse", "end_overshoot": "pulse",
+    "corner_overshoot": "pulse", "move_and_settle_ratio": "1 (settle time / bound)",
 }
 
 TRACE_FORMATS = ("csv", "parquet")
@@ -291,7 +294,9 @@ def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
         Commanded feed [pulse/s].
     time_optimal_bound : float
         SPEC section 9 bound [s] (:func:`nurbsmotion.planning.time_optimal_bound`);
-        ``cycle_time_ratio`` is the cycle time divided by it.
+        ``cycle_time_ratio`` is the cycle time divided by it, ``move_and_settle_ratio``
+        the settle time (SPEC section 10) divided by it (``inf`` when the motion did not
+        settle).
     length_unit : str, optional
         The report unit (``"mm"``, ``"in"``; :func:`nurbsmotion.units.report_unit`).
     pulses_per_length_unit : float, optional
@@ -303,7 +308,8 @@ def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
     data = metrics.to_dict()
     data.update(interpolator=interpolator, feed=float(feed), machine=machine, path=path,
                 time_optimal_bound_s=float(time_optimal_bound),
-                cycle_time_ratio=metrics.cycle_time_s / time_optimal_bound)
+                cycle_time_ratio=metrics.cycle_time_s / time_optimal_bound,
+                move_and_settle_ratio=metrics.settle_time_s / time_optimal_bound)
     out = {k: data[k] for k in SUMMARY_KEYS}
     if length_unit is not None:
         k = 1.0 / pulses_per_length_unit

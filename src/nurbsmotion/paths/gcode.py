@@ -605,7 +605,6 @@ class _Reader:
     # -- group 0: G10 G28 G30 G53 G92
     def non_modal(self, g: float, w: dict) -> None:
         n = self.program.numbered
-        k = self.scale()
         if g == 53.0:
             if not self.absolute:
                 raise self.error("G53 needs absolute mode G90")

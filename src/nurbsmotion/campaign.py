@@ -1,0 +1,872 @@
+"""Studies: many runs (paths x feeds x machines x true plants x interpolators), in parallel,
+into a Parquet dataset, with a digest.
+
+A study file (TOML, schema in ``docs/campaign.md``) lists the values of each factor;
+:func:`study_cases` expands them into :class:`Case` objects, every combination or a seeded
+sample of them. :func:`run_case` runs one case and returns its row: every
+``summary.json`` key (per-axis values flattened to ``key_<axis>``), the case parameters,
+its seed, and ``status`` (``"ok"`` or ``"error"``, with the error's type and message).
+:func:`run_study` runs all unfinished cases — serially, on local processes, or on a Dask
+cluster — and appends the finished rows to ``OUT/rows/part-*.parquet`` (a part file is
+written once, under a temporary name, and never rewritten), so a campaign that stops for
+any reason resumes where it was. :func:`digest` summarises the dataset.
+
+Every random draw of a case (its random path, its random plant) comes from seeds derived
+from the study's seed and the case's index, never from a worker, so the rows are the same
+bit for bit however the cases are spread (only ``case_time_s``, the wall time, differs).
+
+pyarrow, dask and tqdm are imported only when used.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import math
+import os
+import shutil
+import sys
+import time
+import uuid
+from dataclasses import dataclass, field
+from functools import lru_cache
+from itertools import product
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from .errors import PathFileError
+from .interpolators import LOOP_METHODS
+from .machine import Machine, load_machine
+from .metrics import SETTLE_WINDOW
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["Study", "Case", "load_study", "study_cases", "run_case", "run_study",
+           "read_rows", "digest", "write_digest", "case_trace", "find_case", "STATUS_OK",
+           "STATUS_ERROR", "WORKER_DIED"]
+
+STATUS_OK, STATUS_ERROR = "ok", "error"
+WORKER_DIED = "WorkerDied"
+"""``error_type`` of a case whose worker process died twice while running it."""
+
+FEED_UNITS = {"pulse/s": None, "path/s": None, "um/s": 1.0, "mm/s": 1e3, "m/s": 1e6,
+              "mm/min": 1e3 / 60}
+"""Units of a study's ``feeds``: micrometres per second per unit (``None``: pulse/s, or
+the path's own units per second)."""
+
+SUMMARY_FIGURES = ("cycle_time_ratio", "max_contour_error", "max_following_error",
+                   "max_drive_ratio", "saturated_samples", "move_and_settle_ratio",
+                   "end_overshoot", "corner_overshoot")
+"""Figures the digest summarises per group (per-axis ones as the largest or, for
+``saturated_samples``, the sum over the axes)."""
+
+
+# ----------------------------------------------------------------------------- study
+@dataclass(frozen=True)
+class PlantGroup:
+    """True-plant scales of one plant group.
+
+    ``tau_scale`` and ``Kc_scale`` multiply the model's tau and Kc (scalar or one per
+    axis); with ``spread > 0`` each of them is instead drawn per axis and per case from
+    uniform(1 - spread, 1 + spread) with the case's seed (SPEC section 10's mismatch).
+    """
+
+    name: str
+    tau_scale: tuple = (1.0,)
+    Kc_scale: tuple = (1.0,)
+    spread: float = 0.0
+
+
+@dataclass(frozen=True)
+class RandomPaths:
+    """``count`` random paths of each of ``families`` (see
+    :mod:`nurbsmotion.paths.random_paths`), each with ``n_axes`` axes and extent
+    ``length`` [pulse]."""
+
+    families: tuple
+    count: int
+    n_axes: int = 2
+    length: float = 2e4
+
+
+@dataclass(frozen=True)
+class Study:
+    """A validated study file (see ``docs/campaign.md``)."""
+
+    name: str
+    seed: int
+    paths: tuple
+    random_paths: tuple
+    feeds: tuple
+    feed_unit: str
+    machines: tuple
+    plants: tuple
+    interpolators: tuple
+    sample: int | None = None
+    settle_time: float = 0.05
+    settle_window: float = SETTLE_WINDOW
+    bound: bool = True
+    source: str | None = None
+    base_dir: str = "."
+
+
+@dataclass(frozen=True)
+class Case:
+    """One run of a study; ``index`` is its place in the full product (its id is
+    ``"c"`` + index), ``seed`` its own seed."""
+
+    index: int
+    path: str
+    path_family: str | None
+    path_seed: int | None
+    n_axes: int
+    length: float
+    feed_value: float
+    feed_unit: str
+    machine: str
+    plant: PlantGroup
+    interpolator: str
+    seed: int
+    settle_time: float
+    settle_window: float
+    bound: bool = True
+    base_dir: str = "."
+
+    @property
+    def case_id(self) -> str:
+        return f"c{self.index:07d}"
+
+
+_STUDY_KEYS = {"name", "seed", "paths", "random_paths", "feeds", "feed_unit", "machines",
+               "plants", "interpolators", "sample", "settle_time", "settle_window",
+               "time_optimal_bound"}
+
+
+def load_study(file: str | os.PathLike) -> Study:
+    """Read and validate a study file (TOML).
+
+    Raises
+    ------
+    PathFileError
+        Naming the file and the bad field.
+    """
+    path = Path(file)
+    if not path.is_file():
+        raise PathFileError("no such study file", str(file))
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise PathFileError(f"invalid TOML: {exc}", str(path)) from None
+    try:
+        return _study_from_dict(data, str(path), str(path.parent.resolve()))
+    except (ValueError, TypeError, KeyError) as exc:
+        if isinstance(exc, PathFileError):
+            raise
+        msg = exc.args[0] if exc.args else exc
+        raise PathFileError(str(msg), str(path)) from None
+
+
+def _study_from_dict(data: dict, source: str, base_dir: str) -> Study:
+    unknown = set(data) - _STUDY_KEYS
+    if unknown:
+        raise ValueError(f"unknown study field(s) {sorted(unknown)}; expected "
+                         f"{sorted(_STUDY_KEYS)}")
+    seed = data.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    paths = tuple(_strings(data.get("paths", []), "paths"))
+    random_paths = tuple(_random_paths(e, i) for i, e in enumerate(data.get("random_paths", [])))
+    if not paths and not random_paths:
+        raise ValueError("the study has no paths: give 'paths' or '[[random_paths]]'")
+    feeds = data.get("feeds")
+    if not isinstance(feeds, list) or not feeds or not all(
+            _is_number(f) and math.isfinite(f) and f > 0 for f in feeds):
+        raise ValueError(f"feeds must be a non-empty list of numbers > 0, got {feeds!r}")
+    feed_unit = data.get("feed_unit", "m/s")
+    if feed_unit not in FEED_UNITS:
+        raise ValueError(f"feed_unit {feed_unit!r} unknown; choose from {list(FEED_UNITS)}")
+    machines = tuple(_strings(data.get("machines", ["die-bonder"]), "machines"))
+    plants = tuple(_plant(e, i) for i, e in enumerate(data.get("plants", [{"name": "nominal"}])))
+    if len({p.name for p in plants}) != len(plants):
+        raise ValueError("plant names must be unique")
+    interpolators = tuple(_strings(data.get("interpolators", ["paper"]), "interpolators"))
+    for name in interpolators:
+        if name not in LOOP_METHODS:
+            raise ValueError(f"unknown interpolator {name!r}; choose from {list(LOOP_METHODS)}")
+    sample = data.get("sample")
+    if sample is not None and (isinstance(sample, bool) or not isinstance(sample, int)
+                               or sample < 1):
+        raise ValueError(f"sample must be an integer >= 1 (cases drawn), got {sample!r}")
+    settle_time = _positive_number(data.get("settle_time", 0.05), "settle_time", zero=True)
+    settle_window = _positive_number(data.get("settle_window", SETTLE_WINDOW), "settle_window")
+    bound = data.get("time_optimal_bound", True)
+    if not isinstance(bound, bool):
+        raise ValueError(f"time_optimal_bound must be true or false, got {bound!r}")
+    return Study(name=str(data.get("name", Path(source).stem)), seed=seed, paths=paths,
+                 random_paths=random_paths, feeds=tuple(float(f) for f in feeds),
+                 feed_unit=feed_unit, machines=machines, plants=plants,
+                 interpolators=interpolators, sample=sample, settle_time=settle_time,
+                 settle_window=settle_window, bound=bound, source=source, base_dir=base_dir)
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _positive_number(x, name: str, zero: bool = False) -> float:
+    if not (_is_number(x) and math.isfinite(x) and (x >= 0 if zero else x > 0)):
+        raise ValueError(f"{name} must be a finite number {'>=' if zero else '>'} 0, got {x!r}")
+    return float(x)
+
+
+def _strings(value, name: str) -> list[str]:
+    if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
+        raise ValueError(f"{name} must be a list of non-empty strings, got {value!r}")
+    return value
+
+
+def _random_paths(entry, i: int) -> RandomPaths:
+    from .paths.random_paths import FAMILIES
+
+    where = f"random_paths[{i}]"
+    if not isinstance(entry, dict):
+        raise ValueError(f"{where} must be a table")
+    unknown = set(entry) - {"families", "count", "n_axes", "length"}
+    if unknown:
+        raise ValueError(f"{where}: unknown field(s) {sorted(unknown)}")
+    families = entry.get("families", "all")
+    families = list(FAMILIES) if families == "all" else _strings(families, f"{where}.families")
+    for f in families:
+        if f not in FAMILIES:
+            raise ValueError(f"{where}: unknown family {f!r}; choose from {sorted(FAMILIES)}")
+    count = entry.get("count", 1)
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise ValueError(f"{where}.count must be an integer >= 1, got {count!r}")
+    n_axes = entry.get("n_axes", 2)
+    if n_axes not in (2, 3) or isinstance(n_axes, bool):
+        raise ValueError(f"{where}.n_axes must be 2 or 3, got {n_axes!r}")
+    length = _positive_number(entry.get("length", 2e4), f"{where}.length")
+    return RandomPaths(tuple(families), count, n_axes, length)
+
+
+def _plant(entry, i: int) -> PlantGroup:
+    where = f"plants[{i}]"
+    if not isinstance(entry, dict) or not isinstance(entry.get("name"), str):
+        raise ValueError(f"{where} must be a table with a 'name'")
+    unknown = set(entry) - {"name", "tau_scale", "Kc_scale", "spread"}
+    if unknown:
+        raise ValueError(f"{where}: unknown field(s) {sorted(unknown)}")
+    scales = []
+    for key in ("tau_scale", "Kc_scale"):
+        v = entry.get(key, 1.0)
+        v = v if isinstance(v, list) else [v]
+        if not v or not all(_is_number(x) and math.isfinite(x) and x > 0 for x in v):
+            raise ValueError(f"{where}.{key} must be a number > 0 or one per axis, got {v!r}")
+        scales.append(tuple(float(x) for x in v))
+    spread = entry.get("spread", 0.0)
+    if not (_is_number(spread) and 0 <= spread < 1):
+        raise ValueError(f"{where}.spread must be in [0, 1), got {spread!r}")
+    return PlantGroup(entry["name"], scales[0], scales[1], float(spread))
+
+
+def _seed(*words: int) -> int:
+    """A 63-bit seed derived from ``words`` (numpy's SeedSequence): the same everywhere."""
+    return int(np.random.SeedSequence(list(words)).generate_state(1, np.uint64)[0] >> 1)
+
+
+def study_cases(study: Study) -> list[Case]:
+    """The study's cases, in the order of the full product (paths, feeds, machines,
+    plants, interpolators; a path runs only on machines with its number of axes), or the
+    seeded sample of ``study.sample`` of them (kept in that order)."""
+    paths = [(p, None, None, 0, 0.0) for p in study.paths]
+    k = 0
+    for group in study.random_paths:
+        for family in group.families:
+            for _ in range(group.count):
+                paths.append((f"random:{family}", family, _seed(study.seed, 1, k),
+                              group.n_axes, group.length))
+                k += 1
+    axes_of_machine = {m: _machine(m, study.base_dir).n_axes for m in study.machines}
+    cases = []
+    index = 0
+    for (path, family, path_seed, n_axes, length), feed, machine, plant, interp in product(
+            paths, study.feeds, study.machines, study.plants, study.interpolators):
+        if family is not None and n_axes != axes_of_machine[machine]:
+            continue
+        cases.append(Case(index, path, family, path_seed, n_axes or axes_of_machine[machine],
+                          length, feed, study.feed_unit, machine, plant, interp,
+                          _seed(study.seed, 2, index), study.settle_time,
+                          study.settle_window, study.bound, study.base_dir))
+        index += 1
+    if study.sample is not None and study.sample < len(cases):
+        pick = np.random.default_rng(_seed(study.seed, 3)).choice(
+            len(cases), size=study.sample, replace=False)
+        cases = [cases[i] for i in np.sort(pick)]
+    return cases
+
+
+# ----------------------------------------------------------------------------- one case
+@lru_cache(maxsize=16)
+def _machine(spec: str, base_dir: str) -> Machine:
+    from .machine import BUILTIN_MACHINES
+
+    if spec in BUILTIN_MACHINES:
+        return load_machine(spec)
+    return load_machine(Path(base_dir) / spec)
+
+
+@lru_cache(maxsize=64)
+def _curve(path: str, family: str | None, path_seed: int | None, n_axes: int, length: float,
+           base_dir: str):
+    """The case's path (kept per worker: its arc-length table serves every case on it)."""
+    if family is not None:
+        from .paths.random_paths import random_path
+
+        return random_path(family, path_seed, n_axes, length)
+    from .nurbs import BUILTIN_PATHS
+    from .paths import resolve_path
+
+    spec = path if path.split("#")[0] in BUILTIN_PATHS else str(Path(base_dir) / path)
+    return resolve_path(spec)
+
+
+def _feed_in_pulses(case: Case, curve, machine: Machine) -> float:
+    per_unit = FEED_UNITS[case.feed_unit]
+    if per_unit is None:
+        scale = 1.0 if case.feed_unit == "pulse/s" else machine.pulses_per_unit(curve.units)
+        return case.feed_value * scale
+    return case.feed_value * per_unit * machine.pulses_per_unit("um")
+
+
+def _plant_scales(case: Case, n_axes: int) -> tuple[np.ndarray, np.ndarray]:
+    """tau and Kc scale factors per axis, shape (n_axes,) each."""
+    g = case.plant
+    if g.spread > 0:
+        rng = np.random.default_rng(case.seed)
+        s = rng.uniform(1 - g.spread, 1 + g.spread, (2, n_axes))
+        return s[0], s[1]
+    out = []
+    for v in (g.tau_scale, g.Kc_scale):
+        if len(v) not in (1, n_axes):
+            raise ValueError(f"plant {g.name!r}: {len(v)} scale factors for {n_axes} axes")
+        out.append(np.broadcast_to(np.array(v), (n_axes,)).copy())
+    return out[0], out[1]
+
+
+def case_trace(case: Case):
+    """Run one case: ``(trace, summary dict, tau scales, Kc scales)``.
+
+    The one function that builds and runs a case's loop (adapt it when the loop's API
+    changes).
+    """
+    from .loop import run, to_pulses
+    from .metrics import trace_metrics
+    from .report import summary
+    from .servo import ServoPlant
+
+    machine = _machine(case.machine, case.base_dir)
+    curve = _curve(case.path, case.path_family, case.path_seed, case.n_axes, case.length,
+                   case.base_dir)
+    machine.check_path(curve.n_axes)
+    feed = _feed_in_pulses(case, curve, machine)
+    tau_s, kc_s = _plant_scales(case, machine.n_axes)
+    pulses = to_pulses(curve, machine)
+    plant = ServoPlant.of_machine(machine, pulses(0.0), time_constant_scale=tau_s,
+                                  electrical_gain_scale=kc_s)
+    trace = run(curve, machine, feed, case.interpolator, plant=plant,
+                settle_time=case.settle_time, settle_window=case.settle_window)
+    metrics = trace_metrics(trace, settle_window=case.settle_window)
+    bound = _bound(case, feed) if case.bound else math.nan
+    data = summary(metrics, interpolator=case.interpolator, feed=feed, machine=machine.name,
+                   path=case.path, time_optimal_bound=bound)
+    return trace, data, tau_s, kc_s
+
+
+@lru_cache(maxsize=64)
+def _bound_of(path: str, family, path_seed, n_axes, length, base_dir, machine: str,
+              feed: float) -> float:
+    from .loop import to_pulses
+    from .planning import time_optimal_bound
+
+    m = _machine(machine, base_dir)
+    curve = to_pulses(_curve(path, family, path_seed, n_axes, length, base_dir), m)
+    return time_optimal_bound(curve, m, feed)
+
+
+def _bound(case: Case, feed: float) -> float:
+    """The time-optimal bound [s]; it depends on the path, the model and the feed only, so
+    a worker keeps it for the case's other plants and interpolators."""
+    return _bound_of(case.path, case.path_family, case.path_seed, case.n_axes, case.length,
+                     case.base_dir, case.machine, feed)
+
+
+def run_case(case: Case) -> dict:
+    """One row of the dataset: the case's parameters and seed, ``status``, and every
+    ``summary.json`` key (per-axis values as ``key_<axis>``); a case that raises gives
+    ``status = "error"`` with ``error_type`` and ``error_message`` instead of figures."""
+    t0 = time.perf_counter()
+    row = _case_columns(case)
+    try:
+        _, data, tau_s, kc_s = case_trace(case)
+    except Exception as exc:  # recorded, never lost: the campaign goes on
+        row.update(status=STATUS_ERROR, error_type=type(exc).__name__,
+                   error_message=str(exc)[:2000])
+    else:
+        row.update(status=STATUS_OK, error_type=None, error_message=None)
+        for key, value in data.items():
+            if isinstance(value, dict):
+                for axis, v in value.items():
+                    row[f"{key}_{axis}"] = v
+            else:
+                row[key] = value
+        for axis, t, k in zip(_machine(case.machine, case.base_dir).axis_names, tau_s, kc_s):
+            row[f"tau_scale_{axis}"], row[f"Kc_scale_{axis}"] = float(t), float(k)
+    row["case_time_s"] = time.perf_counter() - t0
+    return row
+
+
+def _case_columns(case: Case) -> dict:
+    return {"case_id": case.case_id, "case_index": case.index, "seed": case.seed,
+            "path": case.path, "path_family": case.path_family, "path_seed": case.path_seed,
+            "n_axes": case.n_axes, "feed_value": case.feed_value, "feed_unit": case.feed_unit,
+            "machine": case.machine, "plant": case.plant.name,
+            "interpolator": case.interpolator, "attempts": 1}
+
+
+# ----------------------------------------------------------------------------- dataset
+def _schema(study: Study):
+    """The dataset's columns (the same in every part file)."""
+    import pyarrow as pa
+
+    from .report import SUMMARY_KEYS
+
+    axes = []
+    for m in study.machines:
+        axes += [a for a in _machine(m, study.base_dir).axis_names if a not in axes]
+    per_axis = {"max_following_error", "rms_following_error", "max_drive_ratio",
+                "saturated_samples", "cornered_samples"}
+    int_keys = {"steps", "saturated_samples", "limited_samples", "cornered_samples"}
+    bool_keys = {"settled", "success"}
+    text_keys = {"interpolator", "machine", "path", "message"}
+    fields = [("case_id", pa.string()), ("case_index", pa.int64()), ("seed", pa.int64()),
+              ("status", pa.string()), ("error_type", pa.string()),
+              ("error_message", pa.string()), ("attempts", pa.int64()),
+              ("path", pa.string()), ("path_family", pa.string()),
+              ("path_seed", pa.int64()), ("n_axes", pa.int64()), ("feed_value", pa.float64()),
+              ("feed_unit", pa.string()), ("machine", pa.string()), ("plant", pa.string()),
+              ("interpolator", pa.string())]
+    fields += [(f"{s}_scale_{a}", pa.float64()) for a in axes for s in ("tau", "Kc")]
+    taken = {f for f, _ in fields}
+    for key in SUMMARY_KEYS:
+        typ = pa.int64() if key in int_keys else pa.bool_() if key in bool_keys else \
+            pa.string() if key in text_keys else pa.float64()
+        if key in per_axis:
+            fields += [(f"{key}_{a}", typ) for a in axes]
+        elif key not in taken:
+            fields.append((key, typ))
+    fields.append(("case_time_s", pa.float64()))
+    return pa.schema(fields)
+
+
+def _write_part(rows: list[dict], rows_dir: Path, schema) -> Path:
+    """Write ``rows`` as a new part file (temporary name, then renamed: a part file is
+    either complete or absent)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pa.Table.from_pylist(rows, schema=schema)
+    name = f"part-{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}.parquet"
+    tmp = rows_dir / f".{name}.tmp"
+    pq.write_table(table, tmp)
+    os.replace(tmp, rows_dir / name)
+    return rows_dir / name
+
+
+def read_rows(out_dir: str | os.PathLike):
+    """All finished rows of a campaign as a pyarrow Table, sorted by case index."""
+    import pyarrow.dataset as ds
+
+    rows_dir = Path(out_dir) / "rows"
+    files = sorted(str(p) for p in rows_dir.glob("part-*.parquet"))
+    if not files:
+        return None
+    table = ds.dataset(files, format="parquet").to_table()
+    return table.sort_by("case_index")
+
+
+# ----------------------------------------------------------------------------- engine
+@dataclass
+class CampaignResult:
+    """What :func:`run_study` did."""
+
+    out_dir: Path
+    n_cases: int
+    computed: int
+    skipped: int
+    failed: int
+    wall_time_s: float
+    digest: dict = field(default_factory=dict)
+
+
+def run_study(study: Study, out_dir: str | os.PathLike, *, workers: int | None = None,
+              scheduler: Any = None, resume: bool = False, overwrite: bool = False,
+              progress: bool = True, flush_rows: int = 64, flush_seconds: float = 10.0,
+              cases: list[Case] | None = None) -> CampaignResult:
+    """Run a study's unfinished cases and write the dataset and digest into ``out_dir``.
+
+    Parameters
+    ----------
+    study : Study
+    out_dir : path
+        Holds ``study.toml`` (the study run), ``rows/part-*.parquet`` and the digest
+        ``digest.md`` / ``digest.json``.
+    workers : int, optional
+        Local worker processes (all cores by default; 1 runs in this process).
+    scheduler : str or dask.distributed.Client, optional
+        A Dask scheduler's address (or a client): run the cases on that cluster; results
+        come back to this process, which alone writes the dataset.
+    resume : bool
+        Keep the finished rows in ``out_dir`` and run only the other cases.
+    overwrite : bool
+        Delete an existing ``out_dir`` first.
+    flush_rows, flush_seconds : int, float
+        A part file is written every ``flush_rows`` finished rows or ``flush_seconds``.
+    cases : list of Case, optional
+        The cases (``study_cases(study)`` by default).
+
+    Raises
+    ------
+    OutputExistsError
+        ``out_dir`` holds files, and neither ``resume`` nor ``overwrite`` was asked for.
+    PathFileError
+        On ``resume``, if ``out_dir`` holds another study.
+    KeyboardInterrupt
+        After writing every finished row, so that ``resume`` goes on from there.
+    """
+    from .errors import OutputExistsError
+
+    t0 = time.perf_counter()
+    out = Path(out_dir)
+    rows_dir = out / "rows"
+    study_copy = out / "study.toml"
+    if out.exists() and any(out.iterdir()):
+        if overwrite:
+            shutil.rmtree(out)
+        elif not resume:
+            raise OutputExistsError(f"{out} exists; resume with --resume, or pass --overwrite")
+    text = Path(study.source).read_text() if study.source else ""
+    if resume and study_copy.exists() and study_copy.read_text() != text:
+        raise PathFileError(f"{out} holds the results of another study (its study.toml "
+                            "differs); choose another output folder", study.source)
+    rows_dir.mkdir(parents=True, exist_ok=True)
+    study_copy.write_text(text)
+    all_cases = study_cases(study) if cases is None else cases
+    done = _finished_ids(out)
+    todo = [c for c in all_cases if c.case_id not in done]
+    schema = _schema(study)
+    writer = _RowWriter(rows_dir, schema, flush_rows, flush_seconds)
+    bar = _progress(len(todo), progress)
+    try:
+        for row in _execute(todo, workers, scheduler, run_case):
+            writer.add(row)
+            bar(row)
+    finally:
+        writer.flush()
+        bar(None)
+    table = read_rows(out)
+    result_digest = digest(table, study, out) if table is not None else {}
+    if table is not None:
+        write_digest(result_digest, out)
+    failed = 0 if table is None else int(
+        sum(s != STATUS_OK for s in table.column("status").to_pylist()))
+    return CampaignResult(out, len(all_cases), writer.written, len(all_cases) - len(todo),
+                          failed, time.perf_counter() - t0, result_digest)
+
+
+def _finished_ids(out: Path) -> set:
+    table = read_rows(out)
+    return set() if table is None else set(table.column("case_id").to_pylist())
+
+
+class _RowWriter:
+    def __init__(self, rows_dir, schema, flush_rows, flush_seconds):
+        self.rows_dir, self.schema = rows_dir, schema
+        self.flush_rows, self.flush_seconds = flush_rows, flush_seconds
+        self.pending: list[dict] = []
+        self.written = 0
+        self.last = time.monotonic()
+
+    def add(self, row: dict) -> None:
+        self.pending.append(row)
+        if (len(self.pending) >= self.flush_rows
+                or time.monotonic() - self.last >= self.flush_seconds):
+            self.flush()
+
+    def flush(self) -> None:
+        if self.pending:
+            _write_part(self.pending, self.rows_dir, self.schema)
+            self.written += len(self.pending)
+            self.pending = []
+        self.last = time.monotonic()
+
+
+def _progress(total: int, enabled: bool) -> Callable:
+    """A callback per finished row (``None`` closes the bar): tqdm when importable."""
+    if not enabled or total == 0:
+        return lambda row: None
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover
+        return lambda row: None
+    bar = tqdm(total=total, unit="case", file=sys.stderr, dynamic_ncols=True)
+    failed = [0]
+
+    def update(row):
+        if row is None:
+            bar.close()
+            return
+        failed[0] += row["status"] != STATUS_OK
+        bar.set_postfix(failed=failed[0], refresh=False)
+        bar.update(1)
+
+    return update
+
+
+def _execute(cases: list[Case], workers: int | None, scheduler,
+             function: Callable | None = None) -> Iterable[dict]:
+    """Rows of ``function`` (:func:`run_case` by default) over ``cases``, in the order
+    they finish: serially, on ``workers`` local processes, or on a Dask ``scheduler``."""
+    function = function or run_case
+    if not cases:
+        return iter(())
+    if scheduler is not None:
+        return _execute_dask(cases, scheduler, function)
+    n = (os.cpu_count() or 1) if workers is None else int(workers)
+    if n < 1:
+        raise ValueError(f"workers must be >= 1, got {workers!r}")
+    if n == 1:
+        return (function(c) for c in cases)
+    return _execute_pool(cases, n, function)
+
+
+_BATCH = 8
+"""Most cases sent to a worker as one task."""
+
+
+def _batches(cases: list[Case]) -> list[list[Case]]:
+    """Consecutive cases on the same path, machine and feed, at most :data:`_BATCH` a task:
+    one worker then computes their path's tables and time-optimal bound once."""
+    out: list[list[Case]] = []
+    key = None
+    for c in cases:
+        k = (c.path, c.path_family, c.path_seed, c.machine, c.feed_value)
+        if k != key or len(out[-1]) >= _BATCH:
+            out.append([])
+            key = k
+        out[-1].append(c)
+    return out
+
+
+def _run_batch(function: Callable, batch: list[Case]) -> list[dict]:
+    return [function(c) for c in batch]
+
+
+def _execute_pool(cases: list[Case], n_workers: int, function: Callable) -> Iterable[dict]:
+    """Local processes; at most ``2 * n_workers`` batches in flight. When a worker dies
+    (the pool breaks), each case then in flight is run again alone in a fresh process;
+    a case whose process dies again is recorded as :data:`WORKER_DIED`."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    queue = list(reversed(_batches(cases)))
+    suspects: list[Case] = []
+    window = 2 * n_workers
+    while queue or suspects:
+        pool = cf.ProcessPoolExecutor(n_workers)
+        running: dict = {}
+        try:
+            while queue or running:
+                while queue and len(running) < window:
+                    batch = queue.pop()
+                    running[pool.submit(_run_batch, function, batch)] = batch
+                finished, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
+                for fut in finished:
+                    batch = running.pop(fut)
+                    try:
+                        rows = fut.result()
+                    except BrokenProcessPool:
+                        suspects.extend(batch)
+                        continue
+                    except Exception as exc:  # e.g. a result that cannot be pickled
+                        rows = [_died(c, f"{type(exc).__name__}: {exc}") for c in batch]
+                    yield from rows
+                if suspects:
+                    raise BrokenProcessPool
+        except BrokenProcessPool:
+            for batch in running.values():
+                suspects.extend(batch)
+            running.clear()
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+        for c in suspects:
+            yield _run_alone(c, function)
+        suspects = []
+
+
+def _run_alone(case: Case, function: Callable) -> dict:
+    """The second attempt of a case whose worker died: alone in a fresh process."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    with cf.ProcessPoolExecutor(1) as pool:
+        try:
+            row = pool.submit(function, case).result()
+        except BrokenProcessPool:
+            row = _died(case, "its worker process died twice while running it")
+    row["attempts"] = 2
+    return row
+
+
+def _died(case: Case, message: str) -> dict:
+    """The row of a case whose worker did not return a row."""
+    row = _case_columns(case)
+    row.update(status=STATUS_ERROR, error_type=WORKER_DIED, error_message=message,
+               case_time_s=math.nan)
+    return row
+
+
+def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[dict]:
+    """On a Dask cluster: one task per batch of cases (:func:`_batches`; retried once if
+    its worker dies), results gathered here as they finish."""
+    from dask.distributed import Client, as_completed
+
+    client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
+    try:
+        batches = _batches(cases)
+        futures = client.map(_run_batch, [function] * len(batches), batches, retries=1,
+                             pure=False)
+        by_key = {f.key: b for f, b in zip(futures, batches)}
+        for fut in as_completed(futures):
+            batch = by_key[fut.key]
+            try:
+                rows = fut.result()
+            except Exception as exc:  # KilledWorker: the worker died on every attempt
+                rows = [_died(c, f"{type(exc).__name__}: {exc}") for c in batch]
+                for row in rows:
+                    row["attempts"] = 2
+            fut.release()
+            yield from rows
+    finally:
+        if client is not scheduler:
+            client.close()
+
+
+# ----------------------------------------------------------------------------- digest
+_QUANTILES = (("min", 0.0), ("median", 0.5), ("p95", 0.95), ("max", 1.0))
+
+
+_PER_AXIS_FIGURES = ("max_following_error", "max_drive_ratio", "saturated_samples")
+
+
+def _figure(table, name: str) -> np.ndarray:
+    """Column ``name`` per row [its unit]; a per-axis figure as its largest value over
+    the axes (for ``saturated_samples``, the sum)."""
+    if name not in _PER_AXIS_FIGURES:
+        return np.asarray(table.column(name).to_numpy(zero_copy_only=False), float)
+    values = np.array([np.asarray(table.column(c).to_numpy(zero_copy_only=False), float)
+                       for c in table.column_names if c.startswith(name + "_")])
+    with np.errstate(all="ignore"):
+        if name == "saturated_samples":
+            return np.sum(np.nan_to_num(values), axis=0)
+        return np.max(np.where(np.isnan(values), -np.inf, values), axis=0)
+
+
+def digest(table, study: Study, out_dir: str | os.PathLike = ".") -> dict:
+    """Per group (interpolator x feed x plant) the min / median / 95th percentile / max
+    of :data:`SUMMARY_FIGURES` over its successful cases, and every failing case with
+    the command that reproduces it.
+
+    Percentiles are sample values (the smallest value with at least that share of the
+    group's cases at or below it), so ``inf`` (a motion that never settled) is kept.
+    """
+    study_file = study.source or "STUDY.toml"
+    ok = np.array([s == STATUS_OK for s in table.column("status").to_pylist()])
+    keys = list(zip(table.column("interpolator").to_pylist(),
+                    table.column("feed_value").to_pylist(),
+                    table.column("plant").to_pylist()))
+    figures = {name: _figure(table, name) for name in SUMMARY_FIGURES}
+    groups = []
+    for key in sorted(set(keys)):
+        member = np.array([k == key for k in keys])
+        sel = member & ok
+        entry = {"interpolator": key[0], "feed": key[1], "feed_unit": study.feed_unit,
+                 "plant": key[2], "cases": int(member.sum()), "ok": int(sel.sum()),
+                 "failed": int((member & ~ok).sum()), "figures": {}}
+        if sel.any():
+            for name, values in figures.items():
+                v = values[sel]
+                entry["figures"][name] = {q: float(np.quantile(v, p, method="inverted_cdf"))
+                                          for q, p in _QUANTILES}
+        groups.append(entry)
+    failing = []
+    cols = ["case_id", "path", "feed_value", "machine", "plant", "interpolator",
+            "error_type", "error_message"]
+    data = {c: table.column(c).to_pylist() for c in cols}
+    for i in np.flatnonzero(~ok):
+        case = {c: data[c][i] for c in cols}
+        case["reproduce"] = (f"nurbsmotion campaign {study_file} --out {out_dir} "
+                             f"--case {case['case_id']}")
+        failing.append(case)
+    return {"study": study.name, "cases": int(len(ok)), "ok": int(ok.sum()),
+            "failed": int((~ok).sum()), "groups": groups, "failing_cases": failing}
+
+
+def write_digest(data: dict, out_dir: str | os.PathLike) -> tuple[Path, Path]:
+    """Write ``digest.json`` and ``digest.md`` into ``out_dir`` (through temporary names)."""
+    from .report import write_json
+
+    out = Path(out_dir)
+    tmp = out / ".digest.json.tmp"
+    write_json(data, tmp)
+    os.replace(tmp, out / "digest.json")
+    tmp = out / ".digest.md.tmp"
+    tmp.write_text(digest_markdown(data))
+    os.replace(tmp, out / "digest.md")
+    return out / "digest.json", out / "digest.md"
+
+
+def digest_markdown(data: dict) -> str:
+    """The digest as Markdown: one table per figure, rows per group."""
+    lines = [f"# Study {data['study']}: {data['cases']} cases, {data['ok']} ok, "
+             f"{data['failed']} failed", ""]
+    for name in SUMMARY_FIGURES:
+        lines += [f"## {name}", "",
+                  "| interpolator | feed | plant | ok / cases | min | median | 95th | max |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for g in data["groups"]:
+            q = g["figures"].get(name)
+            cells = [f"{q[k]:.4g}" for k, _ in _QUANTILES] if q else ["–"] * 4
+            lines.append(f"| {g['interpolator']} | {g['feed']:g} {g['feed_unit']} | "
+                         f"{g['plant']} | {g['ok']} / {g['cases']} | " + " | ".join(cells) + " |")
+        lines.append("")
+    lines += ["## Failing cases", ""]
+    if not data["failing_cases"]:
+        lines.append("None.")
+    for c in data["failing_cases"]:
+        lines.append(f"- `{c['case_id']}` {c['path']} at {c['feed_value']:g}, {c['machine']}, "
+                     f"plant {c['plant']}, {c['interpolator']}: {c['error_type']}: "
+                     f"{(c['error_message'] or '').splitlines()[0] if c['error_message'] else ''}"
+                     f" — reproduce: `{c['reproduce']}`")
+    return "\n".join(lines) + "\n"
+
+
+def find_case(study: Study, case_id: str) -> Case:
+    """The case of ``study`` with id ``case_id`` (e.g. ``"c0000042"``)."""
+    from dataclasses import replace
+
+    for c in study_cases(replace(study, sample=None)):
+        if c.case_id == case_id:
+            return c
+    raise KeyError(f"no case {case_id!r} in study {study.name!r}")
