@@ -50,8 +50,8 @@ def throughput(repeats: int) -> str:
         ["interpolator", "path", "feed [m/s]", "samples", "limited samples",
          "samples/s", "faster than real time"], rows,
         f"Medians of {repeats} runs of `simulate()` after one warm-up run; each run goes "
-        "on until the motion has settled at the end. A `planned` sample whose step the "
-        "safety layer changes costs some 20 drive predictions and an arc length.")
+        "on until the motion has settled at the end (`planned`: its online governor and "
+        "feedback, from the law's affine form, every sample).")
 
 
 def planning_time(repeats: int) -> str:
@@ -65,14 +65,14 @@ def planning_time(repeats: int) -> str:
     for name, feed in PLANNING_CASES:
         path = to_pulses(nm.builtin_path(name), m)
         t, _ = median_time(lambda: PlannedInterpolator(path, m, feed), repeats)
-        n = len(PlannedInterpolator(path, m, feed).plan_u) - 1
+        n = PlannedInterpolator(path, m, feed).motion.n_samples
         rows.append([name, f"{feed / 1e6:g}", n, f"{t:.3f}"])
     return section(
         "Planning time of the `planned` interpolator",
         ["path", "feed [m/s]", "planned samples", "planning [s]"], rows,
         f"Medians of {repeats} constructions of `PlannedInterpolator(path, machine, feed)` "
-        "(speed profile, schedule, and its closed-loop check of up to 12 rounds on 5 "
-        "plants), after one warm-up construction.")
+        "(speed profile, motion plan, drive sequence and its drive-limit rounds), after "
+        "one warm-up construction.")
 
 
 def main(repeats: int = 15) -> str:

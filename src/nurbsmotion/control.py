@@ -173,7 +173,7 @@ def pid_state(command: np.ndarray) -> np.ndarray:
     return st
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _clamp(x, limit):
     """``x`` clamped to +-limit; ``limit == 0`` means no clamp (LinuxCNC's convention)."""
     if limit != 0.0:
@@ -184,7 +184,7 @@ def _clamp(x, limit):
     return x
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def pid_output(law, st, j, command, feedback, feedback_velocity):
     """``calc_pid`` for axis ``j``: the output before its limit and the state it leaves.
 
@@ -236,7 +236,7 @@ def pid_output(law, st, j, command, feedback, feedback_velocity):
     return out, e, error_i, cmd_d
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def pid_commit(law, st, j, command, output, error, error_i, cmd_d):
     """Store the state :func:`pid_output` returned for the command that was applied."""
     g, s = law[j], st[j]
@@ -248,7 +248,7 @@ def pid_commit(law, st, j, command, output, error, error_i, cmd_d):
     s["limit_state"] = 1.0 if output > umax else (-1.0 if output < -umax else 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def pid_affine(law, st, j, feedback, feedback_velocity):
     """The output of axis ``j`` as ``slope*command + offset`` between the clamps.
 

@@ -179,7 +179,7 @@ class ServoPlant:
         return w, th
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def plant_step(Ad, Bd, j, speed, position, drive_applied):
     """One exact ZOH step of axis ``j``: ``(speed, position)`` one sample later.
 

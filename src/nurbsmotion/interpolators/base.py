@@ -81,7 +81,7 @@ def path_scratch(path: PathData) -> PathScratch:
                        np.empty((p + 1, p + 1)), np.empty(p + 1), np.empty(p + 1))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def path_derivatives(path, u, order, sc):
     """``C^(k)(u)`` for k = 0 .. order (right-sided) into ``sc.derivatives[:, 0]``; returns
     that view, shape (3, n_axes)."""
@@ -92,14 +92,14 @@ def path_derivatives(path, u, order, sc):
     return sc.derivatives[:, 0, :]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def path_point(path, u, out, sc):
     """``C(u)`` (right-sided) into ``out``, shape (n_axes,)."""
     rational_point_into(path.knots, path.points, path.degree, u, out, sc.basis, sc.left,
                         sc.right)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def taylor_increment(d, order, V, A, T):
     """Parameter step of the speed-controlled interpolator (eq. 3.1 / 3.2).
 
@@ -152,7 +152,7 @@ def _time_to_reach(target, d, order, V, A, T):
     return 0.5 * (lo + hi)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def advance(path, order, u0, V, A, Ts, sc, fresh):
     """Parameter after one sample from ``u0`` at feed V and tangential acceleration A,
     piecewise across :attr:`PathData.breaks`; ``fresh``: the derivatives at ``u0`` are
@@ -174,7 +174,7 @@ def advance(path, order, u0, V, A, Ts, sc, fresh):
         d = path_derivatives(path, u, order, sc)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def land(path, u, command, sc):
     """Finish a step at parameter ``u``: the setpoint C(u) into ``command``, or the end
     point when ``u >= 1``. Returns ``(u, status)`` with u capped at 1."""
@@ -186,7 +186,7 @@ def land(path, u, command, sc):
     return u, stepping.WORKING
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def speed_bounds(law, law_state, Ke, position, velocity, bounds):
     """The range of speed commands that keeps every drive within Umax, into ``bounds``
     (n_axes, 2) [rad/s]: eq. 3.6 of Yeh & Sun (2008) from the law's affine form

@@ -85,7 +85,7 @@ class PaperInterpolator(Interpolator):
         return table_duration(self.curve, p.feed_breaks, p.feed_start, p.feed_end)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def paper_step(plan, state, law, law_state, position, velocity, command, bounds):
     """Eq. 3.6-3.10 and the step of eq. 3.8-3.9; the contract of :mod:`nurbsmotion.stepping`."""
     if state.u[0] >= 1.0:

@@ -83,7 +83,7 @@ def table_duration(curve: NurbsCurve, breaks, start, end) -> float:
     return float(np.sum(np.diff(s) / np.minimum(start, end)))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def feed_at(breaks, start, end, u):
     """V(u) and dV/du of a feed table (:func:`feed_table`) [path units/s, per unit u]."""
     i = min(max(np.searchsorted(breaks, u, side="right") - 1, 0), breaks.shape[0] - 2)
@@ -150,7 +150,7 @@ class UniformInterpolator(Interpolator):
         return math.ceil(1.0 / self.parameter_step) * self.sample_period
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def uniform_step(plan, state, law, law_state, position, velocity, command, bounds):
     """Eq. 1.1; the step contract of :mod:`nurbsmotion.stepping`."""
     if state.u[0] >= 1.0:
@@ -194,7 +194,7 @@ class TaylorInterpolator(Interpolator):
         return table_duration(self.curve, p.feed_breaks, p.feed_start, p.feed_end)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def taylor_step(plan, state, law, law_state, position, velocity, command, bounds):
     """Eq. 3.1 / 3.2 at the commanded feed; the step contract of :mod:`nurbsmotion.stepping`."""
     if state.u[0] >= 1.0:
