@@ -365,7 +365,9 @@ def _fmt(value, digits=3) -> str:
 TABLE_COLUMNS = (
     ("path", "path"), ("feed_m_s", "feed [m/s]"), ("interpolator", "interpolator"),
     ("cycle_time_s", "cycle time [s]"), ("time_optimal_bound_s", "bound [s]"),
-    ("cycle_time_ratio", "cycle / bound"), ("max_drive_ratio", "max drive {axis} / Umax"),
+    ("cycle_time_ratio", "cycle / bound"), ("settle_time_s", "settled [s]"),
+    ("move_and_settle_ratio", "settled / bound"), ("end_overshoot", "end overshoot [pulse]"),
+    ("max_drive_ratio", "max drive {axis} / Umax"),
     ("saturated_samples", "saturated samples {axis}"),
     ("max_contour_error_{L}", "max contour [{L}]"), ("max_contour_error", "max contour [pulse]"),
     ("rms_contour_error_{L}", "RMS contour [{L}]"),
@@ -376,7 +378,8 @@ TABLE_COLUMNS = (
 ``length_unit``; a per-axis value gets one column per axis, ``{axis}`` naming it."""
 
 
-_TIMES = ("cycle_time_s", "time_optimal_bound_s", "cycle_time_ratio")
+_TIMES = ("cycle_time_s", "time_optimal_bound_s", "cycle_time_ratio", "settle_time_s",
+          "move_and_settle_ratio")
 
 
 def markdown_table(rows: list[dict], columns=TABLE_COLUMNS) -> str:
