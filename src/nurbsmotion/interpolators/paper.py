@@ -30,9 +30,8 @@ from .. import stepping
 from ..errors import InfeasibleError
 from ..machine import Machine
 from ..nurbs import NurbsCurve
-from .base import (Interpolator, PathData, advance, land, path_data, path_derivatives,
-                   speed_bounds)
-from .taylor import StepState, feed_at, feed_table, table_duration
+from .base import PathData, advance, land, path_data, path_derivatives, speed_bounds
+from .taylor import FeedTableInterpolator, feed_at, feed_table
 
 __all__ = ["PaperInterpolator"]
 
@@ -46,7 +45,7 @@ class PaperPlan(NamedTuple):
     mechanical_gain: np.ndarray  # Ke per axis [pulse/rad]
 
 
-class PaperInterpolator(Interpolator):
+class PaperInterpolator(FeedTableInterpolator):
     """Saturation-aware speed-controlled interpolation (Yeh & Sun 2008, eq. 3.6-3.10).
 
     Parameters
@@ -76,13 +75,6 @@ class PaperInterpolator(Interpolator):
         self.order = int(order)
         self.plan = PaperPlan(path_data(curve, self.order), self.order,
                               *feed_table(feed, curve), np.array(machine.Ke, dtype=float))
-
-    def new_state(self) -> StepState:
-        return StepState.new(self.plan.path)
-
-    def nominal_duration(self) -> float:
-        p = self.plan
-        return table_duration(self.curve, p.feed_breaks, p.feed_start, p.feed_end)
 
 
 @njit(cache=True, inline="always")

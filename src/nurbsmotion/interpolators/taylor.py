@@ -19,7 +19,7 @@ from ..nurbs import NurbsCurve
 from .base import (Interpolator, PathData, PathScratch, advance, land, path_data,
                    path_derivatives, path_scratch, positive_feed)
 
-__all__ = ["UniformInterpolator", "TaylorInterpolator", "feed_table"]
+__all__ = ["UniformInterpolator", "TaylorInterpolator", "FeedTableInterpolator", "feed_table"]
 
 class StepState(NamedTuple):
     """The state of a stepper that carries only its parameter: u, shape (1,)."""
@@ -105,6 +105,18 @@ class TaylorPlan(NamedTuple):
     feed_end: np.ndarray        # (m,) V at each interval's end [path units/s]
 
 
+class FeedTableInterpolator(Interpolator):
+    """Base of the steppers whose plan holds a path and a feed table (:func:`feed_table`:
+    ``feed_breaks``, ``feed_start``, ``feed_end``) and whose state is the parameter."""
+
+    def new_state(self) -> StepState:
+        return StepState.new(self.plan.path)
+
+    def nominal_duration(self) -> float:
+        p = self.plan
+        return table_duration(self.curve, p.feed_breaks, p.feed_start, p.feed_end)
+
+
 class UniformInterpolator(Interpolator):
     """Fixed parameter step, eq. 1.1: ``u[i+1] = u[i] + parameter_step``.
 
@@ -161,7 +173,7 @@ def uniform_step(plan, state, law, law_state, position, velocity, command, bound
     return u, plan.feed, status
 
 
-class TaylorInterpolator(Interpolator):
+class TaylorInterpolator(FeedTableInterpolator):
     """Speed-controlled interpolation by Taylor expansion at a commanded feed.
 
     Parameters
@@ -185,13 +197,6 @@ class TaylorInterpolator(Interpolator):
         self.name = f"taylor{order}"
         self.plan = TaylorPlan(path_data(curve, self.order), self.order,
                                *feed_table(feed, curve))
-
-    def new_state(self) -> StepState:
-        return StepState.new(self.plan.path)
-
-    def nominal_duration(self) -> float:
-        p = self.plan
-        return table_duration(self.curve, p.feed_breaks, p.feed_start, p.feed_end)
 
 
 @njit(cache=True, inline="always")
