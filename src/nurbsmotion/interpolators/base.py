@@ -36,7 +36,7 @@ from ..nurbs import NurbsCurve
 from ..stepping import Status
 
 __all__ = ["Status", "Interpolator", "PathData", "PathScratch", "path_data", "path_scratch",
-           "taylor_increment", "advance", "land", "path_point", "path_derivatives",
+           "taylor_increment", "advance", "land", "finish_step", "path_point", "path_derivatives",
            "speed_bounds", "positive_feed"]
 
 
@@ -184,6 +184,19 @@ def land(path, u, command, sc):
         return 1.0, stepping.FINISHED
     path_point(path, u, command, sc)
     return u, stepping.WORKING
+
+
+@njit(cache=True, inline="always")
+def finish_step(path, u0, u_new, command, state):
+    """The end of a Taylor-type step from ``u0`` to ``u_new``: ``(u, status)`` with the
+    setpoint in ``command`` and ``state.u`` advanced (:func:`land`), or ``FAILED`` with
+    nothing changed when the step is not a finite advance."""
+    du = u_new - u0
+    if not (du > 0 and math.isfinite(du)):
+        return u0, stepping.FAILED
+    u, status = land(path, u_new, command, state.scratch)
+    state.u[0] = u
+    return u, status
 
 
 @njit(cache=True, inline="always")

@@ -30,7 +30,7 @@ from .. import stepping
 from ..errors import InfeasibleError
 from ..machine import Machine
 from ..nurbs import NurbsCurve
-from .base import PathData, advance, land, path_data, path_derivatives, speed_bounds
+from .base import PathData, advance, finish_step, path_data, path_derivatives, speed_bounds
 from .taylor import FeedTableInterpolator, feed_at, feed_table
 
 __all__ = ["PaperInterpolator"]
@@ -109,11 +109,7 @@ def paper_step(plan, state, law, law_state, position, velocity, command, bounds)
             Vm = vm
     u_new = advance(plan.path, plan.order, u0, Vm, 0.0, law[0]["period"], state.scratch,
                     True)
-    du = u_new - u0
-    if not (du > 0 and math.isfinite(du)):
-        return u0, Vm, stepping.FAILED
-    u, status = land(plan.path, u_new, command, state.scratch)
-    state.u[0] = u
+    u, status = finish_step(plan.path, u0, u_new, command, state)
     if status == stepping.WORKING and Vm != V:
         status = stepping.LIMITED
     return u, Vm, status

@@ -16,7 +16,7 @@ from .. import stepping
 from ..errors import InfeasibleError
 from ..feed import FeedLimit
 from ..nurbs import NurbsCurve
-from .base import (Interpolator, PathData, PathScratch, advance, land, path_data,
+from .base import (Interpolator, PathData, PathScratch, advance, finish_step, land, path_data,
                    path_derivatives, path_scratch, positive_feed)
 
 __all__ = ["UniformInterpolator", "TaylorInterpolator", "FeedTableInterpolator", "feed_table"]
@@ -70,8 +70,8 @@ def feed_table(feed, curve: NurbsCurve) -> tuple[np.ndarray, np.ndarray, np.ndar
             except (TypeError, ValueError) as exc:
                 raise InfeasibleError(f"the feed function failed at u = {ui:.9g}: {exc}") from None
             if not (math.isfinite(V[i]) and V[i] > 0):
-                raise InfeasibleError(f"the feed function returned {float(V[i])!r} at u = {ui:.9g}; "
-                                      "a feed must be finite and > 0")
+                raise InfeasibleError(f"the feed function returned {float(V[i])!r} at "
+                                      f"u = {ui:.9g}; a feed must be finite and > 0")
         return u, V[:-1], V[1:]
     V = positive_feed(feed)
     return np.array([0.0, 1.0]), np.array([V]), np.array([V])
@@ -214,11 +214,7 @@ def taylor_step(plan, state, law, law_state, position, velocity, command, bounds
     A = dV_du * V / math.sqrt(n2)                   # dV/dt = dV/du * du/dt
     u_new = advance(plan.path, plan.order, u0, V, A, law[0]["period"], state.scratch,
                     True)
-    du = u_new - u0
-    if not (du > 0 and math.isfinite(du)):
-        return u0, V, stepping.FAILED
-    u, status = land(plan.path, u_new, command, state.scratch)
-    state.u[0] = u
+    u, status = finish_step(plan.path, u0, u_new, command, state)
     return u, V, status
 
 
