@@ -26,7 +26,8 @@ import numpy as np
 from numba import njit
 
 __all__ = ["find_span", "workspace", "basis_table", "basis_derivatives",
-           "rational_derivatives_into", "rational_point_into", "rational_derivatives"]
+           "rational_derivatives_into", "rational_derivatives",
+           "power_basis"]
 
 
 @njit(cache=True)
@@ -178,30 +179,46 @@ def rational_derivatives_into(U, Pw, p: int, us, max_order: int, left: bool, out
 
 
 @njit(cache=True)
-def rational_point_into(U, Pw, p: int, u: float, out, ndu, left, right) -> None:
-    """``C(u)`` (right-sided) into ``out``, shape (n_axes,): the ``max_order=0`` case of
-    :func:`rational_derivatives_into` with the same operations in the same order (so the
-    same bits), for callers that evaluate one point at a time; the scratch ``ndu``
-    (p+1, p+1), ``left`` and ``right`` (p+1,) is passed as plain arrays (a tuple of
-    scratch arrays passed down per point costs more than the evaluation itself)."""
-    n = Pw.shape[0]
-    dim = Pw.shape[1] - 1
-    span = find_span(n, p, U, u, False)
-    basis_table(span, u, p, U, ndu, left, right)
-    w0 = 0.0
-    for j in range(p + 1):
-        w0 += ndu[j, p] * Pw[span - p + j, dim]
-    for c in range(dim):
-        acc = 0.0
-        for j in range(p + 1):
-            acc += ndu[j, p] * Pw[span - p + j, c]
-        out[c] = acc / w0
-
-
-@njit(cache=True)
 def rational_derivatives(U, Pw, p: int, us, max_order: int, left: bool):
     """:func:`rational_derivatives_into` into a new array, shape (max_order + 1, m, n_axes)."""
     out = np.empty((max_order + 1, us.shape[0], Pw.shape[1] - 1))
     rational_derivatives_into(U, Pw, p, us, max_order, left, out,
                               workspace(p, max_order, Pw.shape[1] - 1))
+    return out
+
+
+@njit(cache=True)
+def power_basis(U, Pw, p: int, starts):
+    """The homogeneous curve ``[w*C, w]`` as a polynomial on each span, in powers of the
+    distance to the span's start (the Taylor coefficients there, A2.3, right-sided).
+
+    Parameters
+    ----------
+    U, Pw, p
+        Knots, homogeneous control points and degree (see the module glossary).
+    starts : ndarray, shape (m,)
+        The distinct knots that start the spans (each ``U[p] <= s < U[n]``).
+
+    Returns
+    -------
+    ndarray, shape (m, p + 1, n_axes + 1)
+        ``c[i, k]`` with ``[w*C, w](u) = sum_k c[i, k] * (u - starts[i])**k`` on
+        ``[starts[i], starts[i+1])``.
+    """
+    n = Pw.shape[0]
+    work = workspace(p, p, Pw.shape[1] - 1)
+    ders, ndu, wl, wr, a = work[0], work[1], work[2], work[3], work[4]
+    out = np.zeros((starts.shape[0], p + 1, Pw.shape[1]))
+    for i in range(starts.shape[0]):
+        span = find_span(n, p, U, starts[i], False)
+        basis_derivatives(span, starts[i], p, p, U, ders, ndu, wl, wr, a)
+        factorial = 1.0
+        for k in range(p + 1):
+            if k > 0:
+                factorial *= k
+            for c in range(Pw.shape[1]):
+                acc = 0.0
+                for j in range(p + 1):
+                    acc += ders[k, j] * Pw[span - p + j, c]
+                out[i, k, c] = acc / factorial
     return out

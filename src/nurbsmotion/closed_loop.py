@@ -50,13 +50,26 @@ reached first."""
 
 class LoopState(NamedTuple):
     """The loop's own state, one-element arrays: the next sample, the first sample at the
-    end (-1 before), the samples in a row spent settled, and the curve parameter of the
+    end (-1 before), the samples in a row spent settled (inside the window, every drive
+    within Umax; counted from the setpoint's end), the samples in a row whose actual
+    position is inside the window (counted from the start), and the curve parameter of the
     last setpoint."""
 
     k: np.ndarray
     finished: np.ndarray
     calm: np.ndarray
+    inside: np.ndarray
     u: np.ndarray
+
+    @classmethod
+    def new(cls) -> "LoopState":
+        return cls(np.zeros(1, np.int64), np.full(1, -1, np.int64), np.zeros(1, np.int64),
+                   np.zeros(1, np.int64), np.zeros(1))
+
+    @property
+    def settled_index(self) -> int:
+        """The first sample from which the actual position stays inside the window."""
+        return int(self.k[0] - self.inside[0])
 
 
 class AxisState(NamedTuple):
@@ -201,11 +214,13 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
             axes.speed[j] = w
             axes.position[j] = th
         loop.u[0] = u
+        dist2 = 0.0
+        for j in range(n_axes):
+            dist2 += (position[j] - end[j]) ** 2
+        inside = math.sqrt(dist2) <= settling.window
+        loop.inside[0] = loop.inside[0] + 1 if inside else 0
         if loop.finished[0] >= 0:
-            dist2 = 0.0
-            for j in range(n_axes):
-                dist2 += (position[j] - end[j]) ** 2
-            if math.sqrt(dist2) <= settling.window and not over:
+            if inside and not over:
                 loop.calm[0] += 1
             else:
                 loop.calm[0] = 0
@@ -250,8 +265,7 @@ def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
     loop : LoopState
     """
     n_axes = start.shape[0]
-    loop = LoopState(np.zeros(1, np.int64), np.full(1, -1, np.int64), np.zeros(1, np.int64),
-                     np.zeros(1))
+    loop = LoopState.new()
     origin = np.array(start if plant.position is None else plant.position, dtype=float)
     axes = AxisState(np.zeros(n_axes), origin.copy(), origin.copy())
     capacity = max(1, min(int(capacity), settling.max_samples))

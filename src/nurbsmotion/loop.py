@@ -217,7 +217,7 @@ def interpolate(interpolator: Interpolator, max_samples: int = 10_000_000) -> Se
     capacity = max(2, min(guess, max_samples + 1))
     n_axes = curve.n_axes
     law = pid_law([PidGains()] * n_axes, math.inf, Ts, False)
-    start = curve(0.0)
+    start = curve.end_points[0]
     state = interpolator.new_state()
     law_state = pid_state(start)
     velocity = np.zeros(n_axes)
@@ -322,12 +322,12 @@ def simulate(
                                            and math.isfinite(value) and value >= 0):
             raise InfeasibleError(f"{name} must be a finite number >= 0, got {value!r}")
     if plant is None:
-        plant = ServoPlant.of_machine(machine)
+        plant = machine.plant()
     elif plant.n_axes != machine.n_axes or plant.sample_period != Ts:
         raise InfeasibleError(f"the plant has {plant.n_axes} axes and Ts = "
                               f"{plant.sample_period} s; the machine {machine.n_axes} and "
                               f"{Ts} s")
-    start = curve(0.0)
+    start, end = curve.end_points
     duration = interpolator.nominal_duration()
     n_limit = int(round(settle_limit / Ts))
     if max_samples is None:
@@ -340,7 +340,7 @@ def simulate(
         max_samples += n_limit
     n_settle = int(round(settle_time / Ts))
     hold = settle_hold_samples(machine)
-    settling = closed_loop.Settling(np.ascontiguousarray(curve(1.0), dtype=float),
+    settling = closed_loop.Settling(np.ascontiguousarray(end, dtype=float),
                                     float(settle_window), n_settle, hold,
                                     max(n_limit, n_settle), int(max_samples))
     guess = (curve.length / machine.max_axis_speed.min() if duration is None else duration)
@@ -360,11 +360,7 @@ def simulate(
             f"samples ({max_samples * Ts:g} s; u = {u:.6g})")
     settled = code == closed_loop.DONE
     n = rows.u.shape[0]
-    settled_index = None
-    if settled:  # the first sample after which the position stays inside the window
-        outside = np.flatnonzero(np.linalg.norm(rows.position - settling.end, axis=1)
-                                 > settle_window)
-        settled_index = int(outside[-1]) + 1 if outside.size else 0
+    settled_index = loop.settled_index if settled else None
     success, message = _verdict(rows, machine, settled, settled_index, n, Ts, settle_window,
                                 settle_limit)
     return Trace(
@@ -380,9 +376,9 @@ def simulate(
 def _verdict(rows, machine: Machine, settled: bool, settled_index, n: int, Ts: float,
              window: float, limit: float) -> tuple[bool, str]:
     """``(success, message)`` of a run: settled, and every drive within Umax."""
-    over = int(np.count_nonzero(np.max(np.abs(rows.drive), axis=1) > machine.max_drive))
-    limited = int(np.count_nonzero(rows.status == Status.LIMITED))
-    cornered = int(np.count_nonzero(rows.status == Status.CORNERED))
+    over = int(np.count_nonzero((np.abs(rows.drive) > machine.max_drive).any(axis=1)))
+    counts = np.bincount(rows.status, minlength=len(Status))
+    limited, cornered = int(counts[Status.LIMITED]), int(counts[Status.CORNERED])
     parts = [f"settled within {window:g} pulse of the end at {settled_index * Ts:.6g} s"
              if settled else
              f"did not settle within {window:g} pulse of the end in {limit:g} s"]

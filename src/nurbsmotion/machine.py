@@ -28,7 +28,7 @@ import numpy as np
 from .control import PidGains, loop_poles, pid_law
 from ._io import parse_json_or_toml, read_text_file
 from .errors import InvalidMachineError, PathFileError
-from .servo import zoh_matrices
+from .servo import ServoPlant, zoh_matrices
 
 MAX_MACHINE_FILE_BYTES = 1_000_000
 """Largest machine file read [byte] (a machine of 6 axes takes about 1 kB)."""
@@ -274,6 +274,12 @@ class Machine:
             self._arrays["law"] = pid_law(self.pid_gains, self.max_drive, self.sample_period,
                                           self.speed_measurement == "true")
         return self._arrays["law"]
+
+    def plant(self) -> ServoPlant:
+        """The machine's own plant, at rest at the path's start (made once)."""
+        if "plant" not in self._arrays:
+            self._arrays["plant"] = ServoPlant.of_machine(self)
+        return self._arrays["plant"]
 
     @property
     def max_axis_speed(self) -> np.ndarray:

@@ -300,6 +300,7 @@ class NurbsCurve:
         self._spline = self._mirror = None  # scipy reference, built on first use
         self._geometry = None
         self._zero_speed = None  # zero_speed_points, computed on first use
+        self._ends = None  # end_points, computed on first use
         self._check_not_degenerate()
 
     # ------------------------------------------------------------------ basic facts
@@ -468,6 +469,15 @@ class NurbsCurve:
             Points [path units] or derivatives [path units / unit u^order].
         """
         return self.derivatives(u, order, side)[order]
+
+    @property
+    def end_points(self) -> np.ndarray:
+        """``[C(0), C(1)]``, shape (2, n_axes) [path units] (read-only; computed once)."""
+        if self._ends is None:
+            ends = self(np.array([0.0, 1.0]))
+            ends.flags.writeable = False
+            self._ends = ends
+        return self._ends
 
     # ------------------------------------------------------------------ geometry
     @property

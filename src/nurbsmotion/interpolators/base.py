@@ -29,74 +29,109 @@ import numpy as np
 from numba import njit
 
 from .. import stepping
-from .._kernels import rational_derivatives_into, rational_point_into, workspace
+from .._kernels import power_basis
 from ..control import pid_affine
 from ..errors import InfeasibleError
 from ..nurbs import NurbsCurve
 from ..stepping import Status
 
-__all__ = ["Status", "Interpolator", "PathData", "PathScratch", "path_data", "path_scratch",
+__all__ = ["Status", "Interpolator", "PathData", "path_data", "path_scratch",
            "taylor_increment", "advance", "land", "finish_step", "path_point", "path_derivatives",
            "speed_bounds", "positive_feed"]
 
 
 class PathData(NamedTuple):
-    """A NURBS path as the compiled steps read it.
+    """A NURBS path as the compiled steps read it: the homogeneous curve ``[w*C, w]`` as a
+    polynomial on each knot span (:func:`nurbsmotion._kernels.power_basis`), so that a
+    point and its derivatives cost one Horner pass per coordinate.
 
-    knots : (n + p + 1,); points : (n, n_axes + 1) homogeneous ``[w*P, w]``; degree : p;
-    breaks : knots inside (0, 1) where a Taylor step of the interpolator's order is
-    restarted, then 1.0; end : C(1), shape (n_axes,) [path units]."""
+    spans : (m + 1,) the distinct knots, 0 .. 1; coefficients : (m, p + 1, n_axes + 1),
+    ``[w*C, w](u) = sum_k coefficients[i, k] * (u - spans[i])**k`` on span i; restarts :
+    knots inside (0, 1) where a Taylor step of the interpolator's order is restarted, then
+    1.0; end : C(1), shape (n_axes,) [path units]."""
 
-    knots: np.ndarray
-    points: np.ndarray
-    degree: int
-    breaks: np.ndarray
+    spans: np.ndarray
+    coefficients: np.ndarray
+    restarts: np.ndarray
     end: np.ndarray
-
-
-class PathScratch(NamedTuple):
-    """Per-run scratch for evaluating a :class:`PathData` one parameter at a time."""
-
-    derivatives: np.ndarray     # (3, 1, n_axes)
-    work: tuple                 # nurbsmotion._kernels.workspace(p, 2, n_axes)
-    point: np.ndarray           # (n_axes,)
-    basis: np.ndarray           # (p + 1, p + 1)
-    left: np.ndarray            # (p + 1,)
-    right: np.ndarray           # (p + 1,)
 
 
 def path_data(curve: NurbsCurve, order: int) -> PathData:
     """The path of ``curve`` for steps of Taylor order ``order`` (1 or 2)."""
     p = curve.degree
-    breaks = np.array([b for b in curve.breakpoints[1:-1]
-                       if curve.knot_multiplicity(b) >= p - order + 1] + [1.0])
-    return PathData(np.ascontiguousarray(curve.knots, dtype=float),
-                    np.ascontiguousarray(curve.homogeneous, dtype=float), int(p), breaks,
+    spans = np.ascontiguousarray(curve.breakpoints, dtype=float)
+    coefficients = power_basis(np.ascontiguousarray(curve.knots, dtype=float),
+                               np.ascontiguousarray(curve.homogeneous, dtype=float), int(p),
+                               spans[:-1])
+    restarts = np.array([b for b in spans[1:-1]
+                         if curve.knot_multiplicity(b) >= p - order + 1] + [1.0])
+    return PathData(spans, coefficients, restarts,
                     np.ascontiguousarray(curve(1.0), dtype=float))
 
 
-def path_scratch(path: PathData) -> PathScratch:
-    p, dim = path.degree, path.points.shape[1] - 1
-    return PathScratch(np.empty((3, 1, dim)), workspace(p, 2, dim), np.empty(dim),
-                       np.empty((p + 1, p + 1)), np.empty(p + 1), np.empty(p + 1))
+def path_scratch(path: PathData) -> np.ndarray:
+    """Scratch for :func:`path_derivatives`: shape (3, n_axes)."""
+    return np.empty((3, path.coefficients.shape[2] - 1))
 
 
 @njit(cache=True, inline="always")
-def path_derivatives(path, u, order, sc):
-    """``C^(k)(u)`` for k = 0 .. order (right-sided) into ``sc.derivatives[:, 0]``; returns
-    that view, shape (3, n_axes)."""
-    us = sc.work[-1]
-    us[0] = u
-    rational_derivatives_into(path.knots, path.points, path.degree, us, order, False,
-                              sc.derivatives, sc.work)
-    return sc.derivatives[:, 0, :]
+def _span(path, u):
+    """The span of ``u``, right-sided (the last one at u = 1), and ``u`` from its start."""
+    i = np.searchsorted(path.spans, u, side="right") - 1
+    i = min(max(i, 0), path.spans.shape[0] - 2)
+    return i, u - path.spans[i]
 
 
 @njit(cache=True, inline="always")
-def path_point(path, u, out, sc):
+def _horner(c, a, t):
+    """Coordinate ``a`` of the polynomial ``c`` (p + 1, n_axes + 1) and its first two
+    derivatives at ``t``: ``(P, P', P'')``."""
+    p = c.shape[0] - 1
+    b0 = c[p, a]
+    b1 = 0.0
+    b2 = 0.0
+    for k in range(p - 1, -1, -1):
+        b2 = b2 * t + b1
+        b1 = b1 * t + b0
+        b0 = b0 * t + c[k, a]
+    return b0, b1, 2.0 * b2
+
+
+@njit(cache=True, inline="always")
+def path_derivatives(path, u, order, out):
+    """``C^(k)(u)`` for k = 0 .. order (right-sided; order <= 2) into ``out`` (3, n_axes);
+    returns it. The quotient rule of A4.2 (Piegl & Tiller) on ``[w*C, w]``."""
+    i, t = _span(path, u)
+    c = path.coefficients[i]
+    dim = out.shape[1]
+    w, w1, w2 = _horner(c, dim, t)
+    for a in range(dim):
+        A, A1, A2 = _horner(c, a, t)
+        x = A / w
+        out[0, a] = x
+        if order >= 1:
+            x1 = (A1 - w1 * x) / w
+            out[1, a] = x1
+            if order >= 2:
+                out[2, a] = (A2 - 2.0 * w1 * x1 - w2 * x) / w
+    return out
+
+
+@njit(cache=True, inline="always")
+def path_point(path, u, out):
     """``C(u)`` (right-sided) into ``out``, shape (n_axes,)."""
-    rational_point_into(path.knots, path.points, path.degree, u, out, sc.basis, sc.left,
-                        sc.right)
+    i, t = _span(path, u)
+    c = path.coefficients[i]
+    p = c.shape[0] - 1
+    dim = out.shape[0]
+    w = c[p, dim]
+    for k in range(p - 1, -1, -1):
+        w = w * t + c[k, dim]
+    for a in range(dim):
+        x = c[p, a]
+        for k in range(p - 1, -1, -1):
+            x = x * t + c[k, a]
+        out[a] = x / w
 
 
 @njit(cache=True, inline="always")
@@ -153,16 +188,17 @@ def _time_to_reach(target, d, order, V, A, T):
 
 
 @njit(cache=True, inline="always")
-def advance(path, order, u0, V, A, Ts, sc, fresh):
+def advance(path, order, u0, V, A, Ts, d, fresh):
     """Parameter after one sample from ``u0`` at feed V and tangential acceleration A,
-    piecewise across :attr:`PathData.breaks`; ``fresh``: the derivatives at ``u0`` are
-    already in the scratch (:func:`path_derivatives`)."""
+    piecewise across :attr:`PathData.restarts`; ``d`` (3, n_axes) is the scratch of
+    :func:`path_derivatives`, ``fresh``: it already holds the derivatives at ``u0``."""
     u = u0
     remaining = Ts
-    d = sc.derivatives[:, 0, :] if fresh else path_derivatives(path, u, order, sc)
+    if not fresh:
+        path_derivatives(path, u, order, d)
     while True:
         du = taylor_increment(d, order, V, A, remaining)
-        b = path.breaks[np.searchsorted(path.breaks, u, side="right")]
+        b = path.restarts[np.searchsorted(path.restarts, u, side="right")]
         if u + du <= b or b >= 1.0:
             return u + du
         dt = _time_to_reach(b - u, d, order, V, A, remaining)
@@ -171,18 +207,18 @@ def advance(path, order, u0, V, A, Ts, sc, fresh):
         remaining = remaining - dt
         if remaining <= 0.0 or V <= 0.0:
             return u
-        d = path_derivatives(path, u, order, sc)
+        path_derivatives(path, u, order, d)
 
 
 @njit(cache=True, inline="always")
-def land(path, u, command, sc):
+def land(path, u, command):
     """Finish a step at parameter ``u``: the setpoint C(u) into ``command``, or the end
     point when ``u >= 1``. Returns ``(u, status)`` with u capped at 1."""
     if u >= 1.0:
         for j in range(command.shape[0]):
             command[j] = path.end[j]
         return 1.0, stepping.FINISHED
-    path_point(path, u, command, sc)
+    path_point(path, u, command)
     return u, stepping.WORKING
 
 
@@ -194,7 +230,7 @@ def finish_step(path, u0, u_new, command, state):
     du = u_new - u0
     if not (du > 0 and math.isfinite(du)):
         return u0, stepping.FAILED
-    u, status = land(path, u_new, command, state.scratch)
+    u, status = land(path, u_new, command)
     state.u[0] = u
     return u, status
 

@@ -83,7 +83,7 @@ def paper_step(plan, state, law, law_state, position, velocity, command, bounds)
     if state.u[0] >= 1.0:
         return stepping.hold_end(plan.path.end, command, bounds)
     u0 = state.u[0]
-    d = path_derivatives(plan.path, u0, plan.order, state.scratch)
+    d = path_derivatives(plan.path, u0, plan.order, state.derivatives)
     dim = d.shape[1]
     n2 = 0.0
     for c in range(dim):
@@ -107,8 +107,7 @@ def paper_step(plan, state, law, law_state, position, velocity, command, bounds)
             vm = V
         if vm < Vm:
             Vm = vm
-    u_new = advance(plan.path, plan.order, u0, Vm, 0.0, law[0]["period"], state.scratch,
-                    True)
+    u_new = advance(plan.path, plan.order, u0, Vm, 0.0, law[0]["period"], d, True)
     u, status = finish_step(plan.path, u0, u_new, command, state)
     if status == stepping.WORKING and Vm != V:
         status = stepping.LIMITED

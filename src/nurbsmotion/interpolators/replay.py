@@ -15,7 +15,7 @@ from numba import njit
 from .. import stepping
 from ..errors import InfeasibleError
 from ..nurbs import NurbsCurve
-from .base import Interpolator, PathData, PathScratch, land, path_data, path_scratch
+from .base import Interpolator, PathData, land, path_data
 
 __all__ = ["ReplayInterpolator"]
 
@@ -23,7 +23,6 @@ __all__ = ["ReplayInterpolator"]
 class ReplayState(NamedTuple):
     u: np.ndarray               # (1,)
     k: np.ndarray               # (1,) int64: the sample whose setpoint was given last
-    scratch: PathScratch
 
 
 class ReplayPlan(NamedTuple):
@@ -76,7 +75,7 @@ class ReplayInterpolator(Interpolator):
         return self.plan.parameters
 
     def new_state(self) -> ReplayState:
-        return ReplayState(np.zeros(1), np.zeros(1, np.int64), path_scratch(self.plan.path))
+        return ReplayState(np.zeros(1), np.zeros(1, np.int64))
 
     def nominal_duration(self) -> float:
         return (len(self.plan.parameters) - 1) * self.sample_period
@@ -90,7 +89,7 @@ def replay_step(plan, state, law, law_state, position, velocity, command, bounds
     k = state.k[0] + 1
     state.k[0] = k
     bounds[:] = np.nan
-    u, status = land(plan.path, plan.parameters[k], command, state.scratch)
+    u, status = land(plan.path, plan.parameters[k], command)
     state.u[0] = u
     return u, plan.feeds[k], status
 

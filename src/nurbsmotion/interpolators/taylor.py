@@ -6,6 +6,7 @@ Neither reads the loop state. At a sharp corner the derivatives are taken from t
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import NamedTuple
 
@@ -16,16 +17,17 @@ from .. import stepping
 from ..errors import InfeasibleError
 from ..feed import FeedLimit
 from ..nurbs import NurbsCurve
-from .base import (Interpolator, PathData, PathScratch, advance, finish_step, land, path_data,
+from .base import (Interpolator, PathData, advance, finish_step, land, path_data,
                    path_derivatives, path_scratch, positive_feed)
 
 __all__ = ["UniformInterpolator", "TaylorInterpolator", "FeedTableInterpolator", "feed_table"]
 
 class StepState(NamedTuple):
-    """The state of a stepper that carries only its parameter: u, shape (1,)."""
+    """The state of a stepper that carries only its parameter: u, shape (1,), and the
+    scratch of :func:`~nurbsmotion.interpolators.base.path_derivatives`, shape (3, n_axes)."""
 
     u: np.ndarray
-    scratch: PathScratch
+    derivatives: np.ndarray
 
     @classmethod
     def new(cls, path: PathData) -> "StepState":
@@ -113,6 +115,10 @@ class FeedTableInterpolator(Interpolator):
         return StepState.new(self.plan.path)
 
     def nominal_duration(self) -> float:
+        return self._nominal_duration
+
+    @functools.cached_property
+    def _nominal_duration(self) -> float:
         p = self.plan
         return table_duration(self.curve, p.feed_breaks, p.feed_start, p.feed_end)
 
@@ -168,7 +174,7 @@ def uniform_step(plan, state, law, law_state, position, velocity, command, bound
     if state.u[0] >= 1.0:
         return stepping.hold_end(plan.path.end, command, bounds)
     bounds[:] = np.nan
-    u, status = land(plan.path, state.u[0] + plan.parameter_step, command, state.scratch)
+    u, status = land(plan.path, state.u[0] + plan.parameter_step, command)
     state.u[0] = u
     return u, plan.feed, status
 
@@ -207,13 +213,12 @@ def taylor_step(plan, state, law, law_state, position, velocity, command, bounds
     u0 = state.u[0]
     bounds[:] = np.nan
     V, dV_du = feed_at(plan.feed_breaks, plan.feed_start, plan.feed_end, u0)
-    d = path_derivatives(plan.path, u0, plan.order, state.scratch)
+    d = path_derivatives(plan.path, u0, plan.order, state.derivatives)
     n2 = 0.0
     for c in range(d.shape[1]):
         n2 += d[1, c] * d[1, c]
     A = dV_du * V / math.sqrt(n2)                   # dV/dt = dV/du * du/dt
-    u_new = advance(plan.path, plan.order, u0, V, A, law[0]["period"], state.scratch,
-                    True)
+    u_new = advance(plan.path, plan.order, u0, V, A, law[0]["period"], d, True)
     u, status = finish_step(plan.path, u0, u_new, command, state)
     return u, V, status
 
