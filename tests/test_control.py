@@ -122,6 +122,21 @@ def test_unsaturated_loop_matches_dlsim(seed, feedback_deriv):
         np.testing.assert_allclose(ours[:, col], y[:, col], rtol=TIGHT, atol=TIGHT * scale)
 
 
+@pytest.mark.parametrize("tau", [1e-5, 1e-3, 0.0123, 0.31, 100.0])
+@pytest.mark.parametrize("Ts", [1e-4, 1e-3, 2.5e-3])
+def test_closed_form_zoh_is_the_matrix_exponential(tau, Ts):
+    """SPEC section 3: [Ad Bd] = expm([[A, b], [0, 0]]*Ts), here from scipy's expm."""
+    from scipy.linalg import expm
+
+    Kc, Ke = 2506.17, 1591.5494
+    M = np.zeros((3, 3))
+    M[0, 0], M[1, 0], M[0, 2] = -1.0 / tau, Ke, Kc / tau
+    E = expm(M * Ts)
+    Ad, Bd = zoh_matrices(tau, Kc, Ke, Ts)
+    np.testing.assert_allclose(Ad, E[:2, :2], rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(Bd, E[:2, 2], rtol=1e-13)
+
+
 def test_loop_poles_match_the_state_space_eigenvalues():
     """The stability check's poles are those of the reference model's autonomous loop."""
     m = die_bonder()

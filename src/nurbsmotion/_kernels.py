@@ -1,8 +1,10 @@
 """Compiled NURBS evaluation kernels (numba ``@njit(cache=True)``).
 
-Span search, B-spline basis functions with their derivatives and rational derivatives, for
-one parameter (called from the compiled loop, :mod:`nurbsmotion.closed_loop`) or a batch
-(called by :meth:`nurbsmotion.nurbs.NurbsCurve.derivatives`). Any degree, any axis count.
+Span search, B-spline basis functions with their derivatives and rational derivatives for
+a batch of parameters (:meth:`nurbsmotion.nurbs.NurbsCurve.derivatives`), and each span's
+power form (:func:`power_basis`: the Taylor coefficients at its start, which the compiled
+loop evaluates by Horner's rule, :mod:`nurbsmotion.interpolators.base`). Any degree, any
+axis count.
 
 The first call of each kernel compiles it (about a second or two); the machine code is
 cached on disk next to this file (or in ``NUMBA_CACHE_DIR``), so later processes load it.
@@ -58,14 +60,11 @@ def find_span(n: int, p: int, U, u: float, left: bool) -> int:
     return lo
 
 
-@njit(cache=True)
-def workspace(p: int, max_order: int, dim: int):
-    """Scratch arrays for :func:`basis_derivatives` and :func:`rational_derivatives_at`,
-    allocated once per batch (or per loop run) rather than per parameter; the last one
-    holds a single parameter for callers that evaluate one at a time."""
+def workspace(p: int, max_order: int, dim: int) -> tuple:
+    """Scratch arrays for :func:`basis_derivatives` and :func:`rational_derivatives_into`,
+    allocated once per batch rather than per parameter."""
     return (np.empty((max_order + 1, p + 1)), np.empty((p + 1, p + 1)), np.empty(p + 1),
-            np.empty(p + 1), np.empty((2, p + 1)), np.empty((max_order + 1, dim + 1)),
-            np.empty(1))
+            np.empty(p + 1), np.empty((2, p + 1)), np.empty((max_order + 1, dim + 1)))
 
 
 @njit(cache=True)
@@ -156,7 +155,7 @@ def rational_derivatives_into(U, Pw, p: int, us, max_order: int, left: bool, out
     work : tuple
         Scratch from :func:`workspace` for at least this degree, order and axis count.
     """
-    ders, ndu, wl, wr, a, hom, _ = work
+    ders, ndu, wl, wr, a, hom = work
     n = Pw.shape[0]
     dim = Pw.shape[1] - 1
     for i in range(us.shape[0]):
@@ -178,8 +177,7 @@ def rational_derivatives_into(U, Pw, p: int, us, max_order: int, left: bool, out
                 out[k, i, c] = v / w0
 
 
-@njit(cache=True)
-def rational_derivatives(U, Pw, p: int, us, max_order: int, left: bool):
+def rational_derivatives(U, Pw, p: int, us, max_order: int, left: bool) -> np.ndarray:
     """:func:`rational_derivatives_into` into a new array, shape (max_order + 1, m, n_axes)."""
     out = np.empty((max_order + 1, us.shape[0], Pw.shape[1] - 1))
     rational_derivatives_into(U, Pw, p, us, max_order, left, out,
@@ -187,8 +185,7 @@ def rational_derivatives(U, Pw, p: int, us, max_order: int, left: bool):
     return out
 
 
-@njit(cache=True)
-def power_basis(U, Pw, p: int, starts):
+def power_basis(U, Pw, p: int, starts) -> np.ndarray:
     """The homogeneous curve ``[w*C, w]`` as a polynomial on each span, in powers of the
     distance to the span's start (the Taylor coefficients there, A2.3, right-sided).
 
@@ -205,10 +202,14 @@ def power_basis(U, Pw, p: int, starts):
         ``c[i, k]`` with ``[w*C, w](u) = sum_k c[i, k] * (u - starts[i])**k`` on
         ``[starts[i], starts[i+1])``.
     """
-    n = Pw.shape[0]
-    work = workspace(p, p, Pw.shape[1] - 1)
-    ders, ndu, wl, wr, a = work[0], work[1], work[2], work[3], work[4]
     out = np.zeros((starts.shape[0], p + 1, Pw.shape[1]))
+    _power_basis_into(U, Pw, p, starts, out, *workspace(p, p, Pw.shape[1] - 1)[:5])
+    return out
+
+
+@njit(cache=True)
+def _power_basis_into(U, Pw, p, starts, out, ders, ndu, wl, wr, a):
+    n = Pw.shape[0]
     for i in range(starts.shape[0]):
         span = find_span(n, p, U, starts[i], False)
         basis_derivatives(span, starts[i], p, p, U, ders, ndu, wl, wr, a)
@@ -221,4 +222,3 @@ def power_basis(U, Pw, p: int, starts):
                 for j in range(p + 1):
                     acc += ders[k, j] * Pw[span - p + j, c]
                 out[i, k, c] = acc / factorial
-    return out

@@ -301,6 +301,7 @@ class NurbsCurve:
         self._geometry = None
         self._zero_speed = None  # zero_speed_points, computed on first use
         self._ends = None  # end_points, computed on first use
+        self._power = None  # power_form, computed on first use
         self._check_not_degenerate()
 
     # ------------------------------------------------------------------ basic facts
@@ -479,6 +480,38 @@ class NurbsCurve:
             self._ends = ends
         return self._ends
 
+    @property
+    def power_form(self) -> tuple[np.ndarray, np.ndarray]:
+        """The homogeneous curve ``[w*C, w]`` as a polynomial on each span (computed once,
+        read-only; :func:`nurbsmotion._kernels.power_basis`).
+
+        Returns
+        -------
+        spans : ndarray, shape (m + 1,)
+            The distinct knots, 0 .. 1.
+        coefficients : ndarray, shape (m, p + 1, n_axes + 1)
+            ``[w*C, w](u) = sum_k coefficients[i, k] * (u - spans[i])**k`` on span i.
+        """
+        if self._power is None:
+            from ._kernels import power_basis
+
+            spans = np.array(self.breakpoints, dtype=float)
+            coefficients = power_basis(self.knots, self._homogeneous, self.degree, spans[:-1])
+            spans.flags.writeable = coefficients.flags.writeable = False
+            self._power = (spans, coefficients)
+        return self._power
+
+    def _weight(self, u: np.ndarray) -> np.ndarray:
+        """w(u), right-sided, for parameters ``u`` in [0, 1] (the power form, Horner)."""
+        spans, coefficients = self.power_form
+        i = np.clip(np.searchsorted(spans, u, side="right") - 1, 0, len(spans) - 2)
+        t = u - spans[i]
+        c = coefficients[i, :, -1]
+        w = c[:, -1].copy()
+        for k in range(self.degree - 1, -1, -1):
+            w = w * t + c[:, k]
+        return w
+
     # ------------------------------------------------------------------ geometry
     @property
     def geometry(self):
@@ -605,12 +638,10 @@ class NurbsCurve:
             same = np.all(P[1:] == P[:-1], axis=1)
             t = self.knots  # span i, from P_i to P_i+1, is [t_(i+1), t_(i+2)]
             return np.unique(np.concatenate([t[1:-2][same], t[2:-1][same]]))
-        from scipy.interpolate import BSpline
-
         nodes = np.polynomial.chebyshev.chebpts1(2 * p - 1)
         a, b = bp[:-1], bp[1:]
         uu = (0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * nodes  # (spans, nodes)
-        weight = BSpline(self.knots, self.weights, p)(uu.ravel()).reshape(uu.shape)
+        weight = self._weight(uu.ravel()).reshape(uu.shape)
         numerator = self(uu.ravel(), 1).reshape(uu.shape + (-1,)) * weight[..., None] ** 2
         # Chebyshev coefficients of every span and axis, shape (spans, 2p - 1, axes).
         coef = np.einsum("kn,snj->skj", np.linalg.pinv(

@@ -6,7 +6,8 @@ Each axis follows SPEC section 3 (eq. 2.1-2.2 with b = [Kc/tau, 0]^T)::
 
 The drive is clipped to ``[-Umax, Umax]`` and held over each sample, so one step is the
 exact discretisation ``x[k+1] = Ad x[k] + Bd u[k]`` with ``[Ad Bd] = expm([[A, b], [0, 0]]*Ts)``
-(never Euler). The plant knows nothing of paths or controllers.
+(never Euler), here in its closed form (:func:`zoh_matrices`). The plant knows nothing of
+paths or controllers.
 
 Glossary
 --------
@@ -15,13 +16,11 @@ x = [w, theta] : state, motor speed [rad/s] and position [pulse]; u : drive [V].
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
-from scipy.linalg import expm
 
 from .errors import InvalidMachineError
 
@@ -30,7 +29,15 @@ __all__ = ["ServoPlant", "zoh_matrices", "plant_step"]
 
 def zoh_matrices(time_constant: float, electrical_gain: float, mechanical_gain: float,
                  sample_period: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact zero-order-hold discretisation of one axis.
+    """Exact zero-order-hold discretisation of one axis, ``expm([[A, b], [0, 0]]*Ts)`` in
+    closed form.
+
+    With ``x = Ts/tau``, ``a = exp(-x)`` and ``g = 1 - a``::
+
+        Ad = [[a, 0], [Ke*tau*g, 1]]      Bd = [Kc*g, Ke*Kc*tau*(x - g)]
+
+    ``g`` and ``x - g`` are evaluated without cancellation (``expm1`` and a series for
+    small x), so the matrices are exact to rounding for any Ts/tau.
 
     Returns
     -------
@@ -38,22 +45,27 @@ def zoh_matrices(time_constant: float, electrical_gain: float, mechanical_gain: 
     Bd : ndarray, shape (2,)
         For the state ``[w, theta]``.
     """
-    E = _zoh_exponential(float(time_constant), float(electrical_gain), float(mechanical_gain),
-                         float(sample_period))
-    return E[:2, :2].copy(), E[:2, 2].copy()
+    tau, Kc, Ke = float(time_constant), float(electrical_gain), float(mechanical_gain)
+    x = float(sample_period) / tau
+    g = -math.expm1(-x)
+    Ad = np.array([[1.0 - g, 0.0], [Ke * tau * g, 1.0]])
+    Bd = np.array([Kc * g, Ke * Kc * tau * _x_minus_one_minus_exp(x)])
+    return Ad, Bd
 
 
-@functools.lru_cache(maxsize=256)
-def _zoh_exponential(time_constant, electrical_gain, mechanical_gain, sample_period):
-    # Cached: a sweep builds the same plant for every run, and expm costs more than a
-    # short compiled run.
-    M = np.zeros((3, 3))
-    M[0, 0] = -1.0 / time_constant
-    M[1, 0] = mechanical_gain
-    M[0, 2] = electrical_gain / time_constant
-    E = expm(M * sample_period)
-    E.flags.writeable = False
-    return E
+def _x_minus_one_minus_exp(x: float) -> float:
+    """``x - (1 - exp(-x))`` for x > 0, accurate to rounding: the series
+    ``sum_{n>=2} (-1)^n x^n / n!`` below 0.5 (where the difference cancels), else direct."""
+    if x >= 0.5:
+        return x + math.expm1(-x)
+    term = x * x / 2.0
+    total = 0.0
+    n = 2
+    while abs(term) > 1e-17 * x * x:
+        total += term
+        n += 1
+        term *= -x / n
+    return total
 
 
 def _axis_values(values, name: str) -> np.ndarray:

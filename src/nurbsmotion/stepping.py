@@ -86,7 +86,7 @@ def step(plan, state, law, law_state, position, velocity, command, bounds):
                               bounds)
 
 
-@overload(step, jit_options={"cache": True}, inline="always")
+@overload(step, jit_options={"cache": True})
 def _step_overload(plan, state, law, law_state, position, velocity, command, bounds):
     from numba.core import types
 

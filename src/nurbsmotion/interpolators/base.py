@@ -29,7 +29,6 @@ import numpy as np
 from numba import njit
 
 from .. import stepping
-from .._kernels import power_basis
 from ..control import pid_affine
 from ..errors import InfeasibleError
 from ..nurbs import NurbsCurve
@@ -59,14 +58,11 @@ class PathData(NamedTuple):
 def path_data(curve: NurbsCurve, order: int) -> PathData:
     """The path of ``curve`` for steps of Taylor order ``order`` (1 or 2)."""
     p = curve.degree
-    spans = np.ascontiguousarray(curve.breakpoints, dtype=float)
-    coefficients = power_basis(np.ascontiguousarray(curve.knots, dtype=float),
-                               np.ascontiguousarray(curve.homogeneous, dtype=float), int(p),
-                               spans[:-1])
+    spans, coefficients = curve.power_form
     restarts = np.array([b for b in spans[1:-1]
                          if curve.knot_multiplicity(b) >= p - order + 1] + [1.0])
     return PathData(spans, coefficients, restarts,
-                    np.ascontiguousarray(curve(1.0), dtype=float))
+                    np.ascontiguousarray(curve.end_points[1], dtype=float))
 
 
 def path_scratch(path: PathData) -> np.ndarray:
