@@ -57,13 +57,25 @@ def python_env(**extra: str) -> dict:
 
 def run_python(code: str, **extra_env: str) -> tuple[float, str]:
     """Run ``python -c code`` in a fresh process; (wall time [s], its stdout)."""
+    wall, _, out = run_python_timed(code, **extra_env)
+    return wall, out
+
+
+def run_python_timed(code: str, **extra_env: str) -> tuple[float, float, str]:
+    """Run ``python -c code`` in a fresh process; (wall time [s], its CPU time, user +
+    system [s], its stdout). The CPU time hardly depends on what else the machine runs."""
+    import resource
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", code], env=python_env(**extra_env),
                           capture_output=True, text=True, cwd=ROOT)
     wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if done.returncode != 0:
         raise RuntimeError(f"child failed ({done.returncode}):\n{done.stderr[-2000:]}")
-    return wall, done.stdout
+    return wall, cpu, done.stdout
 
 
 def cold_and_warm(measure, repeats: int) -> tuple[list, list]:

@@ -64,22 +64,37 @@ def test_derivatives_above_the_degree_are_zero_for_a_polyline():
     assert np.all(d[2] == 0.0) and np.all(d[3] == 0.0)
 
 
-def test_one_point_evaluation_gives_the_same_bits_as_the_batch():
-    """rational_point_into (the compiled loop's setpoints) against the batch kernel, which
-    the reference loop evaluates through: bit for bit, knots and corners included."""
-    from nurbsmotion._kernels import rational_point_into
+def loop_path_agrees(curve, us, order):
+    """The compiled loop's path (the power form, Horner) against the reference route,
+    right-sided, orders 0 .. ``order``, relative to the largest value of each order."""
+    from nurbsmotion.interpolators.base import (path_data, path_derivatives, path_point,
+                                                path_scratch)
 
+    path = path_data(curve, 2)
+    ref = curve._derivatives_reference(us, order, "right")
+    got = np.empty_like(ref)
+    d = path_scratch(path)
+    point = np.empty(curve.n_axes)
+    for i, u in enumerate(us):
+        got[:, i] = path_derivatives(path, float(u), order, d)[: order + 1]
+        path_point(path, float(u), point)
+        np.testing.assert_array_equal(point, got[0, i])  # one route for points
+    for k in range(order + 1):
+        scale = max(np.max(np.abs(ref[k])), 1e-300)
+        np.testing.assert_allclose(got[k], ref[k], rtol=RTOL, atol=RTOL * scale,
+                                   err_msg=f"order {k}")
+
+
+def test_the_loops_power_form_agrees_with_the_reference():
+    """Knots, corners, tiny spans (1e-6 of the domain) and degree 5 included."""
     rng = np.random.default_rng(3)
-    for _ in range(N_CASES):
-        curve = random_curve(rng)
-        p = curve.degree
-        us = np.concatenate([rng.uniform(0, 1, 50), curve.breakpoints])
-        batch = curve(us)
-        out = np.empty(curve.n_axes)
-        scratch = (np.empty((p + 1, p + 1)), np.empty(p + 1), np.empty(p + 1))
-        for u, expected in zip(us, batch):
-            rational_point_into(curve.knots, curve._homogeneous, p, float(u), out, *scratch)
-            np.testing.assert_array_equal(out, expected)
+    curves = [nm.builtin_path("butterfly"), nm.make_die_bonder_pi()]
+    curves += [random_curve(rng) for _ in range(N_CASES)]
+    tiny = np.concatenate([np.zeros(6), [0.4, 0.4 + 1e-6, 0.7], np.ones(6)])
+    curves.append(nm.NurbsCurve(5, tiny, np.cumsum(rng.normal(size=(9, 3)), axis=0),
+                                rng.uniform(0.3, 4.0, 9)))
+    for curve in curves:
+        loop_path_agrees(curve, parameters(curve), 2)
 
 
 def test_importing_the_package_compiles_nothing_and_loads_no_plotting():
