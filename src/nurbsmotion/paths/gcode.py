@@ -15,7 +15,8 @@ What is read
     G17/G18/G19 plane in centre format (incremental, or absolute under ``G90.1``) or radius
     format, with ``P`` turns, as exact rational arcs, as a helix (C1 cubic pieces within
     :data:`HELIX_TOLERANCE` of the radius) when another axis moves along, or as a spiral
-    when the end radius differs from the start radius within LinuxCNC's tolerance; ``G5``
+    when the end radius differs from the start radius by more than :data:`HELIX_TOLERANCE`
+    of it (and within LinuxCNC's tolerance); ``G5``
     and ``G5.1`` (XY); ``G5.2``/``G5.3`` and ``G6.2`` (``P`` order, ``Q`` method, ``K``
     knots, ``R`` weights; Fanuc ``G06.2`` alike) in the XY, YZ and ZX planes; ``F`` under
     ``G94`` (units per minute) or ``G93`` (inverse time); ``G20``/``G21``; ``G90``/``G91``;
@@ -86,7 +87,7 @@ from ..feed import FeedLimit
 from ..joining import bezier_segments, elevate_degree, join_with_edges
 from ..nurbs import NurbsCurve, make_polyline
 from .ngc import MAX_LINE_LENGTH, Program, split_lines
-from .pieces import PieceChain, arc_by_center, arc_sweep
+from .pieces import HELIX_TOLERANCE, PieceChain, arc_by_center, arc_sweep
 
 __all__ = [
     "GcodeContour",
@@ -231,10 +232,6 @@ MAX_COORDINATE = 1e9
 ordinary size cannot be computed to 1e-9 of its size in double precision."""
 MAX_ARC_TURNS = 100
 """Most turns (``P``) a G2/G3 arc may have."""
-HELIX_TOLERANCE = 1e-9
-"""Largest distance of a helix's cubic approximation from the true helix, relative to
-its radius."""
-
 
 def _g_name(value: float) -> str:
     return f"G{value:g}"
@@ -267,32 +264,13 @@ def _embed(curve: NurbsCurve, base: np.ndarray, cols: tuple) -> NurbsCurve:
 
 def helix(center, radius0: float, radius1: float, a0: float, sweep: float, start: np.ndarray,
           end: np.ndarray, cols: tuple, name: str | None = None) -> NurbsCurve:
-    """A helix (or spiral) as a C1 piecewise cubic: angle ``a0 -> a0 + sweep`` [rad]
-    round ``center`` in the coordinates ``cols``, radius ``radius0 -> radius1`` and every
-    other coordinate ``start -> end`` linearly in the angle. Cubic Hermite pieces of
-    angle ``h`` deviate at most ``r h^4 / 384`` from the helix; ``h`` is chosen so that
-    this stays below :data:`HELIX_TOLERANCE` times the radius."""
-    r = max(radius0, radius1)
-    h = (384.0 * HELIX_TOLERANCE) ** 0.25
-    n = max(1, math.ceil(abs(sweep) / h))
-    t = np.linspace(0.0, 1.0, n + 1)
-    ang = a0 + sweep * t
-    rad = radius0 + (radius1 - radius0) * t
-    P = start[None, :] + t[:, None] * (end - start)[None, :]
-    D = np.repeat(((end - start) / sweep)[None, :], n + 1, axis=0)  # d/dangle
-    c, s = np.cos(ang), np.sin(ang)
-    dr = (radius1 - radius0) / sweep
-    i, j = cols
-    P[:, i], P[:, j] = center[0] + rad * c, center[1] + rad * s
-    D[:, i], D[:, j] = dr * c - rad * s, dr * s + rad * c
-    step = sweep / n
-    ctrl = np.empty((3 * n + 1, len(start)))
-    ctrl[0::3] = P
-    ctrl[1::3] = P[:-1] + D[:-1] * step / 3
-    ctrl[2::3] = P[1:] - D[1:] * step / 3
-    ctrl[-1] = end if np.allclose(P[-1], end, rtol=0, atol=1e-9 * max(r, 1.0)) else P[-1]
-    knots = np.concatenate([[0.0] * 4, np.repeat(t[1:-1], 3), [1.0] * 4])
-    return NurbsCurve(3, knots, ctrl, name=name)
+    """A helix (or spiral) as one C1 piecewise cubic curve: angle ``a0 -> a0 + sweep``
+    [rad] round ``center`` in the coordinates ``cols``, radius ``radius0 -> radius1`` and
+    every other coordinate ``start -> end`` linearly in the angle, within
+    :data:`HELIX_TOLERANCE` of the radius (:meth:`PieceChain.add_spiral`)."""
+    chain = PieceChain(start)
+    chain.add_spiral(end, cols, center, radius0, radius1, a0, sweep, 1.0)
+    return chain.build(name=name)[0]
 
 
 class _Reader:
@@ -328,7 +306,7 @@ class _Reader:
         others = [i for i in range(9) if i not in self.axes]
         self.path_of = _picker(self.axes)  # X..W -> tuple of the path coordinates
         self.others_of = _picker(others)
-        self._k = None  # (input inch, output units) -> lengths()
+        self._k = None  # lengths(), until G20/G21 changes the input units
 
     @property
     def position(self) -> np.ndarray:
@@ -437,10 +415,10 @@ class _Reader:
 
     def lengths(self) -> list:
         """Factor from the words' units to output units for X..W (1 for rotary A B C)."""
-        k = self.scale()
-        if self._k is None or self._k[0] != k:
-            self._k = (k, [k, k, k, 1.0, 1.0, 1.0, k, k, k])
-        return self._k[1]
+        if self._k is None:
+            k = self.scale()
+            self._k = [k, k, k, 1.0, 1.0, 1.0, k, k, k]
+        return self._k
 
     def plain_target(self, words: dict) -> list:
         """:meth:`target` without offsets, rotation or polar words: the common case, lean."""
@@ -511,9 +489,7 @@ class _Reader:
 
     def add_piece(self, piece: NurbsCurve, line: int, length: float | None = None) -> None:
         """Add a piece in path coordinates; ``length``: its arc length where known exactly."""
-        length = self.open_chain().add_curve(piece, length)
-        self.piece_feeds.append(self.piece_feed(length, line))
-        self.piece_lines.append(line)
+        self.add_length(self.open_chain().add_curve(piece, length), line)
 
     def add_line(self, end: list) -> None:
         """A G1 move from the current position to ``end`` (absolute X..W)."""
@@ -521,6 +497,11 @@ class _Reader:
         feed = self.feed
         self.piece_feeds.append(feed if feed > 0 and not self.inverse_time else self.piece_feed(length, self.line))
         self.piece_lines.append(self.line)
+
+    def add_length(self, length: float, line: int) -> None:
+        """Record the feed and line of the piece of ``length`` just added to the chain."""
+        self.piece_feeds.append(self.piece_feed(length, line))
+        self.piece_lines.append(line)
 
     def add_curve(self, curve: NurbsCurve, line: int, length: float | None = None) -> None:
         """Add a piece given in program coordinates X..W (9 columns)."""
@@ -590,6 +571,7 @@ class _Reader:
                 motion = _MOTION[g]
             elif g in (20.0, 21.0):
                 self.input_inch = g == 20.0
+                self._k = None
                 if self.units is None:
                     self.units = "inch" if self.input_inch else "mm"
             elif g in (90.0, 91.0):
@@ -817,26 +799,35 @@ class _Reader:
                              f"{_AXES[i1]}{_AXES[i2]} in the path (the path has "
                              f"{''.join(_AXES[i] for i in self.axes)})")
         linear = any(pe[i] != ps[i] for i in range(9) if i != i1 and i != i2)
+        # Within HELIX_TOLERANCE the exact arc ending on the programmed point (its last
+        # control point moved by at most the radius difference) is as close to LinuxCNC's
+        # spiral as the spiral's own cubic pieces are.
+        exact = not linear and diff <= HELIX_TOLERANCE * r1
         a0, sweep = arc_sweep((sx, sy), (ex, ey), (cx, cy), clockwise)
-        if not linear and diff <= 1e-12 * r1:
-            if self.frame()[2]:  # a rotated frame: the arc turned with it (rational arcs are)
+        if self.frame()[2]:  # a rotated frame: built in program coordinates and turned
+            if exact:
                 build = lambda: arc_by_center((sx, sy), (ex, ey), (cx, cy), clockwise=clockwise, turns=int(turns))
                 for piece in self.make(build, line):  # rational quadratics: sweep 2 acos(w_mid) each
                     sweep = 2.0 * float(np.sum(np.arccos(np.clip(piece.weights[1::2], -1.0, 1.0))))
                     self.add_curve(_embed(piece, np.array(ps), (i1, i2)), line, r1 * sweep)
-                return
-            centre = self.to_absolute_point([cx if i == i1 else cy if i == i2 else 0.0 for i in range(9)])
-            cols, c2 = (self.axes.index(i1), self.axes.index(i2)), (centre[i1], centre[i2])
-            chain, full = self.open_chain(), math.copysign(2 * math.pi, sweep)
-            for _ in range(int(turns) - 1):
-                self.piece_feeds.append(self.piece_feed(chain.add_arc(self.path_of(start), cols, c2, r1, a0, full), line))
-                self.piece_lines.append(line)
-            self.piece_feeds.append(self.piece_feed(chain.add_arc(self.path_of(end), cols, c2, r1, a0, sweep), line))
-            self.piece_lines.append(line)
+            else:
+                sweep += math.copysign(2 * math.pi * (int(turns) - 1), sweep)
+                center, ps, pe = np.array([cx, cy]), np.array(ps), np.array(pe)
+                self.add_curve(self.make(lambda: helix(center, r1, r2, a0, sweep, ps, pe, (i1, i2)), line), line)
             return
-        sweep += math.copysign(2 * math.pi * (int(turns) - 1), sweep)
-        center, ps, pe = np.array([cx, cy]), np.array(ps), np.array(pe)
-        self.add_curve(self.make(lambda: helix(center, r1, r2, a0, sweep, ps, pe, (i1, i2)), line), line)
+        centre = self.to_absolute_point([cx if i == i1 else cy if i == i2 else 0.0 for i in range(9)])
+        cols, c2 = (self.axes.index(i1), self.axes.index(i2)), (centre[i1], centre[i2])
+        chain = self.open_chain()
+        if exact:
+            full = math.copysign(2 * math.pi, sweep)
+            for _ in range(int(turns) - 1):
+                self.add_length(chain.add_arc(self.path_of(start), cols, c2, r1, a0, full), line)
+            self.add_length(chain.add_arc(self.path_of(end), cols, c2, r1, a0, sweep), line)
+        else:  # a helix or spiral; its length: the helix's of the mean radius
+            sweep += math.copysign(2 * math.pi * (int(turns) - 1), sweep)
+            rise = math.dist(*((p[i] for i in self.axes if i != i1 and i != i2) for p in (start, end)))
+            length = math.hypot(0.5 * (r1 + r2) * sweep, rise)
+            self.add_length(chain.add_spiral(self.path_of(end), cols, c2, r1, r2, a0, sweep, length), line)
 
     def spline(self, kind: str, w: dict, start: np.ndarray, end: np.ndarray) -> None:
         k = self.scale()
@@ -1041,7 +1032,7 @@ def load_gcode(file: str | os.PathLike, axes: str = "xy") -> GcodeProgram:
     if not axes or len(set(axes)) != len(axes) or not set(axes) <= set(_AXES):
         raise PathFileError(f"path axes {axes!r} must be distinct letters of {_AXES}", str(path))
     reader = _Reader(str(path), axes)
-    lines = split_lines(path.read_bytes().upper(), str(path))  # ASCII letters only: UTF-8 stays valid
+    lines = split_lines(path.read_bytes(), str(path), upper=True)
     program = Program(lines, str(path), reader.system_parameter)  # upper-cased: the fast path
     reader.program = program
     for block in program.blocks():

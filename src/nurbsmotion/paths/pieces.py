@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import InvalidCurveError
 from ..nurbs import NurbsCurve, make_arc
 
-__all__ = ["with_end_point", "arc_by_center", "arc_sweep", "arc_by_bulge", "arc_by_radius", "PieceChain",
+__all__ = ["with_end_point", "arc_by_center", "arc_sweep", "HELIX_TOLERANCE", "arc_by_bulge", "arc_by_radius", "PieceChain",
            "bezier_elevation", "arc_spans"]
 
 
@@ -120,6 +120,13 @@ def arc_by_bulge(start, end, bulge: float, *, name=None, units=None) -> NurbsCur
 
 
 # ---------------------------------------------------------------------- bulk joining
+HELIX_TOLERANCE = 1e-9
+"""Largest distance of a helix's (or spiral's) cubic approximation from the true curve,
+relative to its radius."""
+_HELIX_STEP = (384.0 * HELIX_TOLERANCE) ** 0.25
+"""Angle [rad] of one cubic Hermite piece of a helix: it deviates at most r h^4 / 384."""
+
+
 def bezier_elevation(q: int, p: int) -> np.ndarray:
     """Matrix ``E`` (shape (p + 1, q + 1)) that raises a Bézier segment of degree q to
     degree p: new homogeneous points ``E @ H`` (The NURBS Book, eq. 5.36)."""
@@ -157,6 +164,7 @@ class PieceChain:
     """
 
     _ARC_FIELDS = 7  # first column, second column, centre (2), radius, start angle, sweep
+    _SPIRAL_FIELDS = 8  # the same with the start and the end radius
 
     def __init__(self, start):
         self.start = [float(x) for x in start]
@@ -166,6 +174,7 @@ class PieceChain:
         self.ends = array("d")  # n_axes per piece
         self.lengths = array("d")
         self.arcs = array("d")  # _ARC_FIELDS per arc
+        self.spirals = array("d")  # _SPIRAL_FIELDS per helix or spiral
         self.curves: list[NurbsCurve] = []
 
     def __len__(self) -> int:
@@ -190,6 +199,21 @@ class PieceChain:
         self.ends.extend(end)
         self.lengths.append(length)
         self.arcs.extend((cols[0], cols[1], center[0], center[1], radius, start_angle, sweep))
+        self.last = list(end)
+        return length
+
+    def add_spiral(self, end, cols: tuple, center, radius0: float, radius1: float,
+                   start_angle: float, sweep: float, length: float) -> float:
+        """A helix or spiral: the angle runs ``start_angle -> start_angle + sweep`` [rad]
+        round ``center`` in the coordinates ``cols``, the radius ``radius0 -> radius1`` and
+        every other coordinate from the start to ``end`` linearly in the angle. Built as a
+        C1 piecewise cubic (Hermite pieces of angle at most ``(384 HELIX_TOLERANCE)^(1/4)``,
+        within :data:`HELIX_TOLERANCE` of the radius), ending exactly at ``end``.
+        ``length`` is the caller's arc length of it (its parameter share); returned."""
+        self.kind.append(3)
+        self.ends.extend(end)
+        self.lengths.append(length)
+        self.spirals.extend((cols[0], cols[1], center[0], center[1], radius0, radius1, start_angle, sweep))
         self.last = list(end)
         return length
 
@@ -230,8 +254,10 @@ class PieceChain:
         starts = np.vstack([np.array(self.start)[None, :], ends[:-1]])
         lengths = np.frombuffer(self.lengths, dtype=float)
         arcs = np.frombuffer(self.arcs, dtype=float).reshape(-1, self._ARC_FIELDS)
-        lines, arc_idx, curve_idx = (np.flatnonzero(kind == k) for k in (0, 1, 2))
-        p = max([1] + ([2] if len(arcs) else []) + [c.degree for c in self.curves])
+        spirals = np.frombuffer(self.spirals, dtype=float).reshape(-1, self._SPIRAL_FIELDS)
+        lines, arc_idx, curve_idx, spiral_idx = (np.flatnonzero(kind == k) for k in (0, 1, 2, 3))
+        p = max([1] + ([2] if len(arcs) else []) + ([3] if len(spirals) else [])
+                + [c.degree for c in self.curves])
 
         size = float(np.max(np.ptp(np.vstack([starts[:1], ends]), axis=0)))
         for k, c in zip(curve_idx, self.curves):
@@ -251,9 +277,11 @@ class PieceChain:
         a, b = edges[:-1], edges[1:]
 
         m_arc = arc_spans(arcs[:, 6])
+        m_spiral = np.maximum(1, np.ceil(np.abs(spirals[:, 7]) / _HELIX_STEP)).astype(np.int64)
         count = np.empty(n, dtype=np.int64)  # new control points (= knots) per piece
         count[lines] = p
         count[arc_idx] = p * m_arc
+        count[spiral_idx] = p * m_spiral
         count[curve_idx] = [c.n_control_points - 1 for c in curves]
         offset = np.concatenate([[1], 1 + np.cumsum(count)[:-1]])  # row of each piece's first new point
         N = 1 + int(np.sum(count))
@@ -286,6 +314,8 @@ class PieceChain:
             K[p + rows] = b[lines][:, None]
         if len(arc_idx):
             self._arc_rows(arcs, m_arc, arc_idx, starts, ends, a, b, scale, offset, p, P, W, K)
+        if len(spiral_idx):
+            self._spiral_rows(spirals, m_spiral, spiral_idx, starts, ends, a, b, scale, offset, p, P, W, K)
         for k, c in zip(curve_idx, curves):
             r0, cnt = offset[k], c.n_control_points - 1
             P[r0: r0 + cnt] = c.control_points[1:]
@@ -295,6 +325,42 @@ class PieceChain:
             K[p + r0 + len(interior): p + r0 + cnt] = b[k]
         curve = NurbsCurve(p, K, P, W, name=name, units=units)
         return curve, edges
+
+    def _spiral_rows(self, spirals, m, idx, starts, ends, a, b, scale, offset, p, P, W, K) -> None:
+        """Fill the rows of every helix or spiral piece: cubic Hermite segments, raised to
+        degree p."""
+        first = np.cumsum(m) - m
+        owner = np.repeat(np.arange(len(idx)), m)
+        within = np.arange(int(np.sum(m))) - first[owner]
+        ci, cj = spirals[owner, 0].astype(np.int64), spirals[owner, 1].astype(np.int64)
+        cx, cy, r0, r1, a0, sweep = (spirals[owner, f] for f in range(2, 8))
+        S, E = starts[idx][owner], ends[idx][owner]
+        seg = np.arange(len(owner))
+        ends_of = []  # point and d/dangle at the start (t0) and the end (t1) of each segment
+        for t in (within / m[owner], (within + 1) / m[owner]):
+            ang, rad = a0 + sweep * t, r0 + (r1 - r0) * t
+            c, s = np.cos(ang), np.sin(ang)
+            dr = (r1 - r0) / sweep
+            X = S + t[:, None] * (E - S)
+            D = (E - S) / sweep[:, None]  # d/dangle of the coordinates that move linearly
+            X[seg, ci], X[seg, cj] = cx + rad * c, cy + rad * s
+            D[seg, ci], D[seg, cj] = dr * c - rad * s, dr * s + rad * c
+            ends_of.append((X, D))
+        (X0, D0), (X1, D1) = ends_of
+        X0[first] = starts[idx]
+        X1[first + m - 1] = ends[idx]  # exactly the programmed end
+        step = (sweep / m[owner])[:, None]
+        Q = np.stack([X0, X0 + D0 * step / 3, X1 - D1 * step / 3, X1], axis=1)  # (segments, 4, d)
+        Wq = np.ones(Q.shape[:2])
+        if p > 3:
+            Q = np.einsum("ij,sjk->sik", bezier_elevation(3, p), Q)
+            Wq = np.ones(Q.shape[:2])
+        rows = offset[idx][owner][:, None] + within[:, None] * p + np.arange(p)
+        P[rows] = Q[:, 1:]
+        W[rows] = Wq[:, 1:] * scale[idx][owner][:, None]
+        knot = a[idx][owner] + (b - a)[idx][owner] * (within + 1) / m[owner]
+        knot[first + m - 1] = b[idx]
+        K[p + rows] = knot[:, None]
 
     def _arc_rows(self, arcs, m, arc_idx, starts, ends, a, b, scale, offset, p, P, W, K) -> None:
         """Fill the rows of every arc piece: its rational quadratic segments (as
