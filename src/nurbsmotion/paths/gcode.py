@@ -353,7 +353,9 @@ class _Reader:
 
     def identity_frame(self) -> bool:
         """Whether no offset or rotation is active (program = absolute coordinates)."""
-        self.frame()
+        if self._frame_key is None or self._frame_key[0] != self.program.frame_version \
+                or self._frame_key[1] != self.frame_changes:
+            self.frame()
         return self._identity
 
     def _read_frame(self) -> tuple[np.ndarray, np.ndarray, float]:
@@ -491,9 +493,9 @@ class _Reader:
         """Add a piece in path coordinates; ``length``: its arc length where known exactly."""
         self.add_length(self.open_chain().add_curve(piece, length), line)
 
-    def add_line(self, end: list) -> None:
-        """A G1 move from the current position to ``end`` (absolute X..W)."""
-        length = (self.chain if self.chain is not None else self.open_chain()).add_line(self.path_of(end))
+    def add_line(self, path_end: tuple) -> None:
+        """A G1 move from the current position to ``path_end`` (the path coordinates)."""
+        length = (self.chain if self.chain is not None else self.open_chain()).add_line(path_end)
         feed = self.feed
         self.piece_feeds.append(feed if feed > 0 and not self.inverse_time else self.piece_feed(length, self.line))
         self.piece_lines.append(self.line)
@@ -721,7 +723,8 @@ class _Reader:
         """Move to ``end`` (absolute X..W) with motion ``kind``: a piece of the open
         contour, or the end of it (rapid, move of an axis outside the path)."""
         start = self.pos
-        moves_path = self.path_of(end) != self.path_of(start)
+        path_end = self.path_of(end)
+        moves_path = path_end != self.path_of(start)
         moves_other = self.others_of(end) != self.others_of(start)
         if kind == "G0":
             if moves_path or moves_other:
@@ -736,7 +739,7 @@ class _Reader:
             self.end_contour()  # a plunge or lift of an axis outside the path ends the contour
         elif kind == "G1":
             if moves_path:
-                self.add_line(end)
+                self.add_line(path_end)
         elif kind in ("G2", "G3"):
             self.arc(w, start, end)
         else:

@@ -99,12 +99,15 @@ def split_lines(data: bytes, source: str, upper: bool = False) -> list[str]:
 # ---------------------------------------------------------------------- tokenizer
 _PLAIN = re.compile(r"(?:[a-z][+-]?(?:\d+\.?\d*|\.\d+))*\Z")
 _PLAIN_WORD = re.compile(r"([a-z])([+-]?(?:\d+\.?\d*|\.\d+))")
-# The lines CAM systems write, matched on the upper-cased line in one step: an optional
-# block delete and N number, letter-number words (no O word) separated by blanks, an
-# optional trailing comment. Every other line goes through the full parser.
-_FAST_LINE = re.compile(r"[ \t]*(?:/[ \t]*)?(?:N\d+[ \t]*)?((?:[A-MP-Z][+-]?(?:\d+\.?\d*|\.\d+)[ \t]*)*)"
-                        r"(?:\([^()]*\)[ \t]*)?(?:;.*)?\Z")
-_FAST_WORD = re.compile(r"([A-MP-Z])([+-]?(?:\d+\.?\d*|\.\d+))")
+# The lines CAM systems write, read from the upper-cased line in one match: an optional
+# block delete and N number, up to FAST_WORDS letter-number words (no O word) separated by
+# blanks, an optional trailing comment; the match's groups are the words' letters and
+# numbers. A number of digits and points that float() refuses ("1.2.3"), and every other
+# line, goes through the full parser.
+FAST_WORDS = 8
+_FAST_LINE = re.compile(r"[ \t]*(?:/[ \t]*)?(?:N\d+[ \t]*)?"
+                        + r"(?:([A-MP-Z])([+-]?[\d.]+)[ \t]*)?" * FAST_WORDS
+                        + r"(?:\([^()]*\)[ \t]*)?(?:;.*)?\Z")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
 _DOLLAR_WORD = re.compile(r"\$[+-]?[0-9.]")  # LinuxCNC's spindle selector $n (GRBL: $H, $$, $x=v)
 _OWORD = re.compile(r"o(<[^>]*>|\d+)([a-z]+)")
@@ -450,8 +453,9 @@ class Program:
         repeats: dict = {}  # index of a repeat -> remaining count
         pc = self.start
         parsed, numbered, lines, stop = self.parsed, self.numbered, self.lines, self.stop
-        fast_line, fast_word, long_number = _FAST_LINE.match, _FAST_WORD.findall, _LONG_NUMBER.search
+        fast_line, long_number = _FAST_LINE.match, _LONG_NUMBER.search
         new_block = tuple.__new__  # Block(...) without the Python-level __new__ of a NamedTuple
+        slots = range(0, 2 * FAST_WORDS, 2)
         while pc < stop:
             budget -= 1
             if budget < 0:
@@ -465,22 +469,29 @@ class Program:
                 text = lines[line - 1]
                 fast = fast_line(text)
                 if fast is not None and not (len(text) > MAX_NUMBER_CHARS and long_number(text)):
-                    body = fast.group(1)
-                    if not body:
-                        continue
+                    words = fast.groups()
+                    if words[0] is None:
+                        continue  # blank, or a comment
                     g = m = ()
                     rest = {}
-                    for letter, number in fast_word(body):
-                        if letter == "G":
-                            g += (float(number),)
-                        elif letter == "M":
-                            m += (float(number),)
-                        elif letter in rest:
-                            raise self.error(f"word {letter} appears twice", line)
-                        else:
-                            rest[letter] = float(number)
-                    yield new_block(Block, (line, g, m, rest))
-                    continue
+                    try:
+                        for i in slots:
+                            letter = words[i]
+                            if letter is None:
+                                break
+                            if letter == "G":
+                                g += (float(words[i + 1]),)
+                            elif letter == "M":
+                                m += (float(words[i + 1]),)
+                            elif letter in rest:
+                                raise self.error(f"word {letter} appears twice", line)
+                            else:
+                                rest[letter] = float(words[i + 1])
+                    except ValueError:
+                        pass  # "1.2.3": the full parser names it
+                    else:
+                        yield new_block(Block, (line, g, m, rest))
+                        continue
                 item = self._parse(text, line)
                 if item is None:
                     continue
