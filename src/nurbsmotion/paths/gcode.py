@@ -422,9 +422,10 @@ class _Reader:
             self._k = [k, k, k, 1.0, 1.0, 1.0, k, k, k]
         return self._k
 
-    def plain_target(self, words: dict) -> list:
-        """:meth:`target` without offsets, rotation or polar words: the common case, lean."""
-        end = list(self.pos)
+    def axis_words(self, words: dict, cur: list, ref: list) -> list:
+        """``cur`` with the axis words applied, in output units: absolute (G90), or
+        relative to ``ref`` (G91), as a new list."""
+        end = list(cur)
         k = self.lengths()
         absolute = self.absolute
         for letter, v in words.items():
@@ -432,8 +433,12 @@ class _Reader:
             if axis is not None:
                 if not abs(v) <= MAX_COORDINATE:
                     self.value(letter, v)
-                end[axis] = v * k[axis] if absolute else end[axis] + v * k[axis]
+                end[axis] = v * k[axis] if absolute else ref[axis] + v * k[axis]
         return end
+
+    def plain_target(self, words: dict) -> list:
+        """:meth:`target` without offsets, rotation or polar words: the common case, lean."""
+        return self.axis_words(words, self.pos, self.pos)
 
     def target(self, words: dict, base=None, machine: bool = False) -> list:
         """End point of a move from its axis words [absolute X..W, output units]: absolute
@@ -452,16 +457,7 @@ class _Reader:
                     end[axis] = k[axis] * self.value(letter, v)
             return end
         cur = self.to_program(self.pos)
-        ref = cur if base is None else self.to_program(base)
-        end = list(cur)
-        absolute = self.absolute
-        for letter, v in words.items():
-            axis = _AXIS_INDEX.get(letter)
-            if axis is not None:
-                if not abs(v) <= MAX_COORDINATE:
-                    self.value(letter, v)
-                v *= k[axis]
-                end[axis] = v if absolute else ref[axis] + v
+        end = self.axis_words(words, cur, cur if base is None else self.to_program(base))
         if "@" in words or "^" in words:
             if "X" in words or "Y" in words:
                 raise self.error("polar coordinates @ ^ cannot be given with X or Y")

@@ -327,11 +327,8 @@ class PieceChain:
         return curve, edges
 
     def _spiral_rows(self, spirals, m, idx, starts, ends, a, b, scale, offset, p, P, W, K) -> None:
-        """Fill the rows of every helix or spiral piece: cubic Hermite segments, raised to
-        degree p."""
-        first = np.cumsum(m) - m
-        owner = np.repeat(np.arange(len(idx)), m)
-        within = np.arange(int(np.sum(m))) - first[owner]
+        """Fill the rows of every helix or spiral piece: cubic Hermite segments."""
+        _, owner, within = _segments(m)
         ci, cj = spirals[owner, 0].astype(np.int64), spirals[owner, 1].astype(np.int64)
         cx, cy, r0, r1, a0, sweep = (spirals[owner, f] for f in range(2, 8))
         S, E = starts[idx][owner], ends[idx][owner]
@@ -347,14 +344,43 @@ class PieceChain:
             D[seg, ci], D[seg, cj] = dr * c - rad * s, dr * s + rad * c
             ends_of.append((X, D))
         (X0, D0), (X1, D1) = ends_of
-        X0[first] = starts[idx]
-        X1[first + m - 1] = ends[idx]  # exactly the programmed end
         step = (sweep / m[owner])[:, None]
         Q = np.stack([X0, X0 + D0 * step / 3, X1 - D1 * step / 3, X1], axis=1)  # (segments, 4, d)
-        Wq = np.ones(Q.shape[:2])
-        if p > 3:
-            Q = np.einsum("ij,sjk->sik", bezier_elevation(3, p), Q)
-            Wq = np.ones(Q.shape[:2])
+        self._place(Q, np.ones(Q.shape[:2]), m, idx, starts, ends, a, b, scale, offset, p, P, W, K)
+
+    def _arc_rows(self, arcs, m, idx, starts, ends, a, b, scale, offset, p, P, W, K) -> None:
+        """Fill the rows of every arc piece: its rational quadratic segments, as
+        :func:`nurbsmotion.make_arc` makes them."""
+        _, owner, within = _segments(m)
+        ci, cj = arcs[owner, 0].astype(np.int64), arcs[owner, 1].astype(np.int64)
+        cx, cy, r = arcs[owner, 2], arcs[owner, 3], arcs[owner, 4]
+        step = arcs[owner, 6] / m[owner]
+        a0 = arcs[owner, 5] + within * step
+        w_mid = np.cos(step / 2)
+        seg = np.arange(len(owner))
+        Q = np.repeat(starts[idx][owner][:, None, :], 3, axis=1)  # (segments, 3, d)
+        for j, (angle, radius) in enumerate(((a0, r), (a0 + step / 2, r / w_mid), (a0 + step, r))):
+            Q[seg, j, ci] = cx + radius * np.cos(angle)
+            Q[seg, j, cj] = cy + radius * np.sin(angle)
+        Wq = np.ones((len(owner), 3))
+        Wq[:, 1] = w_mid
+        self._place(Q, Wq, m, idx, starts, ends, a, b, scale, offset, p, P, W, K)
+
+    @staticmethod
+    def _place(Q, Wq, m, idx, starts, ends, a, b, scale, offset, p, P, W, K) -> None:
+        """Put the Bézier segments ``Q`` (shape (segments, q + 1, d), weights ``Wq``) of
+        the pieces ``idx`` (``m[k]`` segments each) into the rows of P, W and K, raised to
+        degree p; each piece starts at the previous end and ends exactly at its own."""
+        first, owner, within = _segments(m)
+        Q[first, 0] = starts[idx]
+        Q[first + m - 1, -1] = ends[idx]
+        q = Q.shape[1] - 1
+        if p > q:
+            H = np.einsum("ij,sjk->sik", bezier_elevation(q, p),
+                          np.concatenate([Q * Wq[..., None], Wq[..., None]], axis=2))
+            Wq = H[..., -1]
+            Q = H[..., :-1] / Wq[..., None]
+            Q[first + m - 1, -1] = ends[idx]
         rows = offset[idx][owner][:, None] + within[:, None] * p + np.arange(p)
         P[rows] = Q[:, 1:]
         W[rows] = Wq[:, 1:] * scale[idx][owner][:, None]
@@ -362,39 +388,13 @@ class PieceChain:
         knot[first + m - 1] = b[idx]
         K[p + rows] = knot[:, None]
 
-    def _arc_rows(self, arcs, m, arc_idx, starts, ends, a, b, scale, offset, p, P, W, K) -> None:
-        """Fill the rows of every arc piece: its rational quadratic segments (as
-        :func:`nurbsmotion.make_arc` makes them), raised to degree p."""
-        d = self.n_axes
-        first = np.cumsum(m) - m  # first segment of each arc
-        owner = np.repeat(np.arange(len(arc_idx)), m)  # arc of each segment
-        within = np.arange(int(np.sum(m))) - first[owner]
-        ci, cj = arcs[owner, 0].astype(np.int64), arcs[owner, 1].astype(np.int64)
-        cx, cy, r = arcs[owner, 2], arcs[owner, 3], arcs[owner, 4]
-        step = arcs[owner, 6] / m[owner]
-        a0 = arcs[owner, 5] + within * step
-        w_mid = np.cos(step / 2)
-        seg = np.arange(len(owner))
-        Q = np.repeat(starts[arc_idx][owner][:, None, :], 3, axis=1)  # (segments, 3, d)
-        for j, (angle, radius) in enumerate(((a0, r), (a0 + step / 2, r / w_mid), (a0 + step, r))):
-            Q[seg, j, ci] = cx + radius * np.cos(angle)
-            Q[seg, j, cj] = cy + radius * np.sin(angle)
-        Q[first, 0] = starts[arc_idx]  # the previous piece's end
-        Q[first + m - 1, 2] = ends[arc_idx]  # exactly the programmed end
-        Wq = np.ones((len(owner), 3))
-        Wq[:, 1] = w_mid
-        if p > 2:
-            H = np.concatenate([Q * Wq[..., None], Wq[..., None]], axis=2)
-            H = np.einsum("ij,sjk->sik", bezier_elevation(2, p), H)
-            Wq = H[..., d]
-            Q = H[..., :d] / Wq[..., None]
-            Q[first + m - 1, -1] = ends[arc_idx]
-        rows = offset[arc_idx][owner][:, None] + within[:, None] * p + np.arange(p)
-        P[rows] = Q[:, 1:]
-        W[rows] = Wq[:, 1:] * scale[arc_idx][owner][:, None]
-        knot = a[arc_idx][owner] + (b - a)[arc_idx][owner] * (within + 1) / m[owner]
-        knot[first + m - 1] = b[arc_idx]
-        K[p + rows] = knot[:, None]
+
+def _segments(m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For pieces of ``m[k]`` segments: the first segment of each piece, the piece of each
+    segment and each segment's index within its piece."""
+    first = np.cumsum(m) - m
+    owner = np.repeat(np.arange(len(m)), m)
+    return first, owner, np.arange(int(np.sum(m))) - first[owner]
 
 
 def _raise_degree(curve: NurbsCurve, p: int) -> NurbsCurve:
