@@ -3,9 +3,15 @@
 Reading
 -------
 :func:`load_gcode` reads the motion of a program along the path axes and returns a
-:class:`GcodeProgram`: the *contours* it cuts, each one :class:`NurbsCurve` built by
-:func:`nurbsmotion.joining.join` from the program's feed moves, plus the programmed feed
-of every piece.
+:class:`GcodeProgram`: the *contours* it cuts, each one :class:`NurbsCurve` joined from
+the program's feed moves (as :func:`nurbsmotion.joining.join` joins pieces, built in bulk
+by :class:`~nurbsmotion.paths.pieces.PieceChain`), plus the programmed feed of every piece.
+
+Size
+    Plain lines (words and comments, as CAM posts write them) are read by one regular
+    expression match each when they run, nothing is kept per line, and a move costs a few
+    numbers until its contour is joined: a CAM program of a million lines loads in about
+    half a gigabyte (``benchmarks/gcode_load.py``).
 
 What is read
     The language (parameters, expressions, O-word subroutines and control flow) is
@@ -84,8 +90,8 @@ import numpy as np
 from .._io import check_input_file, write_output
 from ..errors import InvalidCurveError, PathFileError
 from ..feed import FeedLimit
-from ..joining import bezier_segments, elevate_degree, join_with_edges
-from ..nurbs import NurbsCurve, make_polyline
+from ..joining import bezier_segments, elevate_degree
+from ..nurbs import NurbsCurve
 from .ngc import MAX_LINE_LENGTH, Program, split_lines
 from .pieces import HELIX_TOLERANCE, PieceChain, arc_by_center, arc_sweep
 
