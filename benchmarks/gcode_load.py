@@ -50,7 +50,7 @@ def write_program(path: Path, n_lines: int, rounded_arcs: bool = False) -> None:
                 f.write(f"F{1000 + (k // 1000) % 7 * 100}\n")
             elif k % 100 == 0:
                 f.write(f"(pass {k // 100})\n")
-            elif k % 50 == 0:  # a half circle of radius 0.5 up and over
+            elif k % 50 == 25:  # a half circle of radius 0.5, up (G2) or down (G3)
                 f.write(f"G{2 + (k // 50) % 2} X{x + 1:.4f} Y{y:.4f} {centre}\n")
                 x += 1
             else:
