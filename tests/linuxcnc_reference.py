@@ -50,7 +50,8 @@ def linuxcnc_moves(program: Path) -> dict:
 def distances_to_path(points: np.ndarray, curves: list) -> np.ndarray:
     """Distance of every point (shape (m, d)) to the nearest of ``curves``: from the
     nearest of dense samples, the foot point is refined by Newton's method on
-    ``(C(u) - p) . C'(u) = 0`` (clamped to [0, 1]), which is exact to rounding."""
+    ``(C(u) - p) . C'(u) = 0`` (clamped to [0, 1]), which is exact to rounding; a point at a
+    corner is measured to the junction itself."""
     best = np.full(len(points), np.inf)
     for c in curves:
         n = max(4000, 40 * c.n_control_points)
@@ -66,6 +67,10 @@ def distances_to_path(points: np.ndarray, curves: list) -> np.ndarray:
             u = np.clip(u - np.clip(step, -1.0 / n, 1.0 / n), 0.0, 1.0)
         dist = np.linalg.norm(c(u) - points, axis=1)
         best = np.minimum(best, np.minimum(dist, np.linalg.norm(c(u0[idx]) - points, axis=1)))
+        # Newton's method does not settle on a corner (a junction knot, where C' jumps);
+        # the junctions themselves are candidates too.
+        corner_dist, _ = cKDTree(c(c.breakpoints)).query(points)
+        best = np.minimum(best, corner_dist)
     return best
 
 

@@ -8,11 +8,14 @@ translated by the G92 and G5x offsets, arcs cut into points by ``gcode.arc_to_se
 
     /usr/bin/python3 linuxcnc_points.py PROGRAM.ngc > points.json
 
+(run in a scratch folder: it writes ``program.ngc`` and ``rs274ngc.var`` there).
+
 Output: ``{"error": null | "message", "moves": [[kind, line, [x, y, z, a, b, c, u, v, w]],
 ...]}`` with kind ``"feed"``, ``"traverse"`` or ``"arc"`` (arc points), in mm.
 """
 
 import json
+import re
 import sys
 
 import gcode
@@ -25,7 +28,10 @@ class Canon(Translated, ArcsToSegmentsMixin):
         self.lineno = 0
         self.lo = (0.0,) * 9
         self.arcdivision = 64
-        self.parameter_file = ""
+        # A parameter file in the working folder (a temporary one): LinuxCNC rewrites it
+        # when a program changes persistent parameters (a tool change sets #5400).
+        self.parameter_file = "rs274ngc.var"
+        open(self.parameter_file, "a").close()
 
     def __getattr__(self, name):  # every canon call we do not need: a no-op
         if name.startswith("__"):
@@ -66,9 +72,21 @@ class Canon(Translated, ArcsToSegmentsMixin):
             self.record("arc", p)
 
 
+# LinuxCNC 2.9's module looks tool numbers up in a tool database that only a running
+# LinuxCNC provides, and crashes without it (T17 alone is a segmentation fault). Tool
+# selection and change do not shape the path the preview draws (the tool table is empty,
+# so no tool length offset applies), so T words and M6 are blanked out of a copy of the
+# program, on the same lines, before it is parsed.
+TOOL_WORDS = re.compile(r"(?<![A-Za-z_#<0-9.])(?:[Tt]\s*[0-9]+|[Mm]\s*0*6(?![0-9.]))")
+
+
 def main():
     canon = Canon()
-    result, seq = gcode.parse(sys.argv[1], canon, "G21", "")
+    with open(sys.argv[1], encoding="utf-8", errors="replace", newline="") as f:
+        text = f.read()
+    with open("program.ngc", "w", encoding="utf-8", newline="") as f:
+        f.write(TOOL_WORDS.sub(lambda m: " " * len(m.group()), text))
+    result, seq = gcode.parse("program.ngc", canon, "G21", "")
     error = None
     if result > gcode.MIN_ERROR:
         error = f"line {seq}: {gcode.strerror(result)}"

@@ -3,9 +3,15 @@
 Reading
 -------
 :func:`load_gcode` reads the motion of a program along the path axes and returns a
-:class:`GcodeProgram`: the *contours* it cuts, each one :class:`NurbsCurve` built by
-:func:`nurbsmotion.joining.join` from the program's feed moves, plus the programmed feed
-of every piece.
+:class:`GcodeProgram`: the *contours* it cuts, each one :class:`NurbsCurve` joined from
+the program's feed moves (as :func:`nurbsmotion.joining.join` joins pieces, built in bulk
+by :class:`~nurbsmotion.paths.pieces.PieceChain`), plus the programmed feed of every piece.
+
+Size
+    Plain lines (words and comments, as CAM posts write them) are read by one regular
+    expression match each when they run, nothing is kept per line, and a move costs a few
+    numbers until its contour is joined: a CAM program of a million lines loads in about
+    half a gigabyte (``benchmarks/gcode_load.py``).
 
 What is read
     The language (parameters, expressions, O-word subroutines and control flow) is
@@ -15,7 +21,8 @@ What is read
     G17/G18/G19 plane in centre format (incremental, or absolute under ``G90.1``) or radius
     format, with ``P`` turns, as exact rational arcs, as a helix (C1 cubic pieces within
     :data:`HELIX_TOLERANCE` of the radius) when another axis moves along, or as a spiral
-    when the end radius differs from the start radius within LinuxCNC's tolerance; ``G5``
+    when the end radius differs from the start radius by more than :data:`HELIX_TOLERANCE`
+    of it (and within LinuxCNC's tolerance); ``G5``
     and ``G5.1`` (XY); ``G5.2``/``G5.3`` and ``G6.2`` (``P`` order, ``Q`` method, ``K``
     knots, ``R`` weights; Fanuc ``G06.2`` alike) in the XY, YZ and ZX planes; ``F`` under
     ``G94`` (units per minute) or ``G93`` (inverse time); ``G20``/``G21``; ``G90``/``G91``;
@@ -74,6 +81,8 @@ import math
 import os
 import warnings
 from dataclasses import dataclass, field
+from array import array
+from operator import itemgetter
 from pathlib import Path
 
 import numpy as np
@@ -81,10 +90,10 @@ import numpy as np
 from .._io import check_input_file, write_output
 from ..errors import InvalidCurveError, PathFileError
 from ..feed import FeedLimit
-from ..joining import bezier_segments, elevate_degree, join_with_edges
-from ..nurbs import NurbsCurve, make_polyline
+from ..joining import bezier_segments, elevate_degree
+from ..nurbs import NurbsCurve
 from .ngc import MAX_LINE_LENGTH, Program, split_lines
-from .pieces import arc_by_center
+from .pieces import HELIX_TOLERANCE, PieceChain, arc_by_center, arc_sweep
 
 __all__ = [
     "GcodeContour",
@@ -184,6 +193,7 @@ def linuxcnc_knots(n_points: int, order: int) -> np.ndarray:
 
 # ---------------------------------------------------------------------- reader
 _AXES = "XYZABCUVW"
+_AXIS_INDEX = {letter: i for i, letter in enumerate(_AXES)}
 _PLANES = {17.0: (0, 1, 2, "I", "J"), 18.0: (2, 0, 1, "K", "I"), 19.0: (1, 2, 0, "J", "K")}
 """G17/G18/G19: (first axis, second axis, linear axis, first offset word, second offset
 word), as LinuxCNC's convert_arc passes them (XZ is (Z, X): G2 is clockwise seen from +Y)."""
@@ -209,23 +219,25 @@ _REFUSED_G = {
     **{float(g): "canned cycles are not read" for g in (73, 74, 81, 82, 83, 84, 85, 86, 87, 88, 89)},
 }  # fmt: skip
 _END_M = {2.0, 30.0}
+_PLAIN_G = {(0.0,): "G0", (1.0,): "G1"}
+_PLAIN_WORDS = frozenset(_AXES + "F")
+_SKIPPED_WORDS = {"S": "S spindle speed", "T": "T tool number", "H": "H tool offset",
+                  "D": "D cutter radius", "$": "$ spindle selector"}
 _SKIPPED_M = {0.0: "M0 pause", 1.0: "M1 optional pause", 3.0: "M3/M4/M5 spindle",
               4.0: "M3/M4/M5 spindle", 5.0: "M3/M4/M5 spindle", 6.0: "M6 tool change",
               7.0: "M7/M8/M9 coolant", 8.0: "M7/M8/M9 coolant", 9.0: "M7/M8/M9 coolant",
               60.0: "M60 pallet change", 61.0: "M61 tool number"}  # fmt: skip
 _SKIPPED_M_RANGES = ((48, 53, "M48-M53 override switches"), (62, 68, "M62-M68 digital/analog I/O"),
                      (70, 73, "M70-M73 modal state save/restore"), (100, 199, "M100-M199 user commands"))
-_MOTION_WORDS = {"G0": "", "G1": "", "G2": "IJKRP", "G3": "IJKRP", "G5": "IJPQ", "G5.1": "IJ",
-                 "G5.2": "PL", "G6.2": "PQKRL"}  # fmt: skip
+_MOTION_WORDS = {kind: frozenset(_AXES + words) for kind, words in (
+    ("G0", "@^"), ("G1", "@^"), ("G2", "IJKRP"), ("G3", "IJKRP"), ("G5", "IJPQ"), ("G5.1", "IJ"),
+    ("G5.2", "PL"), ("G6.2", "PQKRL"))}
+"""The words each motion mode reads: the axes X..W and its own (polar @ ^ for G0/G1)."""
 MAX_COORDINATE = 1e9
 """Largest coordinate, centre offset or radius read [program units]: beyond it a path of
 ordinary size cannot be computed to 1e-9 of its size in double precision."""
 MAX_ARC_TURNS = 100
 """Most turns (``P``) a G2/G3 arc may have."""
-HELIX_TOLERANCE = 1e-9
-"""Largest distance of a helix's cubic approximation from the true helix, relative to
-its radius."""
-
 
 def _g_name(value: float) -> str:
     return f"G{value:g}"
@@ -240,6 +252,14 @@ def _skipped_m(m: float) -> str | None:
     return None
 
 
+def _picker(indices: list):
+    """``f(point) -> tuple`` of the point's entries at ``indices``."""
+    if len(indices) == 1:
+        i = indices[0]
+        return lambda p: (p[i],)
+    return itemgetter(*indices) if indices else (lambda p: ())
+
+
 def _embed(curve: NurbsCurve, base: np.ndarray, cols: tuple) -> NurbsCurve:
     """A planar curve placed in ``len(base)`` dimensions: its two coordinates go to
     ``cols``, the others stay at ``base``."""
@@ -250,32 +270,13 @@ def _embed(curve: NurbsCurve, base: np.ndarray, cols: tuple) -> NurbsCurve:
 
 def helix(center, radius0: float, radius1: float, a0: float, sweep: float, start: np.ndarray,
           end: np.ndarray, cols: tuple, name: str | None = None) -> NurbsCurve:
-    """A helix (or spiral) as a C1 piecewise cubic: angle ``a0 -> a0 + sweep`` [rad]
-    round ``center`` in the coordinates ``cols``, radius ``radius0 -> radius1`` and every
-    other coordinate ``start -> end`` linearly in the angle. Cubic Hermite pieces of
-    angle ``h`` deviate at most ``r h^4 / 384`` from the helix; ``h`` is chosen so that
-    this stays below :data:`HELIX_TOLERANCE` times the radius."""
-    r = max(radius0, radius1)
-    h = (384.0 * HELIX_TOLERANCE) ** 0.25
-    n = max(1, math.ceil(abs(sweep) / h))
-    t = np.linspace(0.0, 1.0, n + 1)
-    ang = a0 + sweep * t
-    rad = radius0 + (radius1 - radius0) * t
-    P = start[None, :] + t[:, None] * (end - start)[None, :]
-    D = np.repeat(((end - start) / sweep)[None, :], n + 1, axis=0)  # d/dangle
-    c, s = np.cos(ang), np.sin(ang)
-    dr = (radius1 - radius0) / sweep
-    i, j = cols
-    P[:, i], P[:, j] = center[0] + rad * c, center[1] + rad * s
-    D[:, i], D[:, j] = dr * c - rad * s, dr * s + rad * c
-    step = sweep / n
-    ctrl = np.empty((3 * n + 1, len(start)))
-    ctrl[0::3] = P
-    ctrl[1::3] = P[:-1] + D[:-1] * step / 3
-    ctrl[2::3] = P[1:] - D[1:] * step / 3
-    ctrl[-1] = end if np.allclose(P[-1], end, rtol=0, atol=1e-9 * max(r, 1.0)) else P[-1]
-    knots = np.concatenate([[0.0] * 4, np.repeat(t[1:-1], 3), [1.0] * 4])
-    return NurbsCurve(3, knots, ctrl, name=name)
+    """A helix (or spiral) as one C1 piecewise cubic curve: angle ``a0 -> a0 + sweep``
+    [rad] round ``center`` in the coordinates ``cols``, radius ``radius0 -> radius1`` and
+    every other coordinate ``start -> end`` linearly in the angle, within
+    :data:`HELIX_TOLERANCE` of the radius (:meth:`PieceChain.add_spiral`)."""
+    chain = PieceChain(start)
+    chain.add_spiral(end, cols, center, radius0, radius1, a0, sweep, 1.0)
+    return chain.build(name=name)[0]
 
 
 class _Reader:
@@ -289,13 +290,15 @@ class _Reader:
         self.absolute = True
         self.arc_absolute = False
         self.plane = 17.0
-        self.position = np.zeros(9)  # absolute position of X..W [output units]
+        self.pos = [0.0] * 9  # absolute position of X..W [output units]
         self.feed = 0.0  # [output units / min]
         self.inverse_time = False  # G93
         self.feed_word = 0.0  # F of this line under G93 [1/min]
         self.f_on_line = False
         self.motion: str | None = None
-        self.pieces: list = []  # (curve or ("line", start, end), line, feed)
+        self.chain: PieceChain | None = None  # the pieces of the open contour
+        self.piece_feeds = array("d")  # F of each piece of the open contour
+        self.piece_lines = array("q")  # source line of each piece of the open contour
         self.contours: list[GcodeContour] = []
         self.warnings: list[str] = []
         self.warned: set = set()
@@ -306,9 +309,19 @@ class _Reader:
         self.frame_changes = 0  # bumped by blocks that change offsets or the coordinate system
         self._frame_key = None
         self._frame = self._identity = None
-        self.on_path = np.zeros(9, bool)
-        self.on_path[self.axes] = True
-        self._k = None  # (input inch, output units) -> lengths()
+        others = [i for i in range(9) if i not in self.axes]
+        self.path_of = _picker(self.axes)  # X..W -> tuple of the path coordinates
+        self.others_of = _picker(others)
+        self._k = None  # lengths(), until G20/G21 changes the input units
+
+    @property
+    def position(self) -> np.ndarray:
+        """The absolute position of X..W [output units], shape (9,)."""
+        return np.array(self.pos)
+
+    @position.setter
+    def position(self, value) -> None:
+        self.pos = [float(v) for v in value]
 
     # -- helpers
     def error(self, message: str, line: int | None = None) -> PathFileError:
@@ -344,6 +357,13 @@ class _Reader:
             self._identity = not (rot or np.any(g5x) or np.any(g92))
         return self._frame
 
+    def identity_frame(self) -> bool:
+        """Whether no offset or rotation is active (program = absolute coordinates)."""
+        if self._frame_key is None or self._frame_key[0] != self.program.frame_version \
+                or self._frame_key[1] != self.frame_changes:
+            self.frame()
+        return self._identity
+
     def _read_frame(self) -> tuple[np.ndarray, np.ndarray, float]:
         n = self.program.numbered
         system = int(n[5220]) or 1
@@ -351,16 +371,22 @@ class _Reader:
         g92 = np.array(n[5211:5220]) if n[5210] else np.zeros(9)
         return np.array(n[base: base + 9]), g92, n[base + 9]
 
-    def to_program(self, p: np.ndarray) -> np.ndarray:
-        """Absolute (machine) coordinates -> program coordinates (LinuxCNC's unrotate)."""
+    def to_program(self, p) -> list:
+        """Absolute (machine) coordinates X..W -> program coordinates (LinuxCNC's
+        unrotate), as a new list."""
         g5x, g92, rot = self.frame()
         if self._identity:
-            return p.copy()
-        q = p - g5x
+            return list(p)
+        q = np.array(p, dtype=float) - g5x
         if rot:
             c, s = math.cos(math.radians(rot)), math.sin(math.radians(rot))
             q[0], q[1] = c * q[0] + s * q[1], -s * q[0] + c * q[1]
-        return q - g92
+        return (q - g92).tolist()
+
+    def to_absolute_point(self, q: list) -> list:
+        """:meth:`to_absolute` of one point X..W, as a new list."""
+        self.frame()
+        return list(q) if self._identity else self.to_absolute(np.array(q, dtype=float)).tolist()
 
     def to_absolute(self, q: np.ndarray) -> np.ndarray:
         """Program coordinates (shape (..., 9)) -> absolute: + G92, rotate XY, + G5x."""
@@ -380,7 +406,7 @@ class _Reader:
         if len(name) == 2 and name[1].upper() in _AXES:
             i = _AXES.index(name[1].upper())
             k = 1.0 / self.scale() if self.units and i not in (3, 4, 5) else 1.0
-            return float(self.to_program(self.position)[i] * k)
+            return float(self.to_program(self.pos)[i] * k)
         flags = {"_metric": not self.input_inch, "_imperial": bool(self.input_inch),
                  "_absolute": self.absolute, "_incremental": not self.absolute}
         if name in flags:
@@ -395,32 +421,49 @@ class _Reader:
                              f"{MAX_COORDINATE:g} (MAX_COORDINATE)")
         return v
 
-    def lengths(self) -> np.ndarray:
+    def lengths(self) -> list:
         """Factor from the words' units to output units for X..W (1 for rotary A B C)."""
-        k = self.scale()
-        if self._k is None or self._k[0] != k:
-            self._k = (k, np.array([k, k, k, 1.0, 1.0, 1.0, k, k, k]))
-        return self._k[1]
+        if self._k is None:
+            k = self.scale()
+            self._k = [k, k, k, 1.0, 1.0, 1.0, k, k, k]
+        return self._k
 
-    def target(self, words: dict, base: np.ndarray | None = None, machine: bool = False) -> np.ndarray:
-        """End point of a move from its axis words [absolute, output units]: absolute under
-        G90, relative to ``base`` (default: the current position) under G91; polar ``@``
-        (radius) and ``^`` (angle, degrees) in the XY plane as LinuxCNC reads them;
+    def axis_words(self, words: dict, cur: list, ref: list) -> list:
+        """``cur`` with the axis words applied, in output units: absolute (G90), or
+        relative to ``ref`` (G91), as a new list."""
+        end = list(cur)
+        k = self.lengths()
+        absolute = self.absolute
+        for letter, v in words.items():
+            axis = _AXIS_INDEX.get(letter)
+            if axis is not None:
+                if not abs(v) <= MAX_COORDINATE:
+                    self.value(letter, v)
+                end[axis] = v * k[axis] if absolute else ref[axis] + v * k[axis]
+        return end
+
+    def plain_target(self, words: dict) -> list:
+        """:meth:`target` without offsets, rotation or polar words: the common case, lean."""
+        return self.axis_words(words, self.pos, self.pos)
+
+    def target(self, words: dict, base=None, machine: bool = False) -> list:
+        """End point of a move from its axis words [absolute X..W, output units]: absolute
+        under G90, relative to ``base`` (default: the current position) under G91; polar
+        ``@`` (radius) and ``^`` (angle, degrees) in the XY plane as LinuxCNC reads them;
         ``machine``: the words are machine coordinates (G53)."""
+        if base is None and not machine and self.identity_frame() and "@" not in words \
+                and "^" not in words:
+            return self.plain_target(words)
         k = self.lengths()
         if machine:
-            end = self.position.copy()
-            for axis, letter in enumerate(_AXES):
-                if letter in words:
-                    end[axis] = k[axis] * self.value(letter, words[letter])
+            end = list(self.pos)
+            for letter, v in words.items():
+                axis = _AXIS_INDEX.get(letter)
+                if axis is not None:
+                    end[axis] = k[axis] * self.value(letter, v)
             return end
-        cur = self.to_program(self.position)
-        ref = cur if base is None else self.to_program(base)
-        end = cur.copy()
-        for axis, letter in enumerate(_AXES):
-            if letter in words:
-                v = k[axis] * self.value(letter, words[letter])
-                end[axis] = v if self.absolute else ref[axis] + v
+        cur = self.to_program(self.pos)
+        end = self.axis_words(words, cur, cur if base is None else self.to_program(base))
         if "@" in words or "^" in words:
             if "X" in words or "Y" in words:
                 raise self.error("polar coordinates @ ^ cannot be given with X or Y")
@@ -428,22 +471,41 @@ class _Reader:
             r = k[0] * self.value("@", words["@"]) + (0.0 if self.absolute else r0) if "@" in words else r0
             t = self.value("^", words["^"]) + (0.0 if self.absolute else t0) if "^" in words else t0
             end[0], end[1] = r * math.cos(math.radians(t)), r * math.sin(math.radians(t))
-        return self.to_absolute(end)
+        return self.to_absolute_point(end)
 
-    def add_piece(self, piece, line: int, length: float | None = None) -> None:
-        """Add a piece with the feed in force; ``length`` is its arc length where known
-        exactly (a line, an arc). Under G93 (inverse time) F is 1 / the move's duration
-        [1/min], so the piece's feed is its length times F."""
+    def piece_feed(self, length: float, line: int) -> float:
+        """The feed of a piece of ``length`` [output units] with the F in force. Under G93
+        (inverse time) F is 1 / the move's duration [1/min], so the piece's feed is its
+        length times F."""
         feed = self.feed
         if self.inverse_time:
             if not self.f_on_line:
                 raise self.error("inverse-time feed (G93) needs an F word on every feed move")
-            if length is None:
-                length = piece.length
             feed = self.feed_word * length
         if feed <= 0:
             raise self.error("feed move without a feed rate: no F word (or F0) before it", line)
-        self.pieces.append((piece, line, feed, length))
+        return feed
+
+    def open_chain(self) -> PieceChain:
+        if self.chain is None:
+            self.chain = PieceChain(self.path_of(self.pos))
+        return self.chain
+
+    def add_piece(self, piece: NurbsCurve, line: int, length: float | None = None) -> None:
+        """Add a piece in path coordinates; ``length``: its arc length where known exactly."""
+        self.add_length(self.open_chain().add_curve(piece, length), line)
+
+    def add_line(self, path_end: tuple) -> None:
+        """A G1 move from the current position to ``path_end`` (the path coordinates)."""
+        length = (self.chain if self.chain is not None else self.open_chain()).add_line(path_end)
+        feed = self.feed
+        self.piece_feeds.append(feed if feed > 0 and not self.inverse_time else self.piece_feed(length, self.line))
+        self.piece_lines.append(self.line)
+
+    def add_length(self, length: float, line: int) -> None:
+        """Record the feed and line of the piece of ``length`` just added to the chain."""
+        self.piece_feeds.append(self.piece_feed(length, line))
+        self.piece_lines.append(line)
 
     def add_curve(self, curve: NurbsCurve, line: int, length: float | None = None) -> None:
         """Add a piece given in program coordinates X..W (9 columns)."""
@@ -459,68 +521,61 @@ class _Reader:
             raise self.error(str(exc), line) from None
 
     def end_contour(self) -> None:
-        if not self.pieces:
+        if self.chain is None:
             return
         name = f"{Path(self.source).stem}#{len(self.contours) + 1}"
-        runs, run_lines, known = [], [], []  # consecutive lines become one polyline
-        for piece, line, feed, length in self.pieces:
-            if isinstance(piece, tuple):
-                if runs and isinstance(runs[-1], list):
-                    runs[-1].append(piece[2])
-                    run_lines[-1].append((line, feed))
-                    continue
-                runs.append([piece[1], piece[2]])
-                run_lines.append([(line, feed)])
-            else:
-                runs.append(piece)
-                run_lines.append([(line, feed)])
-            known.append(length)
-        curves = []
-        for k, r in enumerate(runs):
-            if isinstance(r, list):
-                P = np.array(r)[:, self.axes]
-                curves.append(make_polyline(P))
-                known[k] = float(np.sum(np.linalg.norm(np.diff(P, axis=0), axis=1)))
-            else:
-                curves.append(r)
+        lines = tuple(self.piece_lines)
         try:
-            if len(curves) == 1:
-                c = curves[0]
-                curve = NurbsCurve(c.degree, c.knots, c.control_points, c.weights, name=name, units=self.units)
-                edges = np.array([0.0, 1.0])
-            else:
-                curve, edges = join_with_edges(curves, name=name, units=self.units, lengths=known)
+            curve, edges = self.chain.build(name=name, units=self.units)
         except InvalidCurveError as exc:
-            raise self.error(f"cannot join the moves into one path: {exc}", self.pieces[0][1]) from None
-        all_edges, feeds, lines = [0.0], [], []
-        for c, (a, b), info in zip(curves, zip(edges[:-1], edges[1:]), run_lines):
-            if len(info) > 1:  # a polyline run: its segments by chord length
-                inner = c.knots[2:-2]
-                all_edges.extend(a + (b - a) * inner)
-            all_edges.append(b)
-            feeds.extend(f for _, f in info)
-            lines.extend(n for n, _ in info)
-        self.contours.append(GcodeContour(curve, np.array(all_edges), np.array(feeds), tuple(lines)))
-        self.pieces = []
+            raise self.error(f"cannot join the moves into one path: {exc}", lines[0]) from None
+        feeds = np.frombuffer(self.piece_feeds, dtype=float).copy()
+        self.contours.append(GcodeContour(curve, edges, feeds, lines))
+        self.chain, self.piece_feeds, self.piece_lines = None, array("d"), array("q")
 
     # -- one block
+    def set_feed(self, f: float) -> None:
+        """An F word: the feed [output units / min], or 1 / duration under G93."""
+        if not (0 <= f <= MAX_COORDINATE):
+            raise self.error(f"feed F{f:g} must be >= 0 and at most {MAX_COORDINATE:g}")
+        if self.inverse_time:
+            self.feed_word = f
+        else:
+            self.feed = f * (1.0 if self.units is None else self.scale())
+
     def read(self, block) -> bool:
         """Process one block; return False when the program ends (M2/M30)."""
-        self.line = block.line
-        rest = dict(block.words)
+        line, gs, ms, words = block
+        self.line = line
+        if (not ms and (not gs or gs in _PLAIN_G) and words.keys() <= _PLAIN_WORDS
+                and self.block is None and self.units is not None and self.identity_frame()):
+            kind = _PLAIN_G[gs] if gs else self.motion
+            if kind == "G0" or kind == "G1":  # the lines of CAM output: a lean path
+                self.motion = kind
+                self.f_on_line = "F" in words
+                if self.f_on_line:
+                    self.set_feed(words["F"])
+                    if len(words) == 1:
+                        return True
+                if words:
+                    self.travel(kind, words, self.plain_target(words))
+                return True
+        rest = dict(words)
         if "$$" in rest:
             self.warn("GRBL '$' settings lines skipped", "$$")
             return True
         motion = None
         special = None  # a non-modal G code of group 0 that uses the axis words
         for g in block.g:
-            g = round(g, 4)
+            if g not in _MOTION:  # G1, G01 and G1.0 are read as 1.0 exactly; others may be computed
+                g = round(g, 4)
             if g in _MOTION:
                 if motion is not None:
                     raise self.error(f"two motion codes on one line: {motion} and {_g_name(g)}")
                 motion = _MOTION[g]
             elif g in (20.0, 21.0):
                 self.input_inch = g == 20.0
+                self._k = None
                 if self.units is None:
                     self.units = "inch" if self.input_inch else "mm"
             elif g in (90.0, 91.0):
@@ -565,20 +620,14 @@ class _Reader:
             if m >= 48:  # the words of M48-M53, M61-M68 (P, Q, E, L, R) go with them
                 for letter in "PEQLR":
                     rest.pop(letter, None)
-        for letter, what in (("S", "S spindle speed"), ("T", "T tool number"), ("H", "H tool offset"),
-                             ("D", "D cutter radius"), ("$", "$ spindle selector")):
-            if letter in rest:
-                rest.pop(letter)
-                self.warn(f"{what} skipped: it does not change the path", letter)
+        if not rest.keys().isdisjoint(_SKIPPED_WORDS):
+            for letter, what in _SKIPPED_WORDS.items():
+                if letter in rest:
+                    rest.pop(letter)
+                    self.warn(f"{what} skipped: it does not change the path", letter)
         self.f_on_line = "F" in rest
         if "F" in rest:
-            f = rest.pop("F")
-            if not (0 <= f <= MAX_COORDINATE):
-                raise self.error(f"feed F{f:g} must be >= 0 and at most {MAX_COORDINATE:g}")
-            if self.inverse_time:
-                self.feed_word = f
-            else:
-                self.feed = f * (1.0 if self.units is None else self.scale())
+            self.set_feed(rest.pop("F"))
 
         if self.block is not None and self.block["kind"] == "G5.2" and motion not in (None, "G5.2", "G5.3"):
             raise self.error(f"the G5.2 block opened on line {self.block['line']} is not closed "
@@ -600,7 +649,7 @@ class _Reader:
             self.g6_point(rest, opening=self.block is None)
         elif rest or motion in ("G2", "G3"):
             self.move(rest)
-        return not any(m in _END_M for m in block.m)
+        return not (block.m and any(m in _END_M for m in block.m))
 
     # -- group 0: G10 G28 G30 G53 G92
     def non_modal(self, g: float, w: dict) -> None:
@@ -622,7 +671,7 @@ class _Reader:
             if not w:
                 raise self.error("G92 needs at least one axis word")
             _, g92, _ = self.frame()
-            unshifted = self.to_program(self.position) + g92
+            unshifted = np.array(self.to_program(self.pos)) + g92
             for axis, letter in enumerate(_AXES):
                 if letter in w:
                     g92[axis] = unshifted[axis] - self.value(letter, w[letter]) * self.lengths()[axis]
@@ -665,22 +714,25 @@ class _Reader:
         kind = self.motion
         if kind is None:
             raise self.error(f"axis words {sorted(w)} without a motion mode (G0/G1/...)")
-        extra = sorted(set(w) - set(_AXES) - set(_MOTION_WORDS[kind]))
-        if extra:
+        if not w.keys() <= _MOTION_WORDS[kind]:
+            extra = sorted(set(w) - _MOTION_WORDS[kind])
             raise self.error(f"word(s) {', '.join(extra)} not read with {kind}")
         if kind in ("G5", "G5.1") and self.plane != 17.0:
             raise self.error(f"{kind} is only allowed in the XY plane (G17), as in LinuxCNC")
-        end = self.target(w, machine=machine)
-        start = self.position
-        changed = end != start
-        on_path = self.on_path
-        moves_path, moves_other = bool((changed & on_path).any()), bool((changed & ~on_path).any())
-        line = self.line
+        self.travel(kind, w, self.target(w, machine=machine))
+
+    def travel(self, kind: str, w: dict, end: list) -> None:
+        """Move to ``end`` (absolute X..W) with motion ``kind``: a piece of the open
+        contour, or the end of it (rapid, move of an axis outside the path)."""
+        start = self.pos
+        path_end = self.path_of(end)
+        moves_path = path_end != self.path_of(start)
+        moves_other = self.others_of(end) != self.others_of(start)
         if kind == "G0":
             if moves_path or moves_other:
                 self.end_contour()
         elif moves_other and (moves_path or kind in ("G2", "G3")):
-            others = "".join(_AXES[i] for i in np.flatnonzero(changed & ~on_path))
+            others = "".join(_AXES[i] for i in range(9) if end[i] != start[i] and i not in self.axes)
             raise self.error(
                 f"{kind} moves {others} together with the path axes {''.join(_AXES[i] for i in self.axes)}; "
                 f"a machine with the axes {''.join(sorted(set(_AXES[i] for i in self.axes) | set(others), key=_AXES.index))} "
@@ -689,17 +741,16 @@ class _Reader:
             self.end_contour()  # a plunge or lift of an axis outside the path ends the contour
         elif kind == "G1":
             if moves_path:
-                length = math.dist(end[self.axes], start[self.axes]) if self.inverse_time else None
-                self.add_piece(("line", start, end), line, length)
+                self.add_line(path_end)
         elif kind in ("G2", "G3"):
             self.arc(w, start, end)
         else:
-            self.spline(kind, w, start, end)
+            self.spline(kind, w, np.array(start), np.array(end))
         if kind != "G5":
             self._g5_pq = None
-        self.position = end
+        self.pos = end
 
-    def arc(self, w: dict, start: np.ndarray, end: np.ndarray) -> None:
+    def arc(self, w: dict, start: list, end: list) -> None:
         """G2/G3 in the selected plane, computed in program coordinates as LinuxCNC does:
         an exact arc when only the plane's axes move, else a helix; a spiral when the
         end radius differs from the start radius within LinuxCNC's tolerance."""
@@ -717,63 +768,77 @@ class _Reader:
         if wrong in w:
             raise self.error(f"{wrong} word not allowed with an arc in the {_g_name(self.plane)} plane")
         ps, pe = self.to_program(start), self.to_program(end)
-        s2, e2 = ps[[i1, i2]], pe[[i1, i2]]
+        sx, sy, ex, ey = ps[i1], ps[i2], pe[i1], pe[i2]
         if "R" in w:
             if o1 in w or o2 in w:
                 raise self.error("arc with both R and a centre offset")
             r = k * self.value("R", w["R"])
-            d = float(np.hypot(*(e2 - s2)))
+            dx, dy = ex - sx, ey - sy
+            d = math.hypot(dx, dy)
             if d == 0.0:
                 raise self.error("a radius-format arc cannot end where it starts")
             if d > 2 * abs(r) * (1 + 1e-9):
                 raise self.error(f"arc radius {abs(r):g} is too small for the chord of length {d:g}")
-            h = math.sqrt(max(r * r - d * d / 4, 0.0))
-            left = np.array([-(e2 - s2)[1], (e2 - s2)[0]]) / d
-            side = 1.0 if (not clockwise) == (r > 0) else -1.0
-            center = (s2 + e2) / 2 + side * h * left
+            h = math.sqrt(max(r * r - d * d / 4, 0.0)) * (1.0 if (not clockwise) == (r > 0) else -1.0)
+            cx, cy = (sx + ex) / 2 - h * dy / d, (sy + ey) / 2 + h * dx / d
         else:
             if o1 not in w and o2 not in w:
                 raise self.error(f"{self.motion} needs {o1}/{o2} (centre) or R (radius) in the "
                                  f"{_g_name(self.plane)} plane")
-            off = np.array([k * self.value(o1, w.get(o1, 0.0)), k * self.value(o2, w.get(o2, 0.0))])
+            off1, off2 = k * self.value(o1, w.get(o1, 0.0)), k * self.value(o2, w.get(o2, 0.0))
             if self.arc_absolute and not (o1 in w and o2 in w):
                 raise self.error(f"absolute arc centre (G90.1) needs both {o1} and {o2}")
-            center = off if self.arc_absolute else s2 + off
-        r1 = float(np.hypot(*(s2 - center)))
-        r2 = float(np.hypot(*(e2 - center)))
+            cx, cy = (off1, off2) if self.arc_absolute else (sx + off1, sy + off2)
+        r1, r2 = math.hypot(sx - cx, sy - cy), math.hypot(ex - cx, ey - cy)
         if r1 == 0.0:
-            raise self.error(f"arc centre {center.tolist()} coincides with its start point")
+            raise self.error(f"arc centre {[cx, cy]} coincides with its start point")
         # LinuxCNC's check (interp_arc.cc): |r2 - r1| > 100 tol, or > tol and > 0.1 %
         tol = (2 * 0.01 * math.sqrt(2)) * (1.0 if self.units == "mm" else 1.0 / _INCH)
         diff = abs(r2 - r1)
         if diff > 100 * tol or (diff > tol and diff / max(r1, r2) > 0.001):
             raise self.error(
-                f"radius to end of arc differs from radius to start: start {s2.tolist()} "
-                f"centre {center.tolist()} end {e2.tolist()} r1 {r1:.6g} r2 {r2:.6g}")
+                f"radius to end of arc differs from radius to start: start {[sx, sy]} "
+                f"centre {[cx, cy]} end {[ex, ey]} r1 {r1:.6g} r2 {r2:.6g}")
         if i1 not in self.axes or i2 not in self.axes:
             raise self.error(f"an arc in the {_g_name(self.plane)} plane needs the axes "
                              f"{_AXES[i1]}{_AXES[i2]} in the path (the path has "
                              f"{''.join(_AXES[i] for i in self.axes)})")
-        linear = bool(np.any(np.delete(pe != ps, [i1, i2])))
-        if not linear and diff <= 1e-12 * r1:
-            build = lambda: arc_by_center(s2, e2, center, clockwise=clockwise, turns=int(turns))
-            for piece in self.make(build, line):  # rational quadratics: sweep 2 acos(w_mid) each
-                sweep = 2.0 * float(np.sum(np.arccos(np.clip(piece.weights[1::2], -1.0, 1.0))))
-                self.add_curve(_embed(piece, ps, (i1, i2)), line, r1 * sweep)
+        linear = any(pe[i] != ps[i] for i in range(9) if i != i1 and i != i2)
+        # Within HELIX_TOLERANCE the exact arc ending on the programmed point (its last
+        # control point moved by at most the radius difference) is as close to LinuxCNC's
+        # spiral as the spiral's own cubic pieces are.
+        exact = not linear and diff <= HELIX_TOLERANCE * r1
+        a0, sweep = arc_sweep((sx, sy), (ex, ey), (cx, cy), clockwise)
+        if self.frame()[2]:  # a rotated frame: built in program coordinates and turned
+            if exact:
+                build = lambda: arc_by_center((sx, sy), (ex, ey), (cx, cy), clockwise=clockwise, turns=int(turns))
+                for piece in self.make(build, line):  # rational quadratics: sweep 2 acos(w_mid) each
+                    sweep = 2.0 * float(np.sum(np.arccos(np.clip(piece.weights[1::2], -1.0, 1.0))))
+                    self.add_curve(_embed(piece, np.array(ps), (i1, i2)), line, r1 * sweep)
+            else:
+                sweep += math.copysign(2 * math.pi * (int(turns) - 1), sweep)
+                center, ps, pe = np.array([cx, cy]), np.array(ps), np.array(pe)
+                self.add_curve(self.make(lambda: helix(center, r1, r2, a0, sweep, ps, pe, (i1, i2)), line), line)
             return
-        a0 = math.atan2(s2[1] - center[1], s2[0] - center[0])
-        a1 = math.atan2(e2[1] - center[1], e2[0] - center[0])
-        sweep = (a0 - a1) % (2 * math.pi) if clockwise else (a1 - a0) % (2 * math.pi)
-        if sweep == 0.0:
-            sweep = 2 * math.pi
-        sweep = (sweep + 2 * math.pi * (int(turns) - 1)) * (-1.0 if clockwise else 1.0)
-        self.add_curve(self.make(lambda: helix(center, r1, r2, a0, sweep, ps, pe, (i1, i2)), line), line)
+        centre = self.to_absolute_point([cx if i == i1 else cy if i == i2 else 0.0 for i in range(9)])
+        cols, c2 = (self.axes.index(i1), self.axes.index(i2)), (centre[i1], centre[i2])
+        chain = self.open_chain()
+        if exact:
+            full = math.copysign(2 * math.pi, sweep)
+            for _ in range(int(turns) - 1):
+                self.add_length(chain.add_arc(self.path_of(start), cols, c2, r1, a0, full), line)
+            self.add_length(chain.add_arc(self.path_of(end), cols, c2, r1, a0, sweep), line)
+        else:  # a helix or spiral; its length: the helix's of the mean radius
+            sweep += math.copysign(2 * math.pi * (int(turns) - 1), sweep)
+            rise = math.dist(*((p[i] for i in self.axes if i != i1 and i != i2) for p in (start, end)))
+            length = math.hypot(0.5 * (r1 + r2) * sweep, rise)
+            self.add_length(chain.add_spiral(self.path_of(end), cols, c2, r1, r2, a0, sweep, length), line)
 
     def spline(self, kind: str, w: dict, start: np.ndarray, end: np.ndarray) -> None:
         k = self.scale()
         line = self.line
-        ps = self.to_program(start)
-        s2, e2 = ps[[0, 1]], self.to_program(end)[[0, 1]]
+        ps = np.array(self.to_program(start))
+        s2, e2 = ps[[0, 1]], np.array(self.to_program(end))[[0, 1]]
         if kind == "G5.1":
             if "I" not in w and "J" not in w:
                 raise self.error("G5.1 needs I and/or J")
@@ -892,7 +957,7 @@ class _Reader:
         if "K" not in w and not opening:
             raise self.error("every G6.2 block needs a knot K")
         others = set(w) & set(_AXES) - {la, lb}
-        if others and np.any(self.target({x: w[x] for x in others}) != self.position):
+        if others and self.target({x: w[x] for x in others}) != self.pos:
             raise self.error(f"{', '.join(sorted(others))} moves inside G6.2 are not read "
                              f"(the curve lies in the {la}{lb} plane)")
         weight = w.get("R", 1.0)
@@ -901,7 +966,7 @@ class _Reader:
         if la in w or lb in w:
             if bl["tail"]:
                 raise self.error("G6.2 control point after the knot-only blocks")
-            point = self.target({x: w[x] for x in (la, lb) if x in w})
+            point = np.array(self.target({x: w[x] for x in (la, lb) if x in w}))
             here = self.position
             if opening and np.max(np.abs(point - here)) > 1e-9 * max(1.0, np.max(np.abs(point))):
                 raise self.error(f"the first G6.2 control point {point[[a, b]].tolist()} is not the "
@@ -972,8 +1037,8 @@ def load_gcode(file: str | os.PathLike, axes: str = "xy") -> GcodeProgram:
     if not axes or len(set(axes)) != len(axes) or not set(axes) <= set(_AXES):
         raise PathFileError(f"path axes {axes!r} must be distinct letters of {_AXES}", str(path))
     reader = _Reader(str(path), axes)
-    lines = split_lines(path.read_bytes(), str(path))
-    program = Program(lines, str(path), reader.system_parameter)
+    lines = split_lines(path.read_bytes(), str(path), upper=True)
+    program = Program(lines, str(path), reader.system_parameter)  # upper-cased: the fast path
     reader.program = program
     for block in program.blocks():
         if not reader.read(block):

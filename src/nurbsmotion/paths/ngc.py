@@ -37,8 +37,7 @@ from __future__ import annotations
 import math
 import re
 from bisect import bisect_left, bisect_right
-from dataclasses import dataclass
-from typing import Callable, Iterator
+from typing import Callable, Iterator, NamedTuple
 
 from ..errors import PathFileError
 
@@ -56,9 +55,9 @@ MAX_EXTRA_BLOCKS = 1_000_000
 _N_NUMBERED = 5603  # numbered parameters #0 .. #5602 (RS274NGC_MAX_PARAMETERS)
 
 
-@dataclass(frozen=True)
-class Block:
-    """One executed line with machine words.
+class Block(NamedTuple):
+    """One executed line with machine words (a named tuple: cheap for programs of
+    millions of lines).
 
     Attributes
     ----------
@@ -67,7 +66,7 @@ class Block:
     g, m : tuple of float
         G and M codes in the order written.
     words : dict
-        Every other word (letter -> value), ``N`` dropped.
+        Every other word (upper-case letter -> value), ``N`` dropped.
     """
 
     line: int
@@ -76,9 +75,10 @@ class Block:
     words: dict
 
 
-def split_lines(data: bytes, source: str) -> list[str]:
+def split_lines(data: bytes, source: str, upper: bool = False) -> list[str]:
     """The lines of a program file: UTF-8 (an optional byte-order mark dropped), any of
-    CRLF/CR/LF endings, each at most :data:`MAX_LINE_LENGTH` characters."""
+    CRLF/CR/LF endings, each at most :data:`MAX_LINE_LENGTH` characters; upper-cased
+    with ``upper`` (the form :class:`Program` reads fastest)."""
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
     try:
@@ -89,20 +89,29 @@ def split_lines(data: bytes, source: str) -> list[str]:
     lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
     if lines and lines[-1] == "":
         lines.pop()
-    for i, t in enumerate(lines):
-        if len(t) > MAX_LINE_LENGTH:
-            raise PathFileError(
-                f"line is longer than {MAX_LINE_LENGTH} characters; is this a G-code file?",
-                source, i + 1)
-    return lines
+    if lines and max(map(len, lines)) > MAX_LINE_LENGTH:
+        i = next(i for i, t in enumerate(lines) if len(t) > MAX_LINE_LENGTH)
+        raise PathFileError(f"line is longer than {MAX_LINE_LENGTH} characters; is this a G-code "
+                            "file?", source, i + 1)
+    return [t.upper() for t in lines] if upper else lines
 
 
 # ---------------------------------------------------------------------- tokenizer
 _PLAIN = re.compile(r"(?:[a-z][+-]?(?:\d+\.?\d*|\.\d+))*\Z")
 _PLAIN_WORD = re.compile(r"([a-z])([+-]?(?:\d+\.?\d*|\.\d+))")
+# The lines CAM systems write, read from the upper-cased line in one match: an optional
+# block delete and N number, up to FAST_WORDS letter-number words (no O word) separated by
+# blanks, an optional trailing comment; the match's groups are the words' letters and
+# numbers. A number of digits and points that float() refuses ("1.2.3"), and every other
+# line, goes through the full parser.
+FAST_WORDS = 8
+_FAST_LINE = re.compile(r"[ \t]*(?:/[ \t]*)?(?:N\d+[ \t]*)?"
+                        + r"(?:([A-MP-Z])([+-]?[\d.]+)[ \t]*)?" * FAST_WORDS
+                        + r"(?:\([^()]*\)[ \t]*)?(?:;.*)?\Z")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
 _DOLLAR_WORD = re.compile(r"\$[+-]?[0-9.]")  # LinuxCNC's spindle selector $n (GRBL: $H, $$, $x=v)
 _OWORD = re.compile(r"o(<[^>]*>|\d+)([a-z]+)")
+_LONG_NUMBER = re.compile(r"[\d.]{%d}" % MAX_NUMBER_CHARS)  # a literal the full parser must judge
 _FUNCTIONS = {
     "abs": abs, "acos": lambda x: math.degrees(math.acos(x)),
     "asin": lambda x: math.degrees(math.asin(x)), "cos": lambda x: math.cos(math.radians(x)),
@@ -262,12 +271,14 @@ _SYSTEM_PARAMETER_DEFAULTS = {"_value": 0.0, "_value_returned": 0.0}
 
 
 class Program:
-    """A program's lines, parsed once, and the executor that runs them.
+    """A program's lines and the executor that runs them (see :meth:`blocks`).
 
     Parameters
     ----------
     lines : list of str
-        The text, one entry per line (:func:`split_lines`).
+        The text, one entry per line (:func:`split_lines`). Upper-cased lines of plain
+        words take a fast path (one regular-expression match each); any other line is
+        read by the full parser.
     source : str
         File name for messages.
     system : callable, optional
@@ -279,7 +290,12 @@ class Program:
                  system: Callable[[str], float | None] | None = None):
         self.source = source
         self.system = system or (lambda name: None)
-        self.parsed: list = []  # per line: None | ("o", label, kw, args) | ("w", words, assigns)
+        self.lines = lines
+        # Parsed lines, by index: every O-word line (found before running, for the jumps of
+        # the control flow) and every line the full parser read (kept for loops). Plain
+        # lines are read each time they run, in one regular-expression match, and never
+        # stored: a program of millions of lines costs no memory per line.
+        self.parsed: dict = {}  # index -> ("o", label, kw, args) | ("w", words, assigns) | ("skip", why)
         self.olabels: dict = {}  # label -> sorted list of (index, keyword)
         start, stop = 0, len(lines)
         first = next((i for i, t in enumerate(lines) if t.strip()), None)
@@ -288,8 +304,12 @@ class Program:
             end = next((i for i in range(start, len(lines)) if lines[i].strip() == "%"), None)
             stop = end if end is not None else len(lines)
         self.start, self.stop = start, stop
-        for i, text in enumerate(lines):
-            self.parsed.append(self._parse(text, i + 1) if start <= i < stop else None)
+        for i in range(start, stop):
+            text = lines[i]
+            if ("o" in text or "O" in text) and not _FAST_LINE.match(text):
+                item = self._parse(text, i + 1)
+                if item is not None:
+                    self.parsed[i] = item
         self.subs = {}
         for label, marks in self.olabels.items():
             for idx, kw in marks:
@@ -432,18 +452,50 @@ class Program:
         calls: list = []  # (return index, saved #1-#30, label)
         repeats: dict = {}  # index of a repeat -> remaining count
         pc = self.start
-        parsed, numbered = self.parsed, self.numbered
-        while pc < self.stop:
+        parsed, numbered, lines, stop = self.parsed, self.numbered, self.lines, self.stop
+        fast_line, long_number = _FAST_LINE.match, _LONG_NUMBER.search
+        new_block = tuple.__new__  # Block(...) without the Python-level __new__ of a NamedTuple
+        slots = range(0, 2 * FAST_WORDS, 2)
+        while pc < stop:
             budget -= 1
             if budget < 0:
                 raise self.error(
                     f"the program executes more than {10 * (self.stop - self.start) + MAX_EXTRA_BLOCKS} "
                     "lines (10 per line of text plus MAX_EXTRA_BLOCKS); an endless loop?", pc + 1)
-            item = parsed[pc]
+            item = parsed.get(pc)
             line = pc + 1
             pc += 1
             if item is None:
-                continue
+                text = lines[line - 1]
+                fast = fast_line(text)
+                if fast is not None and not (len(text) > MAX_NUMBER_CHARS and long_number(text)):
+                    words = fast.groups()
+                    if words[0] is None:
+                        continue  # blank, or a comment
+                    g = m = ()
+                    rest = {}
+                    try:
+                        for i in slots:
+                            letter = words[i]
+                            if letter is None:
+                                break
+                            if letter == "G":
+                                g += (float(words[i + 1]),)
+                            elif letter == "M":
+                                m += (float(words[i + 1]),)
+                            elif letter in rest:
+                                raise self.error(f"word {letter} appears twice", line)
+                            else:
+                                rest[letter] = float(words[i + 1])
+                    except ValueError:
+                        pass  # "1.2.3": the full parser names it
+                    else:
+                        yield new_block(Block, (line, g, m, rest))
+                        continue
+                item = self._parse(text, line)
+                if item is None:
+                    continue
+                parsed[line - 1] = item
             if item[0] == "w":
                 _, words, assigns = item
                 ev = self.eval
