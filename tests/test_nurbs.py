@@ -536,3 +536,34 @@ def test_a_cusp_is_a_sharp_corner():
 def test_only_a_zero_length_curve_is_refused():
     with pytest.raises(InvalidCurveError, match="zero length"):
         NurbsCurve(2, [0, 0, 0, 1, 1, 1], [[1.0, 2.0]] * 3)
+
+
+def test_bounding_box_is_exact_against_a_dense_sample():
+    """The box from span ends and each axis's turning points holds every point of a
+    dense sample and each extreme that a bounded scalar minimiser (scipy) finds from the
+    sample's best point; its corners are points of the curve (made by evaluating it), so
+    it is no larger than the curve. Circles, the benchmark paths and random rational
+    curves."""
+    from scipy.optimize import minimize_scalar
+    from random_curves import random_curve
+
+    from nurbsmotion.nurbs import builtin_path, make_circle, make_die_bonder_pi
+
+    rng = np.random.default_rng(5)
+    curves = [make_circle(3.0), builtin_path("butterfly"), make_die_bonder_pi()]
+    curves += [random_curve(rng) for _ in range(8)]
+    for curve in curves:
+        box = curve.bounding_box()
+        pts = curve(np.linspace(0.0, 1.0, 200_001))
+        size = float(np.max(np.ptp(pts, axis=0)))
+        assert np.all(pts >= box[0] - 1e-12 * size) and np.all(pts <= box[1] + 1e-12 * size)
+        u = np.linspace(0.0, 1.0, 200_001)
+        for j in range(curve.n_axes):
+            for row, sign in ((0, 1.0), (1, -1.0)):
+                i = int(np.argmin(sign * pts[:, j]))
+                lo, hi = u[max(i - 1, 0)], u[min(i + 1, len(u) - 1)]
+                best = minimize_scalar(lambda x: sign * curve(x)[j], bounds=(lo, hi),
+                                       method="bounded", options={"xatol": 1e-14})
+                assert sign * box[row, j] <= min(sign * pts[i, j], best.fun) + 1e-12 * size
+    np.testing.assert_allclose(make_circle(3.0).bounding_box(), [[-3, -3], [3, 3]],
+                               rtol=0, atol=1e-12)

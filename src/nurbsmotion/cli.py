@@ -16,7 +16,6 @@ import time
 import warnings
 from pathlib import Path
 
-import numpy as np
 
 from . import units
 from ._io import OutputFolder
@@ -85,9 +84,8 @@ def _cmd_contours(args) -> int:
     print("|---|---|---|---|---|---|")
     for k, c in enumerate(contours, start=1):
         curve = c.curve
-        pts = curve(np.linspace(0.0, 1.0, 64 * max(curve.n_control_points, 2)))
         box = " ".join(f"{n}[{lo:.6g}, {hi:.6g}]" for n, lo, hi in
-                       zip(_axis_names(curve.n_axes), pts.min(axis=0), pts.max(axis=0)))
+                       zip(_axis_names(curve.n_axes), *curve.bounding_box()))
         pieces = len(c.feed.speeds) if c.feed is not None else len(curve.sharp_corners()) + 1
         if c.feed is None:
             feed = "none"

@@ -633,25 +633,11 @@ class NurbsCurve:
         scale = float(np.max(np.ptp(P, axis=0)))
         # All spans at once, so that a path of 10^6 spans is checked in seconds.
         p = self.degree
-        bp = self.breakpoints
         if p == 1:  # C' is constant on each span: zero where two control points coincide
             same = np.all(P[1:] == P[:-1], axis=1)
             t = self.knots  # span i, from P_i to P_i+1, is [t_(i+1), t_(i+2)]
             return np.unique(np.concatenate([t[1:-2][same], t[2:-1][same]]))
-        nodes = np.polynomial.chebyshev.chebpts1(2 * p - 1)
-        a, b = bp[:-1], bp[1:]
-        uu = (0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * nodes  # (spans, nodes)
-        weight = self._weight(uu.ravel()).reshape(uu.shape)
-        numerator = self(uu.ravel(), 1).reshape(uu.shape + (-1,)) * weight[..., None] ** 2
-        # Chebyshev coefficients of every span and axis, shape (spans, 2p - 1, axes).
-        coef = np.einsum("kn,snj->skj", np.linalg.pinv(
-            np.polynomial.chebyshev.chebvander(nodes, 2 * p - 2)), numerator)
-        big = np.max(np.abs(coef), axis=(1, 2))
-        roots = _chebyshev_roots(np.moveaxis(coef, 2, 1), 1e-12 * big[:, None])
-        # roots: (spans, axes, 2p - 2) in [-1, 1] or NaN; ends of each span one-sided.
-        r = roots.reshape(len(a), -1)
-        cand = np.clip((0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * r,
-                       a[:, None], b[:, None])
+        a, b, cand = self._axis_turns()
         ok = ~np.isnan(cand)
         u_in = np.concatenate([a, cand[ok & (cand < b[:, None])]])
         u_end = np.concatenate([b, cand[ok & (cand >= b[:, None])]])
@@ -663,6 +649,47 @@ class NurbsCurve:
             return np.zeros(0)
         u = np.sort(where[bad])
         return u[np.concatenate([[True], np.diff(u) > 1e-12])]
+
+    def _axis_turns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per span ``[a, b]``, the parameters where one axis's derivative ``C'_j``
+        vanishes, for degree >= 2: on each span the numerator of
+        ``C' = (A' w - A w') / w^2`` is a polynomial of degree ``2p - 2`` per axis (``A,
+        w``: the homogeneous spline), interpolated exactly at Chebyshev nodes; its real
+        roots, clipped to the span.
+
+        Returns
+        -------
+        a, b : ndarray, shape (spans,)
+        roots : ndarray, shape (spans, n_axes * (2p - 2))
+            NaN where there is none.
+        """
+        p = self.degree
+        bp = self.breakpoints
+        nodes = np.polynomial.chebyshev.chebpts1(2 * p - 1)
+        a, b = bp[:-1], bp[1:]
+        uu = (0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * nodes  # (spans, nodes)
+        weight = self._weight(uu.ravel()).reshape(uu.shape)
+        numerator = self(uu.ravel(), 1).reshape(uu.shape + (-1,)) * weight[..., None] ** 2
+        # Chebyshev coefficients of every span and axis, shape (spans, 2p - 1, axes).
+        coef = np.einsum("kn,snj->skj", np.linalg.pinv(
+            np.polynomial.chebyshev.chebvander(nodes, 2 * p - 2)), numerator)
+        big = np.max(np.abs(coef), axis=(1, 2))
+        roots = _chebyshev_roots(np.moveaxis(coef, 2, 1), 1e-12 * big[:, None])
+        # roots: (spans, axes, 2p - 2) in [-1, 1] or NaN
+        r = roots.reshape(len(a), -1)
+        return a, b, np.clip((0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * r,
+                             a[:, None], b[:, None])
+
+    def bounding_box(self) -> np.ndarray:
+        """The exact axis-aligned bounding box, shape (2, n_axes): lower and upper corner
+        [path units]. Each coordinate's extremes lie at a span's end or where its
+        derivative vanishes (:meth:`_axis_turns`); a polyline's are its vertices."""
+        if self.degree == 1:
+            pts = self.control_points
+        else:
+            _, _, turns = self._axis_turns()
+            pts = self(np.concatenate([self.breakpoints, turns[~np.isnan(turns)]]))
+        return np.array([pts.min(axis=0), pts.max(axis=0)])
 
     def limit_tangent(self, u: Any, side: str = "right") -> np.ndarray:
         """Unit tangent, also where ``C'(u) = 0``: the direction of motion just after
