@@ -190,7 +190,8 @@ def _cmd_run(args) -> int:
                       limit=args.max_samples, n_axes=curve.n_axes,
                       what=f"the PVT table at --pvt-period {args.pvt_period:g} s",
                       option="--max-samples (or a longer --pvt-period)")
-    stages = ["time-optimal bound", "plan and run the closed loop", "metrics", "summary"]
+    stages = ["time-optimal bound", "plan and run the closed loop", "metrics", "trace",
+              "summary"]
     stages += [] if args.no_figures else ["figures"]
     with _outputs(args) as staged, _progress(args, total=len(stages), unit="stage",
                                              desc=stages[0]) as bar:
@@ -208,13 +209,18 @@ def _cmd_run(args) -> int:
                     interpolator_options=options, plant=plant,
                     settle_window=args.settle_window)
         bar.update()
+        # The metrics before the trace file: their temporaries are gone before the
+        # writer's buffers are made (the peak memory is the larger, not the sum).
+        stage(stages[2])
+        metrics = trace.metrics()
+        bar.update()
+        stage(stages[3])
         if not args.no_trace:
             _write_trace(args, trace, out / TRACE_FILES[args.trace_format], unit, per_unit)
         if exports:
             _export_setpoints(trace, curve, machine, exports, args)
-        stage(stages[2])
-        metrics = trace.metrics()
         bar.update()
+        stage(stages[4])
         extra = {"plant": machine.name if args.plant is None else args.plant,
                  "corner_tolerance": eps}
         if contour.feed is not None:  # the file gave a feed: say which one ran
@@ -225,7 +231,7 @@ def _cmd_run(args) -> int:
         write_json(data, out / "summary.json")
         bar.update()
         if not args.no_figures:
-            stage(stages[4])
+            stage(stages[5])
             trace.plot(out, feed=feed_number, length_unit=unit, overwrite=True)
             bar.update()
     out = Path(args.out)

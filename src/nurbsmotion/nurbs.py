@@ -595,12 +595,15 @@ class NurbsCurve:
             same = np.all(P[1:] == P[:-1], axis=1)
             t = self.knots  # span i, from P_i to P_i+1, is [t_(i+1), t_(i+2)]
             return np.unique(np.concatenate([t[1:-2][same], t[2:-1][same]]))
-        from scipy.interpolate import BSpline
+        from ._kernels import rational_derivatives
 
         nodes = np.polynomial.chebyshev.chebpts1(2 * p - 1)
         a, b = bp[:-1], bp[1:]
         uu = (0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * nodes  # (spans, nodes)
-        weight = BSpline(self.knots, self.weights, p)(uu.ravel()).reshape(uu.shape)
+        # w(u): the spline of the weights, as a curve with weights 1 (no scipy import).
+        weights = np.column_stack([self.weights, np.ones_like(self.weights)])
+        weight = rational_derivatives(self.knots, weights, p, np.ascontiguousarray(uu.ravel()),
+                                      0, False)[0, :, 0].reshape(uu.shape)
         numerator = self(uu.ravel(), 1).reshape(uu.shape + (-1,)) * weight[..., None] ** 2
         # Chebyshev coefficients of every span and axis, shape (spans, 2p - 1, axes).
         coef = np.einsum("kn,snj->skj", np.linalg.pinv(

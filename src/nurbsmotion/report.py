@@ -76,8 +76,9 @@ TRACE_FORMATS = ("csv", "parquet")
 TRACE_FILES = {fmt: f"trace.{fmt}" for fmt in TRACE_FORMATS}
 """Trace format -> file name."""
 
-TRACE_CHUNK_ROWS = 16_384
-"""Rows converted and written at a time."""
+TRACE_CHUNK_ROWS = 4_096
+"""Rows converted and written at a time (a few chunks are in flight: about 1 MB each
+for two axes)."""
 
 
 def check_writable(paths: Iterable[Path], overwrite: bool) -> None:
