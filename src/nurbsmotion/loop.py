@@ -23,6 +23,7 @@ from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .control import PidGains, pid_law, pid_state
 from .errors import InfeasibleError, InvalidArgumentError
 from .feed import FeedLimit
+from .geometry import distances_to
 from .interpolators import Interpolator, make_interpolator
 from .machine import Machine
 from .nurbs import NurbsCurve
@@ -362,8 +363,7 @@ def simulate(
     n = rows.u.shape[0]
     settled_index = None
     if settled:  # the first sample after which the position stays inside the window
-        outside = np.flatnonzero(np.linalg.norm(rows.position - settling.end, axis=1)
-                                 > settle_window)
+        outside = np.flatnonzero(distances_to(rows.position, settling.end) > settle_window)
         settled_index = int(outside[-1]) + 1 if outside.size else 0
     success, message = _verdict(rows, machine, settled, settled_index, n, Ts, settle_window,
                                 settle_limit)
@@ -380,7 +380,10 @@ def simulate(
 def _verdict(rows, machine: Machine, settled: bool, settled_index, n: int, Ts: float,
              window: float, limit: float) -> tuple[bool, str]:
     """``(success, message)`` of a run: settled, and every drive within Umax."""
-    over = int(np.count_nonzero(np.max(np.abs(rows.drive), axis=1) > machine.max_drive))
+    beyond = np.zeros(n, dtype=bool)
+    for j in range(rows.drive.shape[1]):  # axis by axis: no temporary of the full rows
+        beyond |= np.abs(rows.drive[:, j]) > machine.max_drive
+    over = int(np.count_nonzero(beyond))
     limited = int(np.count_nonzero(rows.status == Status.LIMITED))
     cornered = int(np.count_nonzero(rows.status == Status.CORNERED))
     parts = [f"settled within {window:g} pulse of the end at {settled_index * Ts:.6g} s"

@@ -24,6 +24,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import basis_derivatives, workspace
+from .geometry import distances_to
 
 from .nurbs import NurbsCurve
 from .stepping import Status
@@ -118,8 +119,10 @@ def feed_fluctuation(position: np.ndarray, feed: np.ndarray, sample_period: floa
     :meth:`nurbsmotion.loop.SetpointSeries.feed_fluctuation`."""
     if finished_index < 2:
         return 0.0, 0.0
-    step = np.diff(position[:finished_index], axis=0)  # rows k - 1 -> k, k = 1 .. end - 1
-    speed = np.sqrt(np.einsum("ij,ij->i", step, step)) / sample_period
+    speed = np.zeros(finished_index - 1)  # steps k - 1 -> k, k = 1 .. end - 1, axis by axis
+    for j in range(position.shape[1]):
+        speed += np.diff(position[:finished_index, j]) ** 2
+    speed = np.sqrt(speed, out=speed) / sample_period
     vcmd = feed[1:finished_index]
     moving = vcmd > 0  # a step that commands no motion has no fluctuation
     if not np.any(moving):
@@ -470,7 +473,7 @@ def settle_time(t: np.ndarray, position: np.ndarray, end: np.ndarray,
     """
     if not (math.isfinite(window) and window > 0):
         raise ValueError(f"settle window must be finite and > 0 pulse, got {window!r}")
-    outside = np.flatnonzero(np.linalg.norm(position - end, axis=1) > window)
+    outside = np.flatnonzero(distances_to(position, end) > window)
     if outside.size == 0:
         return float(t[0])
     if outside[-1] == len(t) - 1:

@@ -186,7 +186,7 @@ def _write_csv_chunks(handle, cols, rows, progress) -> None:
     # pyarrow quotes header names; the header is written here, unquoted, as csv readers
     # and the contract expect.
     handle.write((",".join(c.name for c in cols) + "\n").encode())
-    workers = max(1, min(4, os.cpu_count() or 1))
+    workers = max(1, min(2, os.cpu_count() or 1))
     pending: deque = deque()
     with ThreadPoolExecutor(workers) as pool:
         def drain(limit: int) -> None:
