@@ -48,31 +48,43 @@ def _contour(args, machine: Machine | None = None):
     return resolve_contour(args.path, axes=axes, units=args.units)
 
 
-def _feed_used(args, contour, cap, scale: float, unit: str):
+def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float = 1.0,
+               shown_unit: str | None = None):
     """The feed a command runs at, and a sentence saying which it is.
 
     ``cap`` is ``--feed`` in the target unit (None if not given), ``scale`` converts the
     path's units to the target unit (``unit``, e.g. ``"pulse/s"``). Where the file gives a
     feed (G-code F), it is the limit along the path and ``--feed`` caps it (the lower of the
-    two per piece); where it gives none, ``--feed`` is required.
+    two per piece); where it gives none, ``--feed`` is required. With ``shown_unit`` (e.g.
+    ``"mm/s"``, ``per_shown`` target units per it) the sentence gives the feeds in that
+    unit first, then "= ..." in the target unit.
 
     Returns
     -------
     feed : float or FeedLimit
     note : str
     """
+    def speed(lo: float, hi: float | None = None) -> str:
+        def one(factor: float, u: str) -> str:
+            text = f"{lo / factor:.6g}" if hi is None or hi == lo else (
+                f"{lo / factor:.6g} to {hi / factor:.6g}")
+            return f"{text} {u}"
+        if shown_unit is None:
+            return one(1.0, unit)
+        return f"{one(per_shown, shown_unit)} = {one(1.0, unit)}"
+
     programmed = contour.feed
     if programmed is None:
         if cap is None:
             raise NurbsmotionError(f"--feed is required: {args.path} gives no programmed feed")
-        return cap, f"--feed {cap:.6g} {unit}"
+        return cap, f"--feed {speed(cap)}"
     limit = programmed.scaled(scale)
-    span = (f"{limit.lowest:.6g}" if limit.lowest == limit.highest
-            else f"{limit.lowest:.6g} to {limit.highest:.6g}")
+    span = speed(limit.lowest, limit.highest)
     if cap is None:
-        return limit, f"the file's programmed feed ({span} {unit})"
+        return limit, f"the file's programmed feed ({span})"
     capped = limit.capped(cap)
-    return capped, f"the lower of the file's programmed feed ({span} {unit}) and --feed {cap:.6g} {unit} per piece"
+    return capped, (f"the lower of the file's programmed feed ({span}) and --feed "
+                    f"{speed(cap)} per piece")
 
 
 def _cmd_contours(args) -> int:
@@ -143,7 +155,9 @@ def _cmd_bound(args) -> int:
     curve = contour.curve
     machine.check_path(curve.n_axes)
     cap = None if args.feed is None else units.feed_in_pulses(args.feed, curve, machine)
-    feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s")
+    feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s",
+                            per_shown=units.pulses_per_report_unit(curve.units, machine),
+                            shown_unit=f"{units.report_unit(curve.units)}/s")
     bound = time_optimal_bound(to_pulses(curve, machine), machine, feed)
     print(f"{bound:.6g}")
     if contour.feed is not None:
@@ -172,10 +186,11 @@ def _cmd_run(args) -> int:
     curve = contour.curve
     machine.check_path(curve.n_axes)
     cap = None if args.feed is None else units.feed_in_pulses(args.feed, curve, machine)
-    feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s")
-    feed_number = feed if isinstance(feed, (int, float)) else feed.highest
     unit = units.report_unit(curve.units)
     per_unit = units.pulses_per_report_unit(curve.units, machine)
+    feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s",
+                            per_shown=per_unit, shown_unit=f"{unit}/s")
+    feed_number = feed if isinstance(feed, (int, float)) else feed.highest
     path = to_pulses(curve, machine)
     check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
     plant = None if args.plant is None else _true_plant(load_machine(args.plant), machine)

@@ -52,7 +52,7 @@ SUMMARY_KEYS = (
 """The first keys of ``summary.json``, in order (contract); more follow, see :func:`summary`."""
 
 SUMMARY_LENGTH_KEYS = ("max_following_error", "rms_following_error", "max_contour_error",
-                       "rms_contour_error")
+                       "rms_contour_error", "end_overshoot", "corner_overshoot")
 """Summary keys in pulses that are repeated in the report unit (``<key>_mm``, ``<key>_in``)."""
 
 _SUMMARY_UNITS = {
@@ -367,7 +367,8 @@ TABLE_COLUMNS = (
     ("path", "path"), ("feed_m_s", "feed [m/s]"), ("interpolator", "interpolator"),
     ("cycle_time_s", "cycle time [s]"), ("time_optimal_bound_s", "bound [s]"),
     ("cycle_time_ratio", "cycle / bound"), ("settle_time_s", "settled [s]"),
-    ("move_and_settle_ratio", "settled / bound"), ("end_overshoot", "end overshoot [pulse]"),
+    ("move_and_settle_ratio", "settled / bound"), ("end_overshoot_{L}", "end overshoot [{L}]"),
+    ("end_overshoot", "end overshoot [pulse]"),
     ("max_drive_ratio", "max drive {axis} / Umax"),
     ("saturated_samples", "saturated samples {axis}"),
     ("max_contour_error_{L}", "max contour [{L}]"), ("max_contour_error", "max contour [pulse]"),
