@@ -351,31 +351,31 @@ def _cell_polynomials(U, Pw, p, gu, spans):
 
 
 @njit(cache=True)
+def _horner(coef, j, t):
+    """Value, first and second derivative at ``t`` of the polynomial ``coef[:, j]``
+    (coefficient k of ``t^k``)."""
+    p = coef.shape[0] - 1
+    v0 = coef[p, j]
+    v1 = 0.0
+    v2 = 0.0
+    for k in range(p - 1, -1, -1):
+        v2 = v2 * t + v1
+        v1 = v1 * t + v0
+        v0 = v0 * t + coef[k, j]
+    return v0, v1, 2.0 * v2
+
+
+@njit(cache=True)
 def _g_at(coef, t, q):
     """``(g, g', |C - q|)`` at ``u = gu[c] + t`` of the cell whose Taylor coefficients
     are ``coef`` (p + 1, n_axes + 1): g = (C - q) . C' (Horner, then the quotient rule)."""
     dim = q.shape[0]
-    p = coef.shape[0] - 1
-    w0 = coef[p, dim]
-    w1 = 0.0
-    w2 = 0.0
-    for k in range(p - 1, -1, -1):
-        w2 = w2 * t + w1
-        w1 = w1 * t + w0
-        w0 = w0 * t + coef[k, dim]
-    w2 *= 2.0
+    w0, w1, w2 = _horner(coef, dim, t)
     g = 0.0
     dg = 0.0
     r2 = 0.0
     for j in range(dim):
-        v0 = coef[p, j]
-        v1 = 0.0
-        v2 = 0.0
-        for k in range(p - 1, -1, -1):
-            v2 = v2 * t + v1
-            v1 = v1 * t + v0
-            v0 = v0 * t + coef[k, j]
-        v2 *= 2.0
+        v0, v1, v2 = _horner(coef, j, t)
         c0 = v0 / w0
         c1 = (v1 - w1 * c0) / w0
         c2 = (v2 - 2.0 * w1 * c1 - w2 * c0) / w0
@@ -388,8 +388,8 @@ def _g_at(coef, t, q):
 
 @njit(cache=True)
 def _cell_minimum(gu, gp, tr, tl, coef, c, q):
-    """``(distance, u)`` of the point of cell ``c`` (inside knot span ``span``) nearest
-    to ``q``."""
+    """``(distance, u)`` of the point of cell ``c`` nearest to ``q`` (``coef``: the cell's
+    Taylor coefficients, :func:`_cell_polynomials`)."""
     a = gu[c]
     b = gu[c + 1]
     ga = 0.0
