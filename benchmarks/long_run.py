@@ -2,10 +2,12 @@
 
 The butterfly on the die-bonder at the feed that takes 600 s (its length / 600 s, about
 0.64 mm/s), ``paper`` interpolator (its planning is one sample ahead, so the figure is the
-loop, the metrics and the trace writer), in a fresh process each: wall time from the
-interpreter's start to its exit, and the peak resident set size (VmHWM). Then the same
-run's stages one by one in one process: the loop, the metrics, the time-optimal bound, and
-writing the trace as CSV and as Parquet.
+loop, the metrics and the trace writer), with ``trace.csv``, ``trace.parquet`` and no
+trace, then the default ``planned``; in a fresh process each: wall time from the
+interpreter's start to its exit, the CPU time it used (on a loaded machine the wall time
+grows, the CPU time hardly), and the peak resident set size (VmHWM). Then the same run's
+stages one by one in one process: the imports, the loop, the metrics, the time-optimal
+bound, and writing the trace as CSV and as Parquet; and the load average.
 
     python benchmarks/long_run.py
 """
@@ -13,6 +15,7 @@ writing the trace as CSV and as Parquet.
 from __future__ import annotations
 
 import json
+import os
 import tempfile
 import time
 
@@ -20,23 +23,28 @@ import _common  # noqa: F401  (puts src/ on the path)
 from _common import PEAK_MB, run_python, section
 
 END_TO_END = PEAK_MB + r"""
-import json, sys
+import json, os, sys
 from nurbsmotion.cli import main
 import nurbsmotion as nm
 feed = f"{nm.make_butterfly().length / 600.0!r}mm/s"
-code = main(["run", "butterfly", "--feed", feed, "--interpolator", "paper", "--no-figures",
-             "--quiet", "--out", sys.argv[1], "--trace-format", sys.argv[2]])
-print(json.dumps({"code": code, "peak": peak_mb()}))
+trace = ["--no-trace"] if sys.argv[2] == "none" else ["--trace-format", sys.argv[2]]
+code = main(["run", "butterfly", "--feed", feed, "--interpolator", sys.argv[3],
+             "--no-figures", "--quiet", "--out", sys.argv[1]] + trace)
+cpu = os.times()
+print(json.dumps({"code": code, "peak": peak_mb(), "cpu": cpu.user + cpu.system}))
 """
 
 STAGES = PEAK_MB + r"""
 import json, sys, time
+t_import = time.perf_counter()
 from pathlib import Path
 import nurbsmotion as nm
 from nurbsmotion.loop import run
 from nurbsmotion.machine import die_bonder
 from nurbsmotion.planning import time_optimal_bound
 from nurbsmotion.report import write_trace
+import nurbsmotion.cli
+t_import = time.perf_counter() - t_import
 m = die_bonder()
 curve = nm.make_butterfly()
 run(curve, m, 100.0, "paper")  # warm-up: load the kernels
@@ -54,33 +62,45 @@ for fmt in ("csv", "parquet"):
     t[fmt] = time.perf_counter() - t0
     t[fmt + "_mb"] = f.stat().st_size / 1e6
 t["samples"] = len(tr.t)
+t["import"] = t_import
 print(json.dumps(t))
 """
 
 
+CASES = (("paper", "csv"), ("paper", "parquet"), ("paper", "none"), ("planned", "csv"))
+"""(interpolator, trace format or "none" for ``--no-trace``) of the end-to-end runs."""
+
+
 def main(repeats: int = 1) -> str:
     rows = []
-    for fmt in ("csv", "parquet"):
-        walls, peaks = [], []
+    for interpolator, fmt in CASES:
+        walls, cpus, peaks = [], [], []
         for _ in range(repeats):
             with tempfile.TemporaryDirectory() as out:
                 wall, text = run_python(END_TO_END.replace("sys.argv[1]", repr(out))
-                                        .replace("sys.argv[2]", repr(fmt)))
+                                        .replace("sys.argv[2]", repr(fmt))
+                                        .replace("sys.argv[3]", repr(interpolator)))
             r = json.loads(text.splitlines()[-1])
             assert r["code"] == 0
             walls.append(wall)
+            cpus.append(r["cpu"])
             peaks.append(r["peak"])
-        rows.append([f"`run butterfly --feed <0.638 mm/s> --interpolator paper --no-figures "
-                     f"--trace-format {fmt}`", f"**{min(walls):.1f}**", f"**{max(peaks):.0f}**"])
+        trace = "--no-trace" if fmt == "none" else f"--trace-format {fmt}"
+        rows.append([f"`run butterfly --feed <0.638 mm/s> --interpolator {interpolator} "
+                     f"--no-figures {trace}`", f"**{min(walls):.1f}**", f"{min(cpus):.1f}",
+                     f"**{max(peaks):.0f}**"])
     with tempfile.TemporaryDirectory() as out:
         _, text = run_python(STAGES.replace("sys.argv[1]", repr(out)))
     s = json.loads(text.splitlines()[-1])
-    note = (f"Stages of the same run in one warm process ({s['samples']:,} samples): loop "
-            f"{s['loop']:.2f} s, metrics {s['metrics']:.2f} s, time-optimal bound "
-            f"{s['bound']:.2f} s, trace.csv {s['csv']:.2f} s ({s['csv_mb']:.0f} MB), "
-            f"trace.parquet {s['parquet']:.2f} s ({s['parquet_mb']:.0f} MB). Wall time "
-            "includes starting Python and importing (kernels from the disk cache).")
-    return section("A 10-minute move end to end", ["command", "wall time [s]",
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    note = (f"Stages of the same run in one warm process ({s['samples']:,} samples): imports "
+            f"{s['import']:.2f} s, loop {s['loop']:.2f} s, metrics {s['metrics']:.2f} s, "
+            f"time-optimal bound {s['bound']:.2f} s, trace.csv {s['csv']:.2f} s "
+            f"({s['csv_mb']:.0f} MB), trace.parquet {s['parquet']:.2f} s "
+            f"({s['parquet_mb']:.0f} MB). Wall time includes starting Python and importing "
+            f"(kernels from the disk cache). Load average at the end: {load:.1f} on "
+            f"{os.cpu_count()} cores.")
+    return section("A 10-minute move end to end", ["command", "wall time [s]", "CPU time [s]",
                                                    "peak RSS [MB]"], rows, note=note)
 
 

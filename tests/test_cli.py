@@ -204,8 +204,10 @@ def test_run_reads_a_gcode_contour(tmp_path):
     # the file's F600 (10 mm/s = 1e4 pulse/s) is lower than --feed: it rules (issue 11)
     assert summary["path"] == "examples/butterfly.ngc#1" and summary["feed"] == 1e4
     # every interpolator follows the per-piece limit itself
-    assert summary["feed_used"] == ("the lower of the file's programmed feed (10000 pulse/s) and "
-                                    "--feed 50000 pulse/s per piece")
+    # in the path's unit first (issue 13), then in pulses
+    assert summary["feed_used"] == (
+        "the lower of the file's programmed feed (10 mm/s = 10000 pulse/s) and "
+        "--feed 50 mm/s = 50000 pulse/s per piece")
 
 
 def test_bound_prints_the_time_optimal_bound(capsys):

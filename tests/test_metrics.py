@@ -161,3 +161,16 @@ def test_run_figures_against_the_trace():
     assert m.corner_overshoot > 0
     _, d = nearest_parameter(trace.curve, trace.position)
     assert m.max_contour_error == d.max()
+
+
+def test_search_order_and_three_axes():
+    """The search starts each point from the previous point's cell: the distances must not
+    depend on the order of the points; and a 3-axis path (a helix) is searched as exactly."""
+    t = np.linspace(0, 1, 13)
+    helix = NurbsCurve(3, np.concatenate([[0, 0, 0], np.linspace(0, 1, 11), [1, 1, 1]]),
+                       np.column_stack([1e4 * np.cos(6 * t), 1e4 * np.sin(6 * t), 3e3 * t]))
+    rng = np.random.default_rng(6)
+    pts = near_points(helix, rng, 120, 40.0)
+    d, _ = check_exact(helix, pts)
+    _, backwards = nearest_parameter(helix, pts[::-1])
+    np.testing.assert_array_equal(backwards[::-1], d)

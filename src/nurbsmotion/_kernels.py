@@ -29,7 +29,7 @@ from numba import njit
 
 __all__ = ["find_span", "workspace", "basis_table", "basis_derivatives",
            "rational_derivatives_into", "rational_derivatives",
-           "power_basis"]
+           "power_basis", "horner"]
 
 
 @njit(cache=True)
@@ -222,3 +222,19 @@ def _power_basis_into(U, Pw, p, starts, out, ders, ndu, wl, wr, a):
                 for j in range(p + 1):
                     acc += ders[k, j] * Pw[span - p + j, c]
                 out[i, k, c] = acc / factorial
+
+
+@njit(cache=True, inline="always")
+def horner(coef, j, t):
+    """Coordinate ``j`` of a power-form polynomial (:func:`power_basis`, one span's
+    ``coef``, shape (p + 1, n_axes + 1)) and its first two derivatives at ``t`` (the
+    distance to the span's start): ``(P, P', P'')``."""
+    p = coef.shape[0] - 1
+    b0 = coef[p, j]
+    b1 = 0.0
+    b2 = 0.0
+    for k in range(p - 1, -1, -1):
+        b2 = b2 * t + b1
+        b1 = b1 * t + b0
+        b0 = b0 * t + coef[k, j]
+    return b0, b1, 2.0 * b2

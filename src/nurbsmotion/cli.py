@@ -47,31 +47,43 @@ def _contour(args, machine: Machine | None = None):
     return resolve_contour(args.path, axes=axes, units=args.units)
 
 
-def _feed_used(args, contour, cap, scale: float, unit: str):
+def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float = 1.0,
+               shown_unit: str | None = None):
     """The feed a command runs at, and a sentence saying which it is.
 
     ``cap`` is ``--feed`` in the target unit (None if not given), ``scale`` converts the
     path's units to the target unit (``unit``, e.g. ``"pulse/s"``). Where the file gives a
     feed (G-code F), it is the limit along the path and ``--feed`` caps it (the lower of the
-    two per piece); where it gives none, ``--feed`` is required.
+    two per piece); where it gives none, ``--feed`` is required. With ``shown_unit`` (e.g.
+    ``"mm/s"``, ``per_shown`` target units per it) the sentence gives the feeds in that
+    unit first, then "= ..." in the target unit.
 
     Returns
     -------
     feed : float or FeedLimit
     note : str
     """
+    def speed(lo: float, hi: float | None = None) -> str:
+        def one(factor: float, u: str) -> str:
+            text = f"{lo / factor:.6g}" if hi is None or hi == lo else (
+                f"{lo / factor:.6g} to {hi / factor:.6g}")
+            return f"{text} {u}"
+        if shown_unit is None:
+            return one(1.0, unit)
+        return f"{one(per_shown, shown_unit)} = {one(1.0, unit)}"
+
     programmed = contour.feed
     if programmed is None:
         if cap is None:
             raise NurbsmotionError(f"--feed is required: {args.path} gives no programmed feed")
-        return cap, f"--feed {cap:.6g} {unit}"
+        return cap, f"--feed {speed(cap)}"
     limit = programmed.scaled(scale)
-    span = (f"{limit.lowest:.6g}" if limit.lowest == limit.highest
-            else f"{limit.lowest:.6g} to {limit.highest:.6g}")
+    span = speed(limit.lowest, limit.highest)
     if cap is None:
-        return limit, f"the file's programmed feed ({span} {unit})"
+        return limit, f"the file's programmed feed ({span})"
     capped = limit.capped(cap)
-    return capped, f"the lower of the file's programmed feed ({span} {unit}) and --feed {cap:.6g} {unit} per piece"
+    return capped, (f"the lower of the file's programmed feed ({span}) and --feed "
+                    f"{speed(cap)} per piece")
 
 
 def _cmd_contours(args) -> int:
@@ -141,7 +153,9 @@ def _cmd_bound(args) -> int:
     curve = contour.curve
     machine.check_path(curve.n_axes)
     cap = None if args.feed is None else units.feed_in_pulses(args.feed, curve, machine)
-    feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s")
+    feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s",
+                            per_shown=units.pulses_per_report_unit(curve.units, machine),
+                            shown_unit=f"{units.report_unit(curve.units)}/s")
     bound = time_optimal_bound(to_pulses(curve, machine), machine, feed)
     print(f"{bound:.6g}")
     if contour.feed is not None:
@@ -170,10 +184,11 @@ def _cmd_run(args) -> int:
     curve = contour.curve
     machine.check_path(curve.n_axes)
     cap = None if args.feed is None else units.feed_in_pulses(args.feed, curve, machine)
-    feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s")
-    feed_number = feed if isinstance(feed, (int, float)) else feed.highest
     unit = units.report_unit(curve.units)
     per_unit = units.pulses_per_report_unit(curve.units, machine)
+    feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s",
+                            per_shown=per_unit, shown_unit=f"{unit}/s")
+    feed_number = feed if isinstance(feed, (int, float)) else feed.highest
     path = to_pulses(curve, machine)
     check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
     plant = None if args.plant is None else _true_plant(load_machine(args.plant), machine)
@@ -188,7 +203,8 @@ def _cmd_run(args) -> int:
                       limit=args.max_samples, n_axes=curve.n_axes,
                       what=f"the PVT table at --pvt-period {args.pvt_period:g} s",
                       option="--max-samples (or a longer --pvt-period)")
-    stages = ["time-optimal bound", "plan and run the closed loop", "metrics", "summary"]
+    stages = ["time-optimal bound", "plan and run the closed loop", "metrics", "trace",
+              "summary"]
     stages += [] if args.no_figures else ["figures"]
     with _outputs(args) as staged, _progress(args, total=len(stages), unit="stage",
                                              desc=stages[0]) as bar:
@@ -206,13 +222,18 @@ def _cmd_run(args) -> int:
                     interpolator_options=options, plant=plant,
                     settle_window=args.settle_window)
         bar.update()
+        # The metrics before the trace file: their temporaries are gone before the
+        # writer's buffers are made (the peak memory is the larger, not the sum).
+        stage(stages[2])
+        metrics = trace.metrics()
+        bar.update()
+        stage(stages[3])
         if not args.no_trace:
             _write_trace(args, trace, out / TRACE_FILES[args.trace_format], unit, per_unit)
         if exports:
             _export_setpoints(trace, curve, machine, exports, args)
-        stage(stages[2])
-        metrics = trace.metrics()
         bar.update()
+        stage(stages[4])
         extra = {"plant": machine.name if args.plant is None else args.plant,
                  "corner_tolerance": eps}
         if contour.feed is not None:  # the file gave a feed: say which one ran
@@ -223,7 +244,7 @@ def _cmd_run(args) -> int:
         write_json(data, out / "summary.json")
         bar.update()
         if not args.no_figures:
-            stage(stages[4])
+            stage(stages[5])
             trace.plot(out, feed=feed_number, length_unit=unit, overwrite=True)
             bar.update()
     out = Path(args.out)

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["CurveGeometry"]
+__all__ = ["CurveGeometry", "distances_to"]
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(10)
 _CACHE_MIN_SIZE, _CACHE_ENTRIES = 1000, 16
@@ -211,3 +211,20 @@ class CurveGeometry:
                 candidates = candidates[angle > angle_tolerance]
             self._corners[angle_tolerance] = candidates
         return self._corners[angle_tolerance].copy()
+
+
+def distances_to(points: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """``|points[k] - point|`` for every row, shape (n,) [the points' unit].
+
+    Summed axis by axis, so that no temporary is larger than one column: a long run's
+    trace is most of the process's memory.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, n_axes)
+    point : ndarray, shape (n_axes,)
+    """
+    d2 = np.zeros(points.shape[0])
+    for j in range(points.shape[1]):
+        d2 += (points[:, j] - point[j]) ** 2
+    return np.sqrt(d2, out=d2)

@@ -376,7 +376,10 @@ def simulate(
 def _verdict(rows, machine: Machine, settled: bool, settled_index, n: int, Ts: float,
              window: float, limit: float) -> tuple[bool, str]:
     """``(success, message)`` of a run: settled, and every drive within Umax."""
-    over = int(np.count_nonzero((np.abs(rows.drive) > machine.max_drive).any(axis=1)))
+    beyond = np.zeros(n, dtype=bool)
+    for j in range(rows.drive.shape[1]):  # axis by axis: no temporary of the full rows
+        beyond |= np.abs(rows.drive[:, j]) > machine.max_drive
+    over = int(np.count_nonzero(beyond))
     counts = np.bincount(rows.status, minlength=len(Status))
     limited, cornered = int(counts[Status.LIMITED]), int(counts[Status.CORNERED])
     parts = [f"settled within {window:g} pulse of the end at {settled_index * Ts:.6g} s"

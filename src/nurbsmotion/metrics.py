@@ -21,7 +21,10 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
+from numba import njit
+
+from ._kernels import horner, power_basis
+from .geometry import distances_to
 
 from .nurbs import NurbsCurve
 from .stepping import Status
@@ -114,31 +117,41 @@ def feed_fluctuation(position: np.ndarray, feed: np.ndarray, sample_period: floa
                      finished_index: int) -> tuple[float, float]:
     """Feedrate fluctuation (max |.|, RMS) of SPEC section 9; see
     :meth:`nurbsmotion.loop.SetpointSeries.feed_fluctuation`."""
-    k = np.arange(1, finished_index)
-    k = k[feed[k] > 0]  # a step that commands no motion has no fluctuation
-    if k.size == 0:
+    if finished_index < 2:
         return 0.0, 0.0
-    speed = np.linalg.norm(position[k] - position[k - 1], axis=1) / sample_period
-    rel = (speed - feed[k]) / feed[k]
+    speed = np.zeros(finished_index - 1)  # steps k - 1 -> k, k = 1 .. end - 1, axis by axis
+    for j in range(position.shape[1]):
+        speed += np.diff(position[:finished_index, j]) ** 2
+    speed = np.sqrt(speed, out=speed) / sample_period
+    vcmd = feed[1:finished_index]
+    moving = vcmd > 0  # a step that commands no motion has no fluctuation
+    if not np.any(moving):
+        return 0.0, 0.0
+    rel = (speed[moving] - vcmd[moving]) / vcmd[moving]
     return float(np.max(np.abs(rel))), float(np.sqrt(np.mean(rel**2)))
 
 
 _TURN_PER_CELL = 0.1
 """Largest turn of the tangent inside one cell of the search grid [rad]: cells are split
-until the curve inside each is nearly straight, so the distance to a point has a single
-minimum per cell wherever that minimum can be the nearest point."""
+until the curve inside each is nearly straight, so the distance to a point has at most
+one interior minimum in each half of a cell wherever that minimum can be the nearest
+point."""
 
-_CHUNK = 4096
-"""Points searched at once: the search's memory is the grid plus a fixed multiple of this."""
+_CHUNK = 65_536
+"""Points searched per call of the compiled search: between calls Python runs (a Ctrl-C
+is seen within a fraction of a second); the search itself needs no memory per point."""
 
 
 class _SearchGrid:
-    """The grid the nearest-point search starts from, built once per curve.
+    """The grid the nearest-point search runs on, built once per curve.
 
     ``u`` holds at least ``size`` parameters uniform in arc length, every breakpoint, and
     extra points where the tangent turns fast (tight curls, near-cusps), so that the
-    tangent turns by at most :data:`_TURN_PER_CELL` inside any cell; ``half_cell`` is half
-    the longest cell's arc length [path units].
+    tangent turns by at most :data:`_TURN_PER_CELL` inside any cell. Per grid point: the
+    point, and the tangent of the cell that starts there and of the cell that ends there
+    (they differ at a sharp corner). Per cell: an upper bound of its arc length. And a
+    binary tree over the cells whose nodes hold the bounding box of their grid points
+    (node 1 is the root, node k has children 2k and 2k+1, cell i is leaf ``leaves + i``).
     """
 
     def __init__(self, curve: NurbsCurve, size: int):
@@ -158,10 +171,28 @@ class _SearchGrid:
             u = np.union1d(u, extra)
         self.u = u
         self.points = curve(u)
+        self.tangent_right = curve(u, 1)
+        self.tangent_left = curve(u, 1, "left")
         s = geometry.arc_length(u)
+        n_cells = len(u) - 1
+        # Each cell lies in one knot span (the breakpoints are in u): the curve's power
+        # form about the cell's start is exact on it.
+        self.coef = power_basis(curve.knots, curve.homogeneous, curve.degree, u[:-1])
         # Margin for the arc-length table's own tolerance (far below 1e-9 relative).
-        self.half_cell = 0.5 * float(np.max(np.diff(s))) * (1 + 1e-6) + 1e-9 * geometry.length
-        self.tree = cKDTree(self.points)
+        self.cell_length = np.diff(s) * (1 + 1e-6) + 2e-9 * geometry.length
+        self.half_cell = 0.5 * float(np.max(self.cell_length))
+        leaves = 1 << max(0, (n_cells - 1).bit_length())
+        lo = np.full((2 * leaves, curve.n_axes), np.inf)
+        hi = np.full((2 * leaves, curve.n_axes), -np.inf)
+        lo[leaves:leaves + n_cells] = np.minimum(self.points[:-1], self.points[1:])
+        hi[leaves:leaves + n_cells] = np.maximum(self.points[:-1], self.points[1:])
+        level = leaves
+        while level > 1:
+            half = level // 2
+            lo[half:level] = np.minimum(lo[level:2 * level:2], lo[level + 1:2 * level:2])
+            hi[half:level] = np.maximum(hi[level:2 * level:2], hi[level + 1:2 * level:2])
+            level = half
+        self.box_lo, self.box_hi, self.leaves = lo, hi, leaves
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -183,15 +214,18 @@ def _search_grid(curve: NurbsCurve, size: int) -> _SearchGrid:
 def nearest_parameter(curve: NurbsCurve, points: np.ndarray, grid_size: int = 20_000):
     """Parameter of the nearest curve point to each of ``points``, and the distance.
 
-    Exact for any curve — closed, self-intersecting, passing near itself: the search
-    grid (:class:`_SearchGrid`) has cells of arc length at most ``2 h``, so the true
-    nearest point lies within ``h`` along the curve of a grid point, hence within
-    ``d0 + h`` of the point, where ``d0`` is the distance to the nearest grid point.
-    Every grid point inside that ball is a candidate, and the minimum in both cells beside
-    each candidate is found by safeguarded Newton iterations on ``(C(u) - p) . C'(u) = 0``
-    (bisection where Newton leaves the bracket), started from both ends and the middle of
-    the cell. The points are searched :data:`_CHUNK` at a time, so memory stays linear in
-    the number of points.
+    Exact for any curve — closed, self-intersecting, passing near itself. The search grid
+    (:class:`_SearchGrid`) splits the curve into cells whose arc length ``L`` is known;
+    every point of a cell lies within ``L/2`` along the curve of one of its two ends, so a
+    point ``p`` is at least ``(|p - C(a)| + |p - C(b)| - L) / 2`` from cell ``[a, b]``, and
+    at least ``dist(p, box) - max L/2`` from any cell of a tree node whose grid points lie
+    in ``box``. A branch-and-bound walk of the tree visits only the cells that can hold a
+    point nearer than the best found so far (the previous point's cell is tried first, so
+    for a trace that is one or two cells). In a cell the distance is minimised exactly:
+    its two ends, its middle, and, in each half where ``g = (C(u) - p) . C'(u)`` changes
+    from negative to positive, the root of ``g`` by safeguarded Newton iterations
+    (bisection where a step leaves the bracket) to a few ulp. Compiled; the points are
+    searched :data:`_CHUNK` at a time, with no memory per point beyond the results.
 
     Parameters
     ----------
@@ -207,65 +241,169 @@ def nearest_parameter(curve: NurbsCurve, points: np.ndarray, grid_size: int = 20
     distance : ndarray, shape (m,)
         [path units]
     """
-    pts = np.asarray(points, dtype=float)
+    pts = np.ascontiguousarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != curve.n_axes:
+        raise ValueError(f"points must have shape (m, {curve.n_axes}), got {pts.shape}")
     grid = _search_grid(curve, grid_size)
     best_u = np.empty(len(pts))
     best_d = np.empty(len(pts))
+    hint = np.full(1, -1, dtype=np.int64)
     for lo in range(0, len(pts), _CHUNK):
         chunk = slice(lo, lo + _CHUNK)
-        best_u[chunk], best_d[chunk] = _nearest_chunk(curve, grid, pts[chunk])
+        _nearest_points(grid.u, grid.points, grid.tangent_right, grid.tangent_left,
+                        grid.coef, grid.cell_length, grid.box_lo, grid.box_hi, grid.leaves,
+                        grid.half_cell, pts[chunk], best_u[chunk], best_d[chunk], hint)
     return best_u, best_d
 
 
-def _nearest_chunk(curve: NurbsCurve, grid: _SearchGrid, pts: np.ndarray):
-    d0, j0 = grid.tree.query(pts)
-    best_u, best_d = grid.u[j0].copy(), d0.copy()
-    near = grid.tree.query_ball_point(pts, d0 + grid.half_cell)
-    counts = np.fromiter((len(c) for c in near), dtype=np.intp, count=len(near))
-    owner = np.repeat(np.arange(len(pts)), counts)
-    j = np.fromiter((i for c in near for i in c), dtype=np.intp, count=int(counts.sum()))
-    # Both cells beside each candidate grid point, once per point.
-    last = len(grid.u) - 1
-    cell = np.concatenate([np.maximum(j - 1, 0), np.minimum(j, last - 1)])
-    pair = np.unique(np.concatenate([owner, owner]) * last + cell)
-    owner, cell = pair // last, pair % last
-    a, b, p = grid.u[cell], grid.u[cell + 1], pts[owner]
-    for start in (a, 0.5 * (a + b), b):
-        u = _newton_in_cell(curve, p, a, b, start.copy())
-        dist = np.linalg.norm(curve(u) - p, axis=1)
-        order = np.lexsort((dist, owner))  # per point, its best candidate first
-        first = np.ones(len(order), dtype=bool)
-        first[1:] = owner[order][1:] != owner[order][:-1]
-        k, o = order[first], owner[order[first]]
-        better = dist[k] < best_d[o]
-        best_d[o[better]] = dist[k][better]
-        best_u[o[better]] = u[k][better]
-    return best_u, best_d
+@njit(cache=True)
+def _nearest_points(gu, gp, tr, tl, coef, cell_length, box_lo, box_hi, leaves, h, pts,
+                    out_u, out_d, hint):
+    """:func:`nearest_parameter` for the rows of ``pts`` into ``out_u``, ``out_d``;
+    ``hint[0]`` is the cell to try first (-1: none) and is left at the last point's."""
+    n_cells = gu.shape[0] - 1
+    stack = np.empty(128, dtype=np.int64)
+    for i in range(pts.shape[0]):
+        q = pts[i]
+        best_d = math.inf
+        best_u = 0.0
+        best_cell = -1
+        first = hint[0]
+        if first >= 0:
+            best_d, best_u = _cell_minimum(gu, gp, tr, tl, coef[first], first, q)
+            best_cell = first
+        stack[0] = 1
+        top = 1
+        while top > 0:
+            top -= 1
+            node = stack[top]
+            if node >= leaves:
+                c = node - leaves
+                if c >= n_cells or c == first:
+                    continue
+                if 0.5 * (_distance(gp[c], q) + _distance(gp[c + 1], q)
+                          - cell_length[c]) > best_d:
+                    continue
+                d, u = _cell_minimum(gu, gp, tr, tl, coef[c], c, q)
+                if d < best_d or (d == best_d and u < best_u):
+                    best_d, best_u, best_cell = d, u, c
+                continue
+            child = 2 * node
+            bl = _box_distance(box_lo[child], box_hi[child], q) - h
+            br = _box_distance(box_lo[child + 1], box_hi[child + 1], q) - h
+            # Push the farther child first, so that the nearer one is walked first.
+            if bl > br:
+                bl, br = br, bl
+                near, far = child + 1, child
+            else:
+                near, far = child, child + 1
+            if br <= best_d:
+                stack[top] = far
+                top += 1
+            if bl <= best_d:
+                stack[top] = near
+                top += 1
+        out_u[i] = best_u
+        out_d[i] = best_d
+        hint[0] = best_cell
 
 
-def _newton_in_cell(curve, p, a, b, u, iterations: int = 40):
-    """Minimise |C(u) - p| over [a, b] per row: Newton on g = (C - p) . C' with a bracket
-    kept from the sign of g, bisection when a step leaves it. Each row stops on its own,
-    so a row's result does not depend on the others (nor on how points are chunked)."""
-    lo, hi = a.copy(), b.copy()
-    active = np.arange(len(u))
-    for _ in range(iterations):
-        ua, la, ha, pa = u[active], lo[active], hi[active], p[active]
-        d = curve.derivatives(ua, 2)
-        r = d[0] - pa
-        g = np.sum(r * d[1], axis=1)
-        dg = np.sum(d[1] * d[1], axis=1) + np.sum(r * d[2], axis=1)
-        la = np.where(g < 0, ua, la)
-        ha = np.where(g > 0, ua, ha)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = ua - g / dg
-        bad = ~((dg > 0) & (step > la) & (step < ha))
-        u_new = np.where(g == 0, ua, np.where(bad, 0.5 * (la + ha), step))
-        u[active], lo[active], hi[active] = u_new, la, ha
-        active = active[np.abs(u_new - ua) > 4e-16 * np.maximum(1.0, np.abs(ua))]
-        if active.size == 0:
+@njit(cache=True)
+def _distance(a, b):
+    s = 0.0
+    for j in range(a.shape[0]):
+        s += (a[j] - b[j]) ** 2
+    return math.sqrt(s)
+
+
+@njit(cache=True)
+def _box_distance(lo, hi, q):
+    s = 0.0
+    for j in range(q.shape[0]):
+        e = max(lo[j] - q[j], q[j] - hi[j], 0.0)
+        s += e * e
+    return math.sqrt(s)
+
+
+@njit(cache=True)
+def _g_at(coef, t, q):
+    """``(g, g', |C - q|)`` at ``u = gu[c] + t`` of the cell whose Taylor coefficients
+    are ``coef`` (p + 1, n_axes + 1): g = (C - q) . C' (Horner, then the quotient rule)."""
+    dim = q.shape[0]
+    w0, w1, w2 = horner(coef, dim, t)
+    g = 0.0
+    dg = 0.0
+    r2 = 0.0
+    for j in range(dim):
+        v0, v1, v2 = horner(coef, j, t)
+        c0 = v0 / w0
+        c1 = (v1 - w1 * c0) / w0
+        c2 = (v2 - 2.0 * w1 * c1 - w2 * c0) / w0
+        r = c0 - q[j]
+        g += r * c1
+        dg += c1 * c1 + r * c2
+        r2 += r * r
+    return g, dg, math.sqrt(r2)
+
+
+@njit(cache=True)
+def _cell_minimum(gu, gp, tr, tl, coef, c, q):
+    """``(distance, u)`` of the point of cell ``c`` nearest to ``q`` (``coef``: the cell's
+    Taylor coefficients, :func:`nurbsmotion._kernels.power_basis`)."""
+    a = gu[c]
+    b = gu[c + 1]
+    ga = 0.0
+    gb = 0.0
+    for j in range(q.shape[0]):
+        ga += (gp[c, j] - q[j]) * tr[c, j]
+        gb += (gp[c + 1, j] - q[j]) * tl[c + 1, j]
+    best_d = _distance(gp[c], q)
+    best_u = a
+    d = _distance(gp[c + 1], q)
+    if d < best_d:
+        best_d, best_u = d, b
+    m = 0.5 * (a + b)
+    gm, _, d = _g_at(coef, m - a, q)
+    if d < best_d:
+        best_d, best_u = d, m
+    if ga < 0.0 and gm > 0.0:
+        d, u = _root(coef, a, a, m, ga, gm, q)
+        if d < best_d:
+            best_d, best_u = d, u
+    if gm < 0.0 and gb > 0.0:
+        d, u = _root(coef, a, m, b, gm, gb, q)
+        if d < best_d:
+            best_d, best_u = d, u
+    return best_d, best_u
+
+
+@njit(cache=True)
+def _root(coef, a, lo, hi, glo, ghi, q):
+    """``(distance, u)`` at the root of g in ``(lo, hi)`` where g(lo) < 0 < g(hi): Newton
+    from the secant's point, bisection when a step leaves the bracket, until the step is
+    a few ulp; the nearest point evaluated on the way."""
+    u = lo - glo * (hi - lo) / (ghi - glo)
+    if not (lo < u < hi):
+        u = 0.5 * (lo + hi)
+    best_d = math.inf
+    best_u = u
+    for _ in range(200):
+        g, dg, d = _g_at(coef, u - a, q)
+        if d < best_d:
+            best_d, best_u = d, u
+        if g == 0.0:
             break
-    return u
+        if g < 0.0:
+            lo = u
+        else:
+            hi = u
+        nxt = u - g / dg if dg > 0.0 else 0.5 * (lo + hi)
+        if not (lo < nxt < hi):
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - u) <= 4e-16 * max(1.0, abs(u)) or not (lo < nxt < hi):
+            break
+        u = nxt
+    return best_d, best_u
 
 
 def contour_error(curve: NurbsCurve, points: np.ndarray) -> np.ndarray:
@@ -295,7 +433,7 @@ def settle_time(t: np.ndarray, position: np.ndarray, end: np.ndarray,
     """
     if not (math.isfinite(window) and window > 0):
         raise ValueError(f"settle window must be finite and > 0 pulse, got {window!r}")
-    outside = np.flatnonzero(np.linalg.norm(position - end, axis=1) > window)
+    outside = np.flatnonzero(distances_to(position, end) > window)
     if outside.size == 0:
         return float(t[0])
     if outside[-1] == len(t) - 1:
@@ -365,16 +503,22 @@ def trace_metrics(trace, settle_window: float | None = None) -> Metrics:
     if settle_window is None:
         settle_window = trace.settle_window
     names = trace.machine.axis_names
-    follow = trace.position_command - trace.position
-    contour = contour_error(trace.curve, trace.position)
     umax = trace.machine.max_drive
-    ratio = np.max(np.abs(trace.drive), axis=0) / umax
-    saturated = np.count_nonzero(np.abs(trace.drive) > umax * (1 + SATURATION_TOLERANCE),
-                                 axis=0)
+    cornered = trace.status == Status.CORNERED
+    # Axis by axis, so that no temporary is larger than one column of the trace.
+    follow_max, follow_rms, ratio, saturated, cornered_axes = [], [], [], [], []
+    for j in range(len(names)):
+        follow = trace.position_command[:, j] - trace.position[:, j]
+        follow_max.append(np.max(np.abs(follow)))
+        follow_rms.append(np.sqrt(np.dot(follow, follow) / len(follow)))
+        drive = np.abs(trace.drive[:, j])
+        ratio.append(np.max(drive) / umax)
+        saturated.append(np.count_nonzero(drive > umax * (1 + SATURATION_TOLERANCE)))
+        cornered_axes.append(np.count_nonzero(cornered & (drive > umax)))
+    del follow, drive
+    contour = contour_error(trace.curve, trace.position)
     fl_max, fl_rms = feed_fluctuation(trace.position_command, trace.feed,
                                       trace.machine.sample_period, trace.finished_index)
-    cornered = trace.status == Status.CORNERED
-    cornered_axes = np.count_nonzero(cornered[:, None] & (np.abs(trace.drive) > umax), axis=0)
     end = trace.curve(1.0)
     settle = settle_time(trace.t, trace.position, end, settle_window)
 
@@ -384,10 +528,10 @@ def trace_metrics(trace, settle_window: float | None = None) -> Metrics:
     return Metrics(
         cycle_time_s=trace.cycle_time,
         steps=int(trace.finished_index),
-        max_following_error=per_axis(np.max(np.abs(follow), axis=0)),
-        rms_following_error=per_axis(np.sqrt(np.mean(follow**2, axis=0))),
+        max_following_error=per_axis(follow_max),
+        rms_following_error=per_axis(follow_rms),
         max_contour_error=float(np.max(contour)),
-        rms_contour_error=float(np.sqrt(np.mean(contour**2))),
+        rms_contour_error=float(np.sqrt(np.dot(contour, contour) / len(contour))),
         max_drive_ratio=per_axis(ratio),
         saturated_samples={n: int(v) for n, v in zip(names, saturated)},
         feed_fluctuation_max=fl_max,

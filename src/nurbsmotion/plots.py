@@ -313,8 +313,12 @@ def _mark_beyond(ax, t, y, frame: float, color: str) -> None:
                     label="beyond the frame (clipped)")
 
 
-def _drive_title(runs: list[_Run], j: int, umax: float) -> str:
-    """Peak |u| / Umax of axis j per run, and how many samples lie beyond the frame."""
+def _drive_title(runs: list[_Run], j: int, umax: float, fig, ax) -> str:
+    """Peak |u| / Umax of axis j per run, and how many samples lie beyond the frame,
+    wrapped to the width of the panel ``ax`` (a longer line would run into the title of
+    the next panel)."""
+    import textwrap
+
     parts = []
     for run in runs:
         d = np.abs(run.trace.drive[:, j])
@@ -323,7 +327,17 @@ def _drive_title(runs: list[_Run], j: int, umax: float) -> str:
         if beyond:
             text += f" ({beyond} off-frame ▲▼)"
         parts.append(text)
-    return "max |u| / Umax: " + ", ".join(parts)
+    width_in = ax.get_position().width * fig.get_figwidth()
+    chars = max(20, int(width_in * 72 / (0.6 * 8.5)))  # "small" text: about 8.5 pt
+    lines = ["max |u| / Umax:"]
+    for part in parts:  # whole runs per line, never a run's figures split
+        if len(lines[-1]) + 2 + len(part) <= chars:
+            lines[-1] += (" " if lines[-1].endswith(":") else ", ") + part
+        else:
+            lines[-1] += "," if not lines[-1].endswith(":") else ""
+            lines.append(part)
+    return "\n".join(textwrap.shorten(line, chars, placeholder="…") if len(line) > chars
+                     else line for line in lines)
 
 
 def _desired_points(curve, n: int = 20000) -> np.ndarray:
@@ -411,8 +425,8 @@ def _label_corners(ax, curve, zooms: list[_Zoom]) -> None:
     pts = _desired_points(curve, 500)[:, :2]
     centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
     size = float(np.max(np.ptp(pts, axis=0)))
-    lo = pts.min(axis=0) - [0.1 * size, 0.0]
-    hi = pts.max(axis=0) + [0.1 * size, 0.0]
+    lo = pts.min(axis=0) - 0.1 * size
+    hi = pts.max(axis=0) + 0.1 * size
     box = dict(boxstyle="round,pad=0.25", facecolor="white", edgecolor="0.5", alpha=0.95)
     places: dict = {}  # corner number or zoom index -> (anchor (2,) [L], letters)
     corners = curve.sharp_corners()
@@ -423,16 +437,38 @@ def _label_corners(ax, curve, zooms: list[_Zoom]) -> None:
         key = ("corner", z.corner) if z.corner is not None else ("zoom", j)
         anchor = curve(corners[z.corner - 1])[:2] if z.corner is not None else z.center
         places.setdefault(key, (anchor, []))[1].append(chr(65 + j))
+    labels = []
     for (kind, n), (p, letters) in places.items():
         away = p - centre
         norm = float(np.linalg.norm(away))
         away = away / norm if norm > 0 else np.array([0.0, 1.0])
-        # outward from the path's centre, kept inside the path's box (where the axes are)
-        text_at = np.clip(p + 0.2 * size * away, lo, hi)
+        # Outward from the path's centre, the text on the far side of its anchor (so that
+        # it runs away from the path, not across it).
+        text_at = np.clip(p + 0.12 * size * away, lo, hi)
+        ha = "right" if away[0] < -0.35 else "left" if away[0] > 0.35 else "center"
+        va = "top" if away[1] < -0.35 else "bottom" if away[1] > 0.35 else "center"
         text = ", ".join(letters)
-        ax.annotate(f"corner {n} ({text})" if kind == "corner" else text, p, xytext=text_at,
-                    fontsize="medium", ha="center", va="center", bbox=box,
-                    arrowprops=dict(arrowstyle="-", color="0.4", linewidth=0.8))
+        labels.append(ax.annotate(
+            f"corner {n} ({text})" if kind == "corner" else text, p, xytext=text_at,
+            fontsize="medium", ha=ha, va=va, bbox=box,
+            arrowprops=dict(arrowstyle="-", color="0.4", linewidth=0.8)))
+    _fit_in_view(ax, labels)
+
+
+def _fit_in_view(ax, artists) -> None:
+    """Widen the data limits of ``ax`` so that ``artists`` (text boxes) lie inside the axes,
+    not over a neighbouring panel or its labels."""
+    if not artists:
+        return
+    fig = ax.figure
+    for _ in range(2):  # the limits change the scale: once more on the new scale
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        inverse = ax.transData.inverted()
+        for a in artists:
+            corners = inverse.transform(a.get_window_extent(renderer).get_points())
+            ax.update_datalim(corners)
+        ax.autoscale_view()
 
 
 def _path_panel(ax, desired, runs: list[_Run], i: int, j: int, names, unit: str) -> None:
@@ -507,7 +543,13 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
     ax_err.set_xlabel("time [s]")
     ax_err.set_ylabel(f"contour error [{unit}]")
     ax_err.set_title("contour error (distance to the curve)")
-    ax_err.set_ylim(bottom=0)
+    peaks = [float(np.max(d)) for _, d in nearest if np.max(d) > 0]
+    if len(peaks) > 1 and max(peaks) > 20 * min(peaks):
+        # Runs orders of magnitude apart: on a linear axis the smaller ones are a flat line.
+        ax_err.set_yscale("log")
+        ax_err.set_ylim(min(peaks) / 100, 2 * max(peaks))
+    else:
+        ax_err.set_ylim(bottom=0)
     ax_err.grid(True, linewidth=0.3, color="0.85")
 
     for j, (z, slot) in enumerate(zip(zooms, zoom_slots)):
@@ -561,7 +603,8 @@ def _drive_figure(runs: list[_Run], events, settle: float, title: str, path: Pat
                                label="±Umax" if sign > 0 else None)
         row[0].set_ylabel(f"{names[j]}: u [V]")
         if finite:
-            row[0].set_title(_drive_title(runs, j, umax), fontsize="small", loc="left")
+            row[0].set_title(_drive_title(runs, j, umax, fig, row[0]), fontsize="small",
+                             loc="left")
     for c, event in enumerate(events, start=1):
         grid[0, c].set_title(event.label, fontsize="medium")
     _legend_below(fig, grid)

@@ -52,7 +52,7 @@ SUMMARY_KEYS = (
 """The first keys of ``summary.json``, in order (contract); more follow, see :func:`summary`."""
 
 SUMMARY_LENGTH_KEYS = ("max_following_error", "rms_following_error", "max_contour_error",
-                       "rms_contour_error")
+                       "rms_contour_error", "end_overshoot", "corner_overshoot")
 """Summary keys in pulses that are repeated in the report unit (``<key>_mm``, ``<key>_in``)."""
 
 _SUMMARY_UNITS = {
@@ -76,8 +76,9 @@ TRACE_FORMATS = ("csv", "parquet")
 TRACE_FILES = {fmt: f"trace.{fmt}" for fmt in TRACE_FORMATS}
 """Trace format -> file name."""
 
-TRACE_CHUNK_ROWS = 16_384
-"""Rows converted and written at a time."""
+TRACE_CHUNK_ROWS = 4_096
+"""Rows converted and written at a time (a few chunks are in flight: about 1 MB each
+for two axes)."""
 
 
 def check_writable(paths: Iterable[Path], overwrite: bool) -> None:
@@ -185,7 +186,7 @@ def _write_csv_chunks(handle, cols, rows, progress) -> None:
     # pyarrow quotes header names; the header is written here, unquoted, as csv readers
     # and the contract expect.
     handle.write((",".join(c.name for c in cols) + "\n").encode())
-    workers = max(1, min(4, os.cpu_count() or 1))
+    workers = max(1, min(2, os.cpu_count() or 1))
     pending: deque = deque()
     with ThreadPoolExecutor(workers) as pool:
         def drain(limit: int) -> None:
@@ -366,7 +367,8 @@ TABLE_COLUMNS = (
     ("path", "path"), ("feed_m_s", "feed [m/s]"), ("interpolator", "interpolator"),
     ("cycle_time_s", "cycle time [s]"), ("time_optimal_bound_s", "bound [s]"),
     ("cycle_time_ratio", "cycle / bound"), ("settle_time_s", "settled [s]"),
-    ("move_and_settle_ratio", "settled / bound"), ("end_overshoot", "end overshoot [pulse]"),
+    ("move_and_settle_ratio", "settled / bound"), ("end_overshoot_{L}", "end overshoot [{L}]"),
+    ("end_overshoot", "end overshoot [pulse]"),
     ("max_drive_ratio", "max drive {axis} / Umax"),
     ("saturated_samples", "saturated samples {axis}"),
     ("max_contour_error_{L}", "max contour [{L}]"), ("max_contour_error", "max contour [pulse]"),

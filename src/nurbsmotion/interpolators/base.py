@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit
 
 from .. import stepping
+from .._kernels import horner
 from ..control import pid_affine
 from ..errors import InfeasibleError
 from ..nurbs import NurbsCurve
@@ -79,30 +80,15 @@ def _span(path, u):
 
 
 @njit(cache=True, inline="always")
-def _horner(c, a, t):
-    """Coordinate ``a`` of the polynomial ``c`` (p + 1, n_axes + 1) and its first two
-    derivatives at ``t``: ``(P, P', P'')``."""
-    p = c.shape[0] - 1
-    b0 = c[p, a]
-    b1 = 0.0
-    b2 = 0.0
-    for k in range(p - 1, -1, -1):
-        b2 = b2 * t + b1
-        b1 = b1 * t + b0
-        b0 = b0 * t + c[k, a]
-    return b0, b1, 2.0 * b2
-
-
-@njit(cache=True, inline="always")
 def path_derivatives(path, u, order, out):
     """``C^(k)(u)`` for k = 0 .. order (right-sided; order <= 2) into ``out`` (3, n_axes);
     returns it. The quotient rule of A4.2 (Piegl & Tiller) on ``[w*C, w]``."""
     i, t = _span(path, u)
     c = path.coefficients[i]
     dim = out.shape[1]
-    w, w1, w2 = _horner(c, dim, t)
+    w, w1, w2 = horner(c, dim, t)
     for a in range(dim):
-        A, A1, A2 = _horner(c, a, t)
+        A, A1, A2 = horner(c, a, t)
         x = A / w
         out[0, a] = x
         if order >= 1:
