@@ -59,6 +59,7 @@ def timed(study, cases, client=None, **options) -> dict:
     CPU time of every process of the run [s]."""
     for cached in (campaign._curve, campaign._bound_of):
         cached.cache_clear()
+    campaign._PATH_ERRORS.clear()
     if client is not None:
         client.run(lambda: [c.cache_clear() for c in (campaign._curve, campaign._bound_of)])
         remote0 = sum(client.run(_worker_cpu).values())

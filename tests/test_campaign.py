@@ -160,7 +160,7 @@ def test_tasks_keep_a_path_together_and_shrink_at_the_end(tmp_path):
         assert all(len({campaign._path_key(c) for c in t}) == 1 for t in tasks)
         assert max(map(len, tasks)) <= campaign._BATCH
         left = len(cases)
-        for t in tasks:  # no task holds more than the cases after it over 2 x workers
+        for t in tasks:  # no task holds more than the cases not yet given out / 2 workers
             left -= len(t)
             assert len(t) <= max(1, (left + len(t)) // (2 * n_workers))
         assert all(len(t) == 1 for t in tasks[-2 * n_workers:])

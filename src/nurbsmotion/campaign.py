@@ -777,7 +777,8 @@ def _warm_up(cases: list[Case]) -> None:
         probe = replace(c, index=-1, path="random:short_moves", path_family="short_moves",
                         path_seed=0, length=2e4, plant=PlantGroup("nominal"))
         try:
-            case_trace(probe)
+            with _cpu_limit(c.time_limit):
+                case_trace(probe)
         except Exception:  # noqa: BLE001 - the real cases record their own errors
             pass
 
@@ -794,8 +795,9 @@ def _path_key(case: Case) -> tuple:
 def _batches(cases: list[Case], n_workers: int) -> list[list[Case]]:
     """The tasks: consecutive cases on the same path, so that one worker builds the path's
     tables and time-optimal bounds once for all of them, at most :data:`_BATCH` a task
-    and at most the cases left after it over ``2 * n_workers`` (guided self-scheduling:
-    the tasks shrink to single cases towards the end, so the workers finish together)."""
+    and at most the cases not yet given out over ``2 * n_workers`` (guided
+    self-scheduling: the tasks shrink to single cases towards the end, so that the workers
+    finish together)."""
     out: list[list[Case]] = []
     left = len(cases)
     i = 0
