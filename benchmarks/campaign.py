@@ -1,15 +1,27 @@
 """Campaign throughput: serial, 2 local workers, a 2-worker Dask LocalCluster; engine
 overhead per case.
 
-Runs the same cases of a study (by default ``benchmarks/die_bonder_study.toml``, its first
-``--cases`` cases) three ways into temporary folders and reports cases per second, the
-1 -> 2 worker scaling (target >= 1.8x on 2 free cores), and the engine's own cost per
-case: serial wall time minus the cases' own time (``case_time_s``, measured inside
-:func:`nurbsmotion.campaign.run_case`), as a share of the cases' time (target <= 5 %).
-Every worker pays its own start (imports, compiled-kernel cache) once; the local pool's
-workers are forks of the (warm) parent, the Dask workers fresh interpreters, so the Dask
-cluster is timed twice: the first run with that start, the second without. The machine's load is printed: on a shared machine the scaling
-reads low.
+Runs the same cases of a study (by default ``benchmarks/die_bonder_study.toml``; with
+``--cases N``, whole paths spread evenly over the study until N cases) three ways into
+temporary folders and reports, for each, cases per second and the 1 -> 2 worker scaling
+(target >= 1.8x), and the engine's own cost per case (target <= 5 % of the case's time).
+
+The machine is shared, so every figure is given twice:
+
+- *wall*: cases / wall time, as a user sees it (``os.getloadavg()`` is printed with it);
+- *load-corrected*: the wall time times the share of CPU the cases actually got
+  (sum of ``case_cpu_s`` over sum of ``case_time_s``, both measured inside
+  :func:`nurbsmotion.campaign.run_case`). Other programs' load stretches a case's wall
+  time but not its CPU time, so this is the wall time the run would have taken with its
+  workers on cores of their own; work the engine adds (start-up, duplicated path tables,
+  the tail where a worker idles, the parent's writing) is kept in it.
+
+The engine overhead is the CPU time of every process of the run (this one, and the
+workers: local ones through ``getrusage(RUSAGE_CHILDREN)``, Dask ones asked for theirs)
+beyond the cases' own CPU time, per case and as a share of the case time. Each
+configuration starts with the kernels loaded (the engine loads them once per process
+before the first case, :func:`nurbsmotion.campaign._warm_up`); the Dask cluster's fresh
+workers are timed twice, first with that start, then without.
 
     python benchmarks/campaign.py [--study FILE] [--cases 1000]
 """
@@ -18,9 +30,12 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 import _common  # noqa: F401  (puts src/ on the path)
 
@@ -28,51 +43,104 @@ from nurbsmotion import campaign
 from nurbsmotion.campaign import load_study, read_rows, run_study, study_cases
 
 
-def timed(study, cases, **options) -> tuple[float, float, int]:
-    """Wall time [s], summed case time [s] and rows of one run into a fresh folder, with
-    this process's per-path caches emptied (forked workers would inherit them)."""
+def _cpu(who) -> float:
+    r = resource.getrusage(who)
+    return r.ru_utime + r.ru_stime
+
+
+def _worker_cpu() -> float:
+    """CPU time of the calling (Dask worker) process [s]."""
+    return _cpu(resource.RUSAGE_SELF)
+
+
+def timed(study, cases, client=None, **options) -> dict:
+    """One run into a fresh folder, with this process's per-path caches emptied (forked
+    workers would inherit them): wall time, the cases' summed wall and CPU time, and the
+    CPU time of every process of the run [s]."""
     for cached in (campaign._curve, campaign._bound_of):
         cached.cache_clear()
+    campaign._PATH_ERRORS.clear()
+    if client is not None:
+        client.run(lambda: [c.cache_clear() for c in (campaign._curve, campaign._bound_of)])
+        remote0 = sum(client.run(_worker_cpu).values())
+    load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
+        cpu0 = _cpu(resource.RUSAGE_SELF) + _cpu(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
-        run_study(study, Path(tmp) / "out", progress=False, cases=cases, **options)
+        run_study(study, Path(tmp) / "out", progress=False, cases=cases,
+                  scheduler=client, **options)
         wall = time.perf_counter() - t0
+        cpu = _cpu(resource.RUSAGE_SELF) + _cpu(resource.RUSAGE_CHILDREN) - cpu0
         table = read_rows(Path(tmp) / "out")
-        return wall, float(sum(table.column("case_time_s").to_pylist())), len(table)
+    if client is not None:
+        cpu += sum(client.run(_worker_cpu).values()) - remote0
+    case_wall = float(np.nansum(table.column("case_time_s").to_numpy(zero_copy_only=False)))
+    case_cpu = float(np.nansum(table.column("case_cpu_s").to_numpy(zero_copy_only=False)))
+    return {"n": len(table), "wall": wall, "case_wall": case_wall, "case_cpu": case_cpu,
+            "cpu": cpu, "corrected": wall * case_cpu / case_wall,
+            "load": (load, os.getloadavg()[0])}
+
+
+def show(name: str, r: dict, serial: dict | None = None) -> None:
+    n = r["n"]
+    over = r["cpu"] - r["case_cpu"]
+    text = (f"{name}: {r['wall']:.1f} s, {n / r['wall']:.2f} cases/s wall; load-corrected "
+            f"{r['corrected']:.1f} s, {n / r['corrected']:.2f} cases/s (cases got "
+            f"{r['case_cpu'] / r['case_wall']:.0%} of a core); engine overhead "
+            f"{over / n * 1e3:.1f} ms CPU a case = {over / r['case_cpu']:.1%} of the case "
+            f"CPU time; load {r['load'][0]:.1f} -> {r['load'][1]:.1f}")
+    if serial is not None:
+        text += (f"; scaling {serial['wall'] / r['wall']:.2f}x wall, "
+                 f"{serial['corrected'] / r['corrected']:.2f}x load-corrected")
+    print(text, flush=True)
+
+
+def spread_cases(cases, n: int):
+    """Whole paths (all their cases), spread evenly over the study, until ``n`` cases."""
+    groups: dict = {}
+    for c in cases:
+        groups.setdefault(campaign._path_key(c), []).append(c)
+    groups = list(groups.values())
+    if sum(map(len, groups)) <= n:
+        return cases
+    chosen, total = [], 0
+    # the golden-ratio sequence visits the study's paths evenly at every prefix
+    order = np.argsort([(k * 0.6180339887) % 1 for k in range(len(groups))], kind="stable")
+    for k in order:
+        if total >= n:
+            break
+        chosen.append(int(k))
+        total += len(groups[k])
+    return [c for k in sorted(chosen) for c in groups[k]]
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--study", default=str(Path(__file__).with_name("die_bonder_study.toml")))
     p.add_argument("--cases", type=int, default=1000)
+    p.add_argument("--no-dask", action="store_true", help="skip the LocalCluster")
     args = p.parse_args()
     study = load_study(args.study)
-    cases = study_cases(study)[: args.cases]
-    print(f"{len(cases)} cases of {args.study}; load average before: {os.getloadavg()}")
-    # Warm the compiled-kernel cache so that no configuration pays the compilation.
-    timed(study, cases[:1], workers=1)
-    serial, case_time, n = timed(study, cases, workers=1)
-    overhead = (serial - case_time) / case_time
-    print(f"serial: {serial:.1f} s, {n / serial:.2f} cases/s; cases' own time "
-          f"{case_time:.1f} s; engine overhead {overhead:.1%} of the case time")
-    local2, _, _ = timed(study, cases, workers=2)
-    print(f"2 local workers: {local2:.1f} s, {n / local2:.2f} cases/s, scaling "
-          f"{serial / local2:.2f}x")
+    cases = spread_cases(study_cases(study), args.cases)
+    print(f"{len(cases)} cases of {args.study}; {os.cpu_count()} cores", flush=True)
+    # Load (or compile) the kernels once, so that no configuration pays it.
+    campaign._warm_up(cases)
+    serial = timed(study, cases, workers=1)
+    show("serial", serial)
+    show("2 local workers", timed(study, cases, workers=2), serial)
+    if args.no_dask:
+        return
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
         print("dask.distributed not installed: no LocalCluster figure")
-    else:
-        with LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
-                          dashboard_address=None) as cluster, Client(cluster) as client:
-            cold, _, _ = timed(study, cases, scheduler=client)
-            # Its workers are fresh interpreters (the pool's are forks of this warm one):
-            # the second run shows the throughput once imports and kernels are loaded.
-            warm, _, _ = timed(study, cases, scheduler=client)
-        print(f"2-worker Dask LocalCluster: first run {cold:.1f} s (workers loading "
-              f"nurbsmotion and its compiled kernels), then {warm:.1f} s, "
-              f"{n / warm:.2f} cases/s, scaling {serial / warm:.2f}x")
-    print(f"load average after: {os.getloadavg()}")
+        return
+    with LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        # Its workers are fresh interpreters (the pool's are forks of this warm one):
+        # the first run includes their start (imports, kernels loaded from the cache).
+        show("2-worker Dask LocalCluster, first run", timed(study, cases, client), serial)
+        show("2-worker Dask LocalCluster, again", timed(study, cases, client), serial)
 
 
 if __name__ == "__main__":

@@ -51,7 +51,7 @@ def values(table):
     """Every column but the wall time, as Python lists (NaN made comparable)."""
     out = {}
     for c in table.column_names:
-        if c != "case_time_s":
+        if c not in ("case_time_s", "case_cpu_s"):
             out[c] = [("nan" if isinstance(v, float) and math.isnan(v) else v)
                       for v in table.column(c).to_pylist()]
     return out
@@ -72,6 +72,7 @@ def test_study_expands_to_the_product_and_a_seeded_sample(tmp_path):
 @pytest.mark.parametrize("line, field", [
     ("feeds = [-1.0]", "feeds"), ("interpolators = ['fast']", "interpolator"),
     ("bogus = 1", "bogus"), ("sample = 0", "sample"),
+    ("case_time_limit = -1", "case_time_limit"),
 ])
 def test_bad_study_names_the_field(tmp_path, line, field):
     key = line.split("=")[0].strip()
@@ -112,8 +113,114 @@ def test_rows_errors_resume_and_no_rewrite(tmp_path):
     assert len(set(pm)) == len(pm) and all(0.8 <= v <= 1.2 for v in pm)
     digest = (out / "digest.md").read_text()
     assert "Failing cases" in digest and "--case c0000" in digest
+    (out / "rows" / ".part-killed.parquet.tmp").write_bytes(b"half a file")
     third = run_study(study, out, workers=1, progress=False, resume=True)
     assert third.computed == 0
+    assert not list((out / "rows").glob(".part-*"))  # a part cut short by a kill is dropped
+
+
+@pytest.mark.skipif(not hasattr(signal, "setitimer"), reason="needs setitimer")
+def test_a_runaway_case_is_stopped_and_recorded(tmp_path, monkeypatch):
+    from nurbsmotion.errors import WorkLimitError
+
+    with pytest.raises(WorkLimitError, match="case_time_limit"):
+        with campaign._cpu_limit(0.2):
+            while True:
+                pass
+    study = load_study(write_study(tmp_path, "case_time_limit = 0.2\n" + SMALL))
+    case = study_cases(study)[0]
+    assert case.time_limit == 0.2
+
+    def forever(case):
+        while True:
+            pass
+
+    monkeypatch.setattr(campaign, "case_trace", forever)
+    row = campaign.run_case(case)
+    assert row["status"] == STATUS_ERROR and row["error_type"] == "WorkLimitError"
+    assert 0.1 <= row["case_cpu_s"] < 5
+
+
+def test_a_folder_in_use_is_refused(tmp_path):
+    study = load_study(write_study(tmp_path))
+    out = tmp_path / "out"
+    with campaign._locked(out):
+        with pytest.raises(OutputExistsError, match="another running campaign"):
+            run_study(study, out, workers=1, progress=False, resume=True)
+        with pytest.raises(OutputExistsError, match="another running campaign"):
+            run_study(study, out, workers=1, progress=False, overwrite=True)
+
+
+def test_tasks_keep_a_path_together_and_shrink_at_the_end(tmp_path):
+    study = load_study(write_study(tmp_path, SWEEP_BATCHES))
+    cases = study_cases(study)
+    for n_workers in (1, 2, 7):
+        tasks = campaign._batches(cases, n_workers)
+        assert [c for t in tasks for c in t] == cases
+        assert all(len({campaign._path_key(c) for c in t}) == 1 for t in tasks)
+        assert max(map(len, tasks)) <= campaign._BATCH
+        left = len(cases)
+        for t in tasks:  # no task holds more than the cases not yet given out / 2 workers
+            left -= len(t)
+            assert len(t) <= max(1, (left + len(t)) // (2 * n_workers))
+        assert all(len(t) == 1 for t in tasks[-2 * n_workers:])
+        assert len(tasks) < len(cases)  # paths stay together while work is left
+
+
+SWEEP_BATCHES = """
+feeds = [0.2, 0.5, 1.0]
+interpolators = ["paper", "planned"]
+[[random_paths]]
+families = "all"
+count = 2
+[[plants]]
+name = "nominal"
+[[plants]]
+name = "pm20"
+spread = 0.2
+"""
+
+
+_ORPHAN_SCRIPT = """
+import os, sys, time
+from nurbsmotion import campaign
+def wait(case):
+    print(os.getpid(), flush=True)
+    time.sleep(120)
+cases = campaign.study_cases(campaign.load_study(sys.argv[1]))[:4]
+for row in campaign._execute_pool(cases, 2, wait):
+    pass
+"""
+
+
+@pytest.mark.skipif(os.name != "posix", reason="needs fork and SIGKILL")
+@pytest.mark.parametrize("how", [signal.SIGKILL, signal.SIGINT])
+def test_workers_end_with_a_killed_or_interrupted_campaign(tmp_path, how):
+    """Killed, the campaign cannot stop its workers: they notice and exit; interrupted
+    (Ctrl-C), it stops them at once rather than waiting for the cases in flight."""
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "campaign.py"
+    script.write_text(_ORPHAN_SCRIPT)
+    proc = subprocess.Popen([sys.executable, str(script), str(write_study(tmp_path))],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                            env=dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path)))
+    workers = {int(proc.stdout.readline()) for _ in range(2)}
+    proc.send_signal(how)
+    proc.wait(timeout=30)
+
+    def alive(pid):
+        try:
+            return Path(f"/proc/{pid}/stat").read_text().split()[2] not in "ZX"
+        except OSError:
+            return False
+
+    deadline = time.monotonic() + 10
+    while any(map(alive, workers)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not any(map(alive, workers))
 
 
 def test_a_case_reruns_with_its_run_output(tmp_path):

@@ -13,7 +13,8 @@ any reason resumes where it was. :func:`digest` summarises the dataset.
 
 Every random draw of a case (its random path, its random plant) comes from seeds derived
 from the study's seed and the case's index, never from a worker, so the rows are the same
-bit for bit however the cases are spread (only ``case_time_s``, the wall time, differs).
+bit for bit however the cases are spread (only ``case_time_s`` and ``case_cpu_s``, the
+case's wall and CPU time, differ).
 
 pyarrow, dask and tqdm are imported only when used.
 """
@@ -27,6 +28,7 @@ import shutil
 import sys
 import time
 import uuid
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import lru_cache
 from itertools import product
@@ -57,6 +59,11 @@ FEED_UNITS = {"pulse/s": None, "path/s": None, "um/s": 1.0, "mm/s": 1e3, "m/s": 
               "mm/min": 1e3 / 60}
 """Units of a study's ``feeds``: micrometres per second per unit (``None``: pulse/s, or
 the path's own units per second)."""
+
+CASE_TIME_LIMIT = 300.0
+"""Default CPU time a case may use [s] (a study's ``case_time_limit``): about thirty times
+the longest case of the die-bonder study, so that a case that would run away (a path whose
+tables do not converge) is stopped and recorded instead of holding a worker for ever."""
 
 SUMMARY_FIGURES = ("cycle_time_ratio", "max_contour_error", "max_following_error",
                    "max_drive_ratio", "saturated_samples", "move_and_settle_ratio",
@@ -110,6 +117,7 @@ class Study:
     settle_time: float = 0.05
     settle_window: float = SETTLE_WINDOW
     bound: bool = True
+    case_time_limit: float | None = CASE_TIME_LIMIT
     source: str | None = None
     base_dir: str = "."
 
@@ -135,6 +143,7 @@ class Case:
     settle_window: float
     bound: bool = True
     base_dir: str = "."
+    time_limit: float | None = CASE_TIME_LIMIT
 
     @property
     def case_id(self) -> str:
@@ -143,7 +152,7 @@ class Case:
 
 _STUDY_KEYS = {"name", "seed", "paths", "random_paths", "feeds", "feed_unit", "machines",
                "plants", "interpolators", "sample", "settle_time", "settle_window",
-               "time_optimal_bound"}
+               "time_optimal_bound", "case_time_limit"}
 
 
 def load_study(file: str | os.PathLike) -> Study:
@@ -203,6 +212,9 @@ def _study_from_dict(data: dict, source: str, base_dir: str) -> Study:
         raise ValueError(f"sample must be an integer >= 1 (cases drawn), got {sample!r}")
     settle_time = _positive_number(data.get("settle_time", 0.05), "settle_time", zero=True)
     settle_window = _positive_number(data.get("settle_window", SETTLE_WINDOW), "settle_window")
+    limit = data.get("case_time_limit", CASE_TIME_LIMIT)
+    if limit is not False:
+        limit = _positive_number(limit, "case_time_limit (CPU seconds, or false)")
     bound = data.get("time_optimal_bound", True)
     if not isinstance(bound, bool):
         raise ValueError(f"time_optimal_bound must be true or false, got {bound!r}")
@@ -210,7 +222,8 @@ def _study_from_dict(data: dict, source: str, base_dir: str) -> Study:
                  random_paths=random_paths, feeds=tuple(float(f) for f in feeds),
                  feed_unit=feed_unit, machines=machines, plants=plants,
                  interpolators=interpolators, sample=sample, settle_time=settle_time,
-                 settle_window=settle_window, bound=bound, source=source, base_dir=base_dir)
+                 settle_window=settle_window, bound=bound, case_time_limit=limit or None,
+                 source=source, base_dir=base_dir)
 
 
 def _is_number(x) -> bool:
@@ -300,7 +313,8 @@ def study_cases(study: Study) -> list[Case]:
         cases.append(Case(index, path, family, path_seed, n_axes or axes_of_machine[machine],
                           length, feed, study.feed_unit, machine, plant, interp,
                           _seed(study.seed, 2, index), study.settle_time,
-                          study.settle_window, study.bound, study.base_dir))
+                          study.settle_window, study.bound, study.base_dir,
+                          study.case_time_limit))
         index += 1
     if study.sample is not None and study.sample < len(cases):
         pick = np.random.default_rng(_seed(study.seed, 3)).choice(
@@ -332,6 +346,26 @@ def _curve(path: str, family: str | None, path_seed: int | None, n_axes: int, le
 
     spec = path if path.split("#")[0] in BUILTIN_PATHS else str(Path(base_dir) / path)
     return resolve_path(spec)
+
+
+_PATH_ERRORS: dict = {}
+"""Per worker: why a path could not be built (it fails the same way for all its cases)."""
+
+
+def _path(case: Case):
+    """The case's path with its arc-length tables (:func:`_curve`, kept per worker); a
+    path that could not be built, or whose tables took more than the case's time limit,
+    fails the worker's other cases on it at once, with the same error."""
+    key = _path_key(case)
+    if key in _PATH_ERRORS:
+        raise _PATH_ERRORS[key]
+    try:
+        curve = _curve(*key)
+        curve.length  # the tables every interpolator and figure reads
+    except Exception as exc:
+        _PATH_ERRORS[key] = exc
+        raise
+    return curve
 
 
 def _feed_in_pulses(case: Case, curve, machine: Machine) -> float:
@@ -369,8 +403,7 @@ def case_trace(case: Case):
     from .servo import ServoPlant
 
     machine = _machine(case.machine, case.base_dir)
-    curve = _curve(case.path, case.path_family, case.path_seed, case.n_axes, case.length,
-                   case.base_dir)
+    curve = _path(case)
     machine.check_path(curve.n_axes)
     feed = _feed_in_pulses(case, curve, machine)
     tau_s, kc_s = _plant_scales(case, machine.n_axes)
@@ -408,10 +441,11 @@ def run_case(case: Case) -> dict:
     """One row of the dataset: the case's parameters and seed, ``status``, and every
     ``summary.json`` key (per-axis values as ``key_<axis>``); a case that raises gives
     ``status = "error"`` with ``error_type`` and ``error_message`` instead of figures."""
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     row = _case_columns(case)
     try:
-        _, data, tau_s, kc_s = case_trace(case)
+        with _cpu_limit(case.time_limit):
+            _, data, tau_s, kc_s = case_trace(case)
     except Exception as exc:  # recorded, never lost: the campaign goes on
         row.update(status=STATUS_ERROR, error_type=type(exc).__name__,
                    error_message=str(exc)[:2000])
@@ -426,7 +460,37 @@ def run_case(case: Case) -> dict:
         for axis, t, k in zip(_machine(case.machine, case.base_dir).axis_names, tau_s, kc_s):
             row[f"tau_scale_{axis}"], row[f"Kc_scale_{axis}"] = float(t), float(k)
     row["case_time_s"] = time.perf_counter() - t0
+    row["case_cpu_s"] = time.process_time() - cpu0
     return row
+
+
+@contextmanager
+def _cpu_limit(seconds: float | None):
+    """Raise :class:`~nurbsmotion.errors.WorkLimitError` in this process once the block
+    has used ``seconds`` of CPU time, and every CPU second after that until it ends (a
+    CPU-time timer: a loaded machine does not shorten it). Python code is stopped at once,
+    a compiled loop when it returns; on a platform without ``setitimer``, or off the main
+    thread (a Dask worker's task), there is no limit."""
+    import signal
+    import threading
+
+    if (not seconds or not hasattr(signal, "setitimer")
+            or threading.current_thread() is not threading.main_thread()):
+        yield
+        return
+    from .errors import WorkLimitError
+
+    def expired(signum, frame):
+        raise WorkLimitError(f"the case used more than {seconds:g} s of CPU time (the "
+                             "study's case_time_limit) and was stopped")
+
+    previous = signal.signal(signal.SIGPROF, expired)
+    signal.setitimer(signal.ITIMER_PROF, seconds, 1.0)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_PROF, 0)
+        signal.signal(signal.SIGPROF, previous)
 
 
 def _case_columns(case: Case) -> dict:
@@ -468,7 +532,7 @@ def _schema(study: Study):
             fields += [(f"{key}_{a}", typ) for a in axes]
         elif key not in taken:
             fields.append((key, typ))
-    fields.append(("case_time_s", pa.float64()))
+    fields += [("case_time_s", pa.float64()), ("case_cpu_s", pa.float64())]
     return pa.schema(fields)
 
 
@@ -487,14 +551,19 @@ def _write_part(rows: list[dict], rows_dir: Path, schema) -> Path:
 
 
 def read_rows(out_dir: str | os.PathLike):
-    """All finished rows of a campaign as a pyarrow Table, sorted by case index."""
+    """All finished rows of a campaign as a pyarrow Table, sorted by case index (the
+    columns of every part file: a column added by a newer version is null in the rows of
+    parts written before it)."""
+    import pyarrow as pa
     import pyarrow.dataset as ds
+    import pyarrow.parquet as pq
 
     rows_dir = Path(out_dir) / "rows"
     files = sorted(str(p) for p in rows_dir.glob("part-*.parquet"))
     if not files:
         return None
-    table = ds.dataset(files, format="parquet").to_table()
+    schema = pa.unify_schemas([pq.read_schema(f) for f in files])
+    table = ds.dataset(files, schema=schema, format="parquet").to_table()
     return table.sort_by("case_index")
 
 
@@ -553,38 +622,67 @@ def run_study(study: Study, out_dir: str | os.PathLike, *, workers: int | None =
     out = Path(out_dir)
     rows_dir = out / "rows"
     study_copy = out / "study.toml"
-    if out.exists() and any(out.iterdir()):
-        if overwrite:
-            shutil.rmtree(out)
-        elif not resume:
-            raise OutputExistsError(f"{out} exists; resume with --resume, or pass --overwrite")
+    held = out.exists() and any(p.name != _LOCK for p in out.iterdir())
+    if held and not (overwrite or resume):
+        raise OutputExistsError(f"{out} exists; resume with --resume, or pass --overwrite")
     text = Path(study.source).read_text() if study.source else ""
-    if resume and study_copy.exists() and study_copy.read_text() != text:
+    if resume and not overwrite and study_copy.exists() and study_copy.read_text() != text:
         raise PathFileError(f"{out} holds the results of another study (its study.toml "
                             "differs); choose another output folder", study.source)
-    rows_dir.mkdir(parents=True, exist_ok=True)
-    study_copy.write_text(text)
-    all_cases = study_cases(study) if cases is None else cases
-    done = _finished_ids(out)
-    todo = [c for c in all_cases if c.case_id not in done]
-    schema = _schema(study)
-    writer = _RowWriter(rows_dir, schema, flush_rows, flush_seconds)
-    bar = _progress(len(todo), progress)
-    try:
-        for row in _execute(todo, workers, scheduler, run_case):
-            writer.add(row)
-            bar(row)
-    finally:
-        writer.flush()
-        bar(None)
-    table = read_rows(out)
-    result_digest = digest(table, study, out) if table is not None else {}
-    if table is not None:
-        write_digest(result_digest, out)
+    with _locked(out):
+        if held and overwrite:
+            for p in out.iterdir():
+                if p.name != _LOCK:
+                    shutil.rmtree(p) if p.is_dir() else p.unlink()
+        rows_dir.mkdir(parents=True, exist_ok=True)
+        for stale in rows_dir.glob(".part-*.tmp"):  # a part being written when killed
+            stale.unlink()
+        study_copy.write_text(text)
+        all_cases = study_cases(study) if cases is None else cases
+        done = _finished_ids(out)
+        todo = [c for c in all_cases if c.case_id not in done]
+        writer = _RowWriter(rows_dir, _schema(study), flush_rows, flush_seconds)
+        bar = _progress(len(todo), progress)
+        try:
+            for row in _execute(todo, workers, scheduler, run_case):
+                writer.add(row)
+                bar(row)
+        finally:
+            writer.flush()
+            bar(None)
+        table = read_rows(out)
+        result_digest = digest(table, study, out) if table is not None else {}
+        if table is not None:
+            write_digest(result_digest, out)
     failed = 0 if table is None else int(
         sum(s != STATUS_OK for s in table.column("status").to_pylist()))
     return CampaignResult(out, len(all_cases), writer.written, len(all_cases) - len(todo),
                           failed, time.perf_counter() - t0, result_digest)
+
+
+_LOCK = ".lock"
+
+
+@contextmanager
+def _locked(out: Path):
+    """Hold ``OUT/.lock`` (an advisory ``flock``, POSIX) while a campaign writes into
+    ``out``: a second campaign into the same folder is refused instead of running the same
+    cases twice. The lock goes with the process that holds it, however it ends."""
+    from .errors import OutputExistsError
+
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no lock
+        yield
+        return
+    with open(out / _LOCK, "a") as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            raise OutputExistsError(f"{out} is being written by another running "
+                                    "campaign") from None
+        yield
 
 
 def _finished_ids(out: Path) -> set:
@@ -639,7 +737,12 @@ def _progress(total: int, enabled: bool) -> Callable:
 def _execute(cases: list[Case], workers: int | None, scheduler,
              function: Callable | None = None) -> Iterable[dict]:
     """Rows of ``function`` (:func:`run_case` by default) over ``cases``, in the order
-    they finish: serially, on ``workers`` local processes, or on a Dask ``scheduler``."""
+    they finish: serially, on ``workers`` local processes, or on a Dask ``scheduler``.
+
+    Before any case runs, the compiled kernels the cases use are loaded (or compiled) once
+    per process (:func:`_warm_up`): here before local workers are forked (they inherit
+    them), in every Dask worker when it joins (:func:`_dask_warm_up`).
+    """
     function = function or run_case
     if not cases:
         return iter(())
@@ -648,26 +751,65 @@ def _execute(cases: list[Case], workers: int | None, scheduler,
     n = (os.cpu_count() or 1) if workers is None else int(workers)
     if n < 1:
         raise ValueError(f"workers must be >= 1, got {workers!r}")
+    _warm_up(cases)
     if n == 1:
         return (function(c) for c in cases)
     return _execute_pool(cases, n, function)
 
 
-_BATCH = 8
+_WARMED: set = set()
+"""(interpolator, machine, base folder) of the kernels this process has loaded."""
+
+
+def _warm_up(cases: list[Case]) -> None:
+    """Load the compiled kernels of every (interpolator, machine) of ``cases`` into this
+    process: one short random move each (``short_moves``, seed 0, nominal plant, index
+    -1: no case of the study; its figures are discarded), so that no case's time includes
+    loading or compiling them and forked workers start with them loaded. Errors are left
+    to the cases to record."""
+    from dataclasses import replace
+
+    for c in cases:
+        key = (c.interpolator, c.machine, c.base_dir)
+        if key in _WARMED:
+            continue
+        _WARMED.add(key)
+        probe = replace(c, index=-1, path="random:short_moves", path_family="short_moves",
+                        path_seed=0, length=2e4, plant=PlantGroup("nominal"))
+        try:
+            with _cpu_limit(c.time_limit):
+                case_trace(probe)
+        except Exception:  # noqa: BLE001 - the real cases record their own errors
+            pass
+
+
+_BATCH = 16
 """Most cases sent to a worker as one task."""
 
 
-def _batches(cases: list[Case]) -> list[list[Case]]:
-    """Consecutive cases on the same path, machine and feed, at most :data:`_BATCH` a task:
-    one worker then computes their path's tables and time-optimal bound once."""
+def _path_key(case: Case) -> tuple:
+    return (case.path, case.path_family, case.path_seed, case.n_axes, case.length,
+            case.base_dir)
+
+
+def _batches(cases: list[Case], n_workers: int) -> list[list[Case]]:
+    """The tasks: consecutive cases on the same path, so that one worker builds the path's
+    tables and time-optimal bounds once for all of them, at most :data:`_BATCH` a task
+    and at most the cases not yet given out over ``2 * n_workers`` (guided
+    self-scheduling: the tasks shrink to single cases towards the end, so that the workers
+    finish together)."""
     out: list[list[Case]] = []
-    key = None
-    for c in cases:
-        k = (c.path, c.path_family, c.path_seed, c.machine, c.feed_value)
-        if k != key or len(out[-1]) >= _BATCH:
-            out.append([])
-            key = k
-        out[-1].append(c)
+    left = len(cases)
+    i = 0
+    while i < len(cases):
+        size = max(1, min(_BATCH, left // (2 * n_workers)))
+        key = _path_key(cases[i])
+        j = i + 1
+        while j < len(cases) and j - i < size and _path_key(cases[j]) == key:
+            j += 1
+        out.append(cases[i:j])
+        left -= j - i
+        i = j
     return out
 
 
@@ -676,16 +818,16 @@ def _run_batch(function: Callable, batch: list[Case]) -> list[dict]:
 
 
 def _execute_pool(cases: list[Case], n_workers: int, function: Callable) -> Iterable[dict]:
-    """Local processes; at most ``2 * n_workers`` batches in flight. When a worker dies
+    """Local processes; at most ``2 * n_workers`` tasks in flight. When a worker dies
     (the pool breaks), each case then in flight is run again alone in a fresh process;
     a case whose process dies again is recorded as :data:`WORKER_DIED`."""
     from concurrent.futures.process import BrokenProcessPool
 
-    queue = list(reversed(_batches(cases)))
+    queue = list(reversed(_batches(cases, n_workers)))
     suspects: list[Case] = []
     window = 2 * n_workers
     while queue or suspects:
-        pool = cf.ProcessPoolExecutor(n_workers)
+        pool = _pool(n_workers)
         running: dict = {}
         try:
             while queue or running:
@@ -709,6 +851,9 @@ def _execute_pool(cases: list[Case], n_workers: int, function: Callable) -> Iter
             for batch in running.values():
                 suspects.extend(batch)
             running.clear()
+        except BaseException:  # Ctrl-C, SIGTERM: the cases in flight are dropped
+            _terminate(pool)   # (resume runs them), not waited for
+            raise
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
         for c in suspects:
@@ -716,11 +861,42 @@ def _execute_pool(cases: list[Case], n_workers: int, function: Callable) -> Iter
         suspects = []
 
 
+def _pool(n_workers: int) -> cf.ProcessPoolExecutor:
+    """Local worker processes (started by :func:`_worker_start`)."""
+    return cf.ProcessPoolExecutor(n_workers, initializer=_worker_start,
+                                  initargs=(os.getpid(),))
+
+
+def _terminate(pool: cf.ProcessPoolExecutor) -> None:
+    """Stop the pool's workers now, whatever they are running."""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        process.kill()
+
+
+def _worker_start(parent: int) -> None:
+    """In a local worker: Ctrl-C and SIGTERM are the campaign's to handle (it stops its
+    workers, :func:`_terminate`), and the worker exits as soon as the campaign's process
+    is gone (killed with SIGKILL, it cannot stop them, and they would wait for work
+    forever)."""
+    import signal
+    import threading
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="orphan-guard", daemon=True).start()
+
+
 def _run_alone(case: Case, function: Callable) -> dict:
     """The second attempt of a case whose worker died: alone in a fresh process."""
     from concurrent.futures.process import BrokenProcessPool
 
-    with cf.ProcessPoolExecutor(1) as pool:
+    with _pool(1) as pool:
         try:
             row = pool.submit(function, case).result()
         except BrokenProcessPool:
@@ -733,34 +909,63 @@ def _died(case: Case, message: str) -> dict:
     """The row of a case whose worker did not return a row."""
     row = _case_columns(case)
     row.update(status=STATUS_ERROR, error_type=WORKER_DIED, error_message=message,
-               case_time_s=math.nan)
+               case_time_s=math.nan, case_cpu_s=math.nan)
     return row
 
 
 def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[dict]:
-    """On a Dask cluster: one task per batch of cases (:func:`_batches`; retried once if
-    its worker dies), results gathered here as they finish."""
+    """On a Dask cluster: one task per batch of cases (:func:`_batches`, sized for the
+    cluster's threads), results gathered here as they finish. A task whose worker died
+    (Dask's ``KilledWorker``, after the scheduler's ``allowed-failures``) is split: each
+    of its cases runs again alone, and a case whose worker dies again is recorded as
+    :data:`WORKER_DIED`."""
     from dask.distributed import Client, as_completed
 
     client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
     try:
-        batches = _batches(cases)
+        _dask_warm_up(client, cases)
+        slots = max(1, sum(client.nthreads().values()))
+        batches = _batches(cases, slots)
         futures = client.map(_run_batch, [function] * len(batches), batches, retries=1,
                              pure=False)
         by_key = {f.key: b for f, b in zip(futures, batches)}
-        for fut in as_completed(futures):
-            batch = by_key[fut.key]
+        done = as_completed(futures)
+        for fut in done:
+            batch = by_key.pop(fut.key)
             try:
                 rows = fut.result()
-            except Exception as exc:  # KilledWorker: the worker died on every attempt
-                rows = [_died(c, f"{type(exc).__name__}: {exc}") for c in batch]
-                for row in rows:
-                    row["attempts"] = 2
+            except Exception as exc:  # KilledWorker, or a result that cannot be sent
+                if len(batch) > 1:
+                    for case in batch:
+                        again = client.submit(_run_batch, function, [case], pure=False)
+                        by_key[again.key] = [case]
+                        done.add(again)
+                    rows = []
+                else:
+                    rows = [_died(batch[0], f"{type(exc).__name__}: {exc}")]
+                    rows[0]["attempts"] = 2
             fut.release()
             yield from rows
     finally:
         if client is not scheduler:
             client.close()
+
+
+def _dask_warm_up(client, cases: list[Case]) -> None:
+    """Every worker of the cluster, now or when it joins, runs :func:`_warm_up` for the
+    cases' interpolators and machines once (a worker plugin, run in a thread so the
+    worker keeps answering the scheduler while it compiles)."""
+    import asyncio
+
+    from distributed import WorkerPlugin
+
+    probes = list({(c.interpolator, c.machine, c.base_dir): c for c in cases}.values())
+
+    class WarmUp(WorkerPlugin):
+        async def setup(self, worker):
+            await asyncio.to_thread(_warm_up, probes)
+
+    client.register_plugin(WarmUp(), name="nurbsmotion-warm-up")
 
 
 # ----------------------------------------------------------------------------- digest

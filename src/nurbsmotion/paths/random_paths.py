@@ -25,9 +25,10 @@ Each family stresses one thing an interpolator or a figure can get wrong:
 ``duplicated_points``
     Cubic free-form with one control point repeated: twice (a valid curve with a short
     control leg of zero length) or three times, where the curve stops (C'(u) = 0) at an
-    isolated point. :class:`~nurbsmotion.nurbs.NurbsCurve` refuses such a curve today
-    (:class:`~nurbsmotion.errors.InvalidCurveError`); the family is kept so studies record
-    that refusal, and will run the curves once zero-speed points are accepted.
+    isolated point. Such a curve is accepted (its zero-speed points are known), but in
+    the die-bonder study no interpolator passes the stop (``InfeasibleError``: a speed
+    limit of 0 there) and the arc-length tables of some never converge (stopped by the
+    study's ``case_time_limit``): the family keeps recording both.
 ``hairpins``
     Out and back along parallel legs 2-40 pulses apart, with a smooth U-turn.
 ``closed``
