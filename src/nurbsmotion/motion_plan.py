@@ -371,13 +371,14 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
             scale *= np.min(np.where(near, factor[None, :], 1.0), axis=1)
         return scale
 
+    grids: dict = {}  # the profile's grids, reused while only its drive limit changes
     last_use = math.inf
     widen = 1.0
     initial_grid = grid_size
     for _ in range(DRIVE_FIT_ROUNDS):
         profile = speed_profile(curve, machine, feed, drive_fraction=drive_fraction,
                                 drive_scale=drive_scale if eases else None,
-                                grid_size=grid_size)
+                                grid_size=grid_size, grids=grids)
         if profile.duration / Ts > max_samples:
             raise InfeasibleError(
                 f"the planned motion takes {profile.duration:g} s, more than "
