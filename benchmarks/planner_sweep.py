@@ -33,10 +33,9 @@ from nurbsmotion.metrics import contour_error
 from nurbsmotion.paths.random_paths import FAMILIES, random_path
 from nurbsmotion.planning import time_optimal_bound
 from nurbsmotion.servo import ServoPlant
+from planner_eval import HOLD, settle_time  # the same settle time (1 pulse) as the tables
 
 SEED = 10
-SETTLE_WINDOW = 1.0  # pulse (1 um on the die-bonder)
-HOLD = 0.3  # s simulated after the plan's end at most
 CONDITIONS = ("nominal", "box", "gains x2")
 
 
@@ -51,15 +50,6 @@ def machine_for(n_axes: int, gains: float = 1.0):
 
 def _axis_numbers(a):
     return a.time_constant, a.electrical_gain, a.mechanical_gain, a.position_gain, a.speed_gain
-
-
-def settle_time(trace, end) -> float:
-    """First time after which the actual position stays within SETTLE_WINDOW of ``end``."""
-    d = np.max(np.abs(trace.position - end), axis=1)
-    out = np.nonzero(d > SETTLE_WINDOW)[0]
-    if out.size and out[-1] == len(d) - 1:
-        return float("inf")
-    return float(trace.t[out[-1] + 1]) if out.size else 0.0
 
 
 def one_case(i: int) -> dict:
