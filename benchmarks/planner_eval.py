@@ -16,14 +16,13 @@ and ``planned`` side by side where it applies:
   the stop-at-corner bound and the contour error to the original sharp path (item 5);
 - planning time of ``planned`` (and of TOPP-RA where ``toppra`` is importable, via
   benchmarks/toppra_compare.py's set-up);
-- with ``PLANNER_EVAL_SWEEP=N`` (default 0), N seeded random paths (item 7, partial).
+- item 7 (seeded random paths) is benchmarks/planner_sweep.py.
 
 Run: python benchmarks/planner_eval.py
 """
 
 from __future__ import annotations
 
-import os
 import time
 
 import numpy as np
@@ -31,7 +30,7 @@ import numpy as np
 import _common  # noqa: F401  (puts src/ on the path)
 from nurbsmotion.interpolators import PlannedInterpolator, make_interpolator
 from nurbsmotion.loop import simulate, to_pulses
-from nurbsmotion.machine import Axis, die_bonder
+from nurbsmotion.machine import die_bonder
 from nurbsmotion.metrics import contour_error
 from nurbsmotion.nurbs import builtin_path
 from nurbsmotion.planning import time_optimal_bound
@@ -171,51 +170,6 @@ def planning_time(m):
     print()
 
 
-def sweep(m, n):
-    if n <= 0:
-        return
-    import sys
-    sys.path.insert(0, str(_common.ROOT / "tests"))
-    from random_curves import random_curve
-
-    rng = np.random.default_rng(10)
-    print(f"## Item 7 (partial): {n} random 2-3 axis paths, nominal plant, planned\n")
-    stats = {"runs": 0, "saturated": 0, "nan": 0, "refused": 0, "not_at_end": 0}
-    ratios, contours = [], []
-    while stats["runs"] + stats["refused"] < n:
-        curve = random_curve(rng, scale=2e4)
-        if curve.n_axes not in (2, 3) or curve.degree < 2:
-            continue
-        base = die_bonder()
-        x = base.axes[0]
-        mm = base if curve.n_axes == 2 else base.with_options(
-            axes=base.axes + (Axis("z", x.time_constant, x.electrical_gain,
-                                   x.mechanical_gain, x.position_gain, x.speed_gain),))
-        F = float(rng.uniform(5e4, 3e6))
-        try:
-            interp = PlannedInterpolator(curve, mm, F)
-        except Exception as exc:  # noqa: BLE001 - counted and reported
-            stats["refused"] += 1
-            print(f"refused: {type(exc).__name__}: {exc}")
-            continue
-        tr = simulate(interp, mm, settle_time=HOLD)
-        print(f"  case {stats['runs']}: degree {curve.degree}, {curve.n_axes} axes, "
-              f"F = {F / 1e6:.3g} m/s, plan {interp.plan.duration:.3g} s", flush=True)
-        stats["runs"] += 1
-        stats["saturated"] += int(np.any(np.abs(tr.drive) > mm.max_drive * (1 + 1e-9)))
-        stats["nan"] += int(not np.all(np.isfinite(tr.position_command)))
-        end_err = float(np.max(np.abs(tr.position[-1] - curve(1.0))))
-        stats["not_at_end"] += int(end_err > SETTLE_WINDOW)
-        bound = time_optimal_bound(curve, mm, F)
-        ratios.append(settle_time(tr, curve(1.0)) / bound)
-        contours.append(float(np.max(contour_error(curve, tr.position))))
-    q = lambda a: np.percentile(a, [50, 95, 100])  # noqa: E731
-    print(stats)
-    print("settle / bound  median, 95 %, max:", np.round(q(ratios), 4))
-    print("max contour [um] median, 95 %, max:", np.round(q(contours), 3))
-    print()
-
-
 def main():
     m = die_bonder()
     t0 = time.perf_counter()
@@ -223,7 +177,6 @@ def main():
     mismatch(m)
     corner_tolerance(m)
     planning_time(m)
-    sweep(m, int(os.environ.get("PLANNER_EVAL_SWEEP", "0")))
     print(f"(wall time {time.perf_counter() - t0:.0f} s)")
 
 

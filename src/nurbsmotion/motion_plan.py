@@ -16,8 +16,9 @@ is built offline in four steps:
    time profile s(t) is averaged once over two samples (:data:`SMOOTHING_WIDTH`: the
    acceleration becomes continuous and the motion has nothing at the Nyquist frequency,
    which step 3 cannot realise; 2 ms per piece) and sampled every Ts into the desired
-   positions ``y[k] = C(s((k - 3)*Ts))``: the loop's drive u[0] is 0 (it starts at rest)
-   and the inverse of step 3 looks one sample ahead, so the motion starts at sample 3.
+   positions ``y[k] = C(s((k - 2)*Ts))``: the loop's drive u[0] is 0 (it starts at rest),
+   so theta[1] = theta[0] and the first drive that moves the plant is u[1]; the desired
+   motion starts at sample 2 (:data:`LEAD`).
 2. **Corner blends** (``corner_tolerance`` eps > 0). The plant is linear, so two motions
    can be superposed: the next piece starts before the current one has stopped, by the
    time it takes the current piece to cover its last eps plus the time the next one takes
@@ -64,10 +65,17 @@ from .servo import zoh_matrices
 
 __all__ = ["MotionPlan", "plan_motion", "axis_zoh"]
 
-PRECOMPENSATION_ROUNDS = 6
-"""Rounds of the pre-compensation of step 3. Each round multiplies the position error of
-a motion component of frequency f by about ``(pi*f*Ts)^2``; six rounds leave far below a
-pulse for every motion a drive-limited plan contains."""
+PRECOMPENSATION_TOLERANCE = 0.25
+"""The pre-compensation of step 3 runs until the realised position is within this many
+pulses of the desired one on every axis (a quarter of the encoder's resolution: a
+position error the loop cannot even see is left alone)."""
+
+PRECOMPENSATION_ROUNDS = 200
+"""At most this many rounds of the pre-compensation. Each round multiplies the position
+error of a motion component of frequency f by about ``sin(pi*f*Ts)^2``: the motion's
+slow part converges in a few rounds, the part near the Nyquist frequency (the sharpest
+turns of a curved path at speed, which the sampled plant's zero near -1 barely passes)
+in tens to hundreds; what is left is reported by the plan's position."""
 
 OVERSAMPLE = 32
 """Fine time steps per sample of the averaged time profile (linear interpolation between
@@ -87,6 +95,11 @@ MAX_GRID_REFINEMENT = 16
 
 DRIVE_FIT_ROUNDS = 12
 """At most this many rebuilds of the plan in step 4."""
+
+LEAD = 2
+"""Sample at which the desired motion leaves the start: the loop applies u[0] = 0 and the
+plant is at rest at sample 1 too, so u[1], which moves theta[2], is the first free drive
+(step 3 holds the commanded positions at the start through sample 2)."""
 
 
 def axis_zoh(machine: Machine):
@@ -313,18 +326,32 @@ def _realise(y_cmd: np.ndarray, alpha, beta, a, b0):
     return w, theta, u
 
 
-def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int):
-    """Step 3: the drive sequence whose response follows ``y`` (see module docstring)."""
+def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
+                    limit: float = math.inf):
+    """Step 3: the drive sequence whose response follows ``y`` (see module docstring).
+
+    Rounds of pre-compensation until the realised position is within
+    :data:`PRECOMPENSATION_TOLERANCE` of ``y`` or ``rounds`` are done; returned is the
+    round with the smallest position error among those whose drive stays within ``limit``
+    [V] (the rest of the error is motion the drive cannot make), or the last round if none
+    does."""
     a, b0, c, b1 = axis_zoh(machine)
     beta = b1 / b0
     alpha = c - a * beta
     y_cmd = y.copy()
-    for _ in range(rounds):
-        w, theta, u = _realise(y_cmd, alpha, beta, a, b0)
-        y_cmd = y_cmd + (y - theta)
+    best, best_error = None, math.inf
+    for _ in range(rounds + 1):
+        realised = _realise(y_cmd, alpha, beta, a, b0)
+        error = y - realised[1]
+        worst = float(np.max(np.abs(error)))
+        if worst < best_error and np.max(np.abs(realised[2])) <= limit:
+            best, best_error = realised, worst
+        if worst <= PRECOMPENSATION_TOLERANCE:
+            break
+        y_cmd = y_cmd + error
         y_cmd[:3] = y[0]          # u[0] = 0 and w[1] = 0: the loop starts at rest
         y_cmd[-2:] = y[-1]        # at rest on the end
-    return _realise(y_cmd, alpha, beta, a, b0)
+    return realised if best is None else best
 
 
 def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
@@ -360,7 +387,7 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         raise ValueError(f"drive_fraction must lie in (0, 1], got {drive_fraction!r}")
     Ts = machine.sample_period
     umax = machine.max_drive
-    lead = 3  # u[0] = 0 (the loop starts at rest); the inverse looks one sample ahead
+    lead = LEAD
     eases: list = []  # per round: (centre [pulse], half width [pulse], factor) arrays
     spacing = 2.0 * curve.length / grid_size
 
@@ -371,13 +398,14 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
             scale *= np.min(np.where(near, factor[None, :], 1.0), axis=1)
         return scale
 
+    grids: dict = {}  # the profile's grids, reused while only its drive limit changes
     last_use = math.inf
     widen = 1.0
     initial_grid = grid_size
     for _ in range(DRIVE_FIT_ROUNDS):
         profile = speed_profile(curve, machine, feed, drive_fraction=drive_fraction,
                                 drive_scale=drive_scale if eases else None,
-                                grid_size=grid_size)
+                                grid_size=grid_size, grids=grids)
         if profile.duration / Ts > max_samples:
             raise InfeasibleError(
                 f"the planned motion takes {profile.duration:g} s, more than "
@@ -410,7 +438,12 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         factor = (drive_fraction / per_sample[k]) ** 2  # overshoots downwards
         eases.append((curve.arc_length(param[k]), half, factor))
     else:
-        if use > 1:
+        # The excess that easing could not remove comes from the pre-compensation's last
+        # rounds (motion near the Nyquist frequency): keep its last round within the limit.
+        w, theta, u = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS,
+                                      drive_fraction * umax * (1 + 1e-9))
+        use = float(np.max(np.abs(u))) / umax
+        if use > drive_fraction * (1 + 1e-9):
             raise InfeasibleError(
                 f"the planned drive needs {use:.3g} x Umax after {DRIVE_FIT_ROUNDS} rounds "
                 "of easing the path speed's drive limit where it exceeds it")

@@ -39,6 +39,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from .errors import InfeasibleError
 from .feed import FeedLimit
@@ -149,81 +150,72 @@ def _arc_derivatives(curve: NurbsCurve, u: np.ndarray, side: np.ndarray):
     return q1, q2
 
 
-class _Limits:
-    """Admissible tangential acceleration at the grid points of one piece."""
+ACTIVE_SLOPE = 1e-9
+"""An axis whose |dx/ds| is below this takes no part in the acceleration limit (its drive
+is fixed by the speed alone)."""
 
-    def __init__(self, q1: np.ndarray, q2: np.ndarray, tau: np.ndarray, M: np.ndarray):
-        M = np.broadcast_to(M, q1.shape)  # per grid point and axis
-        self.q1, self.q2, self.tau, self.M = q1, q2, tau, M
-        eps = 1e-9
-        self.active = np.abs(q1) > eps            # axes whose drive depends on sdd
-        # Plain Python lists: the passes are sequential and evaluate a handful of axes.
-        self._rows = [
-            [(float(tau[j] * q1[i, j]), float(tau[j] * q2[i, j]), float(q1[i, j]),
-              float(M[i, j]), bool(self.active[i, j])) for j in range(len(tau))]
-            for i in range(len(q1))
-        ]
 
-    def range(self, i: int, b: float) -> tuple[float, float]:
-        """(amin, amax) [pulse/s^2] at grid point i and b = sd^2 (amin > amax: empty)."""
-        sd = math.sqrt(max(b, 0.0))
-        lo, hi = -math.inf, math.inf
-        for tq1, tq2, q1, M, active in self._rows[i]:
-            c = tq2 * b + q1 * sd                  # drive part fixed by the speed
-            if active:
-                a1, a2 = (-M - c) / tq1, (M - c) / tq1
-                if a1 > a2:
-                    a1, a2 = a2, a1
-                lo = max(lo, a1)
-                hi = min(hi, a2)
-            elif abs(c) > M:
-                return math.inf, -math.inf
-        return lo, hi
+@njit(cache=True)
+def _range(q1, q2, tau, M, i, b):
+    """(amin, amax) [pulse/s^2] at grid point i and b = sd^2 (amin > amax: empty).
 
-    def max_speed(self, feed) -> np.ndarray:
-        """The MVC: the largest sd <= F with a non-empty range, per grid point [pulse/s];
-        ``feed`` is one number or one per grid point."""
-        q1, q2, tau, M = self.q1, self.q2, self.tau, self.M
-        n = len(q1)
+    ``q1``, ``q2``, ``M`` have shape (n, n_axes), ``tau`` (n_axes,)."""
+    sd = math.sqrt(max(b, 0.0))
+    lo, hi = -math.inf, math.inf
+    for j in range(q1.shape[1]):
+        c = tau[j] * q2[i, j] * b + q1[i, j] * sd     # drive part fixed by the speed
+        if abs(q1[i, j]) > ACTIVE_SLOPE:
+            tq1 = tau[j] * q1[i, j]
+            a1, a2 = (-M[i, j] - c) / tq1, (M[i, j] - c) / tq1
+            if a1 > a2:
+                a1, a2 = a2, a1
+            lo = max(lo, a1)
+            hi = min(hi, a2)
+        elif abs(c) > M[i, j]:
+            return math.inf, -math.inf
+    return lo, hi
 
-        def feasible(sd):
-            b = sd * sd
-            c = tau * q2 * b[:, None] + q1 * sd[:, None]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                tq1 = tau * q1
-                a1, a2 = (-M - c) / tq1, (M - c) / tq1
-            lo = np.where(self.active, np.minimum(a1, a2), -np.inf).max(axis=1)
-            hi = np.where(self.active, np.maximum(a1, a2), np.inf).min(axis=1)
-            still = np.all(self.active | (np.abs(c) <= M), axis=1)
-            return still & (lo <= hi)
 
-        top = np.broadcast_to(np.asarray(feed, dtype=float), (n,)).copy()
-        ok = feasible(top)
-        lo, hi = np.zeros(n), top.copy()
+@njit(cache=True)
+def _max_speed(q1, q2, tau, M, feed):
+    """The MVC: the largest sd <= F with a non-empty range, per grid point [pulse/s];
+    ``feed`` has one value per grid point (60 bisections below it when it is not
+    admissible)."""
+    n = q1.shape[0]
+    out = np.empty(n)
+    for i in range(n):
+        lo, hi = _range(q1, q2, tau, M, i, feed[i] * feed[i])
+        if lo <= hi:
+            out[i] = feed[i]
+            continue
+        a, z = 0.0, feed[i]
         for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            f = feasible(mid)
-            lo = np.where(f, mid, lo)
-            hi = np.where(f, hi, mid)
-        return np.where(ok, top, lo)
+            mid = 0.5 * (a + z)
+            lo, hi = _range(q1, q2, tau, M, i, mid * mid)
+            if lo <= hi:
+                a = mid
+            else:
+                z = mid
+        out[i] = a
+    return out
 
 
-def _passes(lim: _Limits, lim_acc: _Limits, ds: np.ndarray, bmax: np.ndarray) -> np.ndarray:
-    """Backward pass at the deceleration limit of ``lim``, then forward pass at the
-    acceleration limit of ``lim_acc``, on one piece; b = sd^2 at every point.
+@njit(cache=True)
+def _passes(q1, q2, tau, M, M_acc, ds, bmax):
+    """Backward pass at the deceleration limit (drive bound ``M``), then forward pass at
+    the acceleration limit (``M_acc``), on one piece; b = sd^2 at every point.
 
-    ``ds`` [pulse], shape (n - 1,), is the grid spacing (uniform, or refined in short
-    knot spans)."""
-    ds = ds.tolist()
+    ``q1``, ``q2``, ``M``, ``M_acc`` have shape (n, n_axes); ``ds`` [pulse], shape
+    (n - 1,), is the grid spacing (uniform, or refined in short knot spans)."""
     n = len(bmax)
     back = np.empty(n)
     back[-1] = 0.0
     for i in range(n - 2, -1, -1):
         bn = back[i + 1]
-        a = lim.range(i + 1, bn)[0]
+        a = _range(q1, q2, tau, M, i + 1, bn)[0]
         b = bn - 2.0 * ds[i] * a
         if b > bn:  # implicit correction: the deceleration limit at the earlier point too
-            a = max(a, lim.range(i, b)[0])
+            a = max(a, _range(q1, q2, tau, M, i, b)[0])
             b = bn - 2.0 * ds[i] * a
         # On the MVC the admissible range shrinks to a point whose slope the Euler step does
         # not follow; slide along the MVC instead of falling below it.
@@ -232,19 +224,41 @@ def _passes(lim: _Limits, lim_acc: _Limits, ds: np.ndarray, bmax: np.ndarray) ->
     out[0] = 0.0
     for i in range(n - 1):
         bp = out[i]
-        a = lim_acc.range(i, bp)[1]
+        a = _range(q1, q2, tau, M_acc, i, bp)[1]
         b = bp + 2.0 * ds[i] * a
         if b > bp:
-            a = min(a, lim_acc.range(i + 1, b)[1])
+            a = min(a, _range(q1, q2, tau, M_acc, i + 1, b)[1])
             b = bp + 2.0 * ds[i] * a
         out[i + 1] = min(max(b, min(bp, bmax[i + 1])), back[i + 1])
     return out
 
 
+def _piece_grid(curve: NurbsCurve, ends: np.ndarray, s_ends: np.ndarray, k: int,
+                grid_size: int):
+    """Piece k's grid (see :func:`speed_profile`): arc length s [pulse], parameter u,
+    spacing ds [pulse] and the path derivatives q1, q2 (:func:`_arc_derivatives`)."""
+    L = s_ends[-1]
+    s0, s1 = float(s_ends[k]), float(s_ends[k + 1])
+    n = max(50, int(math.ceil(grid_size * (s1 - s0) / L))) + 1
+    s = np.linspace(s0, s1, n)
+    ds = np.full(n - 1, (s1 - s0) / (n - 1))
+    finer = _span_points(curve, ends[k], ends[k + 1], s)
+    if finer.size:  # knot spans shorter than the grid spacing: refine there
+        s = np.union1d(s, finer)
+        n, ds = len(s), np.diff(s)
+    u = np.empty(n)
+    u[1:-1] = curve.parameter_at(s[1:-1])
+    u[0], u[-1] = ends[k], ends[k + 1]
+    left = np.zeros(n, dtype=bool)
+    left[-1] = True
+    q1, q2 = _arc_derivatives(curve, u, left)
+    return s, u, ds, q1, q2
+
+
 def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
                   drive_fraction: float = 1.0, acceleration_fraction: float | None = None,
                   drive_scale=None, acceleration_scale=None, grid_size: int = 20_000,
-                  min_speed_ratio: float = 1e-6) -> SpeedProfile:
+                  min_speed_ratio: float = 1e-6, grids: dict | None = None) -> SpeedProfile:
     """The fastest speed along ``curve`` that keeps the feedforward drive within bounds.
 
     Per axis ``|tau_j*xdd_j + xd_j| <= drive_fraction*Umax*Kc_j*Ke_j``, ``V <= feed``, and
@@ -278,6 +292,10 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
     min_speed_ratio : float
         A speed limit below ``min_speed_ratio*feed`` inside a piece means the drive cannot
         move the path there at all.
+    grids : dict, optional
+        A cache of the pieces' grids and path derivatives for this ``curve``, filled and
+        reused across calls (a planner that recomputes the profile under other drive
+        limits passes the same empty dict every time).
 
     Returns
     -------
@@ -313,34 +331,30 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
     pieces = []
     total_points = 0
     for k in range(len(ends) - 1):
-        s0, s1 = float(s_ends[k]), float(s_ends[k + 1])
-        n = max(50, int(math.ceil(grid_size * (s1 - s0) / L))) + 1
-        s = np.linspace(s0, s1, n)
-        ds = np.full(n - 1, (s1 - s0) / (n - 1))
-        finer = _span_points(curve, ends[k], ends[k + 1], s)
-        if finer.size:  # knot spans shorter than the grid spacing: refine there
-            s = np.union1d(s, finer)
-            n, ds = len(s), np.diff(s)
+        key = (int(grid_size), k)
+        if grids is None or key not in grids:
+            grid = _piece_grid(curve, ends, s_ends, k, grid_size)
+            if grids is not None:
+                grids[key] = grid
+        else:
+            grid = grids[key]
+        s, u, ds, q1, q2 = grid
+        n = len(s)
         total_points += n
         if total_points > MAX_GRID_POINTS:
             raise InfeasibleError(
                 f"the path has {len(curve.breakpoints) - 1} knot spans, too many to resolve "
                 f"with {SPAN_POINTS_PER_DEGREE} x degree grid points each within the "
                 f"limit of {MAX_GRID_POINTS:.3g} grid points (planning.MAX_GRID_POINTS)")
-        u = np.empty(n)
-        u[1:-1] = curve.parameter_at(s[1:-1])
-        u[0], u[-1] = ends[k], ends[k + 1]
-        left = np.zeros(n, dtype=bool)
-        left[-1] = True
-        q1, q2 = _arc_derivatives(curve, u, left)
         scale = np.ones(n) if drive_scale is None else np.asarray(drive_scale(s), float)
-        lim = _Limits(q1, q2, tau, drive_fraction * scale[:, None] * M)
+        M_dec = np.ascontiguousarray(drive_fraction * scale[:, None] * M)
         if acceleration_scale is not None:
             scale = np.asarray(acceleration_scale(s), float)
-        lim_acc = lim if (fa == drive_fraction and acceleration_scale is None) \
-            else _Limits(q1, q2, tau, fa * scale[:, None] * M)
+        M_acc = M_dec if (fa == drive_fraction and acceleration_scale is None) \
+            else np.ascontiguousarray(fa * scale[:, None] * M)
         F_here = feed(u) if isinstance(feed, FeedLimit) else F
-        vmax = lim.max_speed(F_here)
+        vmax = _max_speed(q1, q2, tau, M_dec,
+                          np.ascontiguousarray(np.broadcast_to(F_here, (n,)), dtype=float))
         inner = vmax[1:-1]
         if inner.size and np.min(inner / np.broadcast_to(F_here, vmax.shape)[1:-1]) < min_speed_ratio:
             i = int(np.argmin(inner)) + 1
@@ -350,7 +364,7 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
                 f"{drive_fraction:g} x Umax = {drive_fraction * machine.max_drive:g} V; "
                 "the curvature is too high for the drive"
             )
-        b = _passes(lim, lim_acc, ds, vmax**2)
+        b = _passes(q1, q2, tau, M_dec, M_acc, np.asarray(ds, dtype=float), vmax**2)
         pieces.append((s, u, np.sqrt(b)))
     return SpeedProfile(tuple(pieces), F, float(drive_fraction))
 

@@ -8,17 +8,19 @@ plant follow it exactly.
 
 Online, every sample (:func:`online_step`, plain scalar/array code that numba compiles):
 
-1. the plant's drive law ``u = p1*dw/dt + p2*w`` (p1 = tau/Kc, p2 = 1/Kc for the model) is
-   estimated by recursive least squares from the drives applied and the speeds measured,
-   starting from the model; the deviation from the plan's state is measured (position)
-   and propagated through the model from the feedback's last drive (speed);
+1. the plant's exact sampled model (pole a, and the drive's effect on the next two
+   position increments, b1 and beta = c*b0 - a*b1) is identified by recursive least
+   squares from the positions measured and the drives applied, starting from the model
+   (:func:`_identify`; a linear regression exact for any tau and Kc); the deviation
+   from the plan's state is measured (position) and propagated through the model from the feedback's last drive (speed);
 2. a time-scaling governor advances the plan's clock by ``rate`` in (0, 1] samples: the
    largest rate at which the *estimated* plant can follow the plan's drive (speed part
-   times the rate, acceleration part times its square) up to the next stop within
-   ``1 - drive_headroom`` of Umax (never below the plan's own use), lowered further after
-   a sample whose drive demand exceeded Umax; it changes by at most ``1 - tracking_pole``
-   per sample. A weaker plant is thus slowed down before it has to brake, so it can still
-   stop at the next corner;
+   times the rate, acceleration part times its square) at every sample of a look-ahead
+   within ``1 - drive_headroom`` of Umax (never below the plan's own use), lowered further
+   after a sample whose drive demand exceeded Umax; it changes by at most
+   ``1 - tracking_pole`` per sample. The demand is that of the same samples (speed and
+   acceleration parts together, :func:`_demand`) up to the next stop: a weaker plant is
+   slowed down before it has to brake, so it can still stop at the next corner;
 3. the drive is the estimated plant's feedforward of the plan at that clock plus a state
    feedback on the deviation whose gains put both poles of the model's deviation dynamics
    at ``tracking_pole``, clipped to +-Umax: *every drive is within the limit by
@@ -70,9 +72,12 @@ DEFAULT_DRIVE_HEADROOM = 0.1
 """Fraction of Umax the governor keeps free for the feedback when it scales the plan's
 clock to the drive the (estimated) plant needs up to the next stop (a user parameter)."""
 
-ESTIMATE_NOISE = 0.01
-"""Standard deviation of the drive-model residual the online estimate expects, as a
-fraction of Umax (the encoder's averaged speeds fit the plant's law to about Ts/tau)."""
+SUPPORT_DIRECTIONS = 9
+"""Directions in which the governor knows the plan's drive demand up to the next stop
+exactly (between them it bounds it above, by at most ``1/cos(pi/4/(n-1)) - 1``: 0.5 %)."""
+
+RATE_BISECTIONS = 20
+"""Bisections of the governor's largest rate (to 1e-6 of a sample per sample)."""
 
 GAIN_RANGE = 4.0
 """The estimated plant may need between 1/4 and 4 times the model's drive (issue 10 asks
@@ -80,10 +85,94 @@ for any tau, Kc within x[0.5, 2]: up to 4 times the acceleration drive)."""
 
 
 @njit(cache=True)
-def online_step(phi, rate, excess_prev, dev, est, hist, position, speed_measured,
-                measured_is_true, plan_position, plan_drive_speed, plan_drive_accel,
-                peak_speed, peak_accel, prior, a, b0, c, b1, kp, kd, umax, headroom, ts,
-                rate_gain, slope, offset, out_setpoint, out_drive):
+def _gains(est, j, a, b0, c, b1):
+    """The estimated plant's drive over the model's for the plan's acceleration part
+    (``ga = b0/b0'``) and speed part (``gv = Kc/Kc'``), each within
+    [1/GAIN_RANGE, GAIN_RANGE]; ``est`` holds axis j's identified (a', b1', beta')
+    (:func:`_identify`), and ``b1 + beta = Ke*Ts*b0`` for every ZOH plant of this form."""
+    s_model = b1 + c * b0 - a * b1
+    s_est = est[1, j] + est[2, j]
+    ga = s_model / s_est if s_est > s_model / GAIN_RANGE else GAIN_RANGE
+    ga = min(max(ga, 1.0 / GAIN_RANGE), GAIN_RANGE)
+    gv = ga * (1.0 - est[0, j]) / (1.0 - a)
+    return ga, min(max(gv, 1.0 / GAIN_RANGE), GAIN_RANGE)
+
+
+@njit(cache=True)
+def _identify(est, hist, j, position, a, b0, c, b1):
+    """Update axis j's estimate of its sampled plant from the position measured now.
+
+    Every plant of the model's form (SPEC section 3, ZOH) obeys, in measured positions
+    and applied drives only,
+
+        dth[k] = a*dth[k-1] + b1*u[k-1] + beta*u[k-2],   beta = c*b0 - a*b1,
+
+    with ``dth[k] = th[k] - th[k-1]``: an exact linear regression in (a, b1, beta) whatever
+    tau and Kc are (no speed is differenced, so the nominal plant's estimate stays on the
+    model). Recursive least squares from the model's values, with the residual of an
+    encoder read to one pulse (:func:`_position_noise`). ``est`` rows 0-2 hold
+    (a, b1, beta), rows 3-11 their covariance (row-major 3x3); ``hist`` rows u[k-1],
+    u[k-2] [V], th[k-1] [pulse], dth[k-1] [pulse] and 1 once th[k-1] is known.
+    Returns :func:`_gains`."""
+    if hist[4, j] > 0.0:
+        y = position - hist[2, j]
+        x0, x1, x2 = hist[3, j], hist[0, j], hist[1, j]
+        p0 = est[3, j] * x0 + est[4, j] * x1 + est[5, j] * x2
+        p1 = est[6, j] * x0 + est[7, j] * x1 + est[8, j] * x2
+        p2 = est[9, j] * x0 + est[10, j] * x1 + est[11, j] * x2
+        gain = 1.0 / (_position_noise(a) + x0 * p0 + x1 * p1 + x2 * p2)
+        err = y - est[0, j] * x0 - est[1, j] * x1 - est[2, j] * x2
+        est[0, j] += p0 * gain * err
+        est[1, j] += p1 * gain * err
+        est[2, j] += p2 * gain * err
+        est[3, j] -= p0 * p0 * gain
+        est[4, j] -= p0 * p1 * gain
+        est[5, j] -= p0 * p2 * gain
+        est[6, j] -= p1 * p0 * gain
+        est[7, j] -= p1 * p1 * gain
+        est[8, j] -= p1 * p2 * gain
+        est[9, j] -= p2 * p0 * gain
+        est[10, j] -= p2 * p1 * gain
+        est[11, j] -= p2 * p2 * gain
+        hist[3, j] = y
+    else:
+        hist[3, j] = 0.0   # the loop starts at rest: th[0] = th[1]
+        hist[4, j] = 1.0
+    hist[2, j] = position
+    return _gains(est, j, a, b0, c, b1)
+
+
+@njit(cache=True)
+def _position_noise(a):
+    """Variance [pulse^2] of the regression's residual when every position is read to one
+    pulse (uniform error, variance 1/12) and enters it with weights 1, -(1 + a), a."""
+    return (1.0 + (1.0 + a) ** 2 + a * a) / 12.0
+
+
+@njit(cache=True)
+def _demand(support, i, j, x, y):
+    """An upper bound, exact in the directions of :data:`SUPPORT_DIRECTIONS`, of the largest
+    ``|x*A[k] + y*V[k]|`` (x, y >= 0) over the plan's samples k from i to the next stop
+    of axis j: the support function of the points (A[k], V[k]) (acceleration and speed
+    parts of the plan's drive [V]) interpolated between the two directions enclosing
+    (x, y) (a support function is sublinear, so the interpolation bounds it above)."""
+    m = support.shape[2] - 1
+    if x <= 0.0 and y <= 0.0:
+        return 0.0
+    phi = math.atan2(y, x) / (0.5 * math.pi) * m
+    k = min(int(phi), m - 1)
+    step = 0.5 * math.pi / m
+    p0, p1 = k * step, (k + 1) * step
+    sd = math.sin(step)
+    l0 = (x * math.sin(p1) - y * math.cos(p1)) / sd
+    l1 = (y * math.cos(p0) - x * math.sin(p0)) / sd
+    return max(l0, 0.0) * support[i, j, k] + max(l1, 0.0) * support[i, j, k + 1]
+
+
+@njit(cache=True)
+def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
+                plan_drive_speed, plan_drive_accel, support, a, b0, c, b1, kp, kd, umax,
+                headroom, rate_gain, slope, offset, out_setpoint, out_drive):
     """One sample of the planned interpolator (module docstring, steps 1-4).
 
     Plain loops over floats and float arrays, so that numba compiles it unchanged.
@@ -98,27 +187,22 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, speed_measured
         How far the last sample's drive demand exceeded Umax (relative; 0 if not).
     dev : ndarray, shape (2, n_axes)
         In/out: the last position deviation [pulse] and drive deviation u_ff - u [V].
-    est : ndarray, shape (5, n_axes)
-        In/out: the plant's estimated law ``u = p1*dw/dt + p2*w`` (p1 = tau/Kc [V s^2/rad],
-        p2 = 1/Kc [V s/rad]) and the covariance (P11, P12, P22) of the estimate.
-    hist : ndarray, shape (4, n_axes)
-        In/out: u[k-1], u[k-2] [V], the speed of the last sample and the one before
-        [rad/s] (row 3 is 1 once two speeds are known).
+    est : ndarray, shape (12, n_axes)
+        In/out: the plant's identified sampled model and its covariance
+        (:func:`_identify`).
+    hist : ndarray, shape (5, n_axes)
+        In/out: the identification's memory (:func:`_identify`); row 0 is the drive
+        applied at the last sample, which the caller corrects if the law produced another.
     position : ndarray, shape (n_axes,)
         tha[k], measured [pulse].
-    speed_measured : ndarray, shape (n_axes,)
-        The loop's measured speed [rad/s]: encoder differencing (tha[k]-tha[k-1])/(Ke*Ts),
-        or the true speed when ``measured_is_true``.
-    measured_is_true : bool
     plan_position : ndarray, shape (n, n_axes)
         theta_ff [pulse].
     plan_drive_speed, plan_drive_accel : ndarray, shape (n, n_axes)
         The feedforward drive's speed part w_ff/Kc and acceleration part
         (w_ff[k+1]-w_ff[k])/b0 [V] (u_ff is their sum at rate 1).
-    peak_speed, peak_accel : ndarray, shape (n, n_axes)
-        The largest |speed part| and |acceleration part| from each sample to the next stop.
-    prior : ndarray, shape (2, n_axes)
-        The model's p1 = tau/Kc and p2 = 1/Kc.
+    support : ndarray, shape (n, n_axes, SUPPORT_DIRECTIONS)
+        Per sample and axis, the support function of the plan's drive parts up to the next
+        stop (:func:`_support`).
     a, b0, c, b1 : ndarray, shape (n_axes,)
         The model's ZOH plant (:func:`nurbsmotion.motion_plan.axis_zoh`).
     kp, kd : ndarray, shape (n_axes,)
@@ -127,8 +211,6 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, speed_measured
         Umax [V].
     headroom : float
         Fraction of Umax the governor keeps for the feedback.
-    ts : float
-        Ts [s].
     rate_gain : float
         Largest change of the rate per sample.
     slope, offset : ndarray, shape (n_axes,)
@@ -147,44 +229,24 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, speed_measured
     i0 = min(int(phi), n - 1)
     i1 = min(i0 + 1, n - 1)
     f = phi - i0 if i1 > i0 else 0.0
-    noise = (ESTIMATE_NOISE * umax) ** 2
-    # 1a. estimate the plant's law from the last drives and speeds (recursive least squares)
+    # 1a. identify the plant's exact sampled model from the measured positions and the
+    # drives applied (recursive least squares, see :func:`_identify`)
     r_max = 1.0
     for j in range(n_axes):
-        v_now = speed_measured[j]
-        if hist[3, j] > 0.0:
-            if measured_is_true:
-                ubar = hist[0, j]
-            else:
-                ubar = 0.5 * (hist[0, j] + hist[1, j])
-            x1 = (v_now - hist[2, j]) / ts
-            x2 = 0.5 * (v_now + hist[2, j])
-            px1 = est[2, j] * x1 + est[3, j] * x2
-            px2 = est[3, j] * x1 + est[4, j] * x2
-            gain = 1.0 / (noise + x1 * px1 + x2 * px2)
-            err = ubar - est[0, j] * x1 - est[1, j] * x2
-            est[0, j] += px1 * gain * err
-            est[1, j] += px2 * gain * err
-            est[2, j] -= px1 * px1 * gain
-            est[3, j] -= px1 * px2 * gain
-            est[4, j] -= px2 * px2 * gain
-        hist[2, j] = v_now
-        hist[3, j] = 1.0
-        # 2a. the clock's largest rate at which the estimated plant can still follow the
-        # plan to the next stop: ga*A*r^2 + gv*V*r <= (1 - headroom)*Umax
-        ga = min(max(est[0, j] / prior[0, j], 1.0 / GAIN_RANGE), GAIN_RANGE)
-        gv = min(max(est[1, j] / prior[1, j], 1.0 / GAIN_RANGE), GAIN_RANGE)
-        A = ga * peak_accel[i0, j]
-        V = gv * peak_speed[i0, j]
+        ga, gv = _identify(est, hist, j, position[j], a[j], b0[j], c[j], b1[j])
+        # 2a. the clock's largest rate at which the estimated plant can follow the plan
+        # up to the next stop: |ga*A*r^2 + gv*V*r| <= (1 - headroom)*Umax at every sample
         # the plan itself may use the full drive; the headroom applies beyond the model
-        limit = max((1.0 - headroom) * umax, peak_accel[i0, j] + peak_speed[i0, j])
-        if A + V > limit:
-            if A > 0.0:
-                r = (-V + (V * V + 4.0 * A * limit) ** 0.5) / (2.0 * A)
-            else:
-                r = limit / V
-            # within the estimate's own accuracy of the plan's rate, keep it
-            r_max = min(r_max, 1.0 if r > 1.0 - ESTIMATE_NOISE else r)
+        limit = max((1.0 - headroom) * umax, _demand(support, i0, j, 1.0, 1.0))
+        if _demand(support, i0, j, ga, gv) > limit:
+            lo, hi = 0.0, 1.0
+            for _ in range(RATE_BISECTIONS):
+                mid = 0.5 * (lo + hi)
+                if _demand(support, i0, j, ga * mid * mid, gv * mid) > limit:
+                    hi = mid
+                else:
+                    lo = mid
+            r_max = min(r_max, lo)
     # 2b. governor: towards the largest rate, slower after a drive demand beyond Umax
     target = r_max
     if excess_prev > 0.0:
@@ -204,8 +266,7 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, speed_measured
         e_w_prev = (e_th - dev[0, j] - b1[j] * dev[1, j]) / c[j]
         e_w = a[j] * e_w_prev + b0[j] * dev[1, j]
         # 3. drive: feedforward of the estimated plant at the clock plus feedback, clipped
-        ga = min(max(est[0, j] / prior[0, j], 1.0 / GAIN_RANGE), GAIN_RANGE)
-        gv = min(max(est[1, j] / prior[1, j], 1.0 / GAIN_RANGE), GAIN_RANGE)
+        ga, gv = _gains(est, j, a[j], b0[j], c[j], b1[j])
         uf = ((plan_drive_speed[i0, j] * (1.0 - f) + plan_drive_speed[i1, j] * f) * rate * gv
               + (plan_drive_accel[i0, j] * (1.0 - f) + plan_drive_accel[i1, j] * f)
               * rate * rate * ga)
@@ -231,17 +292,13 @@ class PlannedPlan(NamedTuple):
     position: np.ndarray         # (n, n_axes) theta_ff [pulse]
     drive_speed: np.ndarray      # (n, n_axes) [V]
     drive_accel: np.ndarray      # (n, n_axes) [V]
-    peak_speed: np.ndarray       # (n, n_axes) [V]
-    peak_accel: np.ndarray       # (n, n_axes) [V]
-    prior: np.ndarray            # (2, n_axes) tau/Kc, 1/Kc of the model
+    support: np.ndarray          # (n, n_axes, SUPPORT_DIRECTIONS) [V]
     a: np.ndarray                # (n_axes,) the model's ZOH plant
     b0: np.ndarray
     c: np.ndarray
     b1: np.ndarray
     kp: np.ndarray               # (n_axes,) feedback gains [V/pulse]
     kd: np.ndarray               # (n_axes,) [V/(rad/s)]
-    mechanical_gain: np.ndarray  # (n_axes,) Ke [pulse/rad]
-    measured_is_true: bool
     headroom: float
     rate_gain: float
 
@@ -249,7 +306,7 @@ class PlannedPlan(NamedTuple):
 class PlannedState(NamedTuple):
     """The online state: the plan's clock [samples], its rate and the last excess
     (shape (1,) each), the deviation, estimate and history arrays of :func:`online_step`,
-    and per-axis scratch (the law's slope and offset, the measured speed, the drive)."""
+    and per-axis scratch (the law's slope and offset, the drive)."""
 
     phi: np.ndarray
     rate: np.ndarray
@@ -259,7 +316,6 @@ class PlannedState(NamedTuple):
     hist: np.ndarray
     slope: np.ndarray
     offset: np.ndarray
-    speed: np.ndarray
     drive: np.ndarray
 
 
@@ -331,12 +387,8 @@ class PlannedInterpolator(Interpolator):
         self.plan = PlannedPlan(
             parameter=p.parameter, desired=p.desired, position=p.position,
             drive_speed=drive_speed, drive_accel=drive_accel,
-            peak_speed=_peak_to_next_stop(np.abs(drive_speed), p.stop_indices),
-            peak_accel=_peak_to_next_stop(np.abs(drive_accel), p.stop_indices),
-            prior=np.array([machine.tau / machine.Kc, 1.0 / machine.Kc]), a=a, b0=b0, c=c,
-            b1=b1, kp=kp, kd=kd, mechanical_gain=np.array(machine.Ke, dtype=float),
-            measured_is_true=machine.speed_measurement != "encoder",
-            headroom=self.drive_headroom,
+            support=_support(drive_accel, drive_speed, p.stop_indices),
+            a=a, b0=b0, c=c, b1=b1, kp=kp, kd=kd, headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole)
 
@@ -345,17 +397,9 @@ class PlannedInterpolator(Interpolator):
 
     def new_state(self) -> PlannedState:
         n = self.machine.n_axes
-        prior = self.plan.prior
-        est = np.empty((5, n))
-        est[:2] = prior
-        # Prior covariance: the plant may need 1/GAIN_RANGE .. GAIN_RANGE x the model's
-        # drive, read as one standard deviation of the model's own value.
-        est[2] = prior[0] ** 2
-        est[3] = 0.0
-        est[4] = prior[1] ** 2
-        return PlannedState(np.ones(1), np.ones(1), np.zeros(1), np.zeros((2, n)), est,
-                            np.zeros((4, n)), np.empty(n), np.empty(n), np.empty(n),
-                            np.empty(n))
+        return PlannedState(np.ones(1), np.ones(1), np.zeros(1), np.zeros((2, n)),
+                            _prior_estimate(self.plan), np.zeros((5, n)), np.empty(n),
+                            np.empty(n), np.empty(n))
 
 
 @njit(cache=True)
@@ -398,16 +442,13 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
         slope, offset = pid_affine(law, law_state, j, position[j], velocity[j])
         state.slope[j] = slope
         state.offset[j] = offset
-        state.speed[j] = velocity[j] / plan.mechanical_gain[j]
         bounds[j, 0] = np.nan
         bounds[j, 1] = np.nan
     phi = state.phi[0]
     phi_next, rate, excess = online_step(
         phi, state.rate[0], state.excess[0], state.dev, state.est, state.hist, position,
-        state.speed, plan.measured_is_true, plan.position, plan.drive_speed,
-        plan.drive_accel, plan.peak_speed, plan.peak_accel, plan.prior, plan.a, plan.b0,
-        plan.c, plan.b1, plan.kp, plan.kd, law[0]["maxoutput"], plan.headroom,
-        law[0]["period"], plan.rate_gain, state.slope, state.offset, command, state.drive)
+        plan.position, plan.drive_speed, plan.drive_accel, plan.support, plan.a, plan.b0, plan.c, plan.b1, plan.kp, plan.kd, law[0]["maxoutput"],
+        plan.headroom, plan.rate_gain, state.slope, state.offset, command, state.drive)
     state.phi[0] = phi_next
     state.rate[0] = rate
     state.excess[0] = excess
@@ -417,6 +458,14 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
                                         velocity[j])
         if not found:
             status = stepping.CORNERED
+        if setpoint != command[j]:
+            # a clamp of the law: the identification and the deviation see the drive the
+            # plant gets
+            umax = law[j]["maxoutput"]
+            out = pid_output(law, law_state, j, setpoint, position[j], velocity[j])[0]
+            applied = min(max(out, -umax), umax)
+            state.dev[1, j] += state.drive[j] - applied
+            state.hist[0, j] = applied
         command[j] = setpoint
     n = plan.parameter.shape[0]
     i0 = min(int(phi), n - 1)
@@ -435,16 +484,34 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
 stepping.register(PlannedPlan, planned_step)
 
 
-def _peak_to_next_stop(values: np.ndarray, stops: np.ndarray) -> np.ndarray:
-    """Per sample and axis, the largest of ``values`` from that sample to the next stop
-    (a stop corner or the end), shape of ``values``."""
+def _support(accel: np.ndarray, speed: np.ndarray, stops: np.ndarray) -> np.ndarray:
+    """Per sample k and axis, ``max |cos(p)*accel[k'] + sin(p)*speed[k']|`` over the
+    samples k' from k to the next stop (a stop corner or the end), for the
+    :data:`SUPPORT_DIRECTIONS` angles p evenly spaced in [0, pi/2]; shape
+    (n, n_axes, SUPPORT_DIRECTIONS) [V]."""
+    angles = np.linspace(0.0, 0.5 * np.pi, SUPPORT_DIRECTIONS)
+    values = np.abs(np.cos(angles) * accel[:, :, None] + np.sin(angles) * speed[:, :, None])
     out = np.empty_like(values)
     bounds = np.concatenate([[0], np.asarray(stops, dtype=int), [len(values)]])
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         if hi > lo:
-            seg = values[lo:hi][::-1]
-            out[lo:hi] = np.maximum.accumulate(seg, axis=0)[::-1]
+            out[lo:hi] = np.maximum.accumulate(values[lo:hi][::-1], axis=0)[::-1]
     return out
+
+
+def _prior_estimate(plan: PlannedPlan) -> np.ndarray:
+    """The identification's start (:func:`_identify`): the model's (a, b1, beta), shape
+    (12, n_axes) with the covariance. Prior standard deviations: 1 - a for a (a plant
+    whose tau is half or twice the model's has 1 - a about twice or half the model's),
+    and GAIN_RANGE times b1 and beta (the drive's effect, proportional to Kc/tau)."""
+    a, b0, c, b1 = plan.a, plan.b0, plan.c, plan.b1
+    beta = c * b0 - a * b1
+    est = np.zeros((12, len(a)))
+    est[0], est[1], est[2] = a, b1, beta
+    est[3] = (1.0 - a) ** 2
+    est[7] = (GAIN_RANGE * b1) ** 2
+    est[11] = (GAIN_RANGE * beta) ** 2
+    return est
 
 
 def _feedback_gains(a, b0, c, b1, pole):

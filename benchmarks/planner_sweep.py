@@ -1,0 +1,139 @@
+"""Issue 10, item 7: the ``planned`` interpolator on seeded random paths nobody tuned for.
+
+Every case draws, from ``numpy.random.default_rng([SEED, i])``: a random-path family
+(:data:`nurbsmotion.paths.random_paths.FAMILIES`, in turn: free-form degree 3-5, sharp
+corners, near-corners under 2 degrees, near-cusps, knot spans of 1e-6 of the domain,
+duplicated control points, hairpins, closed loops, short moves whose bound is under
+50 ms, ...), 2 or 3 axes, a feed log-uniform in 0.05-3 m/s, and one of three loops on the
+die-bonder (z = a copy of x): the nominal plant; a plant whose tau and Kc are scaled
+independently per axis in [0.8, 1.2] (the planner sees the nominal model); Kp and Kd
+doubled. Per case it records: refused (a typed error from the planner; a path the curve
+class itself refuses is counted apart), saturated samples, NaN, the parameter monotone,
+at rest on the end (settled within 1 pulse), move-and-settle minus the bound against
+max(5 % of the bound, 3 ms), and the max contour error (:func:`nurbsmotion.metrics.contour_error`).
+
+Prints the counts and the distributions (median, 95th percentile, max) per condition.
+
+Run: PLANNER_SWEEP_CASES=1000 python benchmarks/planner_sweep.py   (default 1000 cases)
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+import _common  # noqa: F401  (puts src/ on the path)
+from nurbsmotion.errors import InvalidCurveError, NurbsmotionError
+from nurbsmotion.interpolators import PlannedInterpolator
+from nurbsmotion.loop import simulate
+from nurbsmotion.machine import Axis, die_bonder
+from nurbsmotion.metrics import contour_error
+from nurbsmotion.paths.random_paths import FAMILIES, random_path
+from nurbsmotion.planning import time_optimal_bound
+from nurbsmotion.servo import ServoPlant
+from planner_eval import HOLD, settle_time  # the same settle time (1 pulse) as the tables
+
+SEED = 10
+CONDITIONS = ("nominal", "box", "gains x2")
+
+
+def machine_for(n_axes: int, gains: float = 1.0):
+    """The die-bonder with ``n_axes`` axes (z a copy of x), Kp and Kd times ``gains``."""
+    base = die_bonder()
+    axes = base.axes + ((Axis("z", *_axis_numbers(base.axes[0])),) if n_axes == 3 else ())
+    axes = tuple(Axis(a.name, a.time_constant, a.electrical_gain, a.mechanical_gain,
+                      a.position_gain * gains, a.speed_gain * gains) for a in axes)
+    return base.with_options(axes=axes)
+
+
+def _axis_numbers(a):
+    return a.time_constant, a.electrical_gain, a.mechanical_gain, a.position_gain, a.speed_gain
+
+
+def one_case(i: int) -> dict:
+    rng = np.random.default_rng([SEED, i])
+    families = sorted(FAMILIES)
+    family = families[i % len(families)]
+    n_axes = int(rng.integers(2, 4))
+    feed = float(np.exp(rng.uniform(np.log(5e4), np.log(3e6))))
+    condition = CONDITIONS[(i // len(families)) % len(CONDITIONS)]
+    row = {"case": i, "family": family, "n_axes": n_axes, "feed": feed,
+           "condition": condition, "status": "ran"}
+    try:
+        curve = random_path(family, [SEED, i], n_axes=n_axes)
+    except InvalidCurveError:
+        row["status"] = "invalid path"
+        return row
+    m = machine_for(n_axes, 2.0 if condition == "gains x2" else 1.0)
+    plant = None
+    if condition == "box":
+        plant = ServoPlant.of_machine(m, curve(0.0),
+                                      time_constant_scale=rng.uniform(0.8, 1.2, n_axes),
+                                      electrical_gain_scale=rng.uniform(0.8, 1.2, n_axes))
+    try:
+        interp = PlannedInterpolator(curve, m, feed)
+        bound = time_optimal_bound(curve, m, feed)
+    except NurbsmotionError as exc:
+        row["status"] = "refused"
+        row["error"] = f"{type(exc).__name__}: {exc}"
+        return row
+    tr = simulate(interp, m, plant=plant, settle_time=HOLD)
+    st = settle_time(tr, curve(1.0))
+    row.update(
+        bound=bound, settle=st,
+        saturated=int(np.count_nonzero(np.abs(tr.drive) > m.max_drive * (1 + 1e-9))),
+        nan=not (np.all(np.isfinite(tr.position_command)) and np.all(np.isfinite(tr.drive))),
+        monotone=bool(np.all(np.diff(tr.u) >= 0)),
+        at_rest=bool(np.isfinite(st)),
+        contour=float(np.max(contour_error(curve, tr.position))),
+    )
+    row["settle_ok"] = bool(st - bound <= max(0.05 * bound, 3e-3))
+    return row
+
+
+def report(rows: list) -> None:
+    ran = [r for r in rows if r["status"] == "ran"]
+    print(f"cases {len(rows)}: ran {len(ran)}, refused "
+          f"{sum(r['status'] == 'refused' for r in rows)}, invalid paths (the curve class "
+          f"refuses them) {sum(r['status'] == 'invalid path' for r in rows)}")
+    for r in rows:
+        if r["status"] == "refused":
+            print(f"  refused case {r['case']} ({r['family']}, {r['feed'] / 1e6:.3g} m/s): "
+                  f"{r['error'][:160]}")
+    print("\n| condition | runs | saturated runs | NaN | parameter not monotone | not at rest "
+          "| settle - bound within max(5 %, 3 ms) | settle / bound median / 95 % / max "
+          "| max contour [um] median / 95 % / max |\n|---|---|---|---|---|---|---|---|---|")
+    for cond in CONDITIONS:
+        rs = [r for r in ran if r["condition"] == cond]
+        if not rs:
+            continue
+        ratio = np.array([r["settle"] / r["bound"] for r in rs])
+        ce = np.array([r["contour"] for r in rs])
+        q = lambda a: " / ".join(f"{v:.3g}" for v in np.percentile(a, [50, 95, 100]))  # noqa: E731
+        print(f"| {cond} | {len(rs)} | {sum(r['saturated'] > 0 for r in rs)} | "
+              f"{sum(r['nan'] for r in rs)} | {sum(not r['monotone'] for r in rs)} | "
+              f"{sum(not r['at_rest'] for r in rs)} | "
+              f"{np.mean([r['settle_ok'] for r in rs]) * 100:.1f} % | {q(ratio)} | {q(ce)} |")
+    worst = sorted((r for r in ran if r["condition"] == "nominal"),
+                   key=lambda r: r["settle"] / r["bound"])[-5:]
+    print("\nslowest nominal cases (settle / bound):",
+          ", ".join(f"{r['case']} {r['family']} {r['feed'] / 1e6:.3g} m/s "
+                    f"{r['settle'] / r['bound']:.3g}" for r in worst))
+
+
+def main():
+    n = int(os.environ.get("PLANNER_SWEEP_CASES", "1000"))
+    t0 = time.perf_counter()
+    rows = []
+    for i in range(n):
+        rows.append(one_case(i))
+        if (i + 1) % 50 == 0:
+            print(f"  {i + 1} cases, {time.perf_counter() - t0:.0f} s", flush=True)
+    report(rows)
+    print(f"(wall time {time.perf_counter() - t0:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
