@@ -244,3 +244,19 @@ def test_polyline_reversal_is_a_half_turn_corner():
     there_and_back = make_polyline([[0.0, 0.0], [2.0, 0.0], [1.0, 0.0]])
     np.testing.assert_allclose(there_and_back.sharp_corners(), [2 / 3], rtol=0, atol=EXACT)
     assert there_and_back.turning_angle(2 / 3) == pytest.approx(math.pi, rel=TIGHT)
+
+
+def test_a_triple_control_point_is_measured_in_bounded_work():
+    """A cubic with three coincident control points has |C'| ~ (u - 0.6)^2 there: rounding
+    noise in C' once made every split look like a reversal and the table doubled for
+    40 rounds (a campaign case that never ended). Reference: scipy's quad per span."""
+    P = [[0.0, 0.0], [14142.876148901772, 2584.9774671178325],
+         [19518.27291942539, 6804.162448654924], [20000.0, 3064.093705046565],
+         [20000.0, 3064.093705046565], [20000.0, 3064.093705046565],
+         [11781.56886391745, 6134.990290279998], [15145.23005168386, 7196.27581708839]]
+    c = NurbsCurve(3, [0, 0, 0, 0, 0.2, 0.4, 0.6, 0.8, 1, 1, 1, 1], P)
+    assert c.geometry.n_pieces < 1000
+    spans = c.breakpoints
+    ref = sum(quad(lambda u: float(np.linalg.norm(c(u, 1))), a, b, epsabs=0, epsrel=1e-13,
+                   limit=200)[0] for a, b in zip(spans[:-1], spans[1:]))
+    assert c.length == pytest.approx(ref, rel=1e-11)

@@ -292,3 +292,25 @@ def test_plan_too_long_is_infeasible_not_a_hang():
 def test_bad_options(option, value):
     with pytest.raises(ValueError, match=option):
         PlannedInterpolator(PI, MACHINE, 1e6, **{option: value})
+
+
+@pytest.mark.parametrize("degree", [2, 3])
+def test_a_repeated_control_point_is_a_stop_not_a_refusal(degree):
+    """C' = 0 where a control point repeats (issue 11 item 3): the curvature in arc
+    length is unbounded there, so the drive-limited motion comes to rest at that point
+    (as at a sharp corner) instead of the plan being refused; planned never saturates."""
+    rng = np.random.default_rng(degree)
+    P = np.cumsum(rng.uniform(2000, 6000, size=(6, 2)), axis=0)
+    P = np.insert(P, 3, [P[3]] * (degree - 1), axis=0)  # p copies: C' = 0 at a knot
+    n, p = len(P), degree
+    knots = np.concatenate([[0.0] * (p + 1), np.linspace(0, 1, n - p + 1)[1:-1],
+                            [1.0] * (p + 1)])
+    curve = NurbsCurve(p, knots, P)
+    (u0,) = curve.zero_speed_points[:1]
+    m = die_bonder()
+    profile = speed_profile(curve, m, 5e5)
+    s0 = float(curve.arc_length(u0))
+    assert min(abs(p[0][0] - s0) for p in profile.pieces) < 1e-6 * curve.length
+    assert math.isfinite(time_optimal_bound(curve, m, 5e5))
+    trace = simulate(make_interpolator("planned", curve, m, 5e5), m)
+    assert trace.success and trace.metrics().total_saturated_samples == 0

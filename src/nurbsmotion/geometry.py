@@ -106,7 +106,11 @@ class CurveGeometry:
             whole = _gauss(curve, a, b)
             halves = _gauss(curve, a, m) + _gauss(curve, m, b)
             ok = np.abs(whole - halves) <= rtol * total
-            ok[ok] = ~_reverses(curve, a[ok], b[ok])
+            # a piece must not straddle a reversal of C' (|C'| has a kink there), unless
+            # it is itself shorter than the tolerance: near a zero-speed point of higher
+            # order C' is rounding noise whose direction "reverses" at every split
+            check = ok & (halves > rtol * total)
+            ok[check] = ~_reverses(curve, a[check], b[check])
             done_a.append(a[ok])
             done_b.append(b[ok])
             done_i.append(halves[ok])

@@ -471,12 +471,11 @@ def _corner_overshoot(trace) -> float:
     corners = curve.sharp_corners()
     if corners.size == 0:
         return 0.0
-    t_in = curve(corners, 1, "left")
-    t_out = curve(corners, 1)
+    t_in = curve.limit_tangent(corners, "left")  # unit, also where C' = 0 (a cusp)
+    t_out = curve.limit_tangent(corners, "right")
     nexts = np.append(corners[1:], 1.0)
     worst = 0.0
     for u_c, u_next, a, b, point in zip(corners, nexts, t_in, t_out, curve(corners)):
-        a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
         normal = a - (a @ b) * b
         if np.linalg.norm(normal) < 1e-9:  # a reversal: back along the incoming line
             normal = a

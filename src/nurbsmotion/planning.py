@@ -130,7 +130,12 @@ def _span_points(curve: NurbsCurve, u0: float, u1: float, s: np.ndarray) -> np.n
 
 
 def _piece_bounds(curve: NurbsCurve) -> np.ndarray:
-    return np.concatenate([[0.0], curve.sharp_corners(), [1.0]])
+    """Where the motion stops: the ends, every sharp corner, and every point where
+    ``C' = 0`` (a repeated control point: the tangent is continuous there, but the
+    curvature in arc length is unbounded unless the curve happens to be straight, so the
+    drive-limited speed is zero)."""
+    inner = np.union1d(curve.sharp_corners(), curve.zero_speed_points)
+    return np.concatenate([[0.0], inner[(inner > 0.0) & (inner < 1.0)], [1.0]])
 
 
 def _arc_derivatives(curve: NurbsCurve, u: np.ndarray, side: np.ndarray):
@@ -144,9 +149,19 @@ def _arc_derivatives(curve: NurbsCurve, u: np.ndarray, side: np.ndarray):
         dr[:, side] = dl
     d1, d2 = dr[1], dr[2]
     n2 = np.sum(d1 * d1, axis=1, keepdims=True)
-    q1 = d1 / np.sqrt(n2)
-    # d2x/ds2 = (C'' - (C''.t) t) / |C'|^2 : the normal part of C'' over |C'|^2.
-    q2 = (d2 - np.sum(d2 * q1, axis=1, keepdims=True) * q1) / n2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q1 = d1 / np.sqrt(n2)
+        # d2x/ds2 = (C'' - (C''.t) t) / |C'|^2 : the normal part of C'' over |C'|^2.
+        q2 = (d2 - np.sum(d2 * q1, axis=1, keepdims=True) * q1) / n2
+    # At a zero-speed point (a piece's end, where the motion is at rest: _piece_bounds)
+    # the direction is the limit tangent and the speed limit is zero anyway.
+    scale = float(np.max(np.ptp(curve.control_points, axis=0)))
+    still = n2[:, 0] <= (1e-9 * scale) ** 2
+    if np.any(still):
+        for name, rows in (("right", still & ~side), ("left", still & side)):
+            if np.any(rows):
+                q1[rows] = curve.limit_tangent(u[rows], name)
+        q2[still] = 0.0
     return q1, q2
 
 
