@@ -414,10 +414,12 @@ def _within_limit(law, law_state, j, command, position, velocity):
     if abs(out) <= umax:
         return command, True
     sign = 1.0 if out > 0 else -1.0
+    # widen until the output is no longer beyond the limit it exceeds (it may then lie
+    # anywhere below it, even beyond the other limit), then bisect to that limit
     step = abs(command - position) + 1.0
     good = command - sign * step
     tries = 0
-    while abs(pid_output(law, law_state, j, good, position, velocity)[0]) > umax:
+    while sign * pid_output(law, law_state, j, good, position, velocity)[0] > umax:
         tries += 1
         if tries > 60:
             return command, False
@@ -426,10 +428,12 @@ def _within_limit(law, law_state, j, command, position, velocity):
     bad = command
     for _ in range(60):
         mid = 0.5 * (good + bad)
-        if abs(pid_output(law, law_state, j, mid, position, velocity)[0]) <= umax:
+        if sign * pid_output(law, law_state, j, mid, position, velocity)[0] <= umax:
             good = mid
         else:
             bad = mid
+    if abs(pid_output(law, law_state, j, good, position, velocity)[0]) > umax:
+        return command, False  # the law jumps over the whole band: no admissible setpoint
     return good, True
 
 
