@@ -648,6 +648,11 @@ class NurbsCurve:
         if not np.any(bad):
             return np.zeros(0)
         u = np.sort(where[bad])
+        # a root found within rounding of a knot is that knot (the spans meet there)
+        bp = self.breakpoints
+        near = np.clip(np.searchsorted(bp, u), 1, len(bp) - 1)
+        near = np.where(np.abs(bp[near - 1] - u) < np.abs(bp[near] - u), near - 1, near)
+        u = np.where(np.abs(bp[near] - u) <= 1e-12, bp[near], u)
         return u[np.concatenate([[True], np.diff(u) > 1e-12])]
 
     def _axis_turns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
