@@ -314,3 +314,23 @@ def test_a_repeated_control_point_is_a_stop_not_a_refusal(degree):
     assert math.isfinite(time_optimal_bound(curve, m, 5e5))
     trace = simulate(make_interpolator("planned", curve, m, 5e5), m)
     assert trace.success and trace.metrics().total_saturated_samples == 0
+
+
+def test_a_piece_start_does_not_stall_the_forward_pass():
+    """Sweep case 54 (tiny knot spans): at a piece's start (b = 0) the implicit step of the
+    forward pass found no range at the next point and fell back to b = 0, twice in a row,
+    so the profile took an infinite time on some grids. Every grid now gives about the
+    same finite time, positive speeds inside the piece and zero saturation in the loop."""
+    from nurbsmotion.paths.random_paths import random_path
+
+    curve = random_path("tiny_spans", [10, 54], n_axes=2)
+    m = die_bonder()
+    durations = []
+    for grid in (2000, 4000, 4010, 20000):
+        profile = speed_profile(curve, m, 172144.72284469937, grid_size=grid)
+        durations.append(profile.duration)
+        for s, u, v in profile.pieces:
+            assert np.all(v[1:-1] > 0)
+    assert max(durations) < 1.01 * min(durations)
+    trace = simulate(make_interpolator("planned", curve, m, 172144.72284469937), m)
+    assert trace.metrics().total_saturated_samples == 0

@@ -230,8 +230,11 @@ def _passes(q1, q2, tau, M, M_acc, ds, bmax):
         a = _range(q1, q2, tau, M, i + 1, bn)[0]
         b = bn - 2.0 * ds[i] * a
         if b > bn:  # implicit correction: the deceleration limit at the earlier point too
+            explicit = b
             a = max(a, _range(q1, q2, tau, M, i, b)[0])
             b = bn - 2.0 * ds[i] * a
+            if bn == 0.0 and b < bn:  # at rest the correction would stall (b = 0 twice, an
+                b = min(explicit, bmax[i])  # infinite time): the earlier point's MVC caps it
         # On the MVC the admissible range shrinks to a point whose slope the Euler step does
         # not follow; slide along the MVC instead of falling below it.
         back[i] = min(max(b, min(bn, bmax[i])), bmax[i])
@@ -242,8 +245,11 @@ def _passes(q1, q2, tau, M, M_acc, ds, bmax):
         a = _range(q1, q2, tau, M_acc, i, bp)[1]
         b = bp + 2.0 * ds[i] * a
         if b > bp:
+            explicit = b
             a = min(a, _range(q1, q2, tau, M_acc, i + 1, b)[1])
             b = bp + 2.0 * ds[i] * a
+            if bp == 0.0 and b < bp:  # at rest the correction would stall (b = 0 twice, an
+                b = min(explicit, bmax[i + 1])  # infinite time): the next point's MVC caps it
         out[i + 1] = min(max(b, min(bp, bmax[i + 1])), back[i + 1])
     return out
 
