@@ -30,7 +30,6 @@ thd, tha : commanded and measured position [pulse]; u : drive [V]; w : motor spe
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -161,6 +160,7 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
     capacity = rows.u.shape[0]
     record_bounds = rows.bounds.shape[0] > 0
     end = settling.end
+    window2 = settling.window * settling.window
     while True:
         if k >= settling.max_samples:
             loop.k[0] = k
@@ -217,7 +217,7 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
         dist2 = 0.0
         for j in range(n_axes):
             dist2 += (position[j] - end[j]) ** 2
-        inside = math.sqrt(dist2) <= settling.window
+        inside = dist2 <= window2
         loop.inside[0] = loop.inside[0] + 1 if inside else 0
         if loop.finished[0] >= 0:
             if inside and not over:

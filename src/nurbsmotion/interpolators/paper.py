@@ -27,7 +27,6 @@ import numpy as np
 from numba import njit
 
 from .. import stepping
-from ..errors import InfeasibleError
 from ..machine import Machine
 from ..nurbs import NurbsCurve
 from .base import PathData, advance, finish_step, path_data, path_derivatives, speed_bounds
@@ -70,9 +69,7 @@ class PaperInterpolator(FeedTableInterpolator):
     def __init__(self, curve: NurbsCurve, machine: Machine, feed: float, order: int = 1):
         machine.check_path(curve.n_axes)
         super().__init__(curve, machine.sample_period)
-        if order not in (1, 2) or isinstance(order, bool):
-            raise InfeasibleError(f"order must be 1 or 2, got {order!r}")
-        self.order = int(order)
+        self.order = self.taylor_order(order)
         self.plan = PaperPlan(path_data(curve, self.order), self.order,
                               *feed_table(feed, curve), np.array(machine.Ke, dtype=float))
 

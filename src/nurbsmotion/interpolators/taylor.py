@@ -114,6 +114,13 @@ class FeedTableInterpolator(Interpolator):
     def new_state(self) -> StepState:
         return StepState.new(self.plan.path)
 
+    @staticmethod
+    def taylor_order(order) -> int:
+        """``order`` as 1 (eq. 3.2) or 2 (eq. 3.1), or :class:`InfeasibleError`."""
+        if order not in (1, 2) or isinstance(order, bool):
+            raise InfeasibleError(f"Taylor order must be 1 or 2, got {order!r}")
+        return int(order)
+
     def nominal_duration(self) -> float:
         return self._nominal_duration
 
@@ -197,9 +204,7 @@ class TaylorInterpolator(FeedTableInterpolator):
 
     def __init__(self, curve: NurbsCurve, sample_period: float, feed, order: int = 2):
         super().__init__(curve, sample_period)
-        if order not in (1, 2) or isinstance(order, bool):
-            raise InfeasibleError(f"Taylor order must be 1 or 2, got {order!r}")
-        self.order = int(order)
+        self.order = self.taylor_order(order)
         self.name = f"taylor{order}"
         self.plan = TaylorPlan(path_data(curve, self.order), self.order,
                                *feed_table(feed, curve))
