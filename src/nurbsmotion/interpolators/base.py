@@ -176,9 +176,10 @@ def advance(path, order, u0, V, A, Ts, d, fresh):
     :func:`path_derivatives`, ``fresh``: it already holds the derivatives at ``u0``."""
     u = u0
     remaining = Ts
-    if not fresh:
-        path_derivatives(path, u, order, d)
     while True:
+        if not fresh:  # one inlined copy of the derivatives for both uses (compile time)
+            path_derivatives(path, u, order, d)
+        fresh = False
         du = taylor_increment(d, order, V, A, remaining)
         b = path.restarts[np.searchsorted(path.restarts, u, side="right")]
         if u + du <= b or b >= 1.0:
@@ -189,7 +190,6 @@ def advance(path, order, u0, V, A, Ts, d, fresh):
         remaining = remaining - dt
         if remaining <= 0.0 or V <= 0.0:
             return u
-        path_derivatives(path, u, order, d)
 
 
 @njit(cache=True, inline="always")

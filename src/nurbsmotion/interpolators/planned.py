@@ -403,6 +403,13 @@ class PlannedInterpolator(Interpolator):
 
 
 @njit(cache=True)
+def _law_output(law, law_state, j, command, position, velocity):
+    """The law's output [V] for a candidate setpoint (:func:`nurbsmotion.control.pid_output`
+    compiled once here, not inlined at every call of :func:`_within_limit`)."""
+    return pid_output(law, law_state, j, command, position, velocity)[0]
+
+
+@njit(cache=True)
 def _within_limit(law, law_state, j, command, position, velocity):
     """The setpoint of axis ``j`` nearest to ``command`` whose drive, as the law computes
     it (clamps included), is within Umax: ``command`` itself when the affine form was
@@ -410,7 +417,7 @@ def _within_limit(law, law_state, j, command, position, velocity):
     search widens away from the limit it exceeds, then bisects. Returns
     ``(setpoint, found)``."""
     umax = law[j]["maxoutput"]
-    out = pid_output(law, law_state, j, command, position, velocity)[0]
+    out = _law_output(law, law_state, j, command, position, velocity)
     if abs(out) <= umax:
         return command, True
     sign = 1.0 if out > 0 else -1.0
@@ -419,7 +426,7 @@ def _within_limit(law, law_state, j, command, position, velocity):
     step = abs(command - position) + 1.0
     good = command - sign * step
     tries = 0
-    while sign * pid_output(law, law_state, j, good, position, velocity)[0] > umax:
+    while sign * _law_output(law, law_state, j, good, position, velocity) > umax:
         tries += 1
         if tries > 60:
             return command, False
@@ -428,11 +435,11 @@ def _within_limit(law, law_state, j, command, position, velocity):
     bad = command
     for _ in range(60):
         mid = 0.5 * (good + bad)
-        if sign * pid_output(law, law_state, j, mid, position, velocity)[0] <= umax:
+        if sign * _law_output(law, law_state, j, mid, position, velocity) <= umax:
             good = mid
         else:
             bad = mid
-    if abs(pid_output(law, law_state, j, good, position, velocity)[0]) > umax:
+    if abs(_law_output(law, law_state, j, good, position, velocity)) > umax:
         return command, False  # the law jumps over the whole band: no admissible setpoint
     return good, True
 
@@ -466,7 +473,7 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
             # a clamp of the law: the identification and the deviation see the drive the
             # plant gets
             umax = law[j]["maxoutput"]
-            out = pid_output(law, law_state, j, setpoint, position[j], velocity[j])[0]
+            out = _law_output(law, law_state, j, setpoint, position[j], velocity[j])
             applied = min(max(out, -umax), umax)
             state.dev[1, j] += state.drive[j] - applied
             state.hist[0, j] = applied
