@@ -140,3 +140,29 @@ def test_settling_time_is_the_closed_loops_slowest_decay(machine):
     assert settling_time(machine) == pytest.approx(4 / min(rates), rel=1e-9)
     # SPEC section 2: X's poles are about -123 +- 400j, so about 33 ms
     assert settling_time(machine) == pytest.approx(4 / 123, rel=0.02)
+
+
+def test_settle_figure_measures_from_the_path_end_for_planned(machine, tmp_path,
+                                                              monkeypatch):
+    """``planned``'s setpoints lead the path, so the command at the finished sample is not
+    the end point: the settle figure plots the actual position minus the curve's end,
+    and its titles say the axes settled (the summary's settle time is finite)."""
+    from nurbsmotion import plots
+
+    seen = {}
+    save = plots._save
+
+    def spy(fig, path, overwrite=True):
+        if path.name == "settle.png":
+            seen["titles"] = [ax.get_title(loc="left") for ax in fig.axes]
+            seen["last"] = [ax.lines[0].get_ydata()[-1] for ax in fig.axes[::2]]
+        return save(fig, path, overwrite)
+
+    monkeypatch.setattr(plots, "_save", spy)
+    path = nm.make_die_bonder_pi()
+    trace = simulate(make_interpolator("planned", path, machine, 1e6), machine)
+    assert trace.metrics().settled
+    plot_trace(trace, tmp_path)
+    end = path.end_points[1]
+    assert seen["last"] == pytest.approx(list(trace.position[-1] - end), abs=1e-9)
+    assert all("not within" not in t for t in seen["titles"][::2])

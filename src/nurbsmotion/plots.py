@@ -340,11 +340,42 @@ def _drive_title(runs: list[_Run], j: int, umax: float, fig, ax) -> str:
                      else line for line in lines)
 
 
+def _desired_parameters(curve, n: int = 20000) -> np.ndarray:
+    """Parameters uniform in arc length plus every breakpoint (corners drawn sharp)."""
+    return np.union1d(curve.parameter_at(np.linspace(0.0, curve.length, n)),
+                      curve.breakpoints)
+
+
 def _desired_points(curve, n: int = 20000) -> np.ndarray:
-    """Curve points uniform in arc length plus every breakpoint (corners drawn sharp),
-    shape (m, n_axes) [L]."""
-    u = np.union1d(curve.parameter_at(np.linspace(0.0, curve.length, n)), curve.breakpoints)
-    return curve(u)
+    """Curve points uniform in arc length plus every breakpoint, shape (m, n_axes) [L]."""
+    return curve(_desired_parameters(curve, n))
+
+
+_ZOOM_SUBDIVISION = 64
+"""Each segment of the desired polyline that crosses a zoom window is redrawn from this
+many curve points (a zoom of a few pulses on a long path would otherwise show the
+polyline's chords, not the curve)."""
+
+
+def _desired_in_window(curve, u: np.ndarray, points: np.ndarray, zoom: _Zoom) -> np.ndarray:
+    """The desired path inside ``zoom``, evaluated finely: shape (m, 2) [L], NaN rows
+    between separate passes through the window. ``u`` and ``points`` are
+    :func:`_desired_parameters` and the curve's points there."""
+    h = zoom.half_width
+    inside = np.all(np.abs(points[:, :2] - zoom.center) <= h, axis=1)
+    near = inside.copy()  # the segments that enter or leave the window too
+    near[:-1] |= inside[1:]
+    near[1:] |= inside[:-1]
+    starts = np.nonzero(near[:-1] & near[1:])[0]
+    if starts.size == 0:
+        return np.empty((0, 2))
+    t = np.linspace(0.0, 1.0, _ZOOM_SUBDIVISION + 1)
+    fine = u[starts, None] + (u[starts + 1] - u[starts])[:, None] * t[None, :]
+    xy = curve(fine.ravel())[:, :2].reshape(len(starts), -1, 2)
+    gap = np.append(np.diff(starts) > 1, True)  # a NaN row after each separate pass
+    rows = [np.vstack([seg, np.full((1, 2), np.nan)]) if g else seg
+            for seg, g in zip(xy, gap)]
+    return np.vstack(rows)
 
 
 def _error_peaks(curve, runs: list[_Run], nearest: list[tuple]) -> list[tuple]:
@@ -407,7 +438,11 @@ def _zoom_windows(curve, runs: list[_Run], nearest: list[tuple],
             near = np.abs(curve.arc_length(u) - s_corner) <= reach
             if np.any(near):
                 k = int(np.argmax(np.where(near, d, -1.0)))
-                points.append(r.position[k, :2])
+                # the worst sample is held in the window when it is a deviation at the
+                # corner (an overshoot), not a tiny error far along the next piece
+                if (np.linalg.norm(r.position[k, :2] - corner)
+                        <= 2.0 * _ZOOM_MARGIN * float(d[k]) + min_half):
+                    points.append(r.position[k, :2])
                 local.append(float(d[k]))
             else:
                 local.append(0.0)
@@ -504,7 +539,8 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
     zoom_slots = ([grid[0, 4:]] if one_row else
                   [grid[1 + j // n_cols, 2 * (j % n_cols):2 * (j % n_cols) + 2]
                    for j in range(len(zooms))])
-    desired = _desired_points(curve)
+    desired_u = _desired_parameters(curve)
+    desired = curve(desired_u)
 
     if n_axes >= 3:
         ax_path = fig.add_subplot(grid[0, :half], projection="3d")
@@ -554,10 +590,15 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
 
     for j, (z, slot) in enumerate(zip(zooms, zoom_slots)):
         ax = fig.add_subplot(slot)
-        ax.plot(desired[:, 0], desired[:, 1], color="k", linewidth=1)
+        fine = _desired_in_window(curve, desired_u, desired, z)
+        ax.plot(fine[:, 0], fine[:, 1], color="k", linewidth=1)
         for r in runs:
+            # the samples are what the encoder measured; the faint line only orders them
+            # (the machine does not move in straight lines between samples)
             ax.plot(r.position[:, 0], r.position[:, 1], color=r.color, linestyle=r.linestyle,
-                    linewidth=1.2, marker=".", markersize=4)
+                    linewidth=0.8, alpha=0.35)
+            ax.plot(r.position[:, 0], r.position[:, 1], color=r.color, linestyle="none",
+                    marker=".", markersize=5)
         (cx, cy), h = z.center, z.half_width
         ax.set_xlim(cx - h, cx + h)
         ax.set_ylim(cy - h, cy + h)
@@ -637,7 +678,9 @@ def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float
     ±1 pulse band (right, ±:data:`_SETTLE_ZOOM` pulses)."""
     tr = run.trace
     names = tr.machine.axis_names
-    end = run.position_command[tr.finished_index]
+    # the path's end point (a planned setpoint leads the path: the command at the
+    # finished sample is not the end point)
+    end = tr.curve.end_points[1] / per_unit
     t0 = tr.cycle_time
     sel = tr.t >= t0 - 0.5 * settle
     t = tr.t[sel] - t0
