@@ -108,6 +108,10 @@ def test_outputs_are_not_overwritten_unless_asked(tmp_path, capsys):
          "the path has 3 axes but machine 'die-bonder' has 2"),
         (["interpolate", "die-bonder-pi", "--feed", "1m/s", "--out", "{out}"],
          "cannot convert a feed with a length unit"),
+        (["run", "die-bonder-pi", "--feed", "1m/s", "--settle-window", "0", "--out", "{out}"],
+         "--settle-window must be > 0, got '0'"),
+        (["run", "die-bonder-pi", "--feed", "1m/s", "--settle-window", "2parsec", "--out",
+          "{out}"], "--settle-window unit 'parsec' unknown"),
     ],
 )
 def test_errors_are_one_clear_line(tmp_path, capsys, args, message):
@@ -345,3 +349,19 @@ def test_warnings_are_one_line_without_source_echo(tmp_path, capsys):
         f"nurbsmotion contours: warning: {ngc}, line 2: M3/M4/M5 spindle skipped: it does not change the path",
         f"nurbsmotion contours: warning: {ngc}, line 2: S spindle speed skipped: it does not change the path",
     ]
+
+
+def test_settle_window_takes_a_length_or_pulses(tmp_path):
+    """A bare number is pulses (as before); a length is converted; both are in the
+    summary, in pulses and in the path's unit, and the settle time follows the window."""
+    times = {}
+    for text, pulses in (("1", 1.0), ("0.5um", 0.5), ("0.02mm", 20.0)):
+        out = tmp_path / text
+        assert main(["run", "die-bonder-pi", "--feed", "1m/s", "--settle-window", text,
+                     "--out", str(out), "--no-figures", "--no-trace"]) == 0
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["settle_window"] == pytest.approx(pulses)
+        assert summary["settle_window_mm"] == pytest.approx(pulses * 1e-3)
+        assert summary["units"]["settle_window_mm"] == "mm"
+        times[pulses] = summary["settle_time_s"]
+    assert times[20.0] <= times[1.0] <= times[0.5]

@@ -197,6 +197,10 @@ def _cmd_run(args) -> int:
         raise InvalidArgumentError(
             f"--corner-tolerance applies to the planned interpolator, not {args.interpolator}")
     options = {"corner_tolerance": eps} if eps else {}
+    window = units.length_in_pulses(args.settle_window, curve, machine, "--settle-window",
+                                    bare_unit="pulse")
+    if window <= 0:
+        raise InvalidArgumentError(f"--settle-window must be > 0, got {args.settle_window!r}")
     if "pvt" in (args.export or ()):
         lowest = feed if isinstance(feed, (int, float)) else feed.lowest
         check_samples(estimate_samples(path.length, lowest, args.pvt_period),
@@ -220,7 +224,7 @@ def _cmd_run(args) -> int:
         stage(stages[1])
         trace = run(path, machine, feed, args.interpolator, max_samples=args.max_samples,
                     interpolator_options=options, plant=plant,
-                    settle_window=args.settle_window)
+                    settle_window=window)
         bar.update()
         # The metrics before the trace file: their temporaries are gone before the
         # writer's buffers are made (the peak memory is the larger, not the sum).
@@ -235,7 +239,9 @@ def _cmd_run(args) -> int:
         bar.update()
         stage(stages[4])
         extra = {"plant": machine.name if args.plant is None else args.plant,
-                 "corner_tolerance": eps}
+                 "corner_tolerance": eps,
+                 f"corner_tolerance_{unit}": eps / per_unit,
+                 f"settle_window_{unit}": window / per_unit}
         if contour.feed is not None:  # the file gave a feed: say which one ran
             extra["feed_used"] = note
         data = summary(metrics, interpolator=args.interpolator, feed=feed_number,
@@ -528,9 +534,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--corner-tolerance", default="0",
                    help="planned: how far the motion may leave a sharp corner instead of "
                    "stopping there, a length (0.5mm, 10um) or a number in the path's units")
-    r.add_argument("--settle-window", type=_positive_float, default=1.0,
+    r.add_argument("--settle-window", default="1",
                    help="the motion has settled once it stays within this distance of the "
-                   "end point [pulse]")
+                   "end point: a length (1um, 0.001mm) or a number of pulses (default: 1 "
+                   "pulse)")
     common(r)
     r.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     r.add_argument("--no-trace", action="store_true",

@@ -93,9 +93,11 @@ def _parsed(feed) -> tuple[float, str | None]:
 _LENGTH = re.compile(r"^\s*([0-9.eE+-]+)\s*([a-z]*)\s*$")
 
 
-def length_in_pulses(text: str, curve, machine: Machine, what: str = "length") -> float:
+def length_in_pulses(text: str, curve, machine: Machine, what: str = "length",
+                     bare_unit: str | None = None) -> float:
     """A length text in the machine's pulses: ``"0.5mm"``, ``"10um"``, ``"200pulse"``, or
-    a bare number in the path's units (like a bare feed). Must be finite and >= 0.
+    a bare number in ``bare_unit`` (default: the path's units, like a bare feed). Must be
+    finite and >= 0.
 
     Raises
     ------
@@ -110,9 +112,10 @@ def length_in_pulses(text: str, curve, machine: Machine, what: str = "length") -
         except ValueError:
             value = None
     if value is None or not (math.isfinite(value) and value >= 0):
-        raise InvalidArgumentError(f"{what} {text!r} is not a length >= 0 such as 0.5mm, "
-                                   "10um or a number in the path's units")
-    unit = m.group(2) or None
+        raise InvalidArgumentError(
+            f"{what} {text!r} is not a length >= 0 such as 0.5mm, 10um or a number in "
+            + ("the path's units" if bare_unit is None else f"{bare_unit}s"))
+    unit = m.group(2) or bare_unit
     if unit == "pulse":
         return value
     if unit is not None and unit not in LENGTH_UNITS_UM:
