@@ -128,6 +128,13 @@ class CurveGeometry:
         self.length = float(self._s[-1])
 
     @property
+    def table(self) -> tuple[np.ndarray, np.ndarray]:
+        """The arc-length table: the pieces' ends ``u``, shape (m + 1,), each piece inside
+        one knot span, and ``s(u)`` there [path units], shape (m + 1,) (read, not copied:
+        do not change them)."""
+        return self._u, self._s
+
+    @property
     def n_pieces(self) -> int:
         """Number of quadrature pieces of the arc-length table."""
         return len(self._u) - 1

@@ -57,7 +57,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from numba import njit
+
+from ._kernels import horner, rational_horner
 from .errors import InfeasibleError
+from .geometry import _GL_W, _GL_X, distances_to  # (the table's Gauss rule)
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .planning import SpeedProfile, speed_profile
@@ -95,6 +99,11 @@ MAX_GRID_REFINEMENT = 16
 
 DRIVE_FIT_ROUNDS = 12
 """At most this many rebuilds of the plan in step 4."""
+
+ARC_TOLERANCE = 1e-13
+"""The arc-length inverse of every sample is refined once more after its residual is
+within this fraction of the path's length (that of
+:meth:`nurbsmotion.geometry.CurveGeometry.parameter_at`)."""
 
 LEAD = 2
 """Sample at which the desired motion leaves the start: the loop applies u[0] = 0 and the
@@ -170,19 +179,195 @@ class MotionPlan:
         return (self.n_samples - 1) * self.sample_period
 
 
-def _sample_piece(s: np.ndarray, V: np.ndarray, t: np.ndarray, times: np.ndarray):
-    """s at ``times`` (from the piece's start) along a profile with constant acceleration
-    between grid points (b = V^2 linear in s)."""
-    i = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(t) - 2)
+@njit(cache=True)
+def _smoothed_arc(s, V, t, h, n_fine, width, passes, times, out):
+    """The piece's averaged time profile s(t) [pulse] at the nondecreasing ``times`` [s]
+    (from the piece's start), into ``out``.
+
+    The profile has constant acceleration between grid points (b = V^2 linear in s); it is
+    sampled every ``h`` (``n_fine`` points from 0), averaged ``passes`` times over
+    ``width`` fine points (at rest before and after: each pass adds ``width`` points) and
+    read by linear interpolation between the fine points; the last point is the piece's
+    end. The fine points stream through a ring of running sums, one pass after the other
+    on each point, so nothing of the fine grid's size is held: the values are those of
+    sampling the whole fine grid, ``np.cumsum`` per pass and ``np.interp``, operation for
+    operation."""
+    last = t.shape[0] - 1
+    s0 = s[0]
+    s_end = s[last]
+    n_total = n_fine + passes * width        # length of the averaged fine sequence
+    ring = np.zeros((passes, width + 1))     # running sums C[k] of each pass, at k mod width+1
+    seg = 0
+    acc = _segment_acceleration(s, V, 0)
+    m = -1                                   # last fine index produced
+    slot = width                             # m mod (width + 1)
+    f_prev = s0
+    f_cur = s0
+    for q in range(times.shape[0]):
+        x = times[q]
+        # the fine interval j with j*h <= x < (j+1)*h (np.interp's search)
+        if x < 0.0:
+            j = -1
+        elif x > (n_total - 1) * h:
+            j = n_total
+        else:
+            j = min(int(x / h), n_total - 1)
+            while j + 1 <= n_total - 1 and (j + 1) * h <= x:
+                j += 1
+            while j > 0 and j * h > x:
+                j -= 1
+        need = min(max(j + 1, 0), n_total - 1)
+        while m < need:
+            m += 1
+            previous = slot                  # (m - 1) mod (width + 1) = (m + width) mod ...
+            slot = 0 if slot == width else slot + 1
+            oldest = 0 if slot == width else slot + 1   # (m + 1) mod (width + 1)
+            # pass 0's input: the profile at m*h (constant acceleration between grid points)
+            if m < n_fine:
+                tm = m * h
+                while seg + 1 < last and t[seg + 1] <= tm:
+                    seg += 1
+                    acc = _segment_acceleration(s, V, seg)
+                dt = max(tm - t[seg], 0.0)
+                v = s[seg] + V[seg] * dt + 0.5 * acc * dt * dt
+                v = min(v, s[seg + 1])
+                if tm >= t[last]:
+                    v = s_end
+                if tm <= 0:
+                    v = s0
+            else:
+                v = s_end
+            for p in range(passes):
+                if m >= n_fine + p * width:   # past this pass's input: its end padding
+                    v = s_end
+                newest = ring[p, previous] + (v - s0)
+                ring[p, slot] = newest
+                v = s0 + (newest - ring[p, oldest]) / width
+            if m == n_total - 1:
+                v = s_end
+            f_prev = f_cur
+            f_cur = v
+        if j < 0 or j >= n_total - 1:  # before the start (m = 0) or at/after the end
+            out[q] = f_cur
+        elif j * h == x:
+            out[q] = f_prev
+        else:
+            slope = (f_cur - f_prev) / ((j + 1) * h - j * h)
+            out[q] = slope * (x - j * h) + f_prev
+
+
+@njit(cache=True)
+def _segment_acceleration(s, V, i):
+    """Path acceleration [pulse/s^2] between grid points i and i + 1 of a profile whose
+    b = V^2 is linear in s (0 where the points coincide)."""
     ds = s[i + 1] - s[i]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        acc = np.where(ds > 0, (V[i + 1] ** 2 - V[i] ** 2) / (2 * ds), 0.0)
-    dt = np.clip(times - t[i], 0.0, None)
-    out = s[i] + V[i] * dt + 0.5 * acc * dt * dt
-    out = np.minimum(out, s[i + 1])
-    out[times >= t[-1]] = s[-1]
-    out[times <= 0] = s[0]
-    return out
+    return (V[i + 1] * V[i + 1] - V[i] * V[i]) / (2 * ds) if ds > 0 else 0.0
+
+
+@njit(cache=True)
+def _speed_at(coef, t):
+    """``(|C'|, d|C'|/du)`` at ``t`` from its span's start (``coef``: the span's power form
+    of ``[w*C, w]``, :attr:`NurbsCurve.power_form`)."""
+    dim = coef.shape[1] - 1
+    w, w1, w2 = horner(coef, dim, t)
+    d2 = 0.0
+    dd = 0.0
+    for a in range(dim):
+        _, x1, x2 = rational_horner(coef, a, t, w, w1, w2)
+        d2 += x1 * x1
+        dd += x1 * x2
+    speed = math.sqrt(d2)
+    return speed, (dd / speed if speed > 0 else 0.0)
+
+
+@njit(cache=True)
+def _gauss_from(coef, span_start, a, b, nodes, weights):
+    """Arc length of [a, b] inside one span by the Gauss-Legendre rule ``nodes, weights``
+    (summed node by node, as :func:`nurbsmotion.geometry._gauss` does)."""
+    half = 0.5 * (b - a)
+    mid = 0.5 * (b + a)
+    total = 0.0
+    for i in range(nodes.shape[0]):
+        total += _speed_at(coef, mid + half * nodes[i] - span_start)[0] * weights[i]
+    return half * total
+
+
+@njit(cache=True)
+def _dense_parameters(table_u, table_s, piece_span, spans, coefficients, nodes, weights,
+                      tol, arc, out):
+    """``u(s)`` for the arc lengths ``arc`` [pulse] (any order; fastest nondecreasing and
+    dense), into ``out``.
+
+    Safeguarded Newton on ``s_j + G(u_j, u) - s`` inside the arc-length table's piece j
+    (G: the Gauss rule of the table, :class:`nurbsmotion.geometry.CurveGeometry`), like
+    :meth:`~nurbsmotion.geometry.CurveGeometry.parameter_at`, from the previous sample's
+    parameter extrapolated to second order where it lies in the same piece (the table's
+    linear guess otherwise); once ``|f| <= tol`` one more Newton step takes the root to
+    rounding, so the result does not depend on the guess."""
+    n_pieces = table_u.shape[0] - 1
+    prev_piece = -1
+    u_prev = 0.0
+    s_prev = 0.0
+    du = 0.0
+    ddu = 0.0
+    for q in range(arc.shape[0]):
+        sv = arc[q]
+        lo_i = 0
+        hi_i = n_pieces + 1
+        while lo_i < hi_i:                      # searchsorted(table_s, sv, "right")
+            mid_i = (lo_i + hi_i) // 2
+            if table_s[mid_i] <= sv:
+                lo_i = mid_i + 1
+            else:
+                hi_i = mid_i
+        j = min(max(lo_i - 1, 0), n_pieces - 1)
+        start = table_u[j]
+        lo = start
+        hi = table_u[j + 1]
+        s_lo = table_s[j]
+        frac = (sv - s_lo) / max(table_s[j + 1] - s_lo, 1e-300)
+        u = lo + frac * (hi - lo)
+        if j == prev_piece:
+            d = sv - s_prev
+            guess = u_prev + d * (du + 0.5 * d * ddu)
+            if lo < guess < hi:
+                u = guess
+        k = piece_span[j]
+        coef = coefficients[k]
+        base = spans[k]
+        speed = 0.0
+        dspeed = 0.0
+        for _ in range(60):
+            f = s_lo + _gauss_from(coef, base, start, u, nodes, weights) - sv
+            speed, dspeed = _speed_at(coef, u - base)
+            if f < 0:
+                lo = u
+            if f > 0:
+                hi = u
+            step = u - f / speed if speed > 0 else np.nan
+            bisect = not (lo < step < hi)
+            if abs(f) <= tol:
+                if not bisect:
+                    u = step
+                break
+            u = 0.5 * (lo + hi) if bisect else step
+        out[q] = u
+        prev_piece = j
+        u_prev = u
+        s_prev = sv
+        if speed > 0:
+            du = 1.0 / speed
+            ddu = -dspeed / (speed * speed * speed)
+        else:
+            prev_piece = -1
+
+
+def _piece_span(curve: NurbsCurve, table_u: np.ndarray) -> np.ndarray:
+    """The knot span (of :attr:`NurbsCurve.power_form`) holding each arc-length table
+    piece, shape (m,)."""
+    spans = curve.power_form[0]
+    return np.clip(np.searchsorted(spans, table_u[:-1], side="right") - 1, 0,
+                   len(spans) - 2)
 
 
 def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float, passes: int):
@@ -192,30 +377,42 @@ def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float, passes: 
     The piece's s(t) is averaged ``passes`` times over one sample period (a moving average
     of the time profile, at rest before and after): each pass adds Ts to the piece and one
     order of continuity, so that after one pass the acceleration is continuous and the
-    sampled motion contains no more than the drive can follow within a sample."""
+    sampled motion contains no more than the drive can follow within a sample. Sampled on
+    a fine grid of :data:`OVERSAMPLE` points per sample that is streamed, never stored
+    (:func:`_smoothed_arc`), and mapped to the curve by a compiled inverse of the arc
+    length (:func:`_dense_parameters`)."""
     out = []
     fine = OVERSAMPLE * SMOOTHING_WIDTH
     h = Ts / OVERSAMPLE
+    geometry = curve.geometry
+    table_u, table_s = geometry.table
+    spans, coefficients = curve.power_form
+    piece_span = _piece_span(curve, table_u)
+    tol = ARC_TOLERANCE * geometry.length
     for (s, u, V), t in zip(profile.pieces, profile.piece_times()):
         n_fine = int(math.ceil(t[-1] / h)) + 1
-        tf = np.arange(n_fine) * h
-        sf = _sample_piece(s, V, t, tf)
-        for _ in range(passes):
-            padded = np.concatenate([np.full(fine, s[0]), sf, np.full(fine, s[-1])])
-            csum = np.concatenate([[0.0], np.cumsum(padded - s[0])])
-            sf = s[0] + (csum[fine:] - csum[:-fine]) / fine
-            sf = sf[1:]
-        sf[-1] = s[-1]
-        tf = np.arange(len(sf)) * h
+        duration = (n_fine + passes * fine - 1) * h
 
-        def motion(times, s=s, u=u, sf=sf, tf=tf):
-            sk = np.interp(times, tf, sf)
+        def motion(times, s=s, u=u, V=V, t=t, n_fine=n_fine):
+            times = np.ascontiguousarray(times, dtype=float)
+            order = None
+            if times.size > 1 and np.any(times[1:] < times[:-1]):
+                order = np.argsort(times, kind="stable")
+                times = times[order]
+            sk = np.empty_like(times)
+            _smoothed_arc(s, V, t, h, n_fine, fine, passes, times, sk)
+            if order is not None:
+                sk[order] = sk.copy()
             uk = np.interp(sk, s, u)
-            inner = (sk > s[0]) & (sk < s[-1])
-            if np.any(inner):
-                uk[inner] = np.clip(curve.parameter_at(sk[inner]), u[0], u[-1])
+            inner = np.flatnonzero((sk > s[0]) & (sk < s[-1]))
+            if inner.size:
+                found = np.empty(inner.size)
+                _dense_parameters(table_u, table_s, piece_span, spans, coefficients,
+                                  _GL_X, _GL_W, tol, np.minimum(sk[inner], geometry.length),
+                                  found)
+                uk[inner] = np.clip(found, u[0], u[-1])
             return curve(uk), uk
-        out.append((float(tf[-1]), motion, s[-1] - s[0]))
+        out.append((float(duration), motion, s[-1] - s[0]))
     return out
 
 
@@ -238,6 +435,28 @@ def _time_to_cover(motion, duration: float, distance: float, from_end: bool,
 
 BLEND_ROUNDS = 5
 """Rounds that widen a blend until its deviation from the sharp corner reaches eps."""
+
+
+BLEND_CHUNK = 256
+"""Blended points compared with the path samples at a time (bounds the temporary)."""
+
+
+def _farthest_from(points: np.ndarray, path: np.ndarray, corner: np.ndarray) -> float:
+    """``max_i min_k |points[i] - path[k]|`` [pulse]: how far the points get from the
+    nearest path sample (at least the distance to the path itself).
+
+    ``corner`` is one of the path samples, so each point's nearest sample lies within
+    twice the points' largest distance to it: only those samples are compared, in chunks
+    of :data:`BLEND_CHUNK` points (the same distances as comparing all, without a
+    points-by-samples temporary of a long piece)."""
+    radius = float(np.max(np.linalg.norm(points - corner, axis=1)))
+    near = path[distances_to(path, corner) <= 2.0 * radius * (1 + 1e-9) + 1e-300]
+    worst = 0.0
+    for i in range(0, len(points), BLEND_CHUNK):
+        chunk = points[i:i + BLEND_CHUNK]
+        gap = np.min(np.linalg.norm(chunk[:, None, :] - near[None, :, :], axis=2), axis=1)
+        worst = max(worst, float(np.max(gap)))
+    return worst
 
 
 def _blend_overlap(prev_motion, prev_dur, prev_len, motion, dur, length, tolerance, Ts):
@@ -266,8 +485,7 @@ def _blend_overlap(prev_motion, prev_dur, prev_len, motion, dur, length, toleran
         tau = np.arange(0.0, overlap + h, h)
         blended = (prev_motion(np.minimum(prev_dur - overlap + tau, prev_dur))[0]
                    + motion(tau)[0] - corner)
-        gap = np.min(np.linalg.norm(blended[:, None, :] - path[None, :, :], axis=2), axis=1)
-        deviation = float(np.max(gap))  # to the nearest path sample: at least the true one
+        deviation = _farthest_from(blended, path, corner)
         if deviation > tolerance and best > 0:
             break
         best = max(best, overlap)

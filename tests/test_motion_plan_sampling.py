@@ -1,0 +1,87 @@
+"""The planned motion's sampling (issue 13 item 4): the streamed, compiled time profile and
+arc-length inverse of :mod:`nurbsmotion.motion_plan` against the fine-grid numpy
+computation they replace and against the arc-length table."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from nurbsmotion import motion_plan as mp
+from nurbsmotion.loop import to_pulses
+from nurbsmotion.machine import die_bonder
+from nurbsmotion.nurbs import builtin_path
+from nurbsmotion.planning import speed_profile
+
+
+def _fine_grid_reference(s, V, t, h, passes, width):
+    """The whole fine grid as numpy arrays (the computation before the streamed kernel):
+    constant acceleration between grid points, ``passes`` moving averages by cumulative
+    sums, the last point on the piece's end. Returns (times, values)."""
+    n_fine = int(math.ceil(t[-1] / h)) + 1
+    tf = np.arange(n_fine) * h
+    i = np.clip(np.searchsorted(t, tf, side="right") - 1, 0, len(t) - 2)
+    ds = s[i + 1] - s[i]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        acc = np.where(ds > 0, (V[i + 1] ** 2 - V[i] ** 2) / (2 * ds), 0.0)
+    dt = np.clip(tf - t[i], 0.0, None)
+    sf = np.minimum(s[i] + V[i] * dt + 0.5 * acc * dt * dt, s[i + 1])
+    sf[tf >= t[-1]] = s[-1]
+    sf[tf <= 0] = s[0]
+    for _ in range(passes):
+        padded = np.concatenate([np.full(width, s[0]), sf, np.full(width, s[-1])])
+        csum = np.concatenate([[0.0], np.cumsum(padded - s[0])])
+        sf = (s[0] + (csum[width:] - csum[:-width]) / width)[1:]
+    sf[-1] = s[-1]
+    return np.arange(len(sf)) * h, sf
+
+
+@pytest.fixture(scope="module")
+def pieces():
+    m = die_bonder()
+    out = []
+    for name, feed in (("die-bonder-pi", 5e5), ("butterfly", 2e5)):
+        curve = to_pulses(builtin_path(name), m)
+        profile = speed_profile(curve, m, feed)
+        out.append((curve, list(zip(profile.pieces, profile.piece_times())),
+                    m.sample_period))
+    return out
+
+
+@pytest.mark.parametrize("passes", [1, 2])
+def test_streamed_time_profile_equals_the_fine_grid(pieces, passes):
+    """Every value, to the last bit, at sample times, off-grid times, the fine points
+    themselves and beyond both ends."""
+    rng = np.random.default_rng(3)
+    width = mp.OVERSAMPLE * mp.SMOOTHING_WIDTH
+    for _, piece_list, Ts in pieces:
+        for (s, _, V), t in piece_list:
+            h = Ts / mp.OVERSAMPLE
+            tf, sf = _fine_grid_reference(s, V, t, h, passes, width)
+            n_fine = int(math.ceil(t[-1] / h)) + 1
+            for times in (np.arange(-2, len(tf) // mp.OVERSAMPLE + 3) * Ts,
+                          np.sort(rng.uniform(-Ts, tf[-1] + Ts, 3000)), tf[::5]):
+                out = np.empty_like(times)
+                mp._smoothed_arc(s, V, t, h, n_fine, width, passes, times, out)
+                np.testing.assert_array_equal(out, np.interp(times, tf, sf))
+
+
+def test_dense_inverse_is_the_root_of_the_arc_length_table(pieces):
+    """``u(s)`` for dense increasing and for shuffled arc lengths: s(u) back to within a
+    few roundings of s (the table's own ``parameter_at`` stops at 1e-13 of the length),
+    and the same parameter as ``parameter_at`` within that tolerance."""
+    for curve, _, _ in pieces:
+        L = curve.length
+        table_u, table_s = curve.geometry.table
+        spans, coefficients = curve.power_form
+        arc = np.linspace(0.0, L, 20001)[1:-1]
+        shuffled = np.random.default_rng(5).permutation(arc)
+        for s in (arc, shuffled):
+            u = np.empty_like(s)
+            mp._dense_parameters(table_u, table_s, mp._piece_span(curve, table_u), spans,
+                                 coefficients, mp._GL_X, mp._GL_W, 1e-13 * L, s, u)
+            assert np.max(np.abs(curve.arc_length(u) - s)) <= 1e-15 * L * 8
+            speed = np.linalg.norm(curve(u, 1), axis=1)
+            assert np.max(np.abs(u - curve.parameter_at(s)) * speed) <= 1.01e-13 * L
