@@ -85,3 +85,35 @@ def test_dense_inverse_is_the_root_of_the_arc_length_table(pieces):
             assert np.max(np.abs(curve.arc_length(u) - s)) <= 1e-15 * L * 8
             speed = np.linalg.norm(curve(u, 1), axis=1)
             assert np.max(np.abs(u - curve.parameter_at(s)) * speed) <= 1.01e-13 * L
+
+
+def test_blend_deviation_equals_comparing_every_sample():
+    """The nearest-sample distance restricted to the samples near the corner is that of
+    comparing every point with every sample (a path that comes back near the corner)."""
+    rng = np.random.default_rng(7)
+    angle = np.linspace(0.0, 2 * np.pi, 4001)
+    path = np.column_stack([np.cos(angle), np.sin(2 * angle)]) * 100.0
+    corner = path[1000]
+    points = corner + rng.normal(scale=3.0, size=(700, 2))
+    brute = np.max(np.min(np.linalg.norm(points[:, None, :] - path[None, :, :], axis=2),
+                          axis=1))
+    assert mp._farthest_from(points, path, corner) == brute
+
+
+def test_support_equals_running_maxima_by_numpy():
+    """The planned step's support (running maxima back from each stop) equals numpy's
+    accumulate over the reversed pieces, bit for bit."""
+    from nurbsmotion.interpolators.planned import SUPPORT_DIRECTIONS, _support
+
+    rng = np.random.default_rng(11)
+    angles = np.linspace(0.0, 0.5 * np.pi, SUPPORT_DIRECTIONS)
+    for n, stops in ((500, []), (500, [0, 40, 40, 300, 499]), (9, [9])):
+        accel, speed = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+        values = np.abs(np.cos(angles) * accel[:, :, None] + np.sin(angles) * speed[:, :, None])
+        expected = np.empty_like(values)
+        bounds = [0, *stops, n]
+        for lo, hi in zip(bounds[:-1], bounds[1:]):
+            if hi > lo:
+                expected[lo:hi] = np.maximum.accumulate(values[lo:hi][::-1], axis=0)[::-1]
+        np.testing.assert_array_equal(_support(accel, speed, np.array(stops, dtype=int)),
+                                      expected)
