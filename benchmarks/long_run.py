@@ -9,6 +9,11 @@ grows, the CPU time hardly), and the peak resident set size (VmHWM). Then the sa
 stages one by one in one process: the imports, the loop, the metrics, the time-optimal
 bound, and writing the trace as CSV and as Parquet; and the load average.
 
+Last, Ctrl-C: the same ``run`` (the default ``planned``, ``trace.csv``) as a command in a
+subprocess, sent SIGINT at several moments of its work; each time the latency from the
+signal to the process's exit, its exit code and stderr, and what it left in the output
+folder (nothing may appear under a name a finished run writes).
+
     python benchmarks/long_run.py
 """
 
@@ -16,11 +21,15 @@ from __future__ import annotations
 
 import json
 import os
+import signal
+import subprocess
+import sys
 import tempfile
 import time
+from pathlib import Path
 
 import _common  # noqa: F401  (puts src/ on the path)
-from _common import PEAK_MB, run_python, section
+from _common import PEAK_MB, python_env, run_python, section
 
 END_TO_END = PEAK_MB + r"""
 import json, os, sys
@@ -67,7 +76,8 @@ print(json.dumps(t))
 """
 
 
-CASES = (("paper", "csv"), ("paper", "parquet"), ("paper", "none"), ("planned", "csv"))
+CASES = (("paper", "csv"), ("paper", "parquet"), ("paper", "none"), ("planned", "csv"),
+         ("planned", "parquet"), ("planned", "none"))
 """(interpolator, trace format or "none" for ``--no-trace``) of the end-to-end runs."""
 
 
@@ -104,5 +114,52 @@ def main(repeats: int = 1) -> str:
                                                    "peak RSS [MB]"], rows, note=note)
 
 
+INTERRUPT_DELAYS = (0.6, 1.2, 1.8, 2.4, 3.0, 3.6)
+"""Seconds after the command's start at which SIGINT is sent (imports, planning, the
+loop, the metrics, the trace file: where each falls depends on the machine)."""
+
+
+def interrupt_once(delay: float) -> dict:
+    """Start ``nurbsmotion run`` on the 10-minute move, send SIGINT after ``delay`` s;
+    the latency [s] from the signal to the exit, the exit code, stderr's lines and the
+    entries left in the output folder."""
+    import nurbsmotion as nm
+
+    feed = f"{nm.make_butterfly().length / 600.0!r}mm/s"
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "out"
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "nurbsmotion.cli", "run", "butterfly", "--feed", feed,
+             "--no-figures", "--out", str(out)],
+            env=python_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(delay)
+        sent = time.perf_counter()
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate()
+        latency = time.perf_counter() - sent
+        left = sorted(p.name for p in out.iterdir()) if out.exists() else []
+    lines = [line for line in err.splitlines() if line.strip()]
+    return {"delay": delay, "latency": latency, "code": proc.returncode, "stderr": lines,
+            "left": left}
+
+
+def interrupts() -> str:
+    """:func:`interrupt_once` at each of :data:`INTERRUPT_DELAYS`, as a Markdown table."""
+    rows = []
+    for delay in INTERRUPT_DELAYS:
+        r = interrupt_once(delay)
+        rows.append([f"{delay:.1f}", f"**{r['latency']:.2f}**", r["code"],
+                     "<br>".join(r["stderr"]) or "(none)",
+                     ", ".join(r["left"]) or "(nothing)"])
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    return section("Ctrl-C during a 10-minute move",
+                   ["SIGINT after [s]", "to exit [s]", "exit code", "stderr",
+                    "left in the output folder"], rows,
+                   note=f"`nurbsmotion run butterfly --feed <0.638 mm/s> --no-figures` "
+                        f"(planned, trace.csv) in a subprocess. Load average at the end: "
+                        f"{load:.1f} on {os.cpu_count()} cores.")
+
+
 if __name__ == "__main__":
     main()
+    interrupts()
