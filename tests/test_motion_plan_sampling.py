@@ -68,23 +68,18 @@ def test_streamed_time_profile_equals_the_fine_grid(pieces, passes):
                 np.testing.assert_array_equal(out, np.interp(times, tf, sf))
 
 
-def test_dense_inverse_is_the_root_of_the_arc_length_table(pieces):
-    """``u(s)`` for dense increasing and for shuffled arc lengths: s(u) back to within a
-    few roundings of s (the table's own ``parameter_at`` stops at 1e-13 of the length),
-    and the same parameter as ``parameter_at`` within that tolerance."""
+def test_arc_length_inverse_is_the_root_of_the_table(pieces):
+    """``u(s)`` for dense increasing arc lengths (a motion's samples: each from the last)
+    and for the same shuffled (each from the table): s(u) back to within a few roundings
+    of s, with the cache and without."""
     for curve, _, _ in pieces:
         L = curve.length
-        table_u, table_s = curve.geometry.table
-        spans, coefficients = curve.power_form
         arc = np.linspace(0.0, L, 20001)[1:-1]
         shuffled = np.random.default_rng(5).permutation(arc)
         for s in (arc, shuffled):
-            u = np.empty_like(s)
-            mp._dense_parameters(table_u, table_s, mp._piece_span(curve, table_u), spans,
-                                 coefficients, mp._GL_X, mp._GL_W, 1e-13 * L, s, u)
-            assert np.max(np.abs(curve.arc_length(u) - s)) <= 1e-15 * L * 8
-            speed = np.linalg.norm(curve(u, 1), axis=1)
-            assert np.max(np.abs(u - curve.parameter_at(s)) * speed) <= 1.01e-13 * L
+            for cache in (True, False):
+                u = curve.geometry.parameter_at(s, cache=cache)
+                assert np.max(np.abs(curve.arc_length(u) - s)) <= 1e-15 * L * 8
 
 
 def test_blend_deviation_equals_comparing_every_sample():

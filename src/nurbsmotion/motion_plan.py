@@ -59,9 +59,8 @@ import numpy as np
 
 from numba import njit
 
-from ._kernels import horner, rational_horner
 from .errors import InfeasibleError
-from .geometry import _GL_W, _GL_X, distances_to  # (the table's Gauss rule)
+from .geometry import distances_to
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .planning import SpeedProfile, speed_profile
@@ -99,11 +98,6 @@ MAX_GRID_REFINEMENT = 16
 
 DRIVE_FIT_ROUNDS = 12
 """At most this many rebuilds of the plan in step 4."""
-
-ARC_TOLERANCE = 1e-13
-"""The arc-length inverse of every sample is refined once more after its residual is
-within this fraction of the path's length (that of
-:meth:`nurbsmotion.geometry.CurveGeometry.parameter_at`)."""
 
 LEAD = 2
 """Sample at which the desired motion leaves the start: the loop applies u[0] = 0 and the
@@ -264,112 +258,6 @@ def _segment_acceleration(s, V, i):
     return (V[i + 1] * V[i + 1] - V[i] * V[i]) / (2 * ds) if ds > 0 else 0.0
 
 
-@njit(cache=True)
-def _speed_at(coef, t):
-    """``(|C'|, d|C'|/du)`` at ``t`` from its span's start (``coef``: the span's power form
-    of ``[w*C, w]``, :attr:`NurbsCurve.power_form`)."""
-    dim = coef.shape[1] - 1
-    w, w1, w2 = horner(coef, dim, t)
-    d2 = 0.0
-    dd = 0.0
-    for a in range(dim):
-        _, x1, x2 = rational_horner(coef, a, t, w, w1, w2)
-        d2 += x1 * x1
-        dd += x1 * x2
-    speed = math.sqrt(d2)
-    return speed, (dd / speed if speed > 0 else 0.0)
-
-
-@njit(cache=True)
-def _gauss_from(coef, span_start, a, b, nodes, weights):
-    """Arc length of [a, b] inside one span by the Gauss-Legendre rule ``nodes, weights``
-    (summed node by node, as :func:`nurbsmotion.geometry._gauss` does)."""
-    half = 0.5 * (b - a)
-    mid = 0.5 * (b + a)
-    total = 0.0
-    for i in range(nodes.shape[0]):
-        total += _speed_at(coef, mid + half * nodes[i] - span_start)[0] * weights[i]
-    return half * total
-
-
-@njit(cache=True)
-def _dense_parameters(table_u, table_s, piece_span, spans, coefficients, nodes, weights,
-                      tol, arc, out):
-    """``u(s)`` for the arc lengths ``arc`` [pulse] (any order; fastest nondecreasing and
-    dense), into ``out``.
-
-    Safeguarded Newton on ``s_j + G(u_j, u) - s`` inside the arc-length table's piece j
-    (G: the Gauss rule of the table, :class:`nurbsmotion.geometry.CurveGeometry`), like
-    :meth:`~nurbsmotion.geometry.CurveGeometry.parameter_at`, from the previous sample's
-    parameter extrapolated to second order where it lies in the same piece (the table's
-    linear guess otherwise); once ``|f| <= tol`` one more Newton step takes the root to
-    rounding, so the result does not depend on the guess."""
-    n_pieces = table_u.shape[0] - 1
-    prev_piece = -1
-    u_prev = 0.0
-    s_prev = 0.0
-    du = 0.0
-    ddu = 0.0
-    for q in range(arc.shape[0]):
-        sv = arc[q]
-        lo_i = 0
-        hi_i = n_pieces + 1
-        while lo_i < hi_i:                      # searchsorted(table_s, sv, "right")
-            mid_i = (lo_i + hi_i) // 2
-            if table_s[mid_i] <= sv:
-                lo_i = mid_i + 1
-            else:
-                hi_i = mid_i
-        j = min(max(lo_i - 1, 0), n_pieces - 1)
-        start = table_u[j]
-        lo = start
-        hi = table_u[j + 1]
-        s_lo = table_s[j]
-        frac = (sv - s_lo) / max(table_s[j + 1] - s_lo, 1e-300)
-        u = lo + frac * (hi - lo)
-        if j == prev_piece:
-            d = sv - s_prev
-            guess = u_prev + d * (du + 0.5 * d * ddu)
-            if lo < guess < hi:
-                u = guess
-        k = piece_span[j]
-        coef = coefficients[k]
-        base = spans[k]
-        speed = 0.0
-        dspeed = 0.0
-        for _ in range(60):
-            f = s_lo + _gauss_from(coef, base, start, u, nodes, weights) - sv
-            speed, dspeed = _speed_at(coef, u - base)
-            if f < 0:
-                lo = u
-            if f > 0:
-                hi = u
-            step = u - f / speed if speed > 0 else np.nan
-            bisect = not (lo < step < hi)
-            if abs(f) <= tol:
-                if not bisect:
-                    u = step
-                break
-            u = 0.5 * (lo + hi) if bisect else step
-        out[q] = u
-        prev_piece = j
-        u_prev = u
-        s_prev = sv
-        if speed > 0:
-            du = 1.0 / speed
-            ddu = -dspeed / (speed * speed * speed)
-        else:
-            prev_piece = -1
-
-
-def _piece_span(curve: NurbsCurve, table_u: np.ndarray) -> np.ndarray:
-    """The knot span (of :attr:`NurbsCurve.power_form`) holding each arc-length table
-    piece, shape (m,)."""
-    spans = curve.power_form[0]
-    return np.clip(np.searchsorted(spans, table_u[:-1], side="right") - 1, 0,
-                   len(spans) - 2)
-
-
 def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float, passes: int):
     """Per corner-free piece: its duration [s], a function ``times -> (positions, u)`` and
     its length [pulse].
@@ -379,16 +267,12 @@ def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float, passes: 
     order of continuity, so that after one pass the acceleration is continuous and the
     sampled motion contains no more than the drive can follow within a sample. Sampled on
     a fine grid of :data:`OVERSAMPLE` points per sample that is streamed, never stored
-    (:func:`_smoothed_arc`), and mapped to the curve by a compiled inverse of the arc
-    length (:func:`_dense_parameters`)."""
+    (:func:`_smoothed_arc`), and mapped to the curve by the compiled arc-length inverse
+    (:meth:`nurbsmotion.geometry.CurveGeometry.parameter_at`, uncached)."""
     out = []
     fine = OVERSAMPLE * SMOOTHING_WIDTH
     h = Ts / OVERSAMPLE
     geometry = curve.geometry
-    table_u, table_s = geometry.table
-    spans, coefficients = curve.power_form
-    piece_span = _piece_span(curve, table_u)
-    tol = ARC_TOLERANCE * geometry.length
     for (s, u, V), t in zip(profile.pieces, profile.piece_times()):
         n_fine = int(math.ceil(t[-1] / h)) + 1
         duration = (n_fine + passes * fine - 1) * h
@@ -404,13 +288,10 @@ def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float, passes: 
             if order is not None:
                 sk[order] = sk.copy()
             uk = np.interp(sk, s, u)
-            inner = np.flatnonzero((sk > s[0]) & (sk < s[-1]))
-            if inner.size:
-                found = np.empty(inner.size)
-                _dense_parameters(table_u, table_s, piece_span, spans, coefficients,
-                                  _GL_X, _GL_W, tol, np.minimum(sk[inner], geometry.length),
-                                  found)
-                uk[inner] = np.clip(found, u[0], u[-1])
+            inner = (sk > s[0]) & (sk < s[-1])
+            if np.any(inner):
+                uk[inner] = np.clip(geometry.parameter_at(sk[inner], cache=False),
+                                    u[0], u[-1])
             return curve(uk), uk
         out.append((float(duration), motion, s[-1] - s[0]))
     return out
