@@ -29,7 +29,7 @@ from numba import njit
 
 __all__ = ["find_span", "workspace", "basis_table", "basis_derivatives",
            "rational_derivatives_into", "rational_derivatives",
-           "power_basis", "horner", "rational_horner"]
+           "power_basis", "horner", "horner1", "rational_horner"]
 
 
 @njit(cache=True)
@@ -238,6 +238,18 @@ def horner(coef, j, t):
         b1 = b1 * t + b0
         b0 = b0 * t + coef[k, j]
     return b0, b1, 2.0 * b2
+
+
+@njit(cache=True, inline="always")
+def horner1(coef, j, t):
+    """:func:`horner` without the second derivative: ``(P, P')``."""
+    p = coef.shape[0] - 1
+    b0 = coef[p, j]
+    b1 = 0.0
+    for k in range(p - 1, -1, -1):
+        b1 = b1 * t + b0
+        b0 = b0 * t + coef[k, j]
+    return b0, b1
 
 
 @njit(cache=True, inline="always")

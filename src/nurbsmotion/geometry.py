@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from ._kernels import horner, rational_horner
+from ._kernels import horner, horner1, rational_horner
 
 __all__ = ["CurveGeometry", "distances_to"]
 
@@ -87,6 +87,19 @@ def _speed_at(coef, t):
 
 
 @njit(cache=True)
+def _speed_only(coef, t):
+    """``|C'|`` at ``t`` from its span's start (the first derivative only)."""
+    dim = coef.shape[1] - 1
+    w, w1 = horner1(coef, dim, t)
+    d2 = 0.0
+    for a in range(dim):
+        A, A1 = horner1(coef, a, t)
+        x1 = (A1 - w1 * (A / w)) / w
+        d2 += x1 * x1
+    return math.sqrt(d2)
+
+
+@njit(cache=True)
 def _gauss_from(coef, span_start, a, b, nodes, weights):
     """Arc length of [a, b] inside the span starting at ``span_start`` by the
     Gauss-Legendre rule ``nodes, weights``, summed node by node as :func:`_gauss` does."""
@@ -94,7 +107,7 @@ def _gauss_from(coef, span_start, a, b, nodes, weights):
     mid = 0.5 * (b + a)
     total = 0.0
     for i in range(nodes.shape[0]):
-        total += _speed_at(coef, mid + half * nodes[i] - span_start)[0] * weights[i]
+        total += _speed_only(coef, mid + half * nodes[i] - span_start) * weights[i]
     return half * total
 
 

@@ -399,30 +399,49 @@ def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, toleran
     param = np.zeros(n)
     for (dur, motion, _), t0 in zip(pieces, starts):
         local = times - t0
-        active = local > 0
-        if not np.any(active):
+        first = int(np.searchsorted(local, 0.0, side="right"))  # local > 0 from here on
+        if first >= n:
             continue
-        pts, uk = motion(np.minimum(local[active], dur))
+        pts, uk = motion(np.minimum(local[first:], dur))
         base = motion(np.array([0.0]))[0][0]
-        y[active] += pts - base
+        y[first:] += pts - base
         # The parameter of a sample is that of the latest piece that has started.
-        param[active] = uk
+        param[first:] = uk
     return y, param, np.array(corner_times)
 
 
 def _realise(y_cmd: np.ndarray, alpha, beta, a, b0):
     """Speed, position and drive of the model's plant under the zero-phase-error inverse of
     the commanded positions ``y_cmd`` (shape (n, n_axes), at rest at both ends)."""
-    d = np.diff(y_cmd, axis=0)                       # (n-1, n_axes)
-    dprev = np.vstack([np.zeros((1, d.shape[1])), d[:-1]])
-    w = np.zeros_like(y_cmd)
-    w[:-1] = (beta * dprev + alpha * d) / (alpha + beta) ** 2
-    u = np.zeros_like(y_cmd)
-    u[:-1] = (w[1:] - a * w[:-1]) / b0
+    w = np.empty_like(y_cmd)
     theta = np.empty_like(y_cmd)
-    theta[0] = y_cmd[0]
-    theta[1:] = y_cmd[0] + np.cumsum(alpha * w[:-1] + beta * w[1:], axis=0)
+    u = np.empty_like(y_cmd)
+    _realise_into(np.ascontiguousarray(y_cmd), alpha, beta, a, b0, w, theta, u)
     return w, theta, u
+
+
+@njit(cache=True)
+def _realise_into(y_cmd, alpha, beta, a, b0, w, theta, u):
+    """:func:`_realise` in one pass per axis: with ``d[k] = y[k+1] - y[k]``,
+    ``w[k] = (beta*d[k-1] + alpha*d[k]) / (alpha + beta)^2``,
+    ``u[k] = (w[k+1] - a*w[k]) / b0`` (0 at the last sample, as w) and
+    ``theta[k+1] = y[0] + sum_{i<=k} (alpha*w[i] + beta*w[i+1])``."""
+    n = y_cmd.shape[0]
+    for j in range(y_cmd.shape[1]):
+        gain = (alpha[j] + beta[j]) * (alpha[j] + beta[j])
+        d_prev = 0.0
+        for k in range(n - 1):
+            d = y_cmd[k + 1, j] - y_cmd[k, j]
+            w[k, j] = (beta[j] * d_prev + alpha[j] * d) / gain
+            d_prev = d
+        w[n - 1, j] = 0.0
+        theta[0, j] = y_cmd[0, j]
+        total = 0.0
+        for k in range(n - 1):
+            u[k, j] = (w[k + 1, j] - a[j] * w[k, j]) / b0[j]
+            total += alpha[j] * w[k, j] + beta[j] * w[k + 1, j]
+            theta[k + 1, j] = y_cmd[0, j] + total
+        u[n - 1, j] = 0.0
 
 
 def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
