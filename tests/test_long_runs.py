@@ -74,3 +74,18 @@ def test_the_loop_in_blocks_equals_one_call(monkeypatch):
                  "status"):
         np.testing.assert_array_equal(getattr(whole, name), getattr(blocks, name))
     assert whole.settled_index == blocks.settled_index
+
+
+def test_open_loop_interpolation_in_blocks_equals_one_call(monkeypatch):
+    """``interpolate`` also runs its compiled steps a block at a time; the series is the
+    same as in one call (and across the growth of its rows)."""
+    from nurbsmotion.interpolators import make_open_loop
+    from nurbsmotion.loop import interpolate
+
+    curve = nm.make_butterfly()
+    whole = interpolate(make_open_loop("taylor2", curve, 1e-3, 50.0))
+    monkeypatch.setattr(closed_loop, "BLOCK_SAMPLES", 5)
+    blocks = interpolate(make_open_loop("taylor2", curve, 1e-3, 50.0))
+    for name in ("u", "position", "feed"):
+        np.testing.assert_array_equal(getattr(whole, name), getattr(blocks, name))
+    assert whole.finished_index == blocks.finished_index

@@ -227,14 +227,19 @@ def interpolate(interpolator: Interpolator, max_samples: int = 10_000_000) -> Se
     positions[0] = start
     done, k0 = 0, 1
     while True:
-        n = _run_open_loop(interpolator.plan, state, law, law_state, us[k0 - 1:],
-                           feeds[k0 - 1:], positions[k0 - 1:], velocity, bounds)
+        # one block of rows per compiled call, so that Ctrl-C is seen between blocks
+        end = min(capacity, k0 - 1 + closed_loop.BLOCK_SAMPLES)
+        n = _run_open_loop(interpolator.plan, state, law, law_state, us[k0 - 1:end],
+                           feeds[k0 - 1:end], positions[k0 - 1:end], velocity, bounds)
         if n < 0:
             raise InfeasibleError(f"{interpolator.name} interpolator cannot advance from "
                                   f"u = {us[k0 - 2 - n]:.9g}")
         done = k0 - 1 + n
-        if done < capacity:
+        if done < end:
             break
+        if end < capacity:
+            k0 = end
+            continue
         if capacity > max_samples:
             raise InfeasibleError(
                 f"interpolation did not reach the end within {max_samples} samples "
