@@ -89,3 +89,12 @@ def test_open_loop_interpolation_in_blocks_equals_one_call(monkeypatch):
     for name in ("u", "position", "feed"):
         np.testing.assert_array_equal(getattr(whole, name), getattr(blocks, name))
     assert whole.finished_index == blocks.finished_index
+
+
+def test_the_loop_reports_its_progress_after_every_block(monkeypatch):
+    """``progress(k)`` after each block: increasing sample counts ending at the run's."""
+    monkeypatch.setattr(closed_loop, "BLOCK_SAMPLES", 50)
+    seen = []
+    tr = run(nm.make_die_bonder_pi(), die_bonder(), 5e5, "planned", progress=seen.append)
+    assert seen == sorted(seen) and seen[-1] == len(tr.t)
+    assert seen[:-1] == list(range(50, len(tr.t), 50))

@@ -219,9 +219,14 @@ def _cmd_run(args) -> int:
         bound = time_optimal_bound(path, machine, feed)
         bar.update()
         stage(stages[1])
-        trace = run(path, machine, feed, args.interpolator, max_samples=args.max_samples,
-                    interpolator_options=options, plant=plant,
-                    settle_window=args.settle_window)
+        lowest = feed if isinstance(feed, (int, float)) else feed.lowest
+        expected = estimate_samples(path.length, lowest, machine.sample_period)
+        with _progress(args, total=int(expected) if math.isfinite(expected) else None,
+                       unit="sample", unit_scale=True, desc="closed loop") as samples:
+            trace = run(path, machine, feed, args.interpolator, max_samples=args.max_samples,
+                        interpolator_options=options, plant=plant,
+                        settle_window=args.settle_window,
+                        progress=lambda k: samples.update(k - samples.n))
         bar.update()
         # The metrics before the trace file: their temporaries are gone before the
         # writer's buffers are made (the peak memory is the larger, not the sum).

@@ -246,7 +246,7 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
 
 
 def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
-        settling: Settling, with_bounds: bool, capacity: int):
+        settling: Settling, with_bounds: bool, capacity: int, progress=None):
     """:func:`run_samples` from sample 0 to the end, growing the rows as needed.
 
     Parameters
@@ -266,6 +266,9 @@ def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
         Record the step's speed bounds.
     capacity : int
         First guess of the number of samples.
+    progress : callable, optional
+        ``progress(k)`` with the samples run so far, after every block of
+        :data:`BLOCK_SAMPLES`.
 
     Returns
     -------
@@ -286,6 +289,8 @@ def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
         code = run_samples(plan, state, law, law_state, plant.Ad, plant.Bd,
                            plant.mechanical_gain, encoder, start, settling, loop, axes, rows,
                            int(loop.k[0]) + BLOCK_SAMPLES, *scratch)
+        if progress is not None:
+            progress(int(loop.k[0]))
         if code == PAUSED:
             continue
         if code != FULL:
