@@ -3,11 +3,12 @@
 The butterfly on the die-bonder at the feed that takes 600 s (its length / 600 s, about
 0.64 mm/s), ``paper`` interpolator (its planning is one sample ahead, so the figure is the
 loop, the metrics and the trace writer), with ``trace.csv``, ``trace.parquet`` and no
-trace, then the default ``planned``; in a fresh process each: wall time from the
-interpreter's start to its exit, the CPU time it used (on a loaded machine the wall time
-grows, the CPU time hardly), and the peak resident set size (VmHWM). Then the same run's
-stages one by one in one process: the imports, the loop, the metrics, the time-optimal
-bound, and writing the trace as CSV and as Parquet; and the load average.
+trace, then the same three with the default ``planned``; in a fresh process each: wall
+time from the interpreter's start to its exit, the CPU time it used (on a loaded machine
+the wall time grows, the CPU time hardly), and the peak resident set size (VmHWM). Then
+the same run's stages one by one in one process: the imports, the loop, the metrics, the
+time-optimal bound, and writing the trace as CSV and as Parquet; ``planned``'s plan, loop
+and metrics; and the load average.
 
 Last, Ctrl-C: the same ``run`` (the default ``planned``, ``trace.csv``) as a command in a
 subprocess, sent SIGINT at several moments of its work; each time the latency from the
@@ -72,6 +73,15 @@ for fmt in ("csv", "parquet"):
     t[fmt + "_mb"] = f.stat().st_size / 1e6
 t["samples"] = len(tr.t)
 t["import"] = t_import
+del tr
+from nurbsmotion.interpolators import make_interpolator
+from nurbsmotion.loop import simulate, to_pulses
+path = to_pulses(curve, m)
+t0 = time.perf_counter(); ip = make_interpolator("planned", path, m, path.length / 600.0)
+t["plan"] = time.perf_counter() - t0
+t0 = time.perf_counter(); tr = simulate(ip, m); t["planned_loop"] = time.perf_counter() - t0
+del ip
+t0 = time.perf_counter(); tr.metrics(); t["planned_metrics"] = time.perf_counter() - t0
 print(json.dumps(t))
 """
 
@@ -107,14 +117,16 @@ def main(repeats: int = 1) -> str:
             f"{s['import']:.2f} s, loop {s['loop']:.2f} s, metrics {s['metrics']:.2f} s, "
             f"time-optimal bound {s['bound']:.2f} s, trace.csv {s['csv']:.2f} s "
             f"({s['csv_mb']:.0f} MB), trace.parquet {s['parquet']:.2f} s "
-            f"({s['parquet_mb']:.0f} MB). Wall time includes starting Python and importing "
+            f"({s['parquet_mb']:.0f} MB); `planned`: plan {s['plan']:.2f} s, loop "
+            f"{s['planned_loop']:.2f} s, metrics {s['planned_metrics']:.2f} s. Wall time "
+            f"includes starting Python and importing "
             f"(kernels from the disk cache). Load average at the end: {load:.1f} on "
             f"{os.cpu_count()} cores.")
     return section("A 10-minute move end to end", ["command", "wall time [s]", "CPU time [s]",
                                                    "peak RSS [MB]"], rows, note=note)
 
 
-INTERRUPT_DELAYS = (0.6, 1.2, 1.8, 2.4, 3.0, 3.6)
+INTERRUPT_DELAYS = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5)
 """Seconds after the command's start at which SIGINT is sent (imports, planning, the
 loop, the metrics, the trace file: where each falls depends on the machine)."""
 
