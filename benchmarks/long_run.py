@@ -3,11 +3,17 @@
 The butterfly on the die-bonder at the feed that takes 600 s (its length / 600 s, about
 0.64 mm/s), ``paper`` interpolator (its planning is one sample ahead, so the figure is the
 loop, the metrics and the trace writer), with ``trace.csv``, ``trace.parquet`` and no
-trace, then the default ``planned``; in a fresh process each: wall time from the
-interpreter's start to its exit, the CPU time it used (on a loaded machine the wall time
-grows, the CPU time hardly), and the peak resident set size (VmHWM). Then the same run's
-stages one by one in one process: the imports, the loop, the metrics, the time-optimal
-bound, and writing the trace as CSV and as Parquet; and the load average.
+trace, then the same three with the default ``planned``; in a fresh process each: wall
+time from the interpreter's start to its exit, the CPU time it used (on a loaded machine
+the wall time grows, the CPU time hardly), and the peak resident set size (VmHWM). Then
+the same run's stages one by one in one process: the imports, the loop, the metrics, the
+time-optimal bound, and writing the trace as CSV and as Parquet; ``planned``'s plan, loop
+and metrics; and the load average.
+
+Last, Ctrl-C: the same ``run`` (the default ``planned``, ``trace.csv``) as a command in a
+subprocess, sent SIGINT at several moments of its work; each time the latency from the
+signal to the process's exit, its exit code and stderr, and what it left in the output
+folder (nothing may appear under a name a finished run writes).
 
     python benchmarks/long_run.py
 """
@@ -16,11 +22,15 @@ from __future__ import annotations
 
 import json
 import os
+import signal
+import subprocess
+import sys
 import tempfile
 import time
+from pathlib import Path
 
 import _common  # noqa: F401  (puts src/ on the path)
-from _common import PEAK_MB, run_python, section
+from _common import PEAK_MB, python_env, run_python, section
 
 END_TO_END = PEAK_MB + r"""
 import json, os, sys
@@ -63,11 +73,21 @@ for fmt in ("csv", "parquet"):
     t[fmt + "_mb"] = f.stat().st_size / 1e6
 t["samples"] = len(tr.t)
 t["import"] = t_import
+del tr
+from nurbsmotion.interpolators import make_interpolator
+from nurbsmotion.loop import simulate, to_pulses
+path = to_pulses(curve, m)
+t0 = time.perf_counter(); ip = make_interpolator("planned", path, m, path.length / 600.0)
+t["plan"] = time.perf_counter() - t0
+t0 = time.perf_counter(); tr = simulate(ip, m); t["planned_loop"] = time.perf_counter() - t0
+del ip
+t0 = time.perf_counter(); tr.metrics(); t["planned_metrics"] = time.perf_counter() - t0
 print(json.dumps(t))
 """
 
 
-CASES = (("paper", "csv"), ("paper", "parquet"), ("paper", "none"), ("planned", "csv"))
+CASES = (("paper", "csv"), ("paper", "parquet"), ("paper", "none"), ("planned", "csv"),
+         ("planned", "parquet"), ("planned", "none"))
 """(interpolator, trace format or "none" for ``--no-trace``) of the end-to-end runs."""
 
 
@@ -97,12 +117,61 @@ def main(repeats: int = 1) -> str:
             f"{s['import']:.2f} s, loop {s['loop']:.2f} s, metrics {s['metrics']:.2f} s, "
             f"time-optimal bound {s['bound']:.2f} s, trace.csv {s['csv']:.2f} s "
             f"({s['csv_mb']:.0f} MB), trace.parquet {s['parquet']:.2f} s "
-            f"({s['parquet_mb']:.0f} MB). Wall time includes starting Python and importing "
+            f"({s['parquet_mb']:.0f} MB); `planned`: plan {s['plan']:.2f} s, loop "
+            f"{s['planned_loop']:.2f} s, metrics {s['planned_metrics']:.2f} s. Wall time "
+            f"includes starting Python and importing "
             f"(kernels from the disk cache). Load average at the end: {load:.1f} on "
             f"{os.cpu_count()} cores.")
     return section("A 10-minute move end to end", ["command", "wall time [s]", "CPU time [s]",
                                                    "peak RSS [MB]"], rows, note=note)
 
 
+INTERRUPT_DELAYS = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5)
+"""Seconds after the command's start at which SIGINT is sent (imports, planning, the
+loop, the metrics, the trace file: where each falls depends on the machine)."""
+
+
+def interrupt_once(delay: float) -> dict:
+    """Start ``nurbsmotion run`` on the 10-minute move, send SIGINT after ``delay`` s;
+    the latency [s] from the signal to the exit, the exit code, stderr's lines and the
+    entries left in the output folder."""
+    import nurbsmotion as nm
+
+    feed = f"{nm.make_butterfly().length / 600.0!r}mm/s"
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "out"
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "nurbsmotion.cli", "run", "butterfly", "--feed", feed,
+             "--no-figures", "--out", str(out)],
+            env=python_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(delay)
+        sent = time.perf_counter()
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate()
+        latency = time.perf_counter() - sent
+        left = sorted(p.name for p in out.iterdir()) if out.exists() else []
+    lines = [line for line in err.splitlines() if line.strip()]
+    return {"delay": delay, "latency": latency, "code": proc.returncode, "stderr": lines,
+            "left": left}
+
+
+def interrupts() -> str:
+    """:func:`interrupt_once` at each of :data:`INTERRUPT_DELAYS`, as a Markdown table."""
+    rows = []
+    for delay in INTERRUPT_DELAYS:
+        r = interrupt_once(delay)
+        rows.append([f"{delay:.1f}", f"**{r['latency']:.2f}**", r["code"],
+                     "<br>".join(r["stderr"]) or "(none)",
+                     ", ".join(r["left"]) or "(nothing)"])
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    return section("Ctrl-C during a 10-minute move",
+                   ["SIGINT after [s]", "to exit [s]", "exit code", "stderr",
+                    "left in the output folder"], rows,
+                   note=f"`nurbsmotion run butterfly --feed <0.638 mm/s> --no-figures` "
+                        f"(planned, trace.csv) in a subprocess. Load average at the end: "
+                        f"{load:.1f} on {os.cpu_count()} cores.")
+
+
 if __name__ == "__main__":
     main()
+    interrupts()

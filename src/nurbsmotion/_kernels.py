@@ -29,7 +29,7 @@ from numba import njit
 
 __all__ = ["find_span", "workspace", "basis_table", "basis_derivatives",
            "rational_derivatives_into", "rational_derivatives",
-           "power_basis", "horner"]
+           "power_basis", "horner", "horner1", "rational_horner"]
 
 
 @njit(cache=True)
@@ -238,3 +238,26 @@ def horner(coef, j, t):
         b1 = b1 * t + b0
         b0 = b0 * t + coef[k, j]
     return b0, b1, 2.0 * b2
+
+
+@njit(cache=True, inline="always")
+def horner1(coef, j, t):
+    """:func:`horner` without the second derivative: ``(P, P')``."""
+    p = coef.shape[0] - 1
+    b0 = coef[p, j]
+    b1 = 0.0
+    for k in range(p - 1, -1, -1):
+        b1 = b1 * t + b0
+        b0 = b0 * t + coef[k, j]
+    return b0, b1
+
+
+@njit(cache=True, inline="always")
+def rational_horner(coef, j, t, w, w1, w2):
+    """Coordinate ``j`` of ``C = A/w`` and its first two derivatives at ``t`` from a span's
+    power form (:func:`horner`), given the weight and its derivatives ``w, w1, w2`` there
+    (the quotient rule of A4.2): ``(C, C', C'')``."""
+    A, A1, A2 = horner(coef, j, t)
+    x = A / w
+    x1 = (A1 - w1 * x) / w
+    return x, x1, (A2 - 2.0 * w1 * x1 - w2 * x) / w

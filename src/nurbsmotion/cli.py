@@ -12,6 +12,7 @@ import logging
 import math
 import signal
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -222,9 +223,14 @@ def _cmd_run(args) -> int:
         bound = time_optimal_bound(path, machine, feed)
         bar.update()
         stage(stages[1])
-        trace = run(path, machine, feed, args.interpolator, max_samples=args.max_samples,
-                    interpolator_options=options, plant=plant,
-                    settle_window=window)
+        lowest = feed if isinstance(feed, (int, float)) else feed.lowest
+        expected = estimate_samples(path.length, lowest, machine.sample_period)
+        with _progress(args, total=int(expected) if math.isfinite(expected) else None,
+                       unit="sample", unit_scale=True, desc="closed loop") as samples:
+            trace = run(path, machine, feed, args.interpolator, max_samples=args.max_samples,
+                        interpolator_options=options, plant=plant,
+                        settle_window=window,
+                        progress=lambda k: samples.update(k - samples.n))
         bar.update()
         # The metrics before the trace file: their temporaries are gone before the
         # writer's buffers are made (the peak memory is the larger, not the sum).
@@ -644,6 +650,39 @@ def _one_line_warnings(command: str):
         logger.removeHandler(handler)
 
 
+INTERRUPT_RETRY = 0.02
+"""Seconds after which a Ctrl-C that arrived inside a callback of the compiler's native
+library is raised again (raised there, ctypes would print it and drop it)."""
+
+
+def _interrupt(signum, frame) -> None:
+    """SIGINT (and the retry's SIGALRM): KeyboardInterrupt, except inside llvmlite's
+    callbacks (numba loading or compiling a kernel), where it is retried shortly."""
+    f = frame
+    while f is not None:
+        if f.f_globals.get("__name__", "").startswith("llvmlite"):
+            signal.setitimer(signal.ITIMER_REAL, INTERRUPT_RETRY)
+            return
+        f = f.f_back
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _interruptible():
+    """Ctrl-C raises KeyboardInterrupt wherever the command is (see :func:`_interrupt`);
+    the previous handlers are restored after. Only in the main thread (where signals go)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    saved = {s: signal.signal(s, _interrupt) for s in (signal.SIGINT, signal.SIGALRM)}
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        for s, handler in saved.items():
+            signal.signal(s, handler)
+
+
 USER_ERRORS = (NurbsmotionError, OSError, KeyError, ValueError, ArithmeticError,
                RecursionError, MemoryError)
 """Errors reported as one line and exit code 2: the library's typed errors, and what
@@ -658,7 +697,7 @@ def main(argv: list[str] | None = None) -> int:
     """
     parser = _parser()
     args = parser.parse_args(argv)
-    with _one_line_warnings(args.command):
+    with _one_line_warnings(args.command), _interruptible():
         try:
             return args.func(args)
         except KeyboardInterrupt:

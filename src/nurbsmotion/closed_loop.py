@@ -40,12 +40,16 @@ from .control import pid_commit, pid_output
 from .servo import plant_step
 
 __all__ = ["Rows", "Settling", "LoopState", "AxisState", "DONE", "FULL", "FAILED",
-           "OUT_OF_SAMPLES", "new_rows", "run_samples"]
+           "OUT_OF_SAMPLES", "PAUSED", "BLOCK_SAMPLES", "new_rows", "run_samples"]
 
-DONE, FULL, FAILED, OUT_OF_SAMPLES = 0, 1, 2, 3
+DONE, FULL, FAILED, OUT_OF_SAMPLES, PAUSED = 0, 1, 2, 3, 4
 """Return codes of :func:`run_samples`: settled; rows full (grow them and call again);
 the interpolator could not advance; ``max_samples`` (or, after the end, ``limit_samples``)
-reached first."""
+reached first; the block's last sample done (call again to go on)."""
+
+BLOCK_SAMPLES = 1 << 16
+"""Samples per call of the compiled loop: between calls Python runs, so Ctrl-C stops a
+long run within one block (a few hundredths of a second)."""
 
 class LoopState(NamedTuple):
     """The loop's own state, one-element arrays: the next sample, the first sample at the
@@ -124,8 +128,9 @@ def new_rows(capacity: int, n_axes: int, with_bounds: bool) -> Rows:
 
 @njit(cache=True)
 def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settling, loop,
-                axes, rows, command, velocity, position, bounds):
-    """Run the loop from ``loop.k[0]`` until it ends or ``rows`` are full.
+                axes, rows, stop, command, velocity, position, bounds):
+    """Run the loop from ``loop.k[0]`` until it ends, ``rows`` are full or sample ``stop``
+    is reached.
 
     Parameters
     ----------
@@ -145,13 +150,16 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
     loop : LoopState
     axes : AxisState
     rows : Rows
+    stop : int
+        Return :data:`PAUSED` before running this sample.
     command, velocity, position, bounds : ndarray
         Scratch: shapes (n_axes,), (n_axes,), (n_axes,), (n_axes, 2).
 
     Returns
     -------
     int
-        :data:`DONE`, :data:`FULL`, :data:`FAILED` or :data:`OUT_OF_SAMPLES`.
+        :data:`DONE`, :data:`FULL`, :data:`FAILED`, :data:`OUT_OF_SAMPLES` or
+        :data:`PAUSED`.
     """
     Ts = law[0]["period"]
     umax = law[0]["maxoutput"]
@@ -168,6 +176,9 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
         if k >= capacity:
             loop.k[0] = k
             return FULL
+        if k >= stop:
+            loop.k[0] = k
+            return PAUSED
         for j in range(n_axes):
             position[j] = axes.position[j]
             if encoder:
@@ -235,7 +246,7 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
 
 
 def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
-        settling: Settling, with_bounds: bool, capacity: int):
+        settling: Settling, with_bounds: bool, capacity: int, progress=None):
     """:func:`run_samples` from sample 0 to the end, growing the rows as needed.
 
     Parameters
@@ -255,6 +266,9 @@ def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
         Record the step's speed bounds.
     capacity : int
         First guess of the number of samples.
+    progress : callable, optional
+        ``progress(k)`` with the samples run so far, after every block of
+        :data:`BLOCK_SAMPLES`.
 
     Returns
     -------
@@ -274,12 +288,27 @@ def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
     while True:
         code = run_samples(plan, state, law, law_state, plant.Ad, plant.Bd,
                            plant.mechanical_gain, encoder, start, settling, loop, axes, rows,
-                           *scratch)
+                           int(loop.k[0]) + BLOCK_SAMPLES, *scratch)
+        if progress is not None:
+            progress(int(loop.k[0]))
+        if code == PAUSED:
+            continue
         if code != FULL:
             break
         capacity = min(2 * capacity, settling.max_samples)
-        rows = Rows(*(np.resize(r, (capacity,) + r.shape[1:]) if r.shape[0] else r
-                      for r in rows))
+        rows = _grown(rows, capacity, int(loop.k[0]))
     k = int(loop.k[0])
     rows = Rows(*(r[:k] if r.shape[0] else r for r in rows))
     return code, rows, loop
+
+
+def _grown(rows: Rows, capacity: int, written: int) -> Rows:
+    """The rows with room for ``capacity`` samples: the ``written`` ones copied, the rest
+    uninitialised (untouched memory, so not resident until the loop writes it)."""
+    def grow(r):
+        if not r.shape[0]:
+            return r
+        new = np.empty((capacity,) + r.shape[1:], dtype=r.dtype)
+        new[:written] = r[:written]
+        return new
+    return Rows(*(grow(r) for r in rows))

@@ -6,8 +6,8 @@
 Arc length is integrated with 10-point Gauss-Legendre quadrature on an adaptive partition
 of every knot span, split also where C' = 0 (a piece is split until the rule and the rule
 on its two halves agree to 1e-13 of the total length and C' does not reverse inside it), so ``s(u)`` is accurate to
-well below 1e-9 relative. The inverse ``u(s)`` is found by safeguarded Newton iteration
-inside the bracketing piece.
+well below 1e-9 relative. The inverse ``u(s)`` is found by compiled safeguarded Newton
+iteration inside the bracketing piece, to rounding.
 
 Glossary
 --------
@@ -17,10 +17,14 @@ L : total length [path units].
 
 from __future__ import annotations
 
+import math
 from collections import OrderedDict
 from typing import Any
 
 import numpy as np
+from numba import njit
+
+from ._kernels import horner, horner1, rational_horner
 
 __all__ = ["CurveGeometry", "distances_to"]
 
@@ -36,8 +40,8 @@ def _gauss(curve, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Integral of |C'(u)| over [a, b] (elementwise arrays) by 10-point Gauss-Legendre.
 
     The weighted sum runs over the nodes left to right, not through a BLAS product (which
-    may order or fuse it otherwise, depending on the CPU), so that the compiled loop
-    (``_arc_length`` of :mod:`nurbsmotion.interpolators.planned`) reproduces ``s(u)``."""
+    may order or fuse it otherwise, depending on the CPU), so that the compiled inverse
+    (:func:`_gauss_from`) reproduces ``s(u)``."""
     half = 0.5 * (b - a)
     mid = 0.5 * (b + a)
     nodes = mid[:, None] + half[:, None] * _GL_X[None, :]
@@ -66,6 +70,117 @@ def _reverses(curve, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.any(np.sum(d1[:, 1:] * d1[:, :-1], axis=-1) < 0, axis=1)
 
 
+@njit(cache=True)
+def _speed_at(coef, t):
+    """``(|C'|, d|C'|/du)`` at ``t`` from its span's start (``coef``: the span's power form
+    of ``[w*C, w]``, :attr:`NurbsCurve.power_form`)."""
+    dim = coef.shape[1] - 1
+    w, w1, w2 = horner(coef, dim, t)
+    d2 = 0.0
+    dd = 0.0
+    for a in range(dim):
+        _, x1, x2 = rational_horner(coef, a, t, w, w1, w2)
+        d2 += x1 * x1
+        dd += x1 * x2
+    speed = math.sqrt(d2)
+    return speed, (dd / speed if speed > 0 else 0.0)
+
+
+@njit(cache=True)
+def _speed_only(coef, t):
+    """``|C'|`` at ``t`` from its span's start (the first derivative only)."""
+    dim = coef.shape[1] - 1
+    w, w1 = horner1(coef, dim, t)
+    d2 = 0.0
+    for a in range(dim):
+        A, A1 = horner1(coef, a, t)
+        x1 = (A1 - w1 * (A / w)) / w
+        d2 += x1 * x1
+    return math.sqrt(d2)
+
+
+@njit(cache=True)
+def _gauss_from(coef, span_start, a, b, nodes, weights):
+    """Arc length of [a, b] inside the span starting at ``span_start`` by the
+    Gauss-Legendre rule ``nodes, weights``, summed node by node as :func:`_gauss` does."""
+    half = 0.5 * (b - a)
+    mid = 0.5 * (b + a)
+    total = 0.0
+    for i in range(nodes.shape[0]):
+        total += _speed_only(coef, mid + half * nodes[i] - span_start) * weights[i]
+    return half * total
+
+
+@njit(cache=True)
+def _inverse_arc_length(table_u, table_s, piece_span, spans, coefficients, nodes, weights,
+                      tol, arc, out):
+    """``u(s)`` for the arc lengths ``arc`` [path units] in ``[0, L]`` (any order; fastest
+    when neighbours are close, as along a motion), into ``out``.
+
+    Safeguarded Newton (bisection where a step leaves the bracket) on
+    ``s_j + G(u_j, u) - s`` inside the table's piece j holding s (G: the table's Gauss
+    rule, :func:`_gauss_from`), from the previous arc length's parameter extrapolated to
+    second order where it lies in the same piece, else the table's linear guess; once
+    ``|f| <= tol`` one more Newton step takes the root to rounding, so the result hardly
+    depends on the guess."""
+    n_pieces = table_u.shape[0] - 1
+    prev_piece = -1
+    u_prev = 0.0
+    s_prev = 0.0
+    du = 0.0
+    ddu = 0.0
+    for q in range(arc.shape[0]):
+        sv = arc[q]
+        lo_i = 0
+        hi_i = n_pieces + 1
+        while lo_i < hi_i:                      # searchsorted(table_s, sv, "right")
+            mid_i = (lo_i + hi_i) // 2
+            if table_s[mid_i] <= sv:
+                lo_i = mid_i + 1
+            else:
+                hi_i = mid_i
+        j = min(max(lo_i - 1, 0), n_pieces - 1)
+        start = table_u[j]
+        lo = start
+        hi = table_u[j + 1]
+        s_lo = table_s[j]
+        frac = (sv - s_lo) / max(table_s[j + 1] - s_lo, 1e-300)
+        u = lo + frac * (hi - lo)
+        if j == prev_piece:
+            d = sv - s_prev
+            guess = u_prev + d * (du + 0.5 * d * ddu)
+            if lo < guess < hi:
+                u = guess
+        k = piece_span[j]
+        coef = coefficients[k]
+        base = spans[k]
+        speed = 0.0
+        dspeed = 0.0
+        for _ in range(60):
+            f = s_lo + _gauss_from(coef, base, start, u, nodes, weights) - sv
+            speed, dspeed = _speed_at(coef, u - base)
+            if f < 0:
+                lo = u
+            if f > 0:
+                hi = u
+            step = u - f / speed if speed > 0 else np.nan
+            bisect = not (lo < step < hi)
+            if abs(f) <= tol:
+                if not bisect:
+                    u = step
+                break
+            u = 0.5 * (lo + hi) if bisect else step
+        out[q] = u
+        prev_piece = j
+        u_prev = u
+        s_prev = sv
+        if speed > 0:
+            du = 1.0 / speed
+            ddu = -dspeed / (speed * speed * speed)
+        else:
+            prev_piece = -1
+
+
 class CurveGeometry:
     """Arc-length table and corner list of one curve.
 
@@ -83,6 +198,7 @@ class CurveGeometry:
         # Planners invert the same arc-length grids again and again (one per replanning
         # pass): remember the last few large inversions.
         self._inverse_cache: OrderedDict[tuple, np.ndarray] = OrderedDict()
+        self._piece_span: np.ndarray | None = None  # knot span of each table piece
         if curve.degree == 1 and np.all(curve.weights == curve.weights[0]):
             # A polyline: |C'| is constant on every span, so each span's length is its
             # chord, exactly; no quadrature table to refine (a 10^6-point polyline is
@@ -140,8 +256,13 @@ class CurveGeometry:
         s = self._s[j] + _gauss(self.curve, self._u[j], flat)
         return s.reshape(uu.shape) if uu.ndim else float(s[0])
 
-    def parameter_at(self, s: Any, tol: float = 1e-13) -> np.ndarray:
+    def parameter_at(self, s: Any, tol: float = 1e-13, *, cache: bool = True) -> np.ndarray:
         """Parameter ``u`` at arc length ``s`` in ``[0, length]``, shape of ``s``.
+
+        Compiled safeguarded Newton in the table's piece (:func:`_inverse_arc_length`):
+        refined to rounding once the residual is within ``tol`` of the length. Inversions
+        of 1,000 or more arc lengths are remembered (the last 16) unless ``cache`` is false
+        (a motion's every sample, inverted once).
 
         Raises
         ------
@@ -152,7 +273,7 @@ class CurveGeometry:
         if not np.all(np.isfinite(ss)):
             raise ValueError("arc length must be finite")
         key = None
-        if ss.size >= _CACHE_MIN_SIZE:
+        if cache and ss.size >= _CACHE_MIN_SIZE:
             key = (ss.shape, ss.tobytes(), tol)
             if key in self._inverse_cache:
                 self._inverse_cache.move_to_end(key)
@@ -169,26 +290,14 @@ class CurveGeometry:
         if np.any((ss < 0) | (ss > L * (1 + 1e-12))):
             bad = ss[(ss < 0) | (ss > L * (1 + 1e-12))].flat[0]
             raise ValueError(f"arc length {float(bad)!r} lies outside [0, {L!r}]")
-        flat = np.minimum(ss.ravel(), L)
-        j = np.clip(np.searchsorted(self._s, flat, side="right") - 1, 0, len(self._s) - 2)
-        lo, hi = self._u[j].copy(), self._u[j + 1].copy()
-        s_lo = self._s[j]
-        frac = (flat - s_lo) / np.maximum(self._s[j + 1] - s_lo, 1e-300)
-        u = lo + frac * (hi - lo)
-        active = np.arange(flat.size)  # Newton on the points not yet converged only
-        for _ in range(60):
-            ua, la, ha = u[active], lo[active], hi[active]
-            f = s_lo[active] + _gauss(self.curve, self._u[j[active]], ua) - flat[active]
-            done = np.abs(f) <= tol * L
-            la = np.where(f < 0, ua, la)
-            ha = np.where(f > 0, ua, ha)
-            step = ua - f / _speed(self.curve, ua)
-            bisect = (step <= la) | (step >= ha) | ~np.isfinite(step)
-            u[active] = np.where(done, ua, np.where(bisect, 0.5 * (la + ha), step))
-            lo[active], hi[active] = la, ha
-            active = active[~done]
-            if active.size == 0:
-                break
+        flat = np.ascontiguousarray(np.minimum(ss.ravel(), L))
+        if self._piece_span is None:
+            spans = self.curve.power_form[0]
+            self._piece_span = np.clip(np.searchsorted(spans, self._u[:-1], side="right")
+                                       - 1, 0, len(spans) - 2)
+        u = np.empty_like(flat)
+        _inverse_arc_length(self._u, self._s, self._piece_span, *self.curve.power_form,
+                            _GL_X, _GL_W, tol * L, flat, u)
         return u.reshape(ss.shape) if ss.ndim else float(u[0])
 
     def uniform_parameters(self, n: int) -> np.ndarray:

@@ -227,14 +227,19 @@ def interpolate(interpolator: Interpolator, max_samples: int = 10_000_000) -> Se
     positions[0] = start
     done, k0 = 0, 1
     while True:
-        n = _run_open_loop(interpolator.plan, state, law, law_state, us[k0 - 1:],
-                           feeds[k0 - 1:], positions[k0 - 1:], velocity, bounds)
+        # one block of rows per compiled call, so that Ctrl-C is seen between blocks
+        end = min(capacity, k0 - 1 + closed_loop.BLOCK_SAMPLES)
+        n = _run_open_loop(interpolator.plan, state, law, law_state, us[k0 - 1:end],
+                           feeds[k0 - 1:end], positions[k0 - 1:end], velocity, bounds)
         if n < 0:
             raise InfeasibleError(f"{interpolator.name} interpolator cannot advance from "
                                   f"u = {us[k0 - 2 - n]:.9g}")
         done = k0 - 1 + n
-        if done < capacity:
+        if done < end:
             break
+        if end < capacity:
+            k0 = end
+            continue
         if capacity > max_samples:
             raise InfeasibleError(
                 f"interpolation did not reach the end within {max_samples} samples "
@@ -268,6 +273,7 @@ def simulate(
     settle_window: float = 1.0,
     settle_limit: float = 10.0,
     max_samples: int | None = None,
+    progress=None,
 ) -> Trace:
     """Run the closed loop from the path's start until the motion has settled at its end.
 
@@ -295,6 +301,9 @@ def simulate(
         interpolator's :meth:`~nurbsmotion.interpolators.Interpolator.nominal_duration`
         plus ten seconds (or, where it has none, ten times the time at the slowest
         axis's full-drive speed plus ten seconds), plus ``settle_limit``.
+    progress : callable, optional
+        ``progress(k)`` with the samples run so far, every
+        :data:`nurbsmotion.closed_loop.BLOCK_SAMPLES` samples (a progress bar).
 
     Returns
     -------
@@ -348,7 +357,7 @@ def simulate(
     code, rows, loop = closed_loop.run(
         interpolator.plan, interpolator.new_state(), machine.law(), pid_state(start), plant,
         machine.speed_measurement == "encoder", start, settling,
-        interpolator.records_bounds, capacity)
+        interpolator.records_bounds, capacity, progress)
     u = float(loop.u[0])
     finished = int(loop.finished[0])
     if code == closed_loop.FAILED:
@@ -415,7 +424,7 @@ def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
         samples than this, before any work (:data:`nurbsmotion.budget.MAX_SAMPLES`).
     **simulate_options
         Passed to :func:`simulate` (``plant``, ``settle_time``, ``settle_window``,
-        ``settle_limit``).
+        ``settle_limit``, ``progress``).
     max_samples : int
         Refuse (:class:`~nurbsmotion.errors.WorkLimitError`) a move that would take more
         samples than this, before any work (:data:`nurbsmotion.budget.MAX_SAMPLES`).

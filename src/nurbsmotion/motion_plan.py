@@ -57,7 +57,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from numba import njit
+
 from .errors import InfeasibleError
+from .geometry import distances_to
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .planning import SpeedProfile, speed_profile
@@ -170,19 +173,89 @@ class MotionPlan:
         return (self.n_samples - 1) * self.sample_period
 
 
-def _sample_piece(s: np.ndarray, V: np.ndarray, t: np.ndarray, times: np.ndarray):
-    """s at ``times`` (from the piece's start) along a profile with constant acceleration
-    between grid points (b = V^2 linear in s)."""
-    i = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(t) - 2)
+@njit(cache=True)
+def _smoothed_arc(s, V, t, h, n_fine, width, passes, times, out):
+    """The piece's averaged time profile s(t) [pulse] at the nondecreasing ``times`` [s]
+    (from the piece's start), into ``out``.
+
+    The profile has constant acceleration between grid points (b = V^2 linear in s); it is
+    sampled every ``h`` (``n_fine`` points from 0), averaged ``passes`` times over
+    ``width`` fine points (at rest before and after: each pass adds ``width`` points) and
+    read by linear interpolation between the fine points; the last point is the piece's
+    end. The fine points stream through a ring of running sums, one pass after the other
+    on each point, so nothing of the fine grid's size is held: the values are those of
+    sampling the whole fine grid, ``np.cumsum`` per pass and ``np.interp``, operation for
+    operation."""
+    last = t.shape[0] - 1
+    s0 = s[0]
+    s_end = s[last]
+    n_total = n_fine + passes * width        # length of the averaged fine sequence
+    ring = np.zeros((passes, width + 1))     # running sums C[k] of each pass, at k mod width+1
+    seg = 0
+    acc = _segment_acceleration(s, V, 0)
+    m = -1                                   # last fine index produced
+    slot = width                             # m mod (width + 1)
+    f_prev = s0
+    f_cur = s0
+    for q in range(times.shape[0]):
+        x = times[q]
+        # the fine interval j with j*h <= x < (j+1)*h (np.interp's search)
+        if x < 0.0:
+            j = -1
+        elif x > (n_total - 1) * h:
+            j = n_total
+        else:
+            j = min(int(x / h), n_total - 1)
+            while j + 1 <= n_total - 1 and (j + 1) * h <= x:
+                j += 1
+            while j > 0 and j * h > x:
+                j -= 1
+        need = min(max(j + 1, 0), n_total - 1)
+        while m < need:
+            m += 1
+            previous = slot                  # (m - 1) mod (width + 1) = (m + width) mod ...
+            slot = 0 if slot == width else slot + 1
+            oldest = 0 if slot == width else slot + 1   # (m + 1) mod (width + 1)
+            # pass 0's input: the profile at m*h (constant acceleration between grid points)
+            if m < n_fine:
+                tm = m * h
+                while seg + 1 < last and t[seg + 1] <= tm:
+                    seg += 1
+                    acc = _segment_acceleration(s, V, seg)
+                dt = max(tm - t[seg], 0.0)
+                v = s[seg] + V[seg] * dt + 0.5 * acc * dt * dt
+                v = min(v, s[seg + 1])
+                if tm >= t[last]:
+                    v = s_end
+                if tm <= 0:
+                    v = s0
+            else:
+                v = s_end
+            for p in range(passes):
+                if m >= n_fine + p * width:   # past this pass's input: its end padding
+                    v = s_end
+                newest = ring[p, previous] + (v - s0)
+                ring[p, slot] = newest
+                v = s0 + (newest - ring[p, oldest]) / width
+            if m == n_total - 1:
+                v = s_end
+            f_prev = f_cur
+            f_cur = v
+        if j < 0 or j >= n_total - 1:  # before the start (m = 0) or at/after the end
+            out[q] = f_cur
+        elif j * h == x:
+            out[q] = f_prev
+        else:
+            slope = (f_cur - f_prev) / ((j + 1) * h - j * h)
+            out[q] = slope * (x - j * h) + f_prev
+
+
+@njit(cache=True)
+def _segment_acceleration(s, V, i):
+    """Path acceleration [pulse/s^2] between grid points i and i + 1 of a profile whose
+    b = V^2 is linear in s (0 where the points coincide)."""
     ds = s[i + 1] - s[i]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        acc = np.where(ds > 0, (V[i + 1] ** 2 - V[i] ** 2) / (2 * ds), 0.0)
-    dt = np.clip(times - t[i], 0.0, None)
-    out = s[i] + V[i] * dt + 0.5 * acc * dt * dt
-    out = np.minimum(out, s[i + 1])
-    out[times >= t[-1]] = s[-1]
-    out[times <= 0] = s[0]
-    return out
+    return (V[i + 1] * V[i + 1] - V[i] * V[i]) / (2 * ds) if ds > 0 else 0.0
 
 
 def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float, passes: int):
@@ -192,30 +265,35 @@ def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float, passes: 
     The piece's s(t) is averaged ``passes`` times over one sample period (a moving average
     of the time profile, at rest before and after): each pass adds Ts to the piece and one
     order of continuity, so that after one pass the acceleration is continuous and the
-    sampled motion contains no more than the drive can follow within a sample."""
+    sampled motion contains no more than the drive can follow within a sample. Sampled on
+    a fine grid of :data:`OVERSAMPLE` points per sample that is streamed, never stored
+    (:func:`_smoothed_arc`), and mapped to the curve by the compiled arc-length inverse
+    (:meth:`nurbsmotion.geometry.CurveGeometry.parameter_at`, uncached)."""
     out = []
     fine = OVERSAMPLE * SMOOTHING_WIDTH
     h = Ts / OVERSAMPLE
+    geometry = curve.geometry
     for (s, u, V), t in zip(profile.pieces, profile.piece_times()):
         n_fine = int(math.ceil(t[-1] / h)) + 1
-        tf = np.arange(n_fine) * h
-        sf = _sample_piece(s, V, t, tf)
-        for _ in range(passes):
-            padded = np.concatenate([np.full(fine, s[0]), sf, np.full(fine, s[-1])])
-            csum = np.concatenate([[0.0], np.cumsum(padded - s[0])])
-            sf = s[0] + (csum[fine:] - csum[:-fine]) / fine
-            sf = sf[1:]
-        sf[-1] = s[-1]
-        tf = np.arange(len(sf)) * h
+        duration = (n_fine + passes * fine - 1) * h
 
-        def motion(times, s=s, u=u, sf=sf, tf=tf):
-            sk = np.interp(times, tf, sf)
+        def motion(times, s=s, u=u, V=V, t=t, n_fine=n_fine):
+            times = np.ascontiguousarray(times, dtype=float)
+            order = None
+            if times.size > 1 and np.any(times[1:] < times[:-1]):
+                order = np.argsort(times, kind="stable")
+                times = times[order]
+            sk = np.empty_like(times)
+            _smoothed_arc(s, V, t, h, n_fine, fine, passes, times, sk)
+            if order is not None:
+                sk[order] = sk.copy()
             uk = np.interp(sk, s, u)
             inner = (sk > s[0]) & (sk < s[-1])
             if np.any(inner):
-                uk[inner] = np.clip(curve.parameter_at(sk[inner]), u[0], u[-1])
+                uk[inner] = np.clip(geometry.parameter_at(sk[inner], cache=False),
+                                    u[0], u[-1])
             return curve(uk), uk
-        out.append((float(tf[-1]), motion, s[-1] - s[0]))
+        out.append((float(duration), motion, s[-1] - s[0]))
     return out
 
 
@@ -238,6 +316,28 @@ def _time_to_cover(motion, duration: float, distance: float, from_end: bool,
 
 BLEND_ROUNDS = 5
 """Rounds that widen a blend until its deviation from the sharp corner reaches eps."""
+
+
+BLEND_CHUNK = 256
+"""Blended points compared with the path samples at a time (bounds the temporary)."""
+
+
+def _farthest_from(points: np.ndarray, path: np.ndarray, corner: np.ndarray) -> float:
+    """``max_i min_k |points[i] - path[k]|`` [pulse]: how far the points get from the
+    nearest path sample (at least the distance to the path itself).
+
+    ``corner`` is one of the path samples, so each point's nearest sample lies within
+    twice the points' largest distance to it: only those samples are compared, in chunks
+    of :data:`BLEND_CHUNK` points (the same distances as comparing all, without a
+    points-by-samples temporary of a long piece)."""
+    radius = float(np.max(np.linalg.norm(points - corner, axis=1)))
+    near = path[distances_to(path, corner) <= 2.0 * radius * (1 + 1e-9) + 1e-300]
+    worst = 0.0
+    for i in range(0, len(points), BLEND_CHUNK):
+        chunk = points[i:i + BLEND_CHUNK]
+        gap = np.min(np.linalg.norm(chunk[:, None, :] - near[None, :, :], axis=2), axis=1)
+        worst = max(worst, float(np.max(gap)))
+    return worst
 
 
 def _blend_overlap(prev_motion, prev_dur, prev_len, motion, dur, length, tolerance, Ts):
@@ -266,8 +366,7 @@ def _blend_overlap(prev_motion, prev_dur, prev_len, motion, dur, length, toleran
         tau = np.arange(0.0, overlap + h, h)
         blended = (prev_motion(np.minimum(prev_dur - overlap + tau, prev_dur))[0]
                    + motion(tau)[0] - corner)
-        gap = np.min(np.linalg.norm(blended[:, None, :] - path[None, :, :], axis=2), axis=1)
-        deviation = float(np.max(gap))  # to the nearest path sample: at least the true one
+        deviation = _farthest_from(blended, path, corner)
         if deviation > tolerance and best > 0:
             break
         best = max(best, overlap)
@@ -300,30 +399,49 @@ def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, toleran
     param = np.zeros(n)
     for (dur, motion, _), t0 in zip(pieces, starts):
         local = times - t0
-        active = local > 0
-        if not np.any(active):
+        first = int(np.searchsorted(local, 0.0, side="right"))  # local > 0 from here on
+        if first >= n:
             continue
-        pts, uk = motion(np.minimum(local[active], dur))
+        pts, uk = motion(np.minimum(local[first:], dur))
         base = motion(np.array([0.0]))[0][0]
-        y[active] += pts - base
+        y[first:] += pts - base
         # The parameter of a sample is that of the latest piece that has started.
-        param[active] = uk
+        param[first:] = uk
     return y, param, np.array(corner_times)
 
 
 def _realise(y_cmd: np.ndarray, alpha, beta, a, b0):
     """Speed, position and drive of the model's plant under the zero-phase-error inverse of
     the commanded positions ``y_cmd`` (shape (n, n_axes), at rest at both ends)."""
-    d = np.diff(y_cmd, axis=0)                       # (n-1, n_axes)
-    dprev = np.vstack([np.zeros((1, d.shape[1])), d[:-1]])
-    w = np.zeros_like(y_cmd)
-    w[:-1] = (beta * dprev + alpha * d) / (alpha + beta) ** 2
-    u = np.zeros_like(y_cmd)
-    u[:-1] = (w[1:] - a * w[:-1]) / b0
+    w = np.empty_like(y_cmd)
     theta = np.empty_like(y_cmd)
-    theta[0] = y_cmd[0]
-    theta[1:] = y_cmd[0] + np.cumsum(alpha * w[:-1] + beta * w[1:], axis=0)
+    u = np.empty_like(y_cmd)
+    _realise_into(np.ascontiguousarray(y_cmd), alpha, beta, a, b0, w, theta, u)
     return w, theta, u
+
+
+@njit(cache=True)
+def _realise_into(y_cmd, alpha, beta, a, b0, w, theta, u):
+    """:func:`_realise` in one pass per axis: with ``d[k] = y[k+1] - y[k]``,
+    ``w[k] = (beta*d[k-1] + alpha*d[k]) / (alpha + beta)^2``,
+    ``u[k] = (w[k+1] - a*w[k]) / b0`` (0 at the last sample, as w) and
+    ``theta[k+1] = y[0] + sum_{i<=k} (alpha*w[i] + beta*w[i+1])``."""
+    n = y_cmd.shape[0]
+    for j in range(y_cmd.shape[1]):
+        gain = (alpha[j] + beta[j]) * (alpha[j] + beta[j])
+        d_prev = 0.0
+        for k in range(n - 1):
+            d = y_cmd[k + 1, j] - y_cmd[k, j]
+            w[k, j] = (beta[j] * d_prev + alpha[j] * d) / gain
+            d_prev = d
+        w[n - 1, j] = 0.0
+        theta[0, j] = y_cmd[0, j]
+        total = 0.0
+        for k in range(n - 1):
+            u[k, j] = (w[k + 1, j] - a[j] * w[k, j]) / b0[j]
+            total += alpha[j] * w[k, j] + beta[j] * w[k + 1, j]
+            theta[k + 1, j] = y_cmd[0, j] + total
+        u[n - 1, j] = 0.0
 
 
 def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,

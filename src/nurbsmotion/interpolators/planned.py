@@ -499,15 +499,33 @@ def _support(accel: np.ndarray, speed: np.ndarray, stops: np.ndarray) -> np.ndar
     """Per sample k and axis, ``max |cos(p)*accel[k'] + sin(p)*speed[k']|`` over the
     samples k' from k to the next stop (a stop corner or the end), for the
     :data:`SUPPORT_DIRECTIONS` angles p evenly spaced in [0, pi/2]; shape
-    (n, n_axes, SUPPORT_DIRECTIONS) [V]."""
+    (n, n_axes, SUPPORT_DIRECTIONS) [V]. One compiled backward pass per piece between
+    stops (no temporary of the output's size)."""
     angles = np.linspace(0.0, 0.5 * np.pi, SUPPORT_DIRECTIONS)
-    values = np.abs(np.cos(angles) * accel[:, :, None] + np.sin(angles) * speed[:, :, None])
-    out = np.empty_like(values)
-    bounds = np.concatenate([[0], np.asarray(stops, dtype=int), [len(values)]])
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
-        if hi > lo:
-            out[lo:hi] = np.maximum.accumulate(values[lo:hi][::-1], axis=0)[::-1]
+    out = np.empty(accel.shape + (SUPPORT_DIRECTIONS,))
+    bounds = np.concatenate([[0], np.asarray(stops, dtype=np.int64), [len(accel)]])
+    _support_into(np.ascontiguousarray(accel), np.ascontiguousarray(speed), bounds,
+                  np.cos(angles), np.sin(angles), out)
     return out
+
+
+@njit(cache=True)
+def _support_into(accel, speed, bounds, cosines, sines, out):
+    """:func:`_support`'s running maxima, backwards from each stop in ``bounds``."""
+    n_axes = accel.shape[1]
+    running = np.empty((n_axes, cosines.shape[0]))
+    for b in range(bounds.shape[0] - 1):
+        lo, hi = bounds[b], bounds[b + 1]
+        if hi <= lo:
+            continue
+        running[:] = 0.0
+        for k in range(hi - 1, lo - 1, -1):
+            for j in range(n_axes):
+                for d in range(cosines.shape[0]):
+                    v = abs(cosines[d] * accel[k, j] + sines[d] * speed[k, j])
+                    if k == hi - 1 or v > running[j, d]:
+                        running[j, d] = v
+                    out[k, j, d] = running[j, d]
 
 
 def _prior_estimate(plan: PlannedPlan) -> np.ndarray:
