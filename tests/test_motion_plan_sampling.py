@@ -16,24 +16,28 @@ from nurbsmotion.nurbs import builtin_path
 from nurbsmotion.planning import speed_profile
 
 
-def _fine_grid_reference(s, V, t, h, passes, width):
-    """The whole fine grid as numpy arrays (the computation before the streamed kernel):
-    constant acceleration between grid points, ``passes`` moving averages by cumulative
-    sums, the last point on the piece's end. Returns (times, values)."""
-    n_fine = int(math.ceil(t[-1] / h)) + 1
-    tf = np.arange(n_fine) * h
-    i = np.clip(np.searchsorted(t, tf, side="right") - 1, 0, len(t) - 2)
+def _profile(s, V, t, times):
+    """The piece's time profile at ``times``: constant acceleration between grid points
+    (b = V^2 linear in s), at rest before and after."""
+    i = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(t) - 2)
     ds = s[i + 1] - s[i]
     with np.errstate(divide="ignore", invalid="ignore"):
         acc = np.where(ds > 0, (V[i + 1] ** 2 - V[i] ** 2) / (2 * ds), 0.0)
-    dt = np.clip(tf - t[i], 0.0, None)
-    sf = np.minimum(s[i] + V[i] * dt + 0.5 * acc * dt * dt, s[i + 1])
-    sf[tf >= t[-1]] = s[-1]
-    sf[tf <= 0] = s[0]
-    for _ in range(passes):
-        padded = np.concatenate([np.full(width, s[0]), sf, np.full(width, s[-1])])
-        csum = np.concatenate([[0.0], np.cumsum(padded - s[0])])
-        sf = (s[0] + (csum[width:] - csum[:-width]) / width)[1:]
+    dt = np.clip(times - t[i], 0.0, None)
+    out = np.minimum(s[i] + V[i] * dt + 0.5 * acc * dt * dt, s[i + 1])
+    out[times >= t[-1]] = s[-1]
+    out[times <= 0] = s[0]
+    return out
+
+
+def _fine_grid_reference(s, V, t, h, lag):
+    """The whole fine grid as numpy arrays: constant acceleration between grid points,
+    averaged with itself ``lag`` points later (at rest before and after), the last point
+    on the piece's end. Returns (times, values)."""
+    n_fine = int(math.ceil(t[-1] / h)) + 1
+    sf = _profile(s, V, t, np.arange(n_fine) * h)
+    padded = np.concatenate([np.full(lag, s[0]), sf, np.full(lag, s[-1])])
+    sf = 0.5 * (padded[lag:] + padded[:-lag])
     sf[-1] = s[-1]
     return np.arange(len(sf)) * h, sf
 
@@ -50,22 +54,37 @@ def pieces():
     return out
 
 
-@pytest.mark.parametrize("passes", [1, 2])
-def test_streamed_time_profile_equals_the_fine_grid(pieces, passes):
+def test_streamed_time_profile_equals_the_fine_grid(pieces):
     """Every value, to the last bit, at sample times, off-grid times, the fine points
     themselves and beyond both ends."""
     rng = np.random.default_rng(3)
-    width = mp.OVERSAMPLE * mp.SMOOTHING_WIDTH
+    lag = mp.OVERSAMPLE
     for _, piece_list, Ts in pieces:
         for (s, _, V), t in piece_list:
             h = Ts / mp.OVERSAMPLE
-            tf, sf = _fine_grid_reference(s, V, t, h, passes, width)
+            tf, sf = _fine_grid_reference(s, V, t, h, lag)
             n_fine = int(math.ceil(t[-1] / h)) + 1
             for times in (np.arange(-2, len(tf) // mp.OVERSAMPLE + 3) * Ts,
                           np.sort(rng.uniform(-Ts, tf[-1] + Ts, 3000)), tf[::5]):
                 out = np.empty_like(times)
-                mp._smoothed_arc(s, V, t, h, n_fine, width, passes, times, out)
+                mp._averaged_arc(s, V, t, h, n_fine, lag, times, out)
                 np.testing.assert_array_equal(out, np.interp(times, tf, sf))
+
+
+def test_sampled_average_is_the_nyquist_zero_filter(pieces):
+    """At the sample instants the averaged profile is ``(1 + 1/z)/2`` of the profile's own
+    samples (a zero exactly at the Nyquist frequency), from rest to rest."""
+    for _, piece_list, Ts in pieces:
+        for (s, _, V), t in piece_list:
+            h = Ts / mp.OVERSAMPLE
+            n_fine = int(math.ceil(t[-1] / h)) + 1
+            k = np.arange(n_fine // mp.OVERSAMPLE + 2)
+            raw = _profile(s, V, t, k * Ts)
+            out = np.empty(len(k))
+            mp._averaged_arc(s, V, t, h, n_fine, mp.OVERSAMPLE, k * Ts, out)
+            prev = np.concatenate([[s[0]], raw[:-1]])
+            np.testing.assert_allclose(out, 0.5 * (raw + prev), rtol=0, atol=1e-9 * s[-1])
+
 
 
 def test_arc_length_inverse_is_the_root_of_the_table(pieces):

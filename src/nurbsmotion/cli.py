@@ -371,10 +371,6 @@ def _cmd_campaign(args) -> int:
     return 0
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
 def _campaign_case(case, out: Path, args) -> int:
     """``campaign --case ID``: one case's normal run output."""
     from .campaign import case_trace

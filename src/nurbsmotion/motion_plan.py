@@ -13,12 +13,14 @@ is built offline in four steps:
 1. **Path speed.** The time-optimal speed along the path (:func:`planning.speed_profile`:
    phase-plane passes under the feedforward drive limit ``|tau*xdd + xd| <= f*Umax*Kc*Ke``,
    ``V <= F``, at rest at both ends and at every sharp corner). Each corner-free piece's
-   time profile s(t) is averaged once over two samples (:data:`SMOOTHING_WIDTH`: the
-   acceleration becomes continuous and the motion has nothing at the Nyquist frequency,
-   which step 3 cannot realise; 2 ms per piece) and sampled every Ts into the desired
-   positions ``y[k] = C(s((k - 2)*Ts))``: the loop's drive u[0] is 0 (it starts at rest),
-   so theta[1] = theta[0] and the first drive that moves the plant is u[1]; the desired
-   motion starts at sample 2 (:data:`LEAD`).
+   time profile s(t) is averaged with itself one sample later, ``(s(t) + s(t - Ts))/2``
+   (:func:`_averaged_arc`): sampled, that is the filter ``(1 + 1/z)/2``, whose zero lies
+   exactly at the Nyquist frequency, which step 3 cannot realise (the sampled plant's
+   zero near -1); it costs one sample per piece. The result is sampled every Ts into the
+   desired positions ``y[k] = C(s((k - 1)*Ts))``: the loop's drive u[0] is 0 (it starts
+   at rest), so theta[1] = theta[0] and the first drive that moves the plant is u[1],
+   which moves theta[2]; the desired motion leaves the start at sample 1 (:data:`LEAD`)
+   and its first moving sample is y[2].
 2. **Corner blends** (``corner_tolerance`` eps > 0). The plant is linear, so two motions
    can be superposed: the next piece starts before the current one has stopped, by the
    time it takes the current piece to cover its last eps plus the time the next one takes
@@ -85,24 +87,31 @@ OVERSAMPLE = 32
 them moves a position by at most ``(Ts/32)^2/8`` times the acceleration: a hundredth of a
 pulse at the die-bonder's full acceleration)."""
 
-SMOOTHING_PASSES = 1
-"""Moving averages of every piece's time profile (step 1): one makes the acceleration
-continuous; each costs SMOOTHING_WIDTH samples per piece."""
-
-SMOOTHING_WIDTH = 2
-"""Width of each moving average [samples]: two samples put its zero at the Nyquist
-frequency, which the sampled plant's zero near -1 cannot follow."""
-
 MAX_GRID_REFINEMENT = 16
 """The speed profile's grid is refined at most to this many times its given size."""
 
 DRIVE_FIT_ROUNDS = 12
 """At most this many rebuilds of the plan in step 4."""
 
-LEAD = 2
-"""Sample at which the desired motion leaves the start: the loop applies u[0] = 0 and the
-plant is at rest at sample 1 too, so u[1], which moves theta[2], is the first free drive
-(step 3 holds the commanded positions at the start through sample 2)."""
+LEAD = 1
+"""Sample at which the desired motion leaves the start: the loop applies u[0] = 0, so the
+plant is at rest at sample 1 and u[1], which moves theta[2], is the first free drive; the
+averaged profile's first moving sample is y[2] (step 3 holds the commanded positions at
+the start through sample 2 and meets y[2] with the commanded position of sample 3)."""
+
+END_REST = 10
+"""Samples at rest on the end appended to the desired motion before step 3 (a parameter of
+the pre-compensation, like its rounds). It holds the last two commanded positions on
+the end (at rest: u = 0, w = 0), and what it cannot correct collects next to them; these
+samples put that place where the motion is already at rest, so that the approach to the
+end is met (on the die-bonder, with 3 such samples the last one before them missed the
+end by up to 1.4 pulses, an overshoot; with 10, by under 0.03)."""
+
+INVERSE_REACH = 3
+"""Samples over which a desired position shapes the drive of step 3 (the zero-phase
+inverse reads the commanded positions one sample either side of the speed it gives, and
+the drive is the speed's difference): step 4 eases the drive limit over the distance the
+motion covers in this many samples plus the one of the averaging."""
 
 
 def axis_zoh(machine: Machine):
@@ -174,27 +183,24 @@ class MotionPlan:
 
 
 @njit(cache=True)
-def _smoothed_arc(s, V, t, h, n_fine, width, passes, times, out):
-    """The piece's averaged time profile s(t) [pulse] at the nondecreasing ``times`` [s]
-    (from the piece's start), into ``out``.
+def _averaged_arc(s, V, t, h, n_fine, lag, times, out):
+    """The piece's averaged time profile [pulse] at the nondecreasing ``times`` [s] (from
+    the piece's start), into ``out``.
 
-    The profile has constant acceleration between grid points (b = V^2 linear in s); it is
-    sampled every ``h`` (``n_fine`` points from 0), averaged ``passes`` times over
-    ``width`` fine points (at rest before and after: each pass adds ``width`` points) and
-    read by linear interpolation between the fine points; the last point is the piece's
-    end. The fine points stream through a ring of running sums, one pass after the other
-    on each point, so nothing of the fine grid's size is held: the values are those of
-    sampling the whole fine grid, ``np.cumsum`` per pass and ``np.interp``, operation for
-    operation."""
+    The profile s(t) has constant acceleration between grid points (b = V^2 linear in s);
+    it is sampled every ``h`` (``n_fine`` points from 0, at rest before and after),
+    averaged with itself ``lag`` points later, ``(s[m] + s[m - lag])/2`` (``lag`` points
+    longer), and read by linear interpolation between the fine points; the last point is
+    the piece's end. The fine points stream through a ring of the last ``lag`` values, so
+    nothing of the fine grid's size is held."""
     last = t.shape[0] - 1
     s0 = s[0]
     s_end = s[last]
-    n_total = n_fine + passes * width        # length of the averaged fine sequence
-    ring = np.zeros((passes, width + 1))     # running sums C[k] of each pass, at k mod width+1
+    n_total = n_fine + lag                   # length of the averaged fine sequence
+    ring = np.full(lag, s0)                  # the profile's last lag values, at m mod lag
     seg = 0
     acc = _segment_acceleration(s, V, 0)
     m = -1                                   # last fine index produced
-    slot = width                             # m mod (width + 1)
     f_prev = s0
     f_cur = s0
     for q in range(times.shape[0]):
@@ -213,10 +219,7 @@ def _smoothed_arc(s, V, t, h, n_fine, width, passes, times, out):
         need = min(max(j + 1, 0), n_total - 1)
         while m < need:
             m += 1
-            previous = slot                  # (m - 1) mod (width + 1) = (m + width) mod ...
-            slot = 0 if slot == width else slot + 1
-            oldest = 0 if slot == width else slot + 1   # (m + 1) mod (width + 1)
-            # pass 0's input: the profile at m*h (constant acceleration between grid points)
+            # the profile at m*h (constant acceleration between grid points)
             if m < n_fine:
                 tm = m * h
                 while seg + 1 < last and t[seg + 1] <= tm:
@@ -231,16 +234,11 @@ def _smoothed_arc(s, V, t, h, n_fine, width, passes, times, out):
                     v = s0
             else:
                 v = s_end
-            for p in range(passes):
-                if m >= n_fine + p * width:   # past this pass's input: its end padding
-                    v = s_end
-                newest = ring[p, previous] + (v - s0)
-                ring[p, slot] = newest
-                v = s0 + (newest - ring[p, oldest]) / width
-            if m == n_total - 1:
-                v = s_end
+            slot = m % lag
+            averaged = 0.5 * (v + ring[slot])
+            ring[slot] = v
             f_prev = f_cur
-            f_cur = v
+            f_cur = s_end if m == n_total - 1 else averaged
         if j < 0 or j >= n_total - 1:  # before the start (m = 0) or at/after the end
             out[q] = f_cur
         elif j * h == x:
@@ -258,24 +256,22 @@ def _segment_acceleration(s, V, i):
     return (V[i + 1] * V[i + 1] - V[i] * V[i]) / (2 * ds) if ds > 0 else 0.0
 
 
-def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float, passes: int):
+def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float):
     """Per corner-free piece: its duration [s], a function ``times -> (positions, u)`` and
     its length [pulse].
 
-    The piece's s(t) is averaged ``passes`` times over one sample period (a moving average
-    of the time profile, at rest before and after): each pass adds Ts to the piece and one
-    order of continuity, so that after one pass the acceleration is continuous and the
-    sampled motion contains no more than the drive can follow within a sample. Sampled on
-    a fine grid of :data:`OVERSAMPLE` points per sample that is streamed, never stored
-    (:func:`_smoothed_arc`), and mapped to the curve by the compiled arc-length inverse
+    The piece's s(t) is averaged with itself one sample later (module docstring, step 1;
+    at rest before and after): the piece lasts Ts longer and its sampled motion has
+    nothing at the Nyquist frequency. Sampled on a fine grid of :data:`OVERSAMPLE` points
+    per sample that is streamed, never stored (:func:`_averaged_arc`), and mapped to the
+    curve by the compiled arc-length inverse
     (:meth:`nurbsmotion.geometry.CurveGeometry.parameter_at`, uncached)."""
     out = []
-    fine = OVERSAMPLE * SMOOTHING_WIDTH
     h = Ts / OVERSAMPLE
     geometry = curve.geometry
     for (s, u, V), t in zip(profile.pieces, profile.piece_times()):
         n_fine = int(math.ceil(t[-1] / h)) + 1
-        duration = (n_fine + passes * fine - 1) * h
+        duration = (n_fine + OVERSAMPLE - 1) * h
 
         def motion(times, s=s, u=u, V=V, t=t, n_fine=n_fine):
             times = np.ascontiguousarray(times, dtype=float)
@@ -284,7 +280,7 @@ def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float, passes: 
                 order = np.argsort(times, kind="stable")
                 times = times[order]
             sk = np.empty_like(times)
-            _smoothed_arc(s, V, t, h, n_fine, fine, passes, times, sk)
+            _averaged_arc(s, V, t, h, n_fine, OVERSAMPLE, times, sk)
             if order is not None:
                 sk[order] = sk.copy()
             uk = np.interp(sk, s, u)
@@ -380,7 +376,7 @@ def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, toleran
                     lead: int):
     """y[k] (sum of the pieces, blended at corners), the parameter of each sample, and the
     time of every corner [samples]. Piece 0 starts at sample ``lead``."""
-    pieces = _piece_motions(curve, profile, Ts, SMOOTHING_PASSES)
+    pieces = _piece_motions(curve, profile, Ts)
     starts, t0 = [], 0.0
     corner_times = []
     for p, (dur, motion, length) in enumerate(pieces):
@@ -529,8 +525,8 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
                 f"the planned motion takes {profile.duration:g} s, more than "
                 f"{max_samples} samples; the feed is too low for this path")
         y, param, corners = _desired_motion(curve, profile, Ts, corner_tolerance, lead)
-        y = np.vstack([y, np.repeat(y[-1:], 3, axis=0)])
-        param = np.concatenate([param, np.ones(3)])
+        y = np.vstack([y, np.repeat(y[-1:], END_REST, axis=0)])
+        param = np.concatenate([param, np.ones(END_REST)])
         w, theta, u = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS)
         if not math.isfinite(umax):
             use = 0.0
@@ -552,7 +548,7 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
                 spacing /= 4
             widen *= 2.0
         last_use = use
-        half = np.maximum(speed * Ts * (SMOOTHING_WIDTH + 3) * widen, spacing)
+        half = np.maximum(speed * Ts * (1 + INVERSE_REACH) * widen, spacing)
         factor = (drive_fraction / per_sample[k]) ** 2  # overshoots downwards
         eases.append((curve.arc_length(param[k]), half, factor))
     else:
