@@ -131,3 +131,27 @@ def test_support_equals_running_maxima_by_numpy():
                 expected[lo:hi] = np.maximum.accumulate(values[lo:hi][::-1], axis=0)[::-1]
         np.testing.assert_array_equal(_support(accel, speed, np.array(stops, dtype=int)),
                                       expected)
+        np.testing.assert_array_equal(
+            _support(accel, speed, np.array(stops, dtype=int), 8), expected[::8])
+
+
+def test_each_samples_support_from_the_stored_ones_equals_the_full_support():
+    """The planned step's support of every sample, rebuilt from the plan's stored one at
+    every SUPPORT_BLOCK-th sample and the samples before it, equals the support stored at
+    every sample (stops inside, on and next to a block's start, and none)."""
+    from nurbsmotion.interpolators.planned import (_DIRECTIONS, SUPPORT_BLOCK,
+                                                   SUPPORT_DIRECTIONS, PlannedPlan,
+                                                   _support, _support_at)
+
+    rng = np.random.default_rng(12)
+    for n, stops in ((203, []), (203, [5, 8, 9, 16, 17, 100, 202]), (3, [1])):
+        accel, speed = rng.normal(size=(n, 2)), rng.normal(size=(n, 2))
+        stops = np.array(stops, dtype=np.int64)
+        full = _support(accel, speed, stops)
+        plan = PlannedPlan(*([None] * 3), speed, accel,
+                           _support(accel, speed, stops, SUPPORT_BLOCK),
+                           np.append(stops, n), np.cos(_DIRECTIONS), np.sin(_DIRECTIONS),
+                           *([None] * 6), 0.0, 0.0)
+        out = np.empty((2, SUPPORT_DIRECTIONS))
+        for i in range(n):
+            np.testing.assert_array_equal(_support_at(plan, i, out), full[i])

@@ -76,6 +76,12 @@ SUPPORT_DIRECTIONS = 9
 """Directions in which the governor knows the plan's drive demand up to the next stop
 exactly (between them it bounds it above, by at most ``1/cos(pi/4/(n-1)) - 1``: 0.5 %)."""
 
+SUPPORT_BLOCK = 8
+"""The plan stores the support of its drive (:func:`_support`) at every this-many-th sample
+only; each sample's own is the stored one at the next such sample maxed with the few
+samples before it (:func:`_support_at`): the same values, an eighth of the memory (a
+10-minute move's support held 86 MB)."""
+
 RATE_BISECTIONS = 20
 """Bisections of the governor's largest rate (to 1e-6 of a sample per sample)."""
 
@@ -150,13 +156,14 @@ def _position_noise(a):
 
 
 @njit(cache=True)
-def _demand(support, i, j, x, y):
+def _demand(support, j, x, y):
     """An upper bound, exact in the directions of :data:`SUPPORT_DIRECTIONS`, of the largest
-    ``|x*A[k] + y*V[k]|`` (x, y >= 0) over the plan's samples k from i to the next stop
-    of axis j: the support function of the points (A[k], V[k]) (acceleration and speed
-    parts of the plan's drive [V]) interpolated between the two directions enclosing
-    (x, y) (a support function is sublinear, so the interpolation bounds it above)."""
-    m = support.shape[2] - 1
+    ``|x*A[k] + y*V[k]|`` (x, y >= 0) over the plan's samples k from this one to the next
+    stop of axis j: the support function of the points (A[k], V[k]) (acceleration and
+    speed parts of the plan's drive [V]; ``support`` (n_axes, SUPPORT_DIRECTIONS) from
+    :func:`_support_at`) interpolated between the two directions enclosing (x, y) (a
+    support function is sublinear, so the interpolation bounds it above)."""
+    m = support.shape[1] - 1
     if x <= 0.0 and y <= 0.0:
         return 0.0
     phi = math.atan2(y, x) / (0.5 * math.pi) * m
@@ -166,7 +173,7 @@ def _demand(support, i, j, x, y):
     sd = math.sin(step)
     l0 = (x * math.sin(p1) - y * math.cos(p1)) / sd
     l1 = (y * math.cos(p0) - x * math.sin(p0)) / sd
-    return max(l0, 0.0) * support[i, j, k] + max(l1, 0.0) * support[i, j, k + 1]
+    return max(l0, 0.0) * support[j, k] + max(l1, 0.0) * support[j, k + 1]
 
 
 @njit(cache=True)
@@ -200,9 +207,9 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
     plan_drive_speed, plan_drive_accel : ndarray, shape (n, n_axes)
         The feedforward drive's speed part w_ff/Kc and acceleration part
         (w_ff[k+1]-w_ff[k])/b0 [V] (u_ff is their sum at rate 1).
-    support : ndarray, shape (n, n_axes, SUPPORT_DIRECTIONS)
-        Per sample and axis, the support function of the plan's drive parts up to the next
-        stop (:func:`_support`).
+    support : ndarray, shape (n_axes, SUPPORT_DIRECTIONS)
+        Per axis, the support function of the plan's drive parts from the sample of the
+        clock up to the next stop (:func:`_support_at`).
     a, b0, c, b1 : ndarray, shape (n_axes,)
         The model's ZOH plant (:func:`nurbsmotion.motion_plan.axis_zoh`).
     kp, kd : ndarray, shape (n_axes,)
@@ -237,12 +244,12 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
         # 2a. the clock's largest rate at which the estimated plant can follow the plan
         # up to the next stop: |ga*A*r^2 + gv*V*r| <= (1 - headroom)*Umax at every sample
         # the plan itself may use the full drive; the headroom applies beyond the model
-        limit = max((1.0 - headroom) * umax, _demand(support, i0, j, 1.0, 1.0))
-        if _demand(support, i0, j, ga, gv) > limit:
+        limit = max((1.0 - headroom) * umax, _demand(support, j, 1.0, 1.0))
+        if _demand(support, j, ga, gv) > limit:
             lo, hi = 0.0, 1.0
             for _ in range(RATE_BISECTIONS):
                 mid = 0.5 * (lo + hi)
-                if _demand(support, i0, j, ga * mid * mid, gv * mid) > limit:
+                if _demand(support, j, ga * mid * mid, gv * mid) > limit:
                     hi = mid
                 else:
                     lo = mid
@@ -292,7 +299,10 @@ class PlannedPlan(NamedTuple):
     position: np.ndarray         # (n, n_axes) theta_ff [pulse]
     drive_speed: np.ndarray      # (n, n_axes) [V]
     drive_accel: np.ndarray      # (n, n_axes) [V]
-    support: np.ndarray          # (n, n_axes, SUPPORT_DIRECTIONS) [V]
+    support: np.ndarray          # (ceil(n / SUPPORT_BLOCK), n_axes, SUPPORT_DIRECTIONS) [V]
+    bounds: np.ndarray           # (n_stops + 1,) the stops' first samples, then n
+    cosines: np.ndarray          # (SUPPORT_DIRECTIONS,) the support's directions
+    sines: np.ndarray
     a: np.ndarray                # (n_axes,) the model's ZOH plant
     b0: np.ndarray
     c: np.ndarray
@@ -306,7 +316,7 @@ class PlannedPlan(NamedTuple):
 class PlannedState(NamedTuple):
     """The online state: the plan's clock [samples], its rate and the last excess
     (shape (1,) each), the deviation, estimate and history arrays of :func:`online_step`,
-    and per-axis scratch (the law's slope and offset, the drive)."""
+    and per-axis scratch (the law's slope and offset, the drive, the support)."""
 
     phi: np.ndarray
     rate: np.ndarray
@@ -317,6 +327,7 @@ class PlannedState(NamedTuple):
     slope: np.ndarray
     offset: np.ndarray
     drive: np.ndarray
+    support: np.ndarray
 
 
 class PlannedInterpolator(Interpolator):
@@ -387,7 +398,9 @@ class PlannedInterpolator(Interpolator):
         self.plan = PlannedPlan(
             parameter=p.parameter, desired=p.desired, position=p.position,
             drive_speed=drive_speed, drive_accel=drive_accel,
-            support=_support(drive_accel, drive_speed, p.stop_indices),
+            support=_support(drive_accel, drive_speed, p.stop_indices, SUPPORT_BLOCK),
+            bounds=np.append(np.asarray(p.stop_indices, dtype=np.int64), p.n_samples),
+            cosines=np.cos(_DIRECTIONS), sines=np.sin(_DIRECTIONS),
             a=a, b0=b0, c=c, b1=b1, kp=kp, kd=kd, headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole)
@@ -399,7 +412,7 @@ class PlannedInterpolator(Interpolator):
         n = self.machine.n_axes
         return PlannedState(np.ones(1), np.ones(1), np.zeros(1), np.zeros((2, n)),
                             _prior_estimate(self.plan), np.zeros((5, n)), np.empty(n),
-                            np.empty(n), np.empty(n))
+                            np.empty(n), np.empty(n), np.empty((n, SUPPORT_DIRECTIONS)))
 
 
 @njit(cache=True)
@@ -458,7 +471,9 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
     phi = state.phi[0]
     phi_next, rate, excess = online_step(
         phi, state.rate[0], state.excess[0], state.dev, state.est, state.hist, position,
-        plan.position, plan.drive_speed, plan.drive_accel, plan.support, plan.a, plan.b0, plan.c, plan.b1, plan.kp, plan.kd, law[0]["maxoutput"],
+        plan.position, plan.drive_speed, plan.drive_accel,
+        _support_at(plan, min(int(phi), plan.position.shape[0] - 1), state.support),
+        plan.a, plan.b0, plan.c, plan.b1, plan.kp, plan.kd, law[0]["maxoutput"],
         plan.headroom, plan.rate_gain, state.slope, state.offset, command, state.drive)
     state.phi[0] = phi_next
     state.rate[0] = rate
@@ -495,22 +510,25 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
 stepping.register(PlannedPlan, planned_step)
 
 
-def _support(accel: np.ndarray, speed: np.ndarray, stops: np.ndarray) -> np.ndarray:
+_DIRECTIONS = np.linspace(0.0, 0.5 * np.pi, SUPPORT_DIRECTIONS)
+
+
+def _support(accel: np.ndarray, speed: np.ndarray, stops: np.ndarray,
+             block: int = 1) -> np.ndarray:
     """Per sample k and axis, ``max |cos(p)*accel[k'] + sin(p)*speed[k']|`` over the
     samples k' from k to the next stop (a stop corner or the end), for the
-    :data:`SUPPORT_DIRECTIONS` angles p evenly spaced in [0, pi/2]; shape
-    (n, n_axes, SUPPORT_DIRECTIONS) [V]. One compiled backward pass per piece between
-    stops (no temporary of the output's size)."""
-    angles = np.linspace(0.0, 0.5 * np.pi, SUPPORT_DIRECTIONS)
-    out = np.empty(accel.shape + (SUPPORT_DIRECTIONS,))
+    :data:`SUPPORT_DIRECTIONS` angles p evenly spaced in [0, pi/2], at every ``block``-th
+    sample; shape (ceil(n / block), n_axes, SUPPORT_DIRECTIONS) [V]. One compiled
+    backward pass per piece between stops (no temporary of the samples' size)."""
+    out = np.empty((-(-len(accel) // block),) + accel.shape[1:] + (SUPPORT_DIRECTIONS,))
     bounds = np.concatenate([[0], np.asarray(stops, dtype=np.int64), [len(accel)]])
     _support_into(np.ascontiguousarray(accel), np.ascontiguousarray(speed), bounds,
-                  np.cos(angles), np.sin(angles), out)
+                  np.cos(_DIRECTIONS), np.sin(_DIRECTIONS), block, out)
     return out
 
 
 @njit(cache=True)
-def _support_into(accel, speed, bounds, cosines, sines, out):
+def _support_into(accel, speed, bounds, cosines, sines, block, out):
     """:func:`_support`'s running maxima, backwards from each stop in ``bounds``."""
     n_axes = accel.shape[1]
     running = np.empty((n_axes, cosines.shape[0]))
@@ -525,7 +543,34 @@ def _support_into(accel, speed, bounds, cosines, sines, out):
                     v = abs(cosines[d] * accel[k, j] + sines[d] * speed[k, j])
                     if k == hi - 1 or v > running[j, d]:
                         running[j, d] = v
-                    out[k, j, d] = running[j, d]
+            if k % block == 0:
+                out[k // block] = running
+
+
+@njit(cache=True)
+def _support_at(plan, i, out):
+    """The support of sample ``i`` (:func:`_support` with ``block = 1``) into ``out``
+    (n_axes, SUPPORT_DIRECTIONS) [V], from the plan's stored one at the next stored sample
+    before the next stop and the samples up to it. Returns ``out``."""
+    block = SUPPORT_BLOCK
+    hi = plan.bounds[np.searchsorted(plan.bounds, i, side="right")]  # the next stop
+    if i % block == 0:
+        out[:] = plan.support[i // block]
+        return out
+    end = (i // block + 1) * block
+    if end < hi:
+        out[:] = plan.support[end // block]
+    else:
+        out[:] = 0.0
+        end = hi
+    accel, speed = plan.drive_accel, plan.drive_speed
+    for k in range(i, end):
+        for j in range(out.shape[0]):
+            for d in range(out.shape[1]):
+                v = abs(plan.cosines[d] * accel[k, j] + plan.sines[d] * speed[k, j])
+                if v > out[j, d]:
+                    out[j, d] = v
+    return out
 
 
 def _prior_estimate(plan: PlannedPlan) -> np.ndarray:
