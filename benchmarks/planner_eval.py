@@ -157,8 +157,9 @@ def planning_time(m):
     print("## Planning time (median of 3) [s]\n")
     print("| path | feed [m/s] | planned | TOPP-RA |\n|---|---|---|---|")
     try:
+        import toppra  # noqa: F401  (a benchmark-only comparison)
         from toppra_compare import toppra_plan
-    except Exception:  # toppra not installed: a benchmark-only comparison
+    except ImportError:
         toppra_plan = None
     for path, feeds in RUNS.items():
         curve = to_pulses(builtin_path(path), m)
