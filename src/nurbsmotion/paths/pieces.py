@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from array import array
+from itertools import chain
 
 import numpy as np
 
@@ -188,6 +189,20 @@ class PieceChain:
         self.lengths.append(length)
         self.last = list(end)
         return length
+
+    def add_lines(self, ends: np.ndarray) -> None:
+        """Straight pieces through the rows of ``ends`` (shape (n_pieces, n_axes)) in
+        order, as :meth:`add_line` adds each."""
+        ends = np.ascontiguousarray(ends, dtype=float)
+        if ends.ndim != 2 or ends.shape[1] != self.n_axes:
+            raise InvalidCurveError(f"line ends of shape {ends.shape} cannot join a path of {self.n_axes} axes")
+        if not len(ends):
+            return
+        points = ends.tolist()
+        self.kind.frombytes(bytes(len(points)))  # kind 0: line
+        self.ends.frombytes(ends.tobytes())
+        self.lengths.extend(map(math.dist, chain([self.last], points), points))
+        self.last = points[-1]
 
     def add_arc(self, end, cols: tuple, center, radius: float, start_angle: float, sweep: float) -> float:
         """A circular arc in the coordinates ``cols`` (two column indices) round
