@@ -8,10 +8,13 @@ the program's feed moves (as :func:`nurbsmotion.joining.join` joins pieces, buil
 by :class:`~nurbsmotion.paths.pieces.PieceChain`), plus the programmed feed of every piece.
 
 Size
-    Plain lines (words and comments, as CAM posts write them) are read by one regular
-    expression match each when they run, nothing is kept per line, and a move costs a few
-    numbers until its contour is joined: a CAM program of a million lines loads in about
-    half a gigabyte (``benchmarks/gcode_load.py``).
+    Plain lines (words and comments, as CAM posts write them) are tokenised for the whole
+    program at once (:class:`~nurbsmotion.paths.ngc.WordTable`: one multi-line regular
+    expression search, then numpy), and each run of them is applied in bulk where
+    :meth:`_Reader.read` would take its lean path (G0/G1 moves and F words under G90/G94,
+    no offsets): the same pieces, feeds, lines and errors as one line at a time. A move
+    costs a few numbers until its contour is joined: a CAM program of a million lines
+    loads in about 3 s and half a gigabyte (``benchmarks/gcode_load.py``).
 
 What is read
     The language (parameters, expressions, O-word subroutines and control flow) is
@@ -1243,7 +1246,8 @@ def load_gcode(file: str | os.PathLike, axes: str = "xy") -> GcodeProgram:
         raise PathFileError(f"path axes {axes!r} must be distinct letters of {_AXES}", str(path))
     reader = _Reader(str(path), axes)
     lines = split_lines(path.read_bytes(), str(path), upper=True)
-    program = Program(lines, str(path), reader.system_parameter)  # upper-cased: the fast path
+    program = Program(lines, str(path), reader.system_parameter)  # upper-cased: plain lines in bulk
+    del lines  # the program keeps what it needs
     reader.program = program
     for item in program.blocks(runs=True):
         if not (reader.read_rows(item) if isinstance(item, Rows) else reader.read(item)):

@@ -211,8 +211,8 @@ def split_lines(data: bytes, source: str, upper: bool = False) -> list[str]:
 
 
 # ---------------------------------------------------------------------- tokenizer
-_PLAIN = re.compile(r"(?:[a-z][+-]?(?:\d+\.?\d*|\.\d+))*\Z")
-_PLAIN_WORD = re.compile(r"([a-z])([+-]?(?:\d+\.?\d*|\.\d+))")
+_PLAIN = re.compile(r"(?:[a-z][+-]?(?:\d+(?:\.\d*)?|\.\d+))*\Z")  # one way to match each number: no backtracking blow-up
+_PLAIN_WORD = re.compile(r"([a-z])([+-]?(?:\d+(?:\.\d*)?|\.\d+))")
 # The lines CAM systems write ("plain" lines), recognised in the upper-cased text of a whole
 # program by one multi-line search: an optional block delete and N number, letter-number
 # words (no N or O word) separated by blanks, an optional trailing comment. Group 1 is the
@@ -404,7 +404,6 @@ class Program:
                  system: Callable[[str], float | None] | None = None):
         self.source = source
         self.system = system or (lambda name: None)
-        self.lines = lines
         # Parsed lines, by index: every O-word line (found before running, for the jumps of
         # the control flow) and every line the full parser read (kept for loops). Plain
         # lines are read once, in bulk, into the word table: a program of millions of
@@ -421,9 +420,9 @@ class Program:
         self.table = WordTable(lines, start, stop)
         plain = self.table.plain
         self._breaks = np.append(start + np.flatnonzero(~plain[start:stop]), stop)  # non-plain lines
-        self._row_index = self.table.line - 1  # line index of each row
-        for i in self._breaks[:-1].tolist():
-            text = lines[i]
+        # the text of the other lines, for the full parser (the plain ones are in the table)
+        self.lines = {i: lines[i] for i in self._breaks[:-1].tolist()}
+        for i, text in self.lines.items():
             if "o" in text or "O" in text:
                 item = self._parse(text, i + 1)
                 if item is not None:
@@ -578,7 +577,7 @@ class Program:
         repeats: dict = {}  # index of a repeat -> remaining count
         pc = self.start
         parsed, numbered, lines, stop = self.parsed, self.numbered, self.lines, self.stop
-        table, plain, breaks, row_index = self.table, self.table.plain, self._breaks, self._row_index
+        table, plain, breaks, row_line = self.table, self.table.plain, self._breaks, self.table.line
         while pc < stop:
             if budget <= 0:
                 raise self.error(
@@ -587,7 +586,7 @@ class Program:
             if plain[pc]:  # a run of plain lines, up to the next other line
                 end = min(int(breaks[np.searchsorted(breaks, pc)]), pc + budget)
                 budget -= end - pc
-                r0, r1 = (int(r) for r in np.searchsorted(row_index, (pc, end)))
+                r0, r1 = row_line.searchsorted((pc + 1, end + 1)).tolist()
                 pc = end
                 if r1 > r0:
                     if runs:
