@@ -22,8 +22,8 @@ What is read
     motion, in LinuxCNC's canonical coordinates (G5x + G92 offsets and the XY rotation of
     ``G10 L2 R`` applied, as AXIS draws them): ``G0`` and ``G1``; ``G2``/``G3`` in the
     G17/G18/G19 plane in centre format (incremental, or absolute under ``G90.1``) or radius
-    format, with ``P`` turns, as exact rational arcs, as a helix (C1 cubic pieces within
-    :data:`HELIX_TOLERANCE` of the radius) when another axis moves along, or as a spiral
+    format, with ``P`` turns, as exact rational arcs, as a helix (cubic segments within
+    :data:`HELIX_TOLERANCE` of the radius, :func:`~nurbsmotion.paths.pieces.spiral_segments`) when another axis moves along, or as a spiral
     when the end radius differs from the start radius by more than :data:`HELIX_TOLERANCE`
     of it (and within LinuxCNC's tolerance); ``G5``
     and ``G5.1`` (XY); ``G5.2``/``G5.3`` and ``G6.2`` (``P`` order, ``Q`` method, ``K``
@@ -273,7 +273,7 @@ def _embed(curve: NurbsCurve, base: np.ndarray, cols: tuple) -> NurbsCurve:
 
 def helix(center, radius0: float, radius1: float, a0: float, sweep: float, start: np.ndarray,
           end: np.ndarray, cols: tuple, name: str | None = None) -> NurbsCurve:
-    """A helix (or spiral) as one C1 piecewise cubic curve: angle ``a0 -> a0 + sweep``
+    """A helix (or spiral) as one piecewise cubic curve: angle ``a0 -> a0 + sweep``
     [rad] round ``center`` in the coordinates ``cols``, radius ``radius0 -> radius1`` and
     every other coordinate ``start -> end`` linearly in the angle, within
     :data:`HELIX_TOLERANCE` of the radius (:meth:`PieceChain.add_spiral`)."""
