@@ -84,4 +84,5 @@ def test_random_spirals_are_within_tolerance():
         rise = rng.choice([0.0, r0 * 10 ** rng.uniform(-4, 1)])
         center = (rng.uniform(-50, 50), rng.uniform(-50, 50))
         _, X, exact, _, _ = spiral(center, r0, r1, rng.uniform(-3, 3), sweep, rise)
-        assert np.max(np.linalg.norm(X - exact, axis=1)) <= HELIX_TOLERANCE * min(r0, r1), (r0, r1, sweep, rise)
+        err = np.max(np.linalg.norm(X - exact, axis=1))
+        assert err <= HELIX_TOLERANCE * min(r0, r1), (r0, r1, sweep, rise)

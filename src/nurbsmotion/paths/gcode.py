@@ -14,7 +14,7 @@ Size
     :meth:`_Reader.read` would take its lean path (G0/G1 moves and F words under G90/G94,
     no offsets): the same pieces, feeds, lines and errors as one line at a time. A move
     costs a few numbers until its contour is joined: a CAM program of a million lines
-    loads in about 3 s and half a gigabyte (``benchmarks/gcode_load.py``).
+    loads in a few seconds and about half a gigabyte (``benchmarks/gcode_load.py``).
 
 What is read
     The language (parameters, expressions, O-word subroutines and control flow) is
@@ -23,7 +23,8 @@ What is read
     ``G10 L2 R`` applied, as AXIS draws them): ``G0`` and ``G1``; ``G2``/``G3`` in the
     G17/G18/G19 plane in centre format (incremental, or absolute under ``G90.1``) or radius
     format, with ``P`` turns, as exact rational arcs, as a helix (cubic segments within
-    :data:`HELIX_TOLERANCE` of the radius, :func:`~nurbsmotion.paths.pieces.spiral_segments`) when another axis moves along, or as a spiral
+    :data:`HELIX_TOLERANCE` of the radius, :func:`~nurbsmotion.paths.pieces.spiral_segments`)
+    when another axis moves along, or as a spiral
     when the end radius differs from the start radius by more than :data:`HELIX_TOLERANCE`
     of it (and within LinuxCNC's tolerance); ``G5``
     and ``G5.1`` (XY); ``G5.2``/``G5.3`` and ``G6.2`` (``P`` order, ``Q`` method, ``K``
@@ -667,7 +668,7 @@ class _Reader:
         s = 0
         while s < run.n:
             if self.lean():
-                if state is None or not state.agrees(self, s):  # first, or after a row read() changed differently
+                if state is None or not state.agrees(self, s):  # first, or read() did otherwise
                     state = _RunState(self, run, s, run.n if state is None else run.next_other(s))
                 t = state.next_stop(s)
                 if t > s:

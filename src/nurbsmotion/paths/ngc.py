@@ -211,7 +211,8 @@ def split_lines(data: bytes, source: str, upper: bool = False) -> list[str]:
 
 
 # ---------------------------------------------------------------------- tokenizer
-_PLAIN = re.compile(r"(?:[a-z][+-]?(?:\d+(?:\.\d*)?|\.\d+))*\Z")  # one way to match each number: no backtracking blow-up
+# one way to match each number ("\d+\.?\d*" had many, and backtracked exponentially)
+_PLAIN = re.compile(r"(?:[a-z][+-]?(?:\d+(?:\.\d*)?|\.\d+))*\Z")
 _PLAIN_WORD = re.compile(r"([a-z])([+-]?(?:\d+(?:\.\d*)?|\.\d+))")
 # The lines CAM systems write ("plain" lines), recognised in the upper-cased text of a whole
 # program by one multi-line search: an optional block delete and N number, letter-number

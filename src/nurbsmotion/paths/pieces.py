@@ -253,7 +253,8 @@ class PieceChain:
         order, as :meth:`add_line` adds each."""
         ends = np.ascontiguousarray(ends, dtype=float)
         if ends.ndim != 2 or ends.shape[1] != self.n_axes:
-            raise InvalidCurveError(f"line ends of shape {ends.shape} cannot join a path of {self.n_axes} axes")
+            raise InvalidCurveError(
+                f"line ends of shape {ends.shape} cannot join a path of {self.n_axes} axes")
         if not len(ends):
             return
         points = ends.tolist()
@@ -432,8 +433,9 @@ class PieceChain:
                 return X
 
             Wq = np.stack([np.ones_like(w), (1 + 2 * w) / 3, (1 + 2 * w) / 3, np.ones_like(w)], axis=1)
-            Q = np.stack([point(0, t0), (point(0, t1) + 2 * w[:, None] * point(1, t0)) / (1 + 2 * w[:, None]),
-                          (2 * w[:, None] * point(1, t1) + point(2, t0)) / (1 + 2 * w[:, None]), point(2, t1)],
+            w2 = 2 * w[:, None]
+            Q = np.stack([point(0, t0), (point(0, t1) + w2 * point(1, t0)) / (1 + w2),
+                          (w2 * point(1, t1) + point(2, t0)) / (1 + w2), point(2, t1)],
                          axis=1)  # (segments, 4, d)
             self._place(Q, Wq, m, idx, starts, ends, a, b, scale, offset, p, P, W, K)
             return
