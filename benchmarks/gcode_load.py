@@ -7,7 +7,8 @@ contour — and loads it in a fresh process with :func:`nurbsmotion.paths.gcode.
 reporting the wall and CPU time of the load, the process's peak resident memory right
 after it, and the load average of the machine. ``--rounded-arcs`` writes the arcs' centres
 with the rounding CAM posts leave (end radius 8e-5 mm off the start radius), which LinuxCNC
-and this reader follow as spirals. Usage::
+and this reader follow as spirals (rational cubic segments, about 19 per half circle here:
+:func:`nurbsmotion.paths.pieces.spiral_segments`). Usage::
 
     python benchmarks/gcode_load.py --lines 1000000 [--rounded-arcs]
 """

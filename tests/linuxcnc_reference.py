@@ -47,26 +47,31 @@ def linuxcnc_moves(program: Path) -> dict:
     return json.loads(r.stdout)
 
 
-def distances_to_path(points: np.ndarray, curves: list) -> np.ndarray:
-    """Distance of every point (shape (m, d)) to the nearest of ``curves``: from the
-    nearest of dense samples, the foot point is refined by Newton's method on
-    ``(C(u) - p) . C'(u) = 0`` (clamped to [0, 1]), which is exact to rounding; a point at a
-    corner is measured to the junction itself."""
+def distances_to_path(points: np.ndarray, curves: list, seeds: int = 8) -> np.ndarray:
+    """Distance of every point (shape (m, d)) to the nearest of ``curves``: from each of
+    the ``seeds`` nearest of dense samples (several, so that a point between close passes
+    of the path, such as the turns of a helical ramp, also starts on its own pass), the
+    foot point is refined by Newton's method on ``(C(u) - p) . C'(u) = 0`` (clamped to
+    [0, 1]), which is exact to rounding; a point at a corner is measured to the junction
+    itself."""
     best = np.full(len(points), np.inf)
     for c in curves:
         n = max(4000, 40 * c.n_control_points)
         u0 = np.linspace(0.0, 1.0, n)
-        _, idx = cKDTree(c(u0)).query(points)
-        u = u0[idx]
+        _, idx = cKDTree(c(u0)).query(points, k=seeds)
+        idx = idx.reshape(len(points), -1)
+        target = np.repeat(points, idx.shape[1], axis=0)
+        u = u0[idx.ravel()]
         for _ in range(30):
             d = c.derivatives(u, 2)
-            r = d[0] - points
+            r = d[0] - target
             g = np.sum(r * d[1], axis=1)
             h = np.sum(d[1] * d[1], axis=1) + np.sum(r * d[2], axis=1)
             step = np.where(h > 0, g / np.where(h > 0, h, 1.0), 0.0)
             u = np.clip(u - np.clip(step, -1.0 / n, 1.0 / n), 0.0, 1.0)
-        dist = np.linalg.norm(c(u) - points, axis=1)
-        best = np.minimum(best, np.minimum(dist, np.linalg.norm(c(u0[idx]) - points, axis=1)))
+        dist = np.minimum(np.linalg.norm(c(u) - target, axis=1),
+                          np.linalg.norm(c(u0[idx.ravel()]) - target, axis=1))
+        best = np.minimum(best, dist.reshape(idx.shape).min(axis=1))
         # Newton's method does not settle on a corner (a junction knot, where C' jumps);
         # the junctions themselves are candidates too.
         corner_dist, _ = cKDTree(c(c.breakpoints)).query(points)

@@ -37,11 +37,15 @@ from __future__ import annotations
 import math
 import re
 from bisect import bisect_left, bisect_right
+from itertools import compress
+from operator import itemgetter, not_
 from typing import Callable, Iterator, NamedTuple
+
+import numpy as np
 
 from ..errors import PathFileError
 
-__all__ = ["Block", "Program", "split_lines", "MAX_NUMBER_CHARS", "MAX_CALL_DEPTH",
+__all__ = ["Block", "Rows", "WordTable", "Program", "split_lines", "MAX_NUMBER_CHARS", "MAX_CALL_DEPTH",
            "MAX_EXTRA_BLOCKS", "MAX_LINE_LENGTH"]
 
 MAX_LINE_LENGTH = 256
@@ -75,6 +79,113 @@ class Block(NamedTuple):
     words: dict
 
 
+class WordTable:
+    """The words of a program's plain lines, read in bulk as columns.
+
+    A plain line is what CAM systems write: letter-number words only (no N or O word, no
+    parameter or expression), an optional block delete, N number and trailing comment.
+    Each such line with at least one word is a *row*; the words of row ``r`` are
+    ``offsets[r]:offsets[r + 1]``, in the order written. A line whose numbers ``float``
+    refuses ("1.2.3"), with a literal of :data:`MAX_NUMBER_CHARS` characters or more, or
+    with a letter other than G or M twice is not plain: the full parser reads it when it
+    runs, and names its error.
+
+    Attributes
+    ----------
+    line : ndarray of int64, shape (n_rows,)
+        1-based line number of each row.
+    offsets : ndarray of int64, shape (n_rows + 1,)
+        First word of each row.
+    letter : ndarray of uint8, shape (n_words,)
+        Each word's letter (ASCII code, upper case).
+    value : ndarray of float64, shape (n_words,)
+        Each word's number.
+    plain : ndarray of bool, shape (n_lines,)
+        Whether each line is plain (blank and comment-only lines are, without a row).
+    """
+
+    def __init__(self, lines: list[str], start: int, stop: int):
+        plain = np.zeros(len(lines), dtype=bool)
+        row_lines, counts, letters, values = [], [], [], []
+        for a in range(start, stop, _TABLE_CHUNK):
+            b = min(stop, a + _TABLE_CHUNK)
+            found = _PLAIN_LINE.findall("\n".join(lines[a:b]))
+            if len(found) != b - a:  # cannot happen (one match per line); read them all in full
+                continue
+            is_plain = list(map(not_, map(itemgetter(1), found)))
+            index = a + np.flatnonzero(is_plain)  # line index of each plain line
+            joined = "\n".join(compress(map(itemgetter(0), found), is_plain))
+            del found, is_plain
+            text = np.frombuffer(joined.encode("ascii"), dtype=np.uint8)
+            at = np.flatnonzero((text >= 65) & (text <= 90))  # each word's letter
+            row = np.searchsorted(np.flatnonzero(text == 10), at)  # its plain line (0-based)
+            letter = text[at]
+            tokens = joined.translate(_LETTERS_TO_BLANKS).split()
+            bad = np.zeros(len(index), dtype=bool)
+            if tokens and max(map(len, tokens)) >= MAX_NUMBER_CHARS:
+                bad[row[np.fromiter(map(len, tokens), dtype=np.int64, count=len(tokens))
+                        >= MAX_NUMBER_CHARS]] = True
+            try:
+                value = np.array(tokens, dtype=float)
+            except ValueError:
+                value = np.array([_float_or_nan(t) for t in tokens])
+                bad[row[np.isnan(value)]] = True
+            del tokens
+            single = (letter != ord("G")) & (letter != ord("M"))
+            key = np.sort(row[single] * 32 + (letter[single] - 65))
+            bad[key[1:][key[1:] == key[:-1]] // 32] = True
+            n_words = np.bincount(row, minlength=len(index))
+            plain[index[~bad]] = True
+            keep = ~bad & (n_words > 0)
+            row_lines.append(index[keep] + 1)
+            counts.append(n_words[keep])
+            kept = keep[row]
+            letters.append(letter[kept])
+            values.append(value[kept])
+        self.plain = plain
+        self.line = np.concatenate(row_lines or [np.empty(0, np.int64)]).astype(np.int64)
+        self.offsets = np.concatenate([[0], np.cumsum(np.concatenate(counts or [np.empty(0, np.int64)]))]
+                                      ).astype(np.int64)
+        self.letter = np.concatenate(letters or [np.empty(0, np.uint8)])
+        self.value = np.concatenate(values or [np.empty(0)])
+
+    def __len__(self) -> int:
+        return len(self.line)
+
+    def block(self, r: int) -> Block:
+        """Row ``r`` as a :class:`Block`."""
+        a, b = int(self.offsets[r]), int(self.offsets[r + 1])
+        g, m, words = [], [], {}
+        for code, v in zip(self.letter[a:b].tolist(), self.value[a:b].tolist()):
+            if code == 71:  # G
+                g.append(v)
+            elif code == 77:  # M
+                m.append(v)
+            else:
+                words[chr(code)] = v
+        return Block(int(self.line[r]), tuple(g), tuple(m), words)
+
+
+class Rows(NamedTuple):
+    """Rows ``start .. stop - 1`` of a :class:`WordTable`: consecutive plain lines of the
+    program, executed one after the other (:meth:`Program.blocks` with ``runs=True``)."""
+
+    table: WordTable
+    start: int
+    stop: int
+
+    def each(self) -> Iterator[Block]:
+        """The rows one :class:`Block` at a time."""
+        return (self.table.block(r) for r in range(self.start, self.stop))
+
+
+def _float_or_nan(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
+
+
 def split_lines(data: bytes, source: str, upper: bool = False) -> list[str]:
     """The lines of a program file: UTF-8 (an optional byte-order mark dropped), any of
     CRLF/CR/LF endings, each at most :data:`MAX_LINE_LENGTH` characters; upper-cased
@@ -86,32 +197,35 @@ def split_lines(data: bytes, source: str, upper: bool = False) -> list[str]:
     except UnicodeDecodeError as exc:
         line = data[: exc.start].count(b"\n") + 1
         raise PathFileError("line is not UTF-8 text; is this a G-code file?", source, line) from None
-    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+    text = text.replace("\r\n", "\n").replace("\r", "\n")
+    lines = text.split("\n")
     if lines and lines[-1] == "":
         lines.pop()
     if lines and max(map(len, lines)) > MAX_LINE_LENGTH:
         i = next(i for i, t in enumerate(lines) if len(t) > MAX_LINE_LENGTH)
         raise PathFileError(f"line is longer than {MAX_LINE_LENGTH} characters; is this a G-code "
                             "file?", source, i + 1)
-    return [t.upper() for t in lines] if upper else lines
+    if upper:  # one call for the whole text (upper-casing never makes or removes a line break)
+        lines = text.upper().split("\n")[: len(lines)]
+    return lines
 
 
 # ---------------------------------------------------------------------- tokenizer
-_PLAIN = re.compile(r"(?:[a-z][+-]?(?:\d+\.?\d*|\.\d+))*\Z")
-_PLAIN_WORD = re.compile(r"([a-z])([+-]?(?:\d+\.?\d*|\.\d+))")
-# The lines CAM systems write, read from the upper-cased line in one match: an optional
-# block delete and N number, up to FAST_WORDS letter-number words (no O word) separated by
-# blanks, an optional trailing comment; the match's groups are the words' letters and
-# numbers. A number of digits and points that float() refuses ("1.2.3"), and every other
-# line, goes through the full parser.
-FAST_WORDS = 8
-_FAST_LINE = re.compile(r"[ \t]*(?:/[ \t]*)?(?:N\d+[ \t]*)?"
-                        + r"(?:([A-MP-Z])([+-]?[\d.]+)[ \t]*)?" * FAST_WORDS
-                        + r"(?:\([^()]*\)[ \t]*)?(?:;.*)?\Z")
+# one way to match each number ("\d+\.?\d*" had many, and backtracked exponentially)
+_PLAIN = re.compile(r"(?:[a-z][+-]?(?:\d+(?:\.\d*)?|\.\d+))*\Z")
+_PLAIN_WORD = re.compile(r"([a-z])([+-]?(?:\d+(?:\.\d*)?|\.\d+))")
+# The lines CAM systems write ("plain" lines), recognised in the upper-cased text of a whole
+# program by one multi-line search: an optional block delete and N number, letter-number
+# words (no N or O word) separated by blanks, an optional trailing comment. Group 1 is the
+# words of a plain line; group 2 is any other line (never empty), which the full parser
+# reads when it runs.
+_PLAIN_LINE = re.compile(r"^(?:[ \t]*(?:/[ \t]*)?(?:N[0-9]+[ \t]*)?((?:[A-MP-Z][+-]?[0-9.]+[ \t]*)*)"
+                         r"(?:\([^()\n]*\)[ \t]*)?(?:;[^\n]*)?$|(.*)$)", re.M)
+_LETTERS_TO_BLANKS = str.maketrans(dict.fromkeys("ABCDEFGHIJKLMNOPQRSTUVWXYZ", " "))
+_TABLE_CHUNK = 1 << 16  # lines tokenised at a time (bounds the temporary lists)
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
 _DOLLAR_WORD = re.compile(r"\$[+-]?[0-9.]")  # LinuxCNC's spindle selector $n (GRBL: $H, $$, $x=v)
 _OWORD = re.compile(r"o(<[^>]*>|\d+)([a-z]+)")
-_LONG_NUMBER = re.compile(r"[\d.]{%d}" % MAX_NUMBER_CHARS)  # a literal the full parser must judge
 _FUNCTIONS = {
     "abs": abs, "acos": lambda x: math.degrees(math.acos(x)),
     "asin": lambda x: math.degrees(math.asin(x)), "cos": lambda x: math.cos(math.radians(x)),
@@ -276,9 +390,10 @@ class Program:
     Parameters
     ----------
     lines : list of str
-        The text, one entry per line (:func:`split_lines`). Upper-cased lines of plain
-        words take a fast path (one regular-expression match each); any other line is
-        read by the full parser.
+        The text, one entry per line (:func:`split_lines`). The plain lines of an
+        upper-cased text (words only, as CAM systems write them) are read in bulk when the
+        program is made (:class:`WordTable`); any other line is read by the full parser
+        when it first runs.
     source : str
         File name for messages.
     system : callable, optional
@@ -290,11 +405,10 @@ class Program:
                  system: Callable[[str], float | None] | None = None):
         self.source = source
         self.system = system or (lambda name: None)
-        self.lines = lines
         # Parsed lines, by index: every O-word line (found before running, for the jumps of
         # the control flow) and every line the full parser read (kept for loops). Plain
-        # lines are read each time they run, in one regular-expression match, and never
-        # stored: a program of millions of lines costs no memory per line.
+        # lines are read once, in bulk, into the word table: a program of millions of
+        # lines costs about 17 bytes per word and 16 per line.
         self.parsed: dict = {}  # index -> ("o", label, kw, args) | ("w", words, assigns) | ("skip", why)
         self.olabels: dict = {}  # label -> sorted list of (index, keyword)
         start, stop = 0, len(lines)
@@ -304,9 +418,13 @@ class Program:
             end = next((i for i in range(start, len(lines)) if lines[i].strip() == "%"), None)
             stop = end if end is not None else len(lines)
         self.start, self.stop = start, stop
-        for i in range(start, stop):
-            text = lines[i]
-            if ("o" in text or "O" in text) and not _FAST_LINE.match(text):
+        self.table = WordTable(lines, start, stop)
+        plain = self.table.plain
+        self._breaks = np.append(start + np.flatnonzero(~plain[start:stop]), stop)  # non-plain lines
+        # the text of the other lines, for the full parser (the plain ones are in the table)
+        self.lines = {i: lines[i] for i in self._breaks[:-1].tolist()}
+        for i, text in self.lines.items():
+            if "o" in text or "O" in text:
                 item = self._parse(text, i + 1)
                 if item is not None:
                     self.parsed[i] = item
@@ -446,53 +564,43 @@ class Program:
         j = bisect_left(marks, (index, ""))  # this while's own mark
         return j > 0 and marks[j - 1][1] == "do"
 
-    def blocks(self) -> Iterator[Block]:
-        """Run the program, yielding each executed line that holds machine words."""
+    def blocks(self, runs: bool = False) -> Iterator[Block | Rows]:
+        """Run the program, yielding each executed line that holds machine words.
+
+        Parameters
+        ----------
+        runs : bool
+            Yield each run of consecutive plain lines as one :class:`Rows` (for a reader
+            that takes them in bulk) instead of a :class:`Block` per line.
+        """
         budget = 10 * (self.stop - self.start) + MAX_EXTRA_BLOCKS
         calls: list = []  # (return index, saved #1-#30, label)
         repeats: dict = {}  # index of a repeat -> remaining count
         pc = self.start
         parsed, numbered, lines, stop = self.parsed, self.numbered, self.lines, self.stop
-        fast_line, long_number = _FAST_LINE.match, _LONG_NUMBER.search
-        new_block = tuple.__new__  # Block(...) without the Python-level __new__ of a NamedTuple
-        slots = range(0, 2 * FAST_WORDS, 2)
+        table, plain, breaks, row_line = self.table, self.table.plain, self._breaks, self.table.line
         while pc < stop:
-            budget -= 1
-            if budget < 0:
+            if budget <= 0:
                 raise self.error(
                     f"the program executes more than {10 * (self.stop - self.start) + MAX_EXTRA_BLOCKS} "
                     "lines (10 per line of text plus MAX_EXTRA_BLOCKS); an endless loop?", pc + 1)
+            if plain[pc]:  # a run of plain lines, up to the next other line
+                end = min(int(breaks[np.searchsorted(breaks, pc)]), pc + budget)
+                budget -= end - pc
+                r0, r1 = row_line.searchsorted((pc + 1, end + 1)).tolist()
+                pc = end
+                if r1 > r0:
+                    if runs:
+                        yield Rows(table, r0, r1)
+                    else:
+                        yield from Rows(table, r0, r1).each()
+                continue
+            budget -= 1
             item = parsed.get(pc)
             line = pc + 1
             pc += 1
             if item is None:
-                text = lines[line - 1]
-                fast = fast_line(text)
-                if fast is not None and not (len(text) > MAX_NUMBER_CHARS and long_number(text)):
-                    words = fast.groups()
-                    if words[0] is None:
-                        continue  # blank, or a comment
-                    g = m = ()
-                    rest = {}
-                    try:
-                        for i in slots:
-                            letter = words[i]
-                            if letter is None:
-                                break
-                            if letter == "G":
-                                g += (float(words[i + 1]),)
-                            elif letter == "M":
-                                m += (float(words[i + 1]),)
-                            elif letter in rest:
-                                raise self.error(f"word {letter} appears twice", line)
-                            else:
-                                rest[letter] = float(words[i + 1])
-                    except ValueError:
-                        pass  # "1.2.3": the full parser names it
-                    else:
-                        yield new_block(Block, (line, g, m, rest))
-                        continue
-                item = self._parse(text, line)
+                item = self._parse(lines[line - 1], line)
                 if item is None:
                     continue
                 parsed[line - 1] = item

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from array import array
+from itertools import chain
 
 import numpy as np
 
@@ -19,7 +20,7 @@ from ..errors import InvalidCurveError
 from ..nurbs import NurbsCurve, make_arc
 
 __all__ = ["with_end_point", "arc_by_center", "arc_sweep", "HELIX_TOLERANCE", "arc_by_bulge", "arc_by_radius", "PieceChain",
-           "bezier_elevation", "arc_spans"]
+           "bezier_elevation", "arc_spans", "arc_angle_deviation", "spiral_segments"]
 
 
 def with_end_point(curve: NurbsCurve, end) -> NurbsCurve:
@@ -127,6 +128,64 @@ _HELIX_STEP = (384.0 * HELIX_TOLERANCE) ** 0.25
 """Angle [rad] of one cubic Hermite piece of a helix: it deviates at most r h^4 / 384."""
 
 
+def arc_angle_deviation(phi: np.ndarray) -> np.ndarray:
+    """Largest ``|theta(u) - phi u|`` [rad] on a rational quadratic circular arc of angle
+    ``phi`` (in (0, pi]; weights 1, cos(phi / 2), 1), whose angle runs as
+    ``tan((theta - phi / 2) / 2) = (2 u - 1) tan(phi / 4)`` (the stereographic
+    parametrisation); about ``phi**3 / 249``."""
+    phi = np.asarray(phi, dtype=float)
+    t = np.tan(phi / 4)
+    s = np.minimum(1.0, np.sqrt(np.maximum(4 * t / phi - 1, 0.0)) / t)  # where the derivative is 0
+    return 2 * np.arctan(s * t) - s * phi / 2
+
+
+def spiral_segments(sweep: np.ndarray, radius0: np.ndarray, radius1: np.ndarray,
+                    rise: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How :meth:`PieceChain.build` splits helices and spirals into cubic segments.
+
+    A *rational* segment is a rational quadratic arc (at most a quarter turn) whose radius
+    and other coordinates move linearly in its parameter: exact on the circle, off the
+    true spiral only radially and along the other axes, by at most ``drift *
+    arc_angle_deviation(angle)`` with ``drift = hypot(radius1 - radius0, rise) / |sweep|``
+    [length / rad]. A *Hermite* segment (angle at most ``(384 HELIX_TOLERANCE)^(1/4)``)
+    is exact along the other axes and off the circle by at most ``r h^4 / 384``. Each
+    piece takes the kind that needs fewer segments within :data:`HELIX_TOLERANCE` of its
+    smaller radius: rational for the spirals of rounded arc centres (a tiny drift), Hermite
+    for steep helices.
+
+    Parameters
+    ----------
+    sweep : ndarray, shape (n,)
+        Signed sweep of each piece [rad].
+    radius0, radius1 : ndarray, shape (n,)
+        Start and end radius [length].
+    rise : ndarray, shape (n,)
+        Distance the other coordinates travel [length].
+
+    Returns
+    -------
+    count : ndarray of int64, shape (n,)
+        Segments of each piece.
+    rational : ndarray of bool, shape (n,)
+        Whether the piece is built of rational segments.
+    """
+    sweep = np.abs(np.asarray(sweep, dtype=float))
+    hermite = np.maximum(1, np.ceil(sweep / _HELIX_STEP)).astype(np.int64)
+    allowed = HELIX_TOLERANCE * np.minimum(radius0, radius1)  # [length]
+    drift = np.hypot(np.asarray(radius1) - radius0, rise) / np.where(sweep > 0, sweep, 1.0)  # [length / rad]
+    with np.errstate(divide="ignore"):
+        step = np.cbrt(249.0 * allowed / drift)  # the angle where drift * phi^3 / 249 = allowed
+    count = np.maximum(arc_spans(sweep), np.ceil(sweep / np.minimum(step, np.pi / 2) - 1e-12))
+    count = np.minimum(count, hermite + 1).astype(np.int64)  # beyond the Hermite count: Hermite
+    for _ in range(64):  # the estimate is within a segment or two; make sure
+        short = (count <= hermite) & (drift * arc_angle_deviation(sweep / count) > allowed)
+        if not np.any(short):
+            break
+        count[short] += 1
+    rational = count <= hermite
+    return np.where(rational, count, hermite), rational
+
+
 def bezier_elevation(q: int, p: int) -> np.ndarray:
     """Matrix ``E`` (shape (p + 1, q + 1)) that raises a Bézier segment of degree q to
     degree p: new homogeneous points ``E @ H`` (The NURBS Book, eq. 5.36)."""
@@ -189,6 +248,21 @@ class PieceChain:
         self.last = list(end)
         return length
 
+    def add_lines(self, ends: np.ndarray) -> None:
+        """Straight pieces through the rows of ``ends`` (shape (n_pieces, n_axes)) in
+        order, as :meth:`add_line` adds each."""
+        ends = np.ascontiguousarray(ends, dtype=float)
+        if ends.ndim != 2 or ends.shape[1] != self.n_axes:
+            raise InvalidCurveError(
+                f"line ends of shape {ends.shape} cannot join a path of {self.n_axes} axes")
+        if not len(ends):
+            return
+        points = ends.tolist()
+        self.kind.frombytes(bytes(len(points)))  # kind 0: line
+        self.ends.frombytes(ends.tobytes())
+        self.lengths.extend(map(math.dist, chain([self.last], points), points))
+        self.last = points[-1]
+
     def add_arc(self, end, cols: tuple, center, radius: float, start_angle: float, sweep: float) -> float:
         """A circular arc in the coordinates ``cols`` (two column indices) round
         ``center`` from ``start_angle`` through ``sweep`` [rad] (negative: clockwise); the
@@ -206,9 +280,10 @@ class PieceChain:
                    start_angle: float, sweep: float, length: float) -> float:
         """A helix or spiral: the angle runs ``start_angle -> start_angle + sweep`` [rad]
         round ``center`` in the coordinates ``cols``, the radius ``radius0 -> radius1`` and
-        every other coordinate from the start to ``end`` linearly in the angle. Built as a
-        C1 piecewise cubic (Hermite pieces of angle at most ``(384 HELIX_TOLERANCE)^(1/4)``,
-        within :data:`HELIX_TOLERANCE` of the radius), ending exactly at ``end``.
+        every other coordinate from the start to ``end`` linearly in the angle. Built of
+        cubic segments within :data:`HELIX_TOLERANCE` of the smaller radius, ending exactly
+        at ``end``: rational arcs with a linear radial and axial drift, or Hermite pieces,
+        whichever needs fewer (:func:`spiral_segments`).
         ``length`` is the caller's arc length of it (its parameter share); returned."""
         self.kind.append(3)
         self.ends.extend(end)
@@ -277,7 +352,9 @@ class PieceChain:
         a, b = edges[:-1], edges[1:]
 
         m_arc = arc_spans(arcs[:, 6])
-        m_spiral = np.maximum(1, np.ceil(np.abs(spirals[:, 7]) / _HELIX_STEP)).astype(np.int64)
+        m_spiral, rational = spiral_segments(
+            spirals[:, 7], spirals[:, 4], spirals[:, 5],
+            _other_distance(starts[spiral_idx], ends[spiral_idx], spirals[:, :2]))
         count = np.empty(n, dtype=np.int64)  # new control points (= knots) per piece
         count[lines] = p
         count[arc_idx] = p * m_arc
@@ -314,8 +391,11 @@ class PieceChain:
             K[p + rows] = b[lines][:, None]
         if len(arc_idx):
             self._arc_rows(arcs, m_arc, arc_idx, starts, ends, a, b, scale, offset, p, P, W, K)
-        if len(spiral_idx):
-            self._spiral_rows(spirals, m_spiral, spiral_idx, starts, ends, a, b, scale, offset, p, P, W, K)
+        for kind in (False, True):  # Hermite, rational
+            sel = rational == kind
+            if np.any(sel):
+                self._spiral_rows(spirals[sel], m_spiral[sel], spiral_idx[sel], kind, starts, ends, a, b,
+                                  scale, offset, p, P, W, K)
         for k, c in zip(curve_idx, curves):
             r0, cnt = offset[k], c.n_control_points - 1
             P[r0: r0 + cnt] = c.control_points[1:]
@@ -326,15 +406,41 @@ class PieceChain:
         curve = NurbsCurve(p, K, P, W, name=name, units=units)
         return curve, edges
 
-    def _spiral_rows(self, spirals, m, idx, starts, ends, a, b, scale, offset, p, P, W, K) -> None:
-        """Fill the rows of every helix or spiral piece: cubic Hermite segments."""
+    def _spiral_rows(self, spirals, m, idx, rational, starts, ends, a, b, scale, offset, p, P, W, K) -> None:
+        """Fill the rows of helix or spiral pieces (:func:`spiral_segments`): cubic Hermite
+        segments, or rational quadratic arcs with a radius and other coordinates linear in
+        the parameter, raised to cubics."""
         _, owner, within = _segments(m)
         ci, cj = spirals[owner, 0].astype(np.int64), spirals[owner, 1].astype(np.int64)
         cx, cy, r0, r1, a0, sweep = (spirals[owner, f] for f in range(2, 8))
         S, E = starts[idx][owner], ends[idx][owner]
         seg = np.arange(len(owner))
+        t0, t1 = within / m[owner], (within + 1) / m[owner]
+        if rational:
+            # (w C, w) of an arc whose unit vector is the rational quadratic e(u) (weights 1,
+            # w, 1) times a point linear in u, V(u) = c + rho(u) e + L(u): the product of the
+            # Bernstein bases of degrees 2 and 1 gives a cubic (The NURBS Book, eq. 5.36).
+            ang0, ang1 = a0 + sweep * t0, a0 + sweep * t1
+            w = np.cos((ang1 - ang0) / 2)
+            units = [(np.cos(ang0), np.sin(ang0)),
+                     (np.cos((ang0 + ang1) / 2) / w, np.sin((ang0 + ang1) / 2) / w),
+                     (np.cos(ang1), np.sin(ang1))]
+
+            def point(i: int, t: np.ndarray) -> np.ndarray:  # V at the arc's point i and parameter end t
+                X = S + t[:, None] * (E - S)
+                rad = r0 + (r1 - r0) * t
+                X[seg, ci], X[seg, cj] = cx + rad * units[i][0], cy + rad * units[i][1]
+                return X
+
+            Wq = np.stack([np.ones_like(w), (1 + 2 * w) / 3, (1 + 2 * w) / 3, np.ones_like(w)], axis=1)
+            w2 = 2 * w[:, None]
+            Q = np.stack([point(0, t0), (point(0, t1) + w2 * point(1, t0)) / (1 + w2),
+                          (w2 * point(1, t1) + point(2, t0)) / (1 + w2), point(2, t1)],
+                         axis=1)  # (segments, 4, d)
+            self._place(Q, Wq, m, idx, starts, ends, a, b, scale, offset, p, P, W, K)
+            return
         ends_of = []  # point and d/dangle at the start (t0) and the end (t1) of each segment
-        for t in (within / m[owner], (within + 1) / m[owner]):
+        for t in (t0, t1):
             ang, rad = a0 + sweep * t, r0 + (r1 - r0) * t
             c, s = np.cos(ang), np.sin(ang)
             dr = (r1 - r0) / sweep
@@ -387,6 +493,16 @@ class PieceChain:
         knot = a[idx][owner] + (b - a)[idx][owner] * (within + 1) / m[owner]
         knot[first + m - 1] = b[idx]
         K[p + rows] = knot[:, None]
+
+
+def _other_distance(starts: np.ndarray, ends: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Distance from ``starts`` to ``ends`` (shape (n, n_axes)) over every coordinate but
+    the two in ``cols`` (shape (n, 2), column indices) of each row."""
+    delta = ends - starts
+    rows = np.arange(len(delta))
+    for k in range(2):
+        delta[rows, cols[:, k].astype(np.int64)] = 0.0
+    return np.sqrt(np.sum(delta * delta, axis=1))
 
 
 def _segments(m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
