@@ -19,9 +19,9 @@ The machine may be shared, so every figure is given twice:
   the tail where a worker idles, the parent's writing) is kept in it.
 
 The engine overhead is the CPU time of every process of the run (this one, and the
-workers: local ones through ``getrusage(RUSAGE_CHILDREN)``, Dask workers and their
-nannies asked for theirs) beyond the cases' own CPU time, per case and as a share of the
-case time. *Work* is the cases' CPU time over the serial run's: above 1 when a path's
+workers: local ones through ``getrusage(RUSAGE_CHILDREN)``, Dask workers asked for
+theirs; a LocalCluster's scheduler and nannies run in this process) beyond the cases'
+own CPU time, per case and as a share of the case time. *Work* is the cases' CPU time over the serial run's: above 1 when a path's
 tables are built by two workers, or when two busy cores slow each other (shared caches
 and memory; on a loaded machine, other programs too).
 
@@ -61,10 +61,9 @@ def _worker_cpu() -> float:
 
 
 def _cluster_cpu(client) -> float:
-    """CPU time of the cluster's workers and nannies [s] (its scheduler runs in this
-    process)."""
-    return (sum(client.run(_worker_cpu).values())
-            + sum(client.run(_worker_cpu, nanny=True).values()))
+    """CPU time of the cluster's worker processes [s] (a LocalCluster's scheduler and
+    nannies run in this process)."""
+    return sum(client.run(_worker_cpu).values())
 
 
 def timed(study, cases, client=None, **options) -> dict:

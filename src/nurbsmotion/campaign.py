@@ -1138,8 +1138,9 @@ def _died(case: Case, message: str) -> dict:
 
 def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[dict]:
     """On a Dask cluster, fed by a :class:`_Planner` as the local workers are: one slot
-    per worker thread, each with a chunk ahead (tasks bound to that worker, but
-    free to run on another if it leaves); rows gathered here as the tasks finish. A task
+    per worker thread, each with a task queued behind the one it runs (tasks bound to
+    that worker, but free to run on another if it leaves); rows gathered here as the
+    tasks finish. A task
     whose worker died (Dask's ``KilledWorker``, after the scheduler's
     ``allowed-failures``) is split: each of its cases runs again alone, and a case whose
     worker dies again is recorded as :data:`WORKER_DIED`."""
