@@ -794,14 +794,15 @@ def _run_batch(function: Callable, batch: list[Case]) -> list[dict]:
     return [function(c) for c in batch]
 
 
-_CHUNK_SECONDS = 0.05
-"""Measured work [CPU s] given to a worker at a time (at least one case): a local worker
-is sent its next chunk while it runs one, so it never waits for this process; the cases
-not sent yet can still be shared out at the end."""
+_CHUNK_SECONDS = 0.25
+"""Measured work [CPU s] given to a worker at a time (at least one case), its rows sent
+back together: each exchange with a worker costs about a millisecond of CPU time (local
+pipes on this 2-core VM; a Dask task more), which would be 2-5 % of a 20-50 ms case."""
 
-_DASK_CHUNK_SECONDS = 0.25
-"""The same on Dask, where a task costs the scheduler, the worker and this process a few
-milliseconds of CPU time each."""
+_TAIL_SECONDS = 0.05
+"""Once every path has been given out, a worker is sent its next chunk before it ends
+the one it runs only if its cases are shorter than this [CPU s]: a long case sent ahead
+could no longer go to a worker that runs out of work."""
 
 
 def _execute_pool(cases: list[Case], n_workers: int, function: Callable) -> Iterable[dict]:
@@ -821,14 +822,14 @@ class _Slot:
     """What :class:`_Planner` knows of a worker: ``own``, the cases given to it and not
     sent yet; ``sent``, the cases sent to it, in order (the first one running); ``warm``,
     the paths whose tables it has built; ``retry``, a case it runs again alone;
-    ``chunks``, the tasks in flight (Dask)."""
+    ``chunks``, the sizes of the chunks in flight."""
 
     def __init__(self):
         self.own: deque = deque()
         self.sent: deque = deque()
         self.warm: set = set()
         self.retry: Case | None = None
-        self.chunks = 0
+        self.chunks: deque = deque()
 
 
 class _Planner:
@@ -841,16 +842,15 @@ class _Planner:
     none when that would not end sooner, so that the workers finish together without
     building a path's tables twice for a few cases. The case time and the tables' time
     are measured from the rows so far (``case_cpu_s``). A worker is given about
-    ``chunk_seconds`` of work at a time (:data:`_CHUNK_SECONDS` locally,
-    :data:`_DASK_CHUNK_SECONDS` on Dask).
+    :data:`_CHUNK_SECONDS` of work at a time, less toward the end.
     """
 
-    def __init__(self, cases: list[Case], chunk_seconds: float | None = None):
-        self.chunk_seconds = _CHUNK_SECONDS if chunk_seconds is None else chunk_seconds
+    def __init__(self, cases: list[Case]):
         groups: dict = {}
         for c in cases:
             groups.setdefault(_path_key(c), []).append(c)
         self.paths = deque(groups.values())
+        self.left = len(cases)  # cases not sent yet
         self.path_cpu: dict = {}  # path key -> [sum, count]: CPU s of its warm cases
         self.cpu = [0.0, 0, 0.0, 0]  # CPU s and count of the cold cases, of the warm ones
         self.cold: set = set()  # ids of cases sent to a worker without the path's tables
@@ -896,7 +896,7 @@ class _Planner:
             return True
         queue = slot.own or slot.sent
         c = self.case_time(_path_key(queue[-1])) if queue else None
-        return c is None or c <= self.chunk_seconds
+        return c is None or c <= _TAIL_SECONDS
 
     def next_chunk(self, slot: _Slot, slots: list[_Slot]) -> list[Case]:
         """The next cases for ``slot`` (moved to its ``sent``), or ``[]``: all given out,
@@ -907,14 +907,19 @@ class _Planner:
             elif not self._steal(slot, slots):
                 return []
         c = self.case_time(_path_key(slot.own[0]))
-        size = 1 if not c else max(1, min(len(slot.own), int(self.chunk_seconds / c)))
+        # No more than a share of the work left (guided self-scheduling): the chunks
+        # shrink toward the end, where their cases could no longer be shared out.
+        seconds = min(_CHUNK_SECONDS, self.left * (c or 0.0) / (4 * len(slots)))
+        size = 1 if not c else max(1, min(len(slot.own), int(seconds / c)))
         chunk = [slot.own.popleft() for _ in range(size)]
+        self.left -= size
         for case in chunk:
             key = _path_key(case)
             if key not in slot.warm:
                 slot.warm.add(key)
                 self.cold.add(case.case_id)
         slot.sent.extend(chunk)
+        slot.chunks.append(len(chunk))
         return chunk
 
     def _steal(self, thief: _Slot, slots: list[_Slot]) -> bool:
@@ -965,9 +970,10 @@ class _LocalWorker(_Slot):
         kernels) with no path tables yet."""
         ctx = _mp_context()
         self.conn, child = ctx.Pipe()
-        self.process = ctx.Process(target=_worker_loop, args=(child, self.parent,
-                                                              self.function), daemon=True,
-                                   name=f"nurbsmotion-campaign-{self.index}")
+        self.running = ctx.RawValue("q", 0)  # place in its chunk of the case it runs
+        self.process = ctx.Process(target=_worker_loop,
+                                   args=(child, self.running, self.parent, self.function),
+                                   daemon=True, name=f"nurbsmotion-campaign-{self.index}")
         self.process.start()
         child.close()
         self.warm = set()
@@ -979,10 +985,12 @@ class _LocalWorker(_Slot):
             pass
 
 
-def _worker_loop(conn, parent: int, function: Callable) -> None:
-    """In a local worker: run the cases of each chunk received, sending back each row as
-    it finishes (``("row", row)``, or ``("error", message)`` when ``function`` raised or
-    its row could not be sent), until ``None`` or the pipe closes."""
+def _worker_loop(conn, running, parent: int, function: Callable) -> None:
+    """In a local worker: run the cases of each chunk received (``running`` holding the
+    place of the case it runs, for the campaign to know which one killed it) and send
+    back the chunk's rows together, each ``("row", row)``, or ``("error", message)``
+    when ``function`` raised or its row could not be sent; until ``None`` or the pipe
+    closes."""
     _worker_start(parent)
     while True:
         try:
@@ -991,18 +999,29 @@ def _worker_loop(conn, parent: int, function: Callable) -> None:
             return
         if chunk is None:
             return
-        for case in chunk:
+        out = []
+        for k, case in enumerate(chunk):
+            running.value = k
             try:
-                message = ("row", function(case))
+                out.append(("row", function(case)))
             except Exception as exc:  # noqa: BLE001 - reported as the case's row
-                message = ("error", f"{type(exc).__name__}: {exc}")
+                out.append(("error", f"{type(exc).__name__}: {exc}"))
+        try:
             try:
-                try:
-                    conn.send(message)
-                except (pickle.PicklingError, TypeError, AttributeError) as exc:
-                    conn.send(("error", f"{type(exc).__name__}: {exc}"))
-            except (BrokenPipeError, EOFError, OSError):
-                return
+                conn.send(out)
+            except (pickle.PicklingError, TypeError, AttributeError):
+                conn.send([_sendable(m) for m in out])
+        except (BrokenPipeError, EOFError, OSError):
+            return
+
+
+def _sendable(message: tuple) -> tuple:
+    """``message``, or an error message if it cannot be pickled."""
+    try:
+        pickle.dumps(message)
+    except Exception as exc:  # noqa: BLE001
+        return ("error", f"{type(exc).__name__}: {exc}")
+    return message
 
 
 class _LocalWorkers:
@@ -1025,9 +1044,10 @@ class _LocalWorkers:
         if w.retry is not None:
             if not w.sent:
                 w.sent.append(w.retry)
+                w.chunks.append(1)
                 w.send([w.retry])
             return
-        while len(w.sent) < (2 if self.planner.ahead(w) else 1):
+        while len(w.chunks) < (2 if self.planner.ahead(w) else 1):
             chunk = self.planner.next_chunk(w, self.workers)
             if not chunk:
                 return
@@ -1057,22 +1077,32 @@ class _LocalWorkers:
         that killed two processes."""
         try:
             while w.sent and w.conn.poll():
-                kind, payload = w.conn.recv()
-                case = w.sent.popleft()
-                row = payload if kind == "row" else _died(case, payload)
-                if w.retry is not None:
-                    row["attempts"], w.retry = 2, None
-                self.planner.record(case, row)
-                yield row
+                messages = w.conn.recv()
+                w.chunks.popleft()
+                for kind, payload in messages:
+                    case = w.sent.popleft()
+                    row = payload if kind == "row" else _died(case, payload)
+                    if w.retry is not None:
+                        row["attempts"], w.retry = 2, None
+                    self.planner.record(case, row)
+                    yield row
         except (EOFError, OSError):  # it is exiting: its pipe closed first
             w.process.join(timeout=10)
         if not w.sent or w.process.is_alive():
             return
         w.process.join()
         w.conn.close()
-        case = w.sent.popleft()  # the case it was running
+        # The case it was running; those of its chunk before it ran, but their rows were
+        # not sent: they run again, as do the ones it had not started.
+        k = min(max(0, w.running.value), w.chunks[0] - 1)
+        case = w.sent[k]
+        del w.sent[k]
         w.own.extendleft(reversed(w.sent))
+        self.planner.left += len(w.sent)
         w.sent.clear()
+        w.chunks.clear()
+        for c in w.own:
+            self.planner.cold.discard(c.case_id)
         self.planner.cold.discard(case.case_id)
         if w.retry is not None:
             w.retry = None
@@ -1138,19 +1168,19 @@ def _died(case: Case, message: str) -> dict:
 
 def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[dict]:
     """On a Dask cluster, fed by a :class:`_Planner` as the local workers are: one slot
-    per worker thread, each with a task queued behind the one it runs (tasks bound to
-    that worker, but free to run on another if it leaves); rows gathered here as the
-    tasks finish. A task
-    whose worker died (Dask's ``KilledWorker``, after the scheduler's
-    ``allowed-failures``) is split: each of its cases runs again alone, and a case whose
-    worker dies again is recorded as :data:`WORKER_DIED`."""
+    per worker thread, each with a task queued behind the one it runs but at the very
+    end (tasks bound to that worker, but free to run on another if it leaves); rows
+    gathered here as the tasks finish. A task whose worker died (Dask's
+    ``KilledWorker``, after the scheduler's ``allowed-failures``) is split: each of its
+    cases runs again alone, and a case whose worker dies again is recorded as
+    :data:`WORKER_DIED`."""
     from dask.distributed import Client, as_completed
 
     client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
     try:
         _dask_warm_up(client, cases)
         client.wait_for_workers(1)
-        planner = _Planner(cases, _DASK_CHUNK_SECONDS)
+        planner = _Planner(cases)
         slots: dict = {}  # (worker address, thread) -> _Slot
         tasks: dict = {}  # future key -> (slot or None for a case alone, its cases)
         done = as_completed()
@@ -1161,13 +1191,12 @@ def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[
                     slots.setdefault((addr, k), _Slot())
             order = list(slots.values())
             for (addr, _), slot in slots.items():
-                while slot.chunks < (2 if planner.ahead(slot) else 1):
+                while len(slot.chunks) < (2 if planner.ahead(slot) else 1):
                     chunk = planner.next_chunk(slot, order)
                     if not chunk:
                         break
                     fut = client.submit(_run_batch, function, chunk, workers=[addr],
                                         allow_other_workers=True, retries=1, pure=False)
-                    slot.chunks += 1
                     tasks[fut.key] = (slot, chunk)
                     done.add(fut)
 
@@ -1175,7 +1204,7 @@ def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[
         for fut in done:
             slot, chunk = tasks.pop(fut.key)
             if slot is not None:
-                slot.chunks -= 1
+                slot.chunks.remove(len(chunk))
                 ids = {c.case_id for c in chunk}
                 slot.sent = deque(c for c in slot.sent if c.case_id not in ids)
             try:
