@@ -799,6 +799,11 @@ _CHUNK_SECONDS = 0.25
 back together: each exchange with a worker costs about a millisecond of CPU time (local
 pipes on this 2-core VM; a Dask task more), which would be 2-5 % of a 20-50 ms case."""
 
+_DASK_CHUNK_SECONDS = 1.0
+"""The same for a Dask task, which costs the scheduler, the worker and this process
+several milliseconds of CPU time (the 2-worker LocalCluster's engine overhead went from
+1.7 to 3.0-3.4 ms a case with 250 ms tasks)."""
+
 _TAIL_SECONDS = 0.05
 """Once every path has been given out, a worker is sent its next chunk before it ends
 the one it runs only if its cases are shorter than this [CPU s]: a long case sent ahead
@@ -842,10 +847,11 @@ class _Planner:
     none when that would not end sooner, so that the workers finish together without
     building a path's tables twice for a few cases. The case time and the tables' time
     are measured from the rows so far (``case_cpu_s``). A worker is given about
-    :data:`_CHUNK_SECONDS` of work at a time, less toward the end.
+    ``chunk_seconds`` of work at a time, less toward the end.
     """
 
-    def __init__(self, cases: list[Case]):
+    def __init__(self, cases: list[Case], chunk_seconds: float = _CHUNK_SECONDS):
+        self.chunk_seconds = chunk_seconds
         groups: dict = {}
         for c in cases:
             groups.setdefault(_path_key(c), []).append(c)
@@ -909,7 +915,7 @@ class _Planner:
         c = self.case_time(_path_key(slot.own[0]))
         # No more than a share of the work left (guided self-scheduling): the chunks
         # shrink toward the end, where their cases could no longer be shared out.
-        seconds = min(_CHUNK_SECONDS, self.left * (c or 0.0) / (4 * len(slots)))
+        seconds = min(self.chunk_seconds, self.left * (c or 0.0) / (4 * len(slots)))
         size = 1 if not c else max(1, min(len(slot.own), int(seconds / c)))
         chunk = [slot.own.popleft() for _ in range(size)]
         self.left -= size
@@ -1180,7 +1186,7 @@ def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[
     try:
         _dask_warm_up(client, cases)
         client.wait_for_workers(1)
-        planner = _Planner(cases)
+        planner = _Planner(cases, _DASK_CHUNK_SECONDS)
         slots: dict = {}  # (worker address, thread) -> _Slot
         tasks: dict = {}  # future key -> (slot or None for a case alone, its cases)
         done = as_completed()
