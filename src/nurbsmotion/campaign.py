@@ -796,8 +796,8 @@ def _run_batch(function: Callable, batch: list[Case]) -> list[dict]:
 
 _CHUNK_SECONDS = 0.25
 """Measured work [CPU s] given to a worker at a time (at least one case), its rows sent
-back together: each exchange with a worker costs about a millisecond of CPU time (local
-pipes on this 2-core VM; a Dask task more), which would be 2-5 % of a 20-50 ms case."""
+back together: an exchange with a local worker cost about a millisecond of CPU time
+(measured on a 2-core virtual machine), 2-5 % of a 20-50 ms case."""
 
 _DASK_CHUNK_SECONDS = 1.0
 """The same for a Dask task, which costs the scheduler, the worker and this process
