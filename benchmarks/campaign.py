@@ -5,8 +5,10 @@ Runs the same cases of a study (by default ``benchmarks/die_bonder_study.toml``;
 ``--cases N``, whole paths spread evenly over the study until N cases) three ways into
 temporary folders and reports, for each, cases per second and the 1 -> 2 worker scaling
 (target >= 1.8x), and the engine's own cost per case (target <= 5 % of the case's time).
+The serial run is the same engine (:func:`nurbsmotion.campaign.run_study`) with one
+worker: the cases run in this process, in the same order, with the same per-path tables.
 
-The machine is shared, so every figure is given twice:
+The machine may be shared, so every figure is given twice:
 
 - *wall*: cases / wall time, as a user sees it (``os.getloadavg()`` is printed with it);
 - *load-corrected*: the wall time times the share of CPU the cases actually got
@@ -17,11 +19,16 @@ The machine is shared, so every figure is given twice:
   the tail where a worker idles, the parent's writing) is kept in it.
 
 The engine overhead is the CPU time of every process of the run (this one, and the
-workers: local ones through ``getrusage(RUSAGE_CHILDREN)``, Dask ones asked for theirs)
-beyond the cases' own CPU time, per case and as a share of the case time. Each
-configuration starts with the kernels loaded (the engine loads them once per process
-before the first case, :func:`nurbsmotion.campaign._warm_up`); the Dask cluster's fresh
-workers are timed twice, first with that start, then without.
+workers: local ones through ``getrusage(RUSAGE_CHILDREN)``, Dask workers asked for
+theirs; a LocalCluster's scheduler and nannies run in this process) beyond the cases'
+own CPU time, per case and as a share of the case time. *Work* is the cases' CPU time over the serial run's: above 1 when a path's
+tables are built by two workers, or when two busy cores slow each other (shared caches
+and memory; on a loaded machine, other programs too).
+
+Every configuration starts with the kernels loaded: this process loads them before the
+serial run (forked local workers inherit them); the Dask cluster is started and each of
+its workers loads them (the engine's worker plugin) before its first timed run, and that
+start-up is reported on its own line.
 
     python benchmarks/campaign.py [--study FILE] [--cases 1000]
 """
@@ -49,8 +56,14 @@ def _cpu(who) -> float:
 
 
 def _worker_cpu() -> float:
-    """CPU time of the calling (Dask worker) process [s]."""
+    """CPU time of the calling (Dask worker or nanny) process [s]."""
     return _cpu(resource.RUSAGE_SELF)
+
+
+def _cluster_cpu(client) -> float:
+    """CPU time of the cluster's worker processes [s] (a LocalCluster's scheduler and
+    nannies run in this process)."""
+    return sum(client.run(_worker_cpu).values())
 
 
 def timed(study, cases, client=None, **options) -> dict:
@@ -62,7 +75,7 @@ def timed(study, cases, client=None, **options) -> dict:
     campaign._PATH_ERRORS.clear()
     if client is not None:
         client.run(lambda: [c.cache_clear() for c in (campaign._curve, campaign._bound_of)])
-        remote0 = sum(client.run(_worker_cpu).values())
+        remote0 = _cluster_cpu(client)
     load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
         cpu0 = _cpu(resource.RUSAGE_SELF) + _cpu(resource.RUSAGE_CHILDREN)
@@ -73,7 +86,7 @@ def timed(study, cases, client=None, **options) -> dict:
         cpu = _cpu(resource.RUSAGE_SELF) + _cpu(resource.RUSAGE_CHILDREN) - cpu0
         table = read_rows(Path(tmp) / "out")
     if client is not None:
-        cpu += sum(client.run(_worker_cpu).values()) - remote0
+        cpu += _cluster_cpu(client) - remote0
     case_wall = float(np.nansum(table.column("case_time_s").to_numpy(zero_copy_only=False)))
     case_cpu = float(np.nansum(table.column("case_cpu_s").to_numpy(zero_copy_only=False)))
     return {"n": len(table), "wall": wall, "case_wall": case_wall, "case_cpu": case_cpu,
@@ -90,7 +103,8 @@ def show(name: str, r: dict, serial: dict | None = None) -> None:
             f"{over / n * 1e3:.1f} ms CPU a case = {over / r['case_cpu']:.1%} of the case "
             f"CPU time; load {r['load'][0]:.1f} -> {r['load'][1]:.1f}")
     if serial is not None:
-        text += (f"; scaling {serial['wall'] / r['wall']:.2f}x wall, "
+        text += (f"; work {r['case_cpu'] / serial['case_cpu']:.3f} x serial's; scaling "
+                 f"{serial['wall'] / r['wall']:.2f}x wall, "
                  f"{serial['corrected'] / r['corrected']:.2f}x load-corrected")
     print(text, flush=True)
 
@@ -123,10 +137,13 @@ def main() -> None:
     study = load_study(args.study)
     cases = spread_cases(study_cases(study), args.cases)
     print(f"{len(cases)} cases of {args.study}; {os.cpu_count()} cores", flush=True)
-    # Load (or compile) the kernels once, so that no configuration pays it.
+    # Load (or compile) the kernels, and import what writes the dataset, once, so that
+    # no configuration pays it (the serial run would, being first).
     campaign._warm_up(cases)
+    import pyarrow.dataset  # noqa: F401
+    import pyarrow.parquet  # noqa: F401
     serial = timed(study, cases, workers=1)
-    show("serial", serial)
+    show("serial (1 worker, this process)", serial)
     show("2 local workers", timed(study, cases, workers=2), serial)
     if args.no_dask:
         return
@@ -135,11 +152,21 @@ def main() -> None:
     except ImportError:
         print("dask.distributed not installed: no LocalCluster figure")
         return
+    cpu0 = _cpu(resource.RUSAGE_SELF)
+    t0 = time.perf_counter()
     with LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
                       dashboard_address=None) as cluster, Client(cluster) as client:
+        started = time.perf_counter() - t0
         # Its workers are fresh interpreters (the pool's are forks of this warm one):
-        # the first run includes their start (imports, kernels loaded from the cache).
-        show("2-worker Dask LocalCluster, first run", timed(study, cases, client), serial)
+        # each imports the library and loads the kernels from numba's cache, once.
+        campaign._dask_warm_up(client, cases)
+        client.run(lambda: None)  # every worker has run the plugin's setup
+        ready = time.perf_counter() - t0
+        cpu = _cpu(resource.RUSAGE_SELF) - cpu0 + _cluster_cpu(client)
+        print(f"2-worker Dask LocalCluster start-up (not in its figures): {started:.1f} s "
+              f"to start, {ready:.1f} s with the kernels loaded; {cpu:.1f} s CPU in all",
+              flush=True)
+        show("2-worker Dask LocalCluster", timed(study, cases, client), serial)
         show("2-worker Dask LocalCluster, again", timed(study, cases, client), serial)
 
 

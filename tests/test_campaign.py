@@ -151,20 +151,53 @@ def test_a_folder_in_use_is_refused(tmp_path):
             run_study(study, out, workers=1, progress=False, overwrite=True)
 
 
-def test_tasks_keep_a_path_together_and_shrink_at_the_end(tmp_path):
+def _plan(cases, n_workers, case_cpu, table_cpu):
+    """The cases each of ``n_workers`` runs when fed by the planner, simulated in CPU
+    time: a case takes ``case_cpu`` [s] (ten times that on the last path, so that the
+    end is uneven), plus ``table_cpu`` on a worker that has not run its path before.
+    Returns the cases per worker and when each worker ran out of work."""
+    import heapq
+
+    planner = campaign._Planner(cases)
+    slots = [campaign._Slot() for _ in range(n_workers)]
+    slow = campaign._path_key(cases[-1])
+    built = [set() for _ in slots]
+    ran = [[] for _ in slots]
+    end = [0.0] * n_workers
+    events = [(0.0, k) for k in range(n_workers)]
+    while events:
+        t, k = heapq.heappop(events)
+        if not slots[k].sent and not planner.next_chunk(slots[k], slots):
+            end[k] = t
+            continue
+        case = slots[k].sent.popleft()
+        key = campaign._path_key(case)
+        cpu = case_cpu * (10 if key == slow else 1)
+        cpu += table_cpu if key not in built[k] else 0.0
+        built[k].add(key)
+        planner.record(case, {"case_cpu_s": cpu})
+        ran[k].append(case)
+        heapq.heappush(events, (t + cpu, k))
+    return ran, end
+
+
+def test_workers_keep_a_path_and_finish_together(tmp_path):
     study = load_study(write_study(tmp_path, SWEEP_BATCHES))
     cases = study_cases(study)
-    for n_workers in (1, 2, 7):
-        tasks = campaign._batches(cases, n_workers)
-        assert [c for t in tasks for c in t] == cases
-        assert all(len({campaign._path_key(c) for c in t}) == 1 for t in tasks)
-        assert max(map(len, tasks)) <= campaign._BATCH
-        left = len(cases)
-        for t in tasks:  # no task holds more than the cases not yet given out / 2 workers
-            left -= len(t)
-            assert len(t) <= max(1, (left + len(t)) // (2 * n_workers))
-        assert all(len(t) == 1 for t in tasks[-2 * n_workers:])
-        assert len(tasks) < len(cases)  # paths stay together while work is left
+    n_paths = len({campaign._path_key(c) for c in cases})
+
+    def splits(ran):  # paths run by more than one worker, counted once per extra worker
+        return sum(len({campaign._path_key(c) for c in r}) for r in ran) - n_paths
+
+    for n_workers in (2, 3):
+        for case_cpu, table_cpu in ((0.1, 0.0), (0.1, 0.5), (0.01, 1.0)):
+            ran, end = _plan(cases, n_workers, case_cpu, table_cpu)
+            assert sorted(c.index for r in ran for c in r) == [c.index for c in cases]
+            if table_cpu > 20 * case_cpu:  # never worth building a path's tables twice
+                assert splits(ran) == 0
+            else:  # the slow last path is shared out, and the workers end together
+                assert 1 <= splits(ran) <= 2 * n_workers
+                assert max(end) - min(end) <= table_cpu + 2 * 10 * case_cpu + 1e-9
 
 
 SWEEP_BATCHES = """

@@ -21,13 +21,14 @@ pyarrow, dask and tqdm are imported only when used.
 
 from __future__ import annotations
 
-import concurrent.futures as cf
 import math
 import os
+import pickle
 import shutil
 import sys
 import time
 import uuid
+from collections import deque
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -783,101 +784,364 @@ def _warm_up(cases: list[Case]) -> None:
             pass
 
 
-_BATCH = 16
-"""Most cases sent to a worker as one task."""
-
-
 def _path_key(case: Case) -> tuple:
     return (case.path, case.path_family, case.path_seed, case.n_axes, case.length,
             case.base_dir)
 
 
-def _batches(cases: list[Case], n_workers: int) -> list[list[Case]]:
-    """The tasks: consecutive cases on the same path, so that one worker builds the path's
-    tables and time-optimal bounds once for all of them, at most :data:`_BATCH` a task
-    and at most the cases not yet given out over ``2 * n_workers`` (guided
-    self-scheduling: the tasks shrink to single cases towards the end, so that the workers
-    finish together)."""
-    out: list[list[Case]] = []
-    left = len(cases)
-    i = 0
-    while i < len(cases):
-        size = max(1, min(_BATCH, left // (2 * n_workers)))
-        key = _path_key(cases[i])
-        j = i + 1
-        while j < len(cases) and j - i < size and _path_key(cases[j]) == key:
-            j += 1
-        out.append(cases[i:j])
-        left -= j - i
-        i = j
-    return out
-
-
 def _run_batch(function: Callable, batch: list[Case]) -> list[dict]:
+    """A Dask task: the rows of ``batch``."""
     return [function(c) for c in batch]
 
 
+_CHUNK_SECONDS = 0.25
+"""Measured work [CPU s] given to a worker at a time (at least one case), its rows sent
+back together: an exchange with a local worker cost about a millisecond of CPU time
+(measured on a 2-core virtual machine), 2-5 % of a 20-50 ms case."""
+
+_DASK_CHUNK_SECONDS = 1.0
+"""The same for a Dask task, which costs the scheduler, the worker and this process
+several milliseconds of CPU time (the 2-worker LocalCluster's engine overhead went from
+1.7 to 3.0-3.4 ms a case with 250 ms tasks)."""
+
+_TAIL_SECONDS = 0.05
+"""Once every path has been given out, a worker is sent its next chunk before it ends
+the one it runs only if its cases are shorter than this [CPU s]: a long case sent ahead
+could no longer go to a worker that runs out of work."""
+
+
 def _execute_pool(cases: list[Case], n_workers: int, function: Callable) -> Iterable[dict]:
-    """Local processes; at most ``2 * n_workers`` tasks in flight. When a worker dies
-    (the pool breaks), each case then in flight is run again alone in a fresh process;
-    a case whose process dies again is recorded as :data:`WORKER_DIED`."""
-    from concurrent.futures.process import BrokenProcessPool
+    """Rows of ``function`` over ``cases`` on ``n_workers`` local processes
+    (:class:`_LocalWorkers`), in the order they finish. Ctrl-C, SIGTERM or an error here
+    stops the workers at once (the cases in flight are dropped: resume runs them)."""
+    pool = _LocalWorkers(cases, n_workers, function)
+    finished = False
+    try:
+        yield from pool.rows()
+        finished = True
+    finally:
+        pool.close(wait=finished)
 
-    queue = list(reversed(_batches(cases, n_workers)))
-    suspects: list[Case] = []
-    window = 2 * n_workers
-    while queue or suspects:
-        pool = _pool(n_workers)
-        running: dict = {}
+
+class _Slot:
+    """What :class:`_Planner` knows of a worker: ``own``, the cases given to it and not
+    sent yet; ``sent``, the cases sent to it, in order (the first one running); ``warm``,
+    the paths whose tables it has built; ``retry``, a case it runs again alone;
+    ``chunks``, the sizes of the chunks in flight."""
+
+    def __init__(self):
+        self.own: deque = deque()
+        self.sent: deque = deque()
+        self.warm: set = set()
+        self.retry: Case | None = None
+        self.chunks: deque = deque()
+
+
+class _Planner:
+    """Which cases a worker runs next, so that each path's tables are built once.
+
+    The cases are grouped by path (:func:`_path_key`; the groups in the order of their
+    first case). A worker that needs work takes the next path whole. When none is left,
+    it takes the last cases another worker holds and has not started (:meth:`_steal`):
+    as many as balance the two, counting that it builds the path's tables again, and
+    none when that would not end sooner, so that the workers finish together without
+    building a path's tables twice for a few cases. The case time and the tables' time
+    are measured from the rows so far (``case_cpu_s``). A worker is given about
+    ``chunk_seconds`` of work at a time, less toward the end.
+    """
+
+    def __init__(self, cases: list[Case], chunk_seconds: float = _CHUNK_SECONDS):
+        self.chunk_seconds = chunk_seconds
+        groups: dict = {}
+        for c in cases:
+            groups.setdefault(_path_key(c), []).append(c)
+        self.paths = deque(groups.values())
+        self.left = len(cases)  # cases not sent yet
+        self.path_cpu: dict = {}  # path key -> [sum, count]: CPU s of its warm cases
+        self.cpu = [0.0, 0, 0.0, 0]  # CPU s and count of the cold cases, of the warm ones
+        self.cold: set = set()  # ids of cases sent to a worker without the path's tables
+
+    def case_time(self, key) -> float | None:
+        """Expected CPU time of a case on path ``key`` once its tables exist [s]: the
+        mean over its cases so far, shrunk toward the mean over all paths as if that
+        were two more of them (a path's cases differ by feed and interpolator: its first
+        few say little)."""
+        if not self.cpu[3]:
+            return None
+        total, n = self.path_cpu.get(key, (0.0, 0))
+        return (total + 2 * self.cpu[2] / self.cpu[3]) / (n + 2)
+
+    def table_time(self) -> float:
+        """Expected extra CPU time of the first case of a path on a worker [s]."""
+        if not (self.cpu[1] and self.cpu[3]):
+            return 0.0
+        return max(0.0, self.cpu[0] / self.cpu[1] - self.cpu[2] / self.cpu[3])
+
+    def record(self, case: Case, row: dict) -> None:
+        """Learn from a finished case's row."""
+        cold = case.case_id in self.cold
+        self.cold.discard(case.case_id)
+        cpu = row.get("case_cpu_s")
+        if not isinstance(cpu, float) or not math.isfinite(cpu):
+            return
+        if cold:
+            self.cpu[0] += cpu
+            self.cpu[1] += 1
+        else:
+            self.cpu[2] += cpu
+            self.cpu[3] += 1
+            entry = self.path_cpu.setdefault(_path_key(case), [0.0, 0])
+            entry[0] += cpu
+            entry[1] += 1
+
+    def ahead(self, slot: _Slot) -> bool:
+        """Whether ``slot`` should hold a chunk beyond the one it runs: yes while paths
+        are left to give out, or while its cases are short; at the end, a long case sent
+        ahead could no longer go to a worker that runs out of work."""
+        if self.paths:
+            return True
+        queue = slot.own or slot.sent
+        c = self.case_time(_path_key(queue[-1])) if queue else None
+        return c is None or c <= _TAIL_SECONDS
+
+    def next_chunk(self, slot: _Slot, slots: list[_Slot]) -> list[Case]:
+        """The next cases for ``slot`` (moved to its ``sent``), or ``[]``: all given out,
+        or the rest is better left where it is."""
+        if not slot.own:
+            if self.paths:
+                slot.own.extend(self.paths.popleft())
+            elif not self._steal(slot, slots):
+                return []
+        c = self.case_time(_path_key(slot.own[0]))
+        # No more than a share of the work left (guided self-scheduling): the chunks
+        # shrink toward the end, where their cases could no longer be shared out.
+        seconds = min(self.chunk_seconds, self.left * (c or 0.0) / (4 * len(slots)))
+        size = 1 if not c else max(1, min(len(slot.own), int(seconds / c)))
+        chunk = [slot.own.popleft() for _ in range(size)]
+        self.left -= size
+        for case in chunk:
+            key = _path_key(case)
+            if key not in slot.warm:
+                slot.warm.add(key)
+                self.cold.add(case.case_id)
+        slot.sent.extend(chunk)
+        slot.chunks.append(len(chunk))
+        return chunk
+
+    def _steal(self, thief: _Slot, slots: list[_Slot]) -> bool:
+        """Move to ``thief`` the last unstarted cases of the worker with the most work
+        left: ``h`` of the ``k`` it holds (``s`` more sent to it) such that both end
+        together, ``T + h c = (k + s - h) c + T'`` (``c`` a case's time on that path,
+        ``T`` the thief's cost of building the path's tables, 0 if it has them, ``T'``
+        the same for the other worker if its first case on the path is still running),
+        when ``h >= 1``; one case when that is a close call (at least two unstarted cases
+        and half ``T`` of work left there): the estimates are rough, and an idle worker
+        risks only ``T``."""
+        table = self.table_time()
+        best, best_work = None, 0.0
+        for w in slots:
+            if w is thief or not w.own:
+                continue
+            c = self.case_time(_path_key(w.own[-1]))
+            building = table if any(x.case_id in self.cold for x in w.sent) else 0.0
+            work = (len(w.own) + len(w.sent)) * (c if c is not None else 1.0) + building
+            if work > best_work:
+                best, best_work, best_building = w, work, building
+        if best is None:
+            return False
+        key = _path_key(best.own[-1])
+        k, s = len(best.own), len(best.sent)
+        c = self.case_time(key)
+        mine = 0.0 if key in thief.warm else table
+        h = min(k, int((k + s + ((best_building - mine) / c if c else 0.0)) / 2 + 0.5))
+        if h < 1 and k >= 2 and best_work >= mine / 2:
+            h = 1  # a close call: the estimates are rough, being idle is sure
+        if h < 1:
+            return False
+        stolen = [best.own.pop() for _ in range(h)]
+        thief.own.extend(reversed(stolen))
+        return True
+
+
+class _LocalWorker(_Slot):
+    """A local worker process and the pipe to it."""
+
+    def __init__(self, index: int, parent: int, function: Callable):
+        super().__init__()
+        self.index, self.parent, self.function = index, parent, function
+        self.start()
+
+    def start(self) -> None:
+        """A fresh process (forked where the platform forks: it inherits the loaded
+        kernels) with no path tables yet."""
+        ctx = _mp_context()
+        self.conn, child = ctx.Pipe()
+        self.running = ctx.RawValue("q", 0)  # place in its chunk of the case it runs
+        self.process = ctx.Process(target=_worker_loop,
+                                   args=(child, self.running, self.parent, self.function),
+                                   daemon=True, name=f"nurbsmotion-campaign-{self.index}")
+        self.process.start()
+        child.close()
+        self.warm = set()
+
+    def send(self, chunk: list[Case]) -> None:
         try:
-            while queue or running:
-                while queue and len(running) < window:
-                    batch = queue.pop()
-                    running[pool.submit(_run_batch, function, batch)] = batch
-                finished, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
-                for fut in finished:
-                    batch = running.pop(fut)
-                    try:
-                        rows = fut.result()
-                    except BrokenProcessPool:
-                        suspects.extend(batch)
-                        continue
-                    except Exception as exc:  # e.g. a result that cannot be pickled
-                        rows = [_died(c, f"{type(exc).__name__}: {exc}") for c in batch]
-                    yield from rows
-                if suspects:
-                    raise BrokenProcessPool
-        except BrokenProcessPool:
-            for batch in running.values():
-                suspects.extend(batch)
-            running.clear()
-        except BaseException:  # Ctrl-C, SIGTERM: the cases in flight are dropped
-            _terminate(pool)   # (resume runs them), not waited for
-            raise
-        finally:
-            pool.shutdown(wait=True, cancel_futures=True)
-        for c in suspects:
-            yield _run_alone(c, function)
-        suspects = []
+            self.conn.send(chunk)
+        except OSError:  # it died: its sentinel says so next
+            pass
 
 
-def _pool(n_workers: int) -> cf.ProcessPoolExecutor:
-    """Local worker processes (started by :func:`_worker_start`)."""
-    return cf.ProcessPoolExecutor(n_workers, initializer=_worker_start,
-                                  initargs=(os.getpid(),))
+def _worker_loop(conn, running, parent: int, function: Callable) -> None:
+    """In a local worker: run the cases of each chunk received (``running`` holding the
+    place of the case it runs, for the campaign to know which one killed it) and send
+    back the chunk's rows together, each ``("row", row)``, or ``("error", message)``
+    when ``function`` raised or its row could not be sent; until ``None`` or the pipe
+    closes."""
+    _worker_start(parent)
+    while True:
+        try:
+            chunk = conn.recv()
+        except (EOFError, OSError):
+            return
+        if chunk is None:
+            return
+        out = []
+        for k, case in enumerate(chunk):
+            running.value = k
+            try:
+                out.append(("row", function(case)))
+            except Exception as exc:  # noqa: BLE001 - reported as the case's row
+                out.append(("error", f"{type(exc).__name__}: {exc}"))
+        try:
+            try:
+                conn.send(out)
+            except (pickle.PicklingError, TypeError, AttributeError):
+                conn.send([_sendable(m) for m in out])
+        except (BrokenPipeError, EOFError, OSError):
+            return
 
 
-def _terminate(pool: cf.ProcessPoolExecutor) -> None:
-    """Stop the pool's workers now, whatever they are running."""
-    for process in list((getattr(pool, "_processes", None) or {}).values()):
-        process.kill()
+def _sendable(message: tuple) -> tuple:
+    """``message``, or an error message if it cannot be pickled."""
+    try:
+        pickle.dumps(message)
+    except Exception as exc:  # noqa: BLE001
+        return ("error", f"{type(exc).__name__}: {exc}")
+    return message
+
+
+class _LocalWorkers:
+    """Local worker processes fed by a :class:`_Planner`, each a chunk ahead (so that
+    it does not wait for this process) but at the very end; their rows come back one by
+    one.
+
+    A worker that dies is replaced by a fresh process, which first runs the case the dead
+    one was running, alone (``attempts`` = 2); if it dies too, the case is recorded as
+    :data:`WORKER_DIED`. The cases the dead worker had not started go on as before.
+    """
+
+    def __init__(self, cases: list[Case], n_workers: int, function: Callable):
+        self.planner = _Planner(cases)
+        self.workers = [_LocalWorker(k, os.getpid(), function)
+                        for k in range(min(n_workers, len(cases)))]
+
+    def _feed(self, w: _LocalWorker) -> None:
+        """Keep ``w`` a chunk ahead (a case being retried runs alone)."""
+        if w.retry is not None:
+            if not w.sent:
+                w.sent.append(w.retry)
+                w.chunks.append(1)
+                w.send([w.retry])
+            return
+        while len(w.chunks) < (2 if self.planner.ahead(w) else 1):
+            chunk = self.planner.next_chunk(w, self.workers)
+            if not chunk:
+                return
+            w.send(chunk)
+
+    def rows(self) -> Iterable[dict]:
+        from multiprocessing.connection import wait
+
+        for w in self.workers:
+            self._feed(w)
+        while True:
+            busy = [w for w in self.workers if w.sent]
+            if not busy:
+                return
+            waiting = {}
+            for w in busy:
+                waiting[w.conn] = waiting[w.process.sentinel] = w
+            for w in {id(waiting[r]): waiting[r] for r in wait(list(waiting))}.values():
+                yield from self._receive(w)
+                self._feed(w)
+            for w in self.workers:  # a worker idle since the last paths ran out
+                if not w.sent:
+                    self._feed(w)
+
+    def _receive(self, w: _LocalWorker) -> Iterable[dict]:
+        """The rows ``w`` has sent; if it died, its replacement, and the row of a case
+        that killed two processes."""
+        try:
+            while w.sent and w.conn.poll():
+                messages = w.conn.recv()
+                w.chunks.popleft()
+                for kind, payload in messages:
+                    case = w.sent.popleft()
+                    row = payload if kind == "row" else _died(case, payload)
+                    if w.retry is not None:
+                        row["attempts"], w.retry = 2, None
+                    self.planner.record(case, row)
+                    yield row
+        except (EOFError, OSError):  # it is exiting: its pipe closed first
+            w.process.join(timeout=10)
+        if not w.sent or w.process.is_alive():
+            return
+        w.process.join()
+        w.conn.close()
+        # The case it was running; those of its chunk before it ran, but their rows were
+        # not sent: they run again, as do the ones it had not started.
+        k = min(max(0, w.running.value), w.chunks[0] - 1)
+        case = w.sent[k]
+        del w.sent[k]
+        w.own.extendleft(reversed(w.sent))
+        self.planner.left += len(w.sent)
+        w.sent.clear()
+        w.chunks.clear()
+        for c in w.own:
+            self.planner.cold.discard(c.case_id)
+        self.planner.cold.discard(case.case_id)
+        if w.retry is not None:
+            w.retry = None
+            row = _died(case, "its worker process died twice while running it")
+            row["attempts"] = 2
+            yield row
+        else:
+            w.retry = case
+        w.start()
+
+    def close(self, wait: bool) -> None:
+        """End the workers: asked to stop after their work (``wait``), or killed."""
+        for w in self.workers:
+            if wait:
+                try:
+                    w.conn.send(None)
+                except OSError:
+                    pass
+            else:
+                w.process.kill()
+        for w in self.workers:
+            w.process.join(timeout=None if wait else 5)
+            if w.process.is_alive():  # pragma: no cover
+                w.process.kill()
+                w.process.join()
+            w.conn.close()
 
 
 def _worker_start(parent: int) -> None:
     """In a local worker: Ctrl-C and SIGTERM are the campaign's to handle (it stops its
-    workers, :func:`_terminate`), and the worker exits as soon as the campaign's process
-    is gone (killed with SIGKILL, it cannot stop them, and they would wait for work
-    forever)."""
+    workers, :meth:`_LocalWorkers.close`), and the worker exits as soon as the campaign's
+    process is gone (killed with SIGKILL, it cannot stop them, and they would wait for
+    work forever)."""
     import signal
     import threading
 
@@ -892,17 +1156,12 @@ def _worker_start(parent: int) -> None:
     threading.Thread(target=watch, name="orphan-guard", daemon=True).start()
 
 
-def _run_alone(case: Case, function: Callable) -> dict:
-    """The second attempt of a case whose worker died: alone in a fresh process."""
-    from concurrent.futures.process import BrokenProcessPool
+def _mp_context():
+    import multiprocessing
 
-    with _pool(1) as pool:
-        try:
-            row = pool.submit(function, case).result()
-        except BrokenProcessPool:
-            row = _died(case, "its worker process died twice while running it")
-    row["attempts"] = 2
-    return row
+    return multiprocessing.get_context()
+
+
 
 
 def _died(case: Case, message: str) -> dict:
@@ -914,38 +1173,63 @@ def _died(case: Case, message: str) -> dict:
 
 
 def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[dict]:
-    """On a Dask cluster: one task per batch of cases (:func:`_batches`, sized for the
-    cluster's threads), results gathered here as they finish. A task whose worker died
-    (Dask's ``KilledWorker``, after the scheduler's ``allowed-failures``) is split: each
-    of its cases runs again alone, and a case whose worker dies again is recorded as
+    """On a Dask cluster, fed by a :class:`_Planner` as the local workers are: one slot
+    per worker thread, each with a task queued behind the one it runs but at the very
+    end (tasks bound to that worker, but free to run on another if it leaves); rows
+    gathered here as the tasks finish. A task whose worker died (Dask's
+    ``KilledWorker``, after the scheduler's ``allowed-failures``) is split: each of its
+    cases runs again alone, and a case whose worker dies again is recorded as
     :data:`WORKER_DIED`."""
     from dask.distributed import Client, as_completed
 
     client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
     try:
         _dask_warm_up(client, cases)
-        slots = max(1, sum(client.nthreads().values()))
-        batches = _batches(cases, slots)
-        futures = client.map(_run_batch, [function] * len(batches), batches, retries=1,
-                             pure=False)
-        by_key = {f.key: b for f, b in zip(futures, batches)}
-        done = as_completed(futures)
+        client.wait_for_workers(1)
+        planner = _Planner(cases, _DASK_CHUNK_SECONDS)
+        slots: dict = {}  # (worker address, thread) -> _Slot
+        tasks: dict = {}  # future key -> (slot or None for a case alone, its cases)
+        done = as_completed()
+
+        def feed() -> None:
+            for addr, info in client.scheduler_info()["workers"].items():
+                for k in range(info.get("nthreads", 1)):
+                    slots.setdefault((addr, k), _Slot())
+            order = list(slots.values())
+            for (addr, _), slot in slots.items():
+                while len(slot.chunks) < (2 if planner.ahead(slot) else 1):
+                    chunk = planner.next_chunk(slot, order)
+                    if not chunk:
+                        break
+                    fut = client.submit(_run_batch, function, chunk, workers=[addr],
+                                        allow_other_workers=True, retries=1, pure=False)
+                    tasks[fut.key] = (slot, chunk)
+                    done.add(fut)
+
+        feed()
         for fut in done:
-            batch = by_key.pop(fut.key)
+            slot, chunk = tasks.pop(fut.key)
+            if slot is not None:
+                slot.chunks.remove(len(chunk))
+                ids = {c.case_id for c in chunk}
+                slot.sent = deque(c for c in slot.sent if c.case_id not in ids)
             try:
                 rows = fut.result()
             except Exception as exc:  # KilledWorker, or a result that cannot be sent
-                if len(batch) > 1:
-                    for case in batch:
+                if len(chunk) > 1:
+                    for case in chunk:
                         again = client.submit(_run_batch, function, [case], pure=False)
-                        by_key[again.key] = [case]
+                        tasks[again.key] = (None, [case])
                         done.add(again)
                     rows = []
                 else:
-                    rows = [_died(batch[0], f"{type(exc).__name__}: {exc}")]
+                    rows = [_died(chunk[0], f"{type(exc).__name__}: {exc}")]
                     rows[0]["attempts"] = 2
             fut.release()
-            yield from rows
+            for case, row in zip(chunk, rows):
+                planner.record(case, row)
+                yield row
+            feed()
     finally:
         if client is not scheduler:
             client.close()
