@@ -543,8 +543,10 @@ def _support_into(accel, speed, bounds, cosines, sines, block, out):
                     v = abs(cosines[d] * accel[k, j] + sines[d] * speed[k, j])
                     if k == hi - 1 or v > running[j, d]:
                         running[j, d] = v
-            if k % block == 0:
-                out[k // block] = running
+            if k % block == 0:  # element by element: a slice copy compiles a shape check
+                for j in range(n_axes):  # with its error message, 2 s of compile time
+                    for d in range(cosines.shape[0]):
+                        out[k // block, j, d] = running[j, d]
 
 
 @njit(cache=True)
@@ -553,16 +555,23 @@ def _support_at(plan, i, out):
     (n_axes, SUPPORT_DIRECTIONS) [V], from the plan's stored one at the next stored sample
     before the next stop and the samples up to it. Returns ``out``."""
     block = SUPPORT_BLOCK
-    hi = plan.bounds[np.searchsorted(plan.bounds, i, side="right")]  # the next stop
-    if i % block == 0:
-        out[:] = plan.support[i // block]
-        return out
+    lo, up = 0, plan.bounds.shape[0] - 1  # the next stop: the first bound > i (the last
+    while lo < up:                        # bound, the plan's length, is > i)
+        mid = (lo + up) // 2
+        if plan.bounds[mid] > i:
+            up = mid
+        else:
+            lo = mid + 1
+    hi = plan.bounds[lo]
     end = (i // block + 1) * block
-    if end < hi:
-        out[:] = plan.support[end // block]
-    else:
-        out[:] = 0.0
+    stored = i // block if i % block == 0 else (end // block if end < hi else -1)
+    if i % block == 0:
+        end = i
+    elif end >= hi:
         end = hi
+    for j in range(out.shape[0]):
+        for d in range(out.shape[1]):
+            out[j, d] = plan.support[stored, j, d] if stored >= 0 else 0.0
     accel, speed = plan.drive_accel, plan.drive_speed
     for k in range(i, end):
         for j in range(out.shape[0]):
