@@ -714,14 +714,15 @@ class _RowWriter:
 
 
 def _progress(total: int, enabled: bool) -> Callable:
-    """A callback per finished row (``None`` closes the bar): tqdm when importable."""
+    """A callback per finished row (``None`` closes the bar): tqdm when importable, silent
+    when stderr is not a terminal."""
     if not enabled or total == 0:
         return lambda row: None
     try:
         from tqdm import tqdm
     except ImportError:  # pragma: no cover
         return lambda row: None
-    bar = tqdm(total=total, unit="case", file=sys.stderr, dynamic_ncols=True)
+    bar = tqdm(total=total, unit="case", file=sys.stderr, dynamic_ncols=True, disable=None)
     failed = [0]
 
     def update(row):
