@@ -153,8 +153,8 @@ def main(repeats: int = 3) -> str:
         ["path", "feed [m/s]", "planner", "cycle [s]", "bound [s]", "cycle / bound",
          "saturated samples", "max contour [pulse]", "planning time [s]"], rows,
         note=f"Planning time: median of {repeats} runs on a fresh curve (arc-length tables "
-             "included), TOPP-RA with 400 gridpoints per corner-free piece; `planned` "
-             "includes its closed-loop checks on five plants. TOPP-RA plans to the "
+             "included), TOPP-RA with 400 gridpoints per corner-free piece; `planned`: "
+             "its speed profile, motion plan and drive sequence. TOPP-RA plans to the "
              "feedforward drive limit and leaves no room for the feedback terms: it "
              "saturates.")
 
