@@ -263,8 +263,12 @@ def _cmd_run(args) -> int:
     sat = metrics.total_saturated_samples
     at = (f"{feed / per_unit:.4g} {unit}/s ({feed:.4g} pulse/s)"
           if contour.feed is None else note)
+    settled = (f"settled at {metrics.settle_time_s:.4g} s "
+               f"({metrics.settle_time_s / bound:.3f} x)" if metrics.settled
+               else "not settled by the end of the run")
     print(f"{args.interpolator} on {machine.name} at {at}: cycle time {metrics.cycle_time_s:.4g} s "
-          f"({metrics.cycle_time_s / bound:.3f} x the time-optimal bound), max contour error "
+          f"({metrics.cycle_time_s / bound:.3f} x the time-optimal bound), {settled}, "
+          "max contour error "
           f"{metrics.max_contour_error / per_unit:.4g} {unit} "
           f"({metrics.max_contour_error:.4g} pulse), {sat} saturated "
           f"sample{'s' if sat != 1 else ''} -> {out}")
