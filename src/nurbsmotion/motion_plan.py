@@ -536,7 +536,7 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         if use <= drive_fraction * (1 + 1e-9):
             break
         # Ease the profile's drive limit where the sampled drive exceeds it, over the
-        # distance the motion covers while the smoothing and the inverse see it.
+        # distance the motion covers while the averaging and the inverse see it.
         k = np.nonzero(per_sample > drive_fraction)[0]
         speed = np.linalg.norm(y[np.minimum(k + 1, len(y) - 1)] - y[np.maximum(k - 1, 0)],
                                axis=1) / (2 * Ts)
