@@ -1164,7 +1164,6 @@ def _mp_context():
 
 
 
-
 def _died(case: Case, message: str) -> dict:
     """The row of a case whose worker did not return a row."""
     row = _case_columns(case)
