@@ -202,8 +202,8 @@ def _cmd_run(args) -> int:
                                     bare_unit="pulse")
     if window <= 0:
         raise InvalidArgumentError(f"--settle-window must be > 0, got {args.settle_window!r}")
+    lowest = feed if isinstance(feed, (int, float)) else feed.lowest
     if "pvt" in (args.export or ()):
-        lowest = feed if isinstance(feed, (int, float)) else feed.lowest
         check_samples(estimate_samples(path.length, lowest, args.pvt_period),
                       limit=args.max_samples, n_axes=curve.n_axes,
                       what=f"the PVT table at --pvt-period {args.pvt_period:g} s",
@@ -223,7 +223,6 @@ def _cmd_run(args) -> int:
         bound = time_optimal_bound(path, machine, feed)
         bar.update()
         stage(stages[1])
-        lowest = feed if isinstance(feed, (int, float)) else feed.lowest
         expected = estimate_samples(path.length, lowest, machine.sample_period)
         with _progress(args, total=int(expected) if math.isfinite(expected) else None,
                        unit="sample", unit_scale=True, desc="closed loop") as samples:

@@ -527,33 +527,37 @@ def _support(accel: np.ndarray, speed: np.ndarray, stops: np.ndarray,
     return out
 
 
+@njit(cache=True, inline="always")
+def _raise_to_sample(out, accel, speed, k, cosines, sines):
+    """``out`` (n_axes, SUPPORT_DIRECTIONS) [V] raised to sample ``k``'s
+    ``|cos(p)*accel + sin(p)*speed|`` where that is larger."""
+    for j in range(out.shape[0]):
+        for d in range(out.shape[1]):
+            v = abs(cosines[d] * accel[k, j] + sines[d] * speed[k, j])
+            if v > out[j, d]:
+                out[j, d] = v
+
+
 @njit(cache=True)
 def _support_into(accel, speed, bounds, cosines, sines, block, out):
     """:func:`_support`'s running maxima, backwards from each stop in ``bounds``."""
-    n_axes = accel.shape[1]
-    running = np.empty((n_axes, cosines.shape[0]))
+    running = np.empty((accel.shape[1], cosines.shape[0]))
     for b in range(bounds.shape[0] - 1):
         lo, hi = bounds[b], bounds[b + 1]
-        if hi <= lo:
-            continue
         running[:] = 0.0
         for k in range(hi - 1, lo - 1, -1):
-            for j in range(n_axes):
-                for d in range(cosines.shape[0]):
-                    v = abs(cosines[d] * accel[k, j] + sines[d] * speed[k, j])
-                    if k == hi - 1 or v > running[j, d]:
-                        running[j, d] = v
+            _raise_to_sample(running, accel, speed, k, cosines, sines)
             if k % block == 0:  # element by element: a slice copy compiles a shape check
-                for j in range(n_axes):  # with its error message, 2 s of compile time
-                    for d in range(cosines.shape[0]):
+                for j in range(running.shape[0]):  # with its error message (2 s of a
+                    for d in range(running.shape[1]):  # cold start)
                         out[k // block, j, d] = running[j, d]
 
 
 @njit(cache=True)
 def _support_at(plan, i, out):
     """The support of sample ``i`` (:func:`_support` with ``block = 1``) into ``out``
-    (n_axes, SUPPORT_DIRECTIONS) [V], from the plan's stored one at the next stored sample
-    before the next stop and the samples up to it. Returns ``out``."""
+    (n_axes, SUPPORT_DIRECTIONS) [V]: the stored one at the next stored sample before the
+    next stop, raised to the samples from ``i`` to there. Returns ``out``."""
     block = SUPPORT_BLOCK
     lo, up = 0, plan.bounds.shape[0] - 1  # the next stop: the first bound > i (the last
     while lo < up:                        # bound, the plan's length, is > i)
@@ -562,23 +566,14 @@ def _support_at(plan, i, out):
             up = mid
         else:
             lo = mid + 1
-    hi = plan.bounds[lo]
-    end = (i // block + 1) * block
-    stored = i // block if i % block == 0 else (end // block if end < hi else -1)
-    if i % block == 0:
-        end = i
-    elif end >= hi:
-        end = hi
+    end = i if i % block == 0 else min((i // block + 1) * block, plan.bounds[lo])
+    stored = end // block if end < plan.bounds[lo] else -1
     for j in range(out.shape[0]):
         for d in range(out.shape[1]):
             out[j, d] = plan.support[stored, j, d] if stored >= 0 else 0.0
-    accel, speed = plan.drive_accel, plan.drive_speed
     for k in range(i, end):
-        for j in range(out.shape[0]):
-            for d in range(out.shape[1]):
-                v = abs(plan.cosines[d] * accel[k, j] + plan.sines[d] * speed[k, j])
-                if v > out[j, d]:
-                    out[j, d] = v
+        _raise_to_sample(out, plan.drive_accel, plan.drive_speed, k, plan.cosines,
+                         plan.sines)
     return out
 
 
