@@ -65,7 +65,7 @@ def planning_time(repeats: int) -> str:
     for name, feed in PLANNING_CASES:
         path = to_pulses(nm.builtin_path(name), m)
         t, _ = median_time(lambda: PlannedInterpolator(path, m, feed), repeats)
-        n = PlannedInterpolator(path, m, feed).motion.n_samples
+        n = len(PlannedInterpolator(path, m, feed).plan.parameter)
         rows.append([name, f"{feed / 1e6:g}", n, f"{t:.3f}"])
     return section(
         "Planning time of the `planned` interpolator",

@@ -71,6 +71,41 @@ def test_run_writes_trace_and_summary_contracts(tmp_path):
         assert (tmp_path / f"{name}.png").stat().st_size > 0
 
 
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_run_streams_without_figures_to_the_same_files(tmp_path, monkeypatch, fmt):
+    """Without figures or exports `run` streams its rows (blocks of 97 here) to the
+    metrics and the trace file; summary and trace equal those of a run that holds the
+    whole trace (an export makes it do so)."""
+    from nurbsmotion import closed_loop
+
+    monkeypatch.setattr(closed_loop, "SINK_BLOCK_SAMPLES", 97)
+    args = ["run", "die-bonder-pi", "--feed", "1m/s", "--interpolator", "paper",
+            "--no-figures", "--trace-every", "3", "--trace-format", fmt]
+    assert main(args + ["--out", str(tmp_path / "streamed")]) == 0
+    assert main(args + ["--out", str(tmp_path / "whole"), "--export", "npz"]) == 0
+    summaries = [json.loads((tmp_path / d / "summary.json").read_text())
+                 for d in ("streamed", "whole")]
+    assert summaries[0].keys() == summaries[1].keys()
+    for key, value in summaries[0].items():
+        other = summaries[1][key]
+        if isinstance(value, float):  # RMS figures are sums over blocks
+            assert other == pytest.approx(value, rel=1e-12), key
+        elif isinstance(value, dict) and key != "units":
+            assert other == pytest.approx(value, rel=1e-12), key
+        else:
+            assert other == value, key
+    if fmt == "csv":
+        assert ((tmp_path / "streamed" / "trace.csv").read_bytes()
+                == (tmp_path / "whole" / "trace.csv").read_bytes())
+    else:
+        import pyarrow.parquet as pq
+
+        a, b = (pq.read_table(tmp_path / d / "trace.parquet") for d in ("streamed", "whole"))
+        assert a.column_names == b.column_names and a.num_rows == b.num_rows
+        np.testing.assert_array_equal(np.column_stack([c.to_numpy() for c in a.columns]),
+                                      np.column_stack([c.to_numpy() for c in b.columns]))
+
+
 def test_run_without_bounds_has_no_bound_columns(tmp_path):
     assert main(["run", "die-bonder-pi", "--feed", "2e5", "--interpolator", "taylor1",
                  "--out", str(tmp_path), "--no-figures"]) == 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -98,3 +99,110 @@ def test_the_loop_reports_its_progress_after_every_block(monkeypatch):
     tr = run(nm.make_die_bonder_pi(), die_bonder(), 5e5, "planned", progress=seen.append)
     assert seen == sorted(seen) and seen[-1] == len(tr.t)
     assert seen[:-1] == list(range(50, len(tr.t), 50))
+
+
+def _same_figures(a: dict, b: dict) -> None:
+    """Equal figures: counts and maxima exactly, sums (RMS) to rounding."""
+    assert a.keys() == b.keys()
+    for key, x in a.items():
+        y = b[key]
+        if isinstance(x, dict):
+            for axis in x:
+                assert y[axis] == pytest.approx(x[axis], rel=1e-12, abs=1e-300), (key, axis)
+        elif isinstance(x, float):
+            assert y == pytest.approx(x, rel=1e-12, abs=1e-300), key
+        else:
+            assert y == x, key
+
+
+STREAMED_CASES = [  # sharp corners; a closed path passing near itself; end overshoot
+    ("die-bonder-pi", 1e6, "planned"),
+    ("butterfly", 5e4, "paper"),
+    ("butterfly", 5e4, "taylor2"),
+]
+
+
+@pytest.mark.parametrize("name, feed, method", STREAMED_CASES)
+def test_a_streamed_run_gives_the_figures_and_file_of_the_whole_run(
+        tmp_path, monkeypatch, name, feed, method):
+    """Blocks of 13 samples through :class:`RunningMetrics` and :class:`TraceWriter` give
+    the figures :func:`trace_metrics` takes from the whole trace, and the trace file
+    :func:`write_trace` writes from it, byte for byte (every 4th row, and every row)."""
+    from nurbsmotion import report
+    from nurbsmotion.loop import run_streamed
+    from nurbsmotion.metrics import RunningMetrics
+
+    curve, m = nm.builtin_path(name), die_bonder()
+    whole = run(curve, m, feed, method)
+    monkeypatch.setattr(closed_loop, "SINK_BLOCK_SAMPLES", 13)
+    running = RunningMetrics(whole.curve, m, whole.settle_window)
+    blocks = []
+    files = {}
+    with contextlib.ExitStack() as stack:
+        writers = [stack.enter_context(report.TraceWriter(
+            tmp_path / f"s{every}.{fmt}", m, fmt=fmt, every=every, length_unit="mm",
+            pulses_per_length_unit=1000.0)) for fmt in report.TRACE_FORMATS for every in (1, 4)]
+
+        def sink(first, rows, finished, last):
+            blocks.append((first, len(rows.u), finished, last))
+            running.add(rows.u, rows.feed, rows.status, rows.command, rows.position,
+                        rows.drive, finished)
+            for w in writers:
+                w.add(first, rows, finished, last)
+
+        outcome = run_streamed(curve, m, feed, sink, method)
+    assert outcome.n_samples == len(whole.t) and outcome.message == whole.message
+    assert outcome.finished_index == whole.finished_index
+    assert [b[0] for b in blocks] == list(range(0, len(whole.t), 13))
+    assert [b[3] for b in blocks] == [False] * (len(blocks) - 1) + [True]
+    _same_figures(whole.metrics().to_dict(),
+                  running.result(outcome.finished_index, outcome.success,
+                                 outcome.message).to_dict())
+    for fmt in report.TRACE_FORMATS:
+        for every in (1, 4):
+            files = report.write_trace(whole, tmp_path / f"w{every}.{fmt}", fmt=fmt,
+                                       every=every, length_unit="mm",
+                                       pulses_per_length_unit=1000.0)
+            if fmt == "csv":
+                assert (tmp_path / f"s{every}.csv").read_bytes() == files.read_bytes()
+            else:
+                import pyarrow.parquet as pq
+
+                a, b = pq.read_table(tmp_path / f"s{every}.parquet"), pq.read_table(files)
+                assert a.column_names == b.column_names
+                np.testing.assert_array_equal(  # NaN where the bound was not computed
+                    np.column_stack([c.to_numpy() for c in a.columns]),
+                    np.column_stack([c.to_numpy() for c in b.columns]))
+
+
+def test_a_streamed_run_keeps_no_rows_and_refuses_a_bad_sink():
+    from nurbsmotion.errors import InvalidArgumentError
+    from nurbsmotion.loop import run_streamed
+
+    sizes = []
+    out = run_streamed(nm.make_die_bonder_pi(), die_bonder(), 1e6,
+                       lambda first, rows, finished, last: sizes.append(len(rows.u)),
+                       "planned")
+    assert sum(sizes) == out.n_samples and max(sizes) <= closed_loop.SINK_BLOCK_SAMPLES
+    assert out.cycle_time == out.finished_index * die_bonder().sample_period
+    with pytest.raises(InvalidArgumentError, match="sink"):
+        run_streamed(nm.make_die_bonder_pi(), die_bonder(), 1e6, "not callable")
+
+
+def test_a_failing_sink_leaves_no_trace_file(tmp_path, monkeypatch):
+    """A writer whose run raises (disk full, Ctrl-C) removes its temporary file."""
+    from nurbsmotion import report
+    from nurbsmotion.loop import run_streamed
+
+    m = die_bonder()
+    monkeypatch.setattr(closed_loop, "SINK_BLOCK_SAMPLES", 50)
+
+    def sink(first, rows, finished, last):
+        writer.add(first, rows, finished, last)
+        if first > 0:
+            raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"):
+        with report.TraceWriter(tmp_path / "trace.csv", m) as writer:
+            run_streamed(nm.make_die_bonder_pi(), m, 1e6, sink, "paper")
+    assert os.listdir(tmp_path) == []

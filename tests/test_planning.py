@@ -157,8 +157,8 @@ def test_planned_follows_its_plan_on_the_nominal_plant():
     """On the model's own plant the online identification stays on the model (it regresses
     measured positions, no differenced speed), so the actual position is the plan's."""
     it, trace = _planned_pi(2e5)
-    n = it.motion.n_samples
-    np.testing.assert_allclose(trace.position[:n], it.motion.position, atol=1e-3)
+    n = len(it.plan.position)
+    np.testing.assert_allclose(trace.position[:n], it.plan.position, atol=1e-3)
 
 
 @pytest.mark.parametrize("tau_scale, kc_scale", [(0.6, 1.7), (1.9, 0.55)])

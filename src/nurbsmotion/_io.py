@@ -16,12 +16,13 @@ import shutil
 import sys
 import tempfile
 from pathlib import Path
-from typing import Callable, IO
+from contextlib import contextmanager
+from typing import IO, Callable, Iterator
 
 from .errors import OutputExistsError, PathFileError
 
 __all__ = ["check_input_file", "read_text_file", "parse_json_or_toml", "write_output",
-           "OutputFolder"]
+           "atomic_output", "OutputFolder"]
 
 
 def check_input_file(file: str | os.PathLike, max_bytes: int | None = None) -> Path:
@@ -157,6 +158,17 @@ def write_output(
     OutputExistsError
         If ``file`` exists and ``overwrite`` is false (nothing is written).
     """
+    with atomic_output(file, overwrite=overwrite, binary=binary) as handle:
+        write(handle)
+    return Path(file)
+
+
+@contextmanager
+def atomic_output(file: str | os.PathLike, *, overwrite: bool = False,
+                  binary: bool = False) -> Iterator[IO]:
+    """An open handle of a temporary file in ``file``'s folder, renamed to ``file`` when
+    the ``with`` block ends normally and removed when it raises (see :func:`write_output`
+    for the parameters and errors)."""
     path = Path(file)
     if path.exists() and not overwrite:
         raise OutputExistsError(
@@ -170,7 +182,7 @@ def write_output(
         mode = "wb" if binary else "w"
         kwargs = {} if binary else {"encoding": "utf-8", "newline": "\n"}
         with os.fdopen(fd, mode, **kwargs) as handle:
-            write(handle)
+            yield handle
         # mkstemp makes the file private (0600); give it the permissions open() would
         mask = os.umask(0)
         os.umask(mask)
@@ -182,7 +194,6 @@ def write_output(
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
-    return path
 
 
 class OutputFolder:

@@ -208,6 +208,9 @@ def _cmd_run(args) -> int:
                       limit=args.max_samples, n_axes=curve.n_axes,
                       what=f"the PVT table at --pvt-period {args.pvt_period:g} s",
                       option="--max-samples (or a longer --pvt-period)")
+    # Without figures or exports nothing needs the whole run at once: it streams, and
+    # its memory does not grow with its length.
+    stream = args.no_figures and not args.export
     stages = ["time-optimal bound", "plan and run the closed loop", "metrics", "trace",
               "summary"]
     stages += [] if args.no_figures else ["figures"]
@@ -224,24 +227,30 @@ def _cmd_run(args) -> int:
         bar.update()
         stage(stages[1])
         expected = estimate_samples(path.length, lowest, machine.sample_period)
-        with _progress(args, total=int(expected) if math.isfinite(expected) else None,
-                       unit="sample", unit_scale=True, desc="closed loop") as samples:
-            trace = run(path, machine, feed, args.interpolator, max_samples=args.max_samples,
-                        interpolator_options=options, plant=plant,
-                        settle_window=window,
-                        progress=lambda k: samples.update(k - samples.n))
-        bar.update()
-        # The metrics before the trace file: their temporaries are gone before the
-        # writer's buffers are made (the peak memory is the larger, not the sum).
-        stage(stages[2])
-        metrics = trace.metrics()
-        bar.update()
-        stage(stages[3])
-        if not args.no_trace:
-            _write_trace(args, trace, out / TRACE_FILES[args.trace_format], unit, per_unit)
-        if exports:
-            _export_setpoints(trace, curve, machine, exports, args)
-        bar.update()
+        run_options = dict(max_samples=args.max_samples, interpolator_options=options,
+                           plant=plant, settle_window=window)
+        file = None if args.no_trace else out / TRACE_FILES[args.trace_format]
+        if stream:  # the rows go to the metrics and the trace file as the loop runs
+            metrics = _run_streamed(args, path, machine, feed, run_options, file, unit,
+                                    per_unit, expected)
+            bar.update(3)
+        else:
+            with _progress(args, total=_total(expected), unit="sample", unit_scale=True,
+                           desc="closed loop") as samples:
+                trace = run(path, machine, feed, args.interpolator,
+                            progress=lambda k: samples.update(k - samples.n), **run_options)
+            bar.update()
+            # The metrics before the trace file: their temporaries are gone before the
+            # writer's buffers are made (the peak memory is the larger, not the sum).
+            stage(stages[2])
+            metrics = trace.metrics()
+            bar.update()
+            stage(stages[3])
+            if file is not None:
+                _write_trace(args, trace, file, unit, per_unit)
+            if exports:
+                _export_setpoints(trace, curve, machine, exports, args)
+            bar.update()
         stage(stages[4])
         extra = {"plant": machine.name if args.plant is None else args.plant,
                  "corner_tolerance": eps,
@@ -274,21 +283,70 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _total(expected: float) -> int | None:
+    """A progress bar's total from an estimate that may be infinite."""
+    return int(expected) if math.isfinite(expected) else None
+
+
+def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | None,
+                  unit: str, per_unit: float, expected: float):
+    """Run the loop with its rows streamed to the metrics and the trace file (if any);
+    return the metrics."""
+    from .loop import run_streamed
+    from .metrics import RunningMetrics
+    from .report import TraceWriter
+
+    running = RunningMetrics(path, machine, run_options["settle_window"])
+    with contextlib.ExitStack() as stack:
+        writer = None if file is None else stack.enter_context(TraceWriter(
+            file, machine, fmt=args.trace_format, every=args.trace_every, length_unit=unit,
+            pulses_per_length_unit=per_unit, overwrite=args.overwrite, threads=1))
+        samples = stack.enter_context(_progress(
+            args, total=_total(expected), unit="sample", unit_scale=True,
+            desc="closed loop" if writer is None else f"closed loop -> {file.name}"))
+        announce = writer is not None
+
+        def sink(first, rows, finished, last):
+            nonlocal announce
+            running.add(rows.u, rows.feed, rows.status, rows.command, rows.position,
+                        rows.drive, finished)
+            if writer is not None:
+                writer.add(first, rows, finished, last)
+            if announce and writer.rows_written and math.isfinite(expected):
+                announce = False
+                rows = max(writer.rows_written, int(expected / args.trace_every))
+                _trace_notice(args, file, rows, writer.bytes_per_row() * rows, samples)
+
+        outcome = run_streamed(path, machine, feed, sink, args.interpolator,
+                               progress=lambda k: samples.update(k - samples.n),
+                               **run_options)
+    return running.result(outcome.finished_index, outcome.success, outcome.message)
+
+
+def _trace_notice(args, file: Path, rows: int, size: float, bar=None) -> None:
+    """Say the trace file's size and how to make it smaller, when it is large."""
+    if size <= TRACE_NOTICE_BYTES:
+        return
+    every = max(2, round(size / TRACE_NOTICE_BYTES * 2))
+    text = (f"nurbsmotion run: writing {file.name}: {rows:,} rows, about "
+            f"{size / 1e6:.3g} MB; --trace-every {every} keeps one row in {every}, "
+            "--no-trace writes none (the summary and figures use every sample either way)"
+            + ("" if args.trace_format == "parquet" else
+               ", --trace-format parquet is smaller"))
+    if bar is None:
+        print(text, file=sys.stderr)
+    else:
+        bar.write(text, file=sys.stderr)
+
+
 def _write_trace(args, trace, file: Path, unit: str, per_unit: float) -> None:
-    """Write the trace file, announcing its size first when it is large."""
+    """Write the trace file of a whole run, announcing its size first when it is large."""
     from .report import estimate_trace_bytes, trace_rows, write_trace
 
     options = dict(fmt=args.trace_format, every=args.trace_every, length_unit=unit,
                    pulses_per_length_unit=per_unit)
-    size = estimate_trace_bytes(trace, **options)
     rows = len(trace_rows(trace, args.trace_every))
-    if size > TRACE_NOTICE_BYTES:
-        every = max(2, round(size / TRACE_NOTICE_BYTES * 2))
-        print(f"nurbsmotion run: writing {file.name}: {rows:,} rows, about "
-              f"{size / 1e6:.3g} MB; --trace-every {every} keeps one row in {every}, "
-              "--no-trace writes none (the summary and figures use every sample either "
-              "way)" + ("" if args.trace_format == "parquet" else
-                        ", --trace-format parquet is smaller"), file=sys.stderr)
+    _trace_notice(args, file, rows, estimate_trace_bytes(trace, **options))
     with _progress(args, total=rows, unit="row", unit_scale=True,
                    desc=f"write {file.name}") as bar:
         write_trace(trace, file, overwrite=args.overwrite, progress=bar.update, **options)

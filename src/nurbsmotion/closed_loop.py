@@ -14,10 +14,11 @@ At sample k (t = k*Ts), for every axis (SPEC sections 1, 3 and 4):
 The run goes on after the setpoint reaches the end until the motion has settled: at
 least ``min_samples`` more samples, and until the actual position has stayed within
 ``window`` of the end point, with no drive beyond Umax, for ``hold_samples`` samples in a
-row (:class:`Settling`); ``limit_samples`` bounds the wait, ``max_samples`` the whole run. Every array the loop
-writes is one of :class:`Rows`; its own state lives in two structured arrays the caller
-owns (:class:`LoopState`, :class:`AxisState`), so a run whose rows are full is resumed on
-grown rows where it stopped.
+row (:class:`Settling`); ``limit_samples`` bounds the wait, ``max_samples`` the whole run.
+Every array the loop writes is one of :class:`Rows`; its own state lives in two arrays
+the caller owns (:class:`LoopState`, :class:`AxisState`), so a run whose rows are full is
+resumed where it stopped: on grown rows, or (a streamed run, :func:`run` with a ``sink``)
+on fresh rows for the next block while the sink consumes the last one.
 
 :func:`run_samples` is compiled by numba once per interpolator type (its plan's type) and
 runs as plain Python with ``NUMBA_DISABLE_JIT=1``.
@@ -40,7 +41,7 @@ from .control import pid_commit, pid_output
 from .servo import plant_step
 
 __all__ = ["Rows", "Settling", "LoopState", "AxisState", "DONE", "FULL", "FAILED",
-           "OUT_OF_SAMPLES", "PAUSED", "BLOCK_SAMPLES", "new_rows", "run_samples"]
+           "OUT_OF_SAMPLES", "PAUSED", "BLOCK_SAMPLES", "SINK_BLOCK_SAMPLES", "new_rows", "run_samples"]
 
 DONE, FULL, FAILED, OUT_OF_SAMPLES, PAUSED = 0, 1, 2, 3, 4
 """Return codes of :func:`run_samples`: settled; rows full (grow them and call again);
@@ -50,6 +51,10 @@ reached first; the block's last sample done (call again to go on)."""
 BLOCK_SAMPLES = 1 << 16
 """Samples per call of the compiled loop: between calls Python runs, so Ctrl-C stops a
 long run within one block (a few hundredths of a second)."""
+
+SINK_BLOCK_SAMPLES = 1 << 14
+"""Samples per block handed to a sink (:func:`run`): a few MB of rows, so that the
+blocks a sink still holds (a trace writer's chunks in flight) cost little memory."""
 
 class LoopState(NamedTuple):
     """The loop's own state, one-element arrays: the next sample, the first sample at the
@@ -128,9 +133,9 @@ def new_rows(capacity: int, n_axes: int, with_bounds: bool) -> Rows:
 
 @njit(cache=True)
 def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settling, loop,
-                axes, rows, stop, command, velocity, position, bounds):
+                axes, rows, first, stop, command, velocity, position, bounds):
     """Run the loop from ``loop.k[0]`` until it ends, ``rows`` are full or sample ``stop``
-    is reached.
+    is reached; sample k goes to row ``k - first``.
 
     Parameters
     ----------
@@ -150,6 +155,8 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
     loop : LoopState
     axes : AxisState
     rows : Rows
+    first : int
+        The sample of row 0 of ``rows``.
     stop : int
         Return :data:`PAUSED` before running this sample.
     command, velocity, position, bounds : ndarray
@@ -173,7 +180,7 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
         if k >= settling.max_samples:
             loop.k[0] = k
             return OUT_OF_SAMPLES
-        if k >= capacity:
+        if k - first >= capacity:
             loop.k[0] = k
             return FULL
         if k >= stop:
@@ -200,9 +207,10 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
                 return FAILED
             if status == stepping.FINISHED and loop.finished[0] < 0:
                 loop.finished[0] = k
-        rows.u[k] = u
-        rows.feed[k] = feed
-        rows.status[k] = status
+        i = k - first
+        rows.u[i] = u
+        rows.feed[i] = feed
+        rows.status[i] = status
         over = False
         for j in range(n_axes):
             prev_cmd = law_state[j]["prev_cmd"]
@@ -211,15 +219,15 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
             pid_commit(law, law_state, j, command[j], out, e, ei, cd)
             applied = min(max(out, -umax), umax)
             over = over or not abs(out) <= umax
-            rows.command[k, j] = command[j]
-            rows.position[k, j] = position[j]
-            rows.speed_command[k, j] = (command[j] - prev_cmd) / (Ke[j] * Ts)
-            rows.speed[k, j] = velocity[j] / Ke[j]
-            rows.drive[k, j] = out
-            rows.drive_applied[k, j] = applied
+            rows.command[i, j] = command[j]
+            rows.position[i, j] = position[j]
+            rows.speed_command[i, j] = (command[j] - prev_cmd) / (Ke[j] * Ts)
+            rows.speed[i, j] = velocity[j] / Ke[j]
+            rows.drive[i, j] = out
+            rows.drive_applied[i, j] = applied
             if record_bounds:
-                rows.bounds[k, j, 0] = bounds[j, 0]
-                rows.bounds[k, j, 1] = bounds[j, 1]
+                rows.bounds[i, j, 0] = bounds[j, 0]
+                rows.bounds[i, j, 1] = bounds[j, 1]
             w, th = plant_step(Ad, Bd, j, axes.speed[j], axes.position[j], applied)
             axes.position_prev[j] = position[j]
             axes.speed[j] = w
@@ -246,8 +254,8 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
 
 
 def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
-        settling: Settling, with_bounds: bool, capacity: int, progress=None):
-    """:func:`run_samples` from sample 0 to the end, growing the rows as needed.
+        settling: Settling, with_bounds: bool, capacity: int, progress=None, sink=None):
+    """:func:`run_samples` from sample 0 to the end, in blocks of :data:`BLOCK_SAMPLES`.
 
     Parameters
     ----------
@@ -265,41 +273,55 @@ def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
     with_bounds : bool
         Record the step's speed bounds.
     capacity : int
-        First guess of the number of samples.
+        First guess of the number of samples (rows kept whole, without ``sink``).
     progress : callable, optional
-        ``progress(k)`` with the samples run so far, after every block of
-        :data:`BLOCK_SAMPLES`.
+        ``progress(k)`` with the samples run so far, after every block.
+    sink : callable, optional
+        ``sink(first, rows, finished, last)`` after every block: its rows (samples
+        ``first`` on, arrays of their own), the first sample at the path's end so far
+        (-1: not yet) and whether the run has ended. With a sink, the rows are not kept.
 
     Returns
     -------
     code : int
         :data:`DONE`, :data:`FAILED` or :data:`OUT_OF_SAMPLES`.
-    rows : Rows
-        Trimmed to the samples run.
+    rows : Rows or None
+        The samples run (``None`` with a ``sink``).
     loop : LoopState
     """
     n_axes = start.shape[0]
     loop = LoopState.new()
     origin = np.array(start if plant.position is None else plant.position, dtype=float)
     axes = AxisState(np.zeros(n_axes), origin.copy(), origin.copy())
+    if sink is not None:
+        capacity = SINK_BLOCK_SAMPLES
     capacity = max(1, min(int(capacity), settling.max_samples))
     rows = new_rows(capacity, n_axes, with_bounds)
     scratch = (np.empty(n_axes), np.empty(n_axes), np.empty(n_axes), np.empty((n_axes, 2)))
+    first = 0
     while True:
         code = run_samples(plan, state, law, law_state, plant.Ad, plant.Bd,
                            plant.mechanical_gain, encoder, start, settling, loop, axes, rows,
-                           int(loop.k[0]) + BLOCK_SAMPLES, *scratch)
+                           first, int(loop.k[0]) + BLOCK_SAMPLES, *scratch)
+        k = int(loop.k[0])
+        more = code in (PAUSED, FULL)
+        if sink is not None:
+            sink(first, _trimmed(rows, k - first), int(loop.finished[0]), not more)
         if progress is not None:
-            progress(int(loop.k[0]))
-        if code == PAUSED:
-            continue
-        if code != FULL:
+            progress(k)
+        if not more:
             break
-        capacity = min(2 * capacity, settling.max_samples)
-        rows = _grown(rows, capacity, int(loop.k[0]))
-    k = int(loop.k[0])
-    rows = Rows(*(r[:k] if r.shape[0] else r for r in rows))
-    return code, rows, loop
+        if sink is not None:
+            first, rows = k, new_rows(capacity, n_axes, with_bounds)
+        elif code == FULL:
+            capacity = min(2 * capacity, settling.max_samples)
+            rows = _grown(rows, capacity, k)
+    return code, (None if sink is not None else _trimmed(rows, k)), loop
+
+
+def _trimmed(rows: Rows, n: int) -> Rows:
+    """The first ``n`` rows (views)."""
+    return Rows(*(r[:n] if r.shape[0] else r for r in rows))
 
 
 def _grown(rows: Rows, capacity: int, written: int) -> Rows:

@@ -1,6 +1,7 @@
 """Runs of an interpolator: in the closed loop of a machine, to the end and settled
-(:func:`simulate` -> :class:`Trace`), or open loop (:func:`interpolate` ->
-:class:`SetpointSeries`).
+(:func:`simulate` -> :class:`Trace`; streamed block by block to a sink without keeping
+the rows, :func:`simulate_streamed` -> :class:`RunOutcome`), or open loop
+(:func:`interpolate` -> :class:`SetpointSeries`).
 
 :func:`simulate` builds the run from data: the interpolator's plan and a fresh state, the
 machine's control law (:meth:`nurbsmotion.machine.Machine.law`) and the true plant's ZOH
@@ -12,7 +13,7 @@ settled there. It changes none of the objects it is given.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -30,8 +31,9 @@ from .servo import ServoPlant
 from .stepping import Status
 from .units import feed_in_pulses
 
-__all__ = ["Trace", "SetpointSeries", "simulate", "interpolate", "run", "to_pulses",
-           "settle_hold_samples", "check_run_arguments"]
+__all__ = ["Trace", "RunOutcome", "SetpointSeries", "simulate", "simulate_streamed",
+           "interpolate", "run", "run_streamed", "to_pulses", "settle_hold_samples",
+           "check_run_arguments"]
 
 
 def to_pulses(curve: NurbsCurve, machine: Machine) -> NurbsCurve:
@@ -43,11 +45,59 @@ def to_pulses(curve: NurbsCurve, machine: Machine) -> NurbsCurve:
 
 
 @dataclass(frozen=True, eq=False)
-class Trace:
-    """Everything the loop did, one row per sample k (t = k*Ts).
+class RunOutcome:
+    """What a closed-loop run did, without its rows: the result of a streamed run
+    (:func:`simulate_streamed`, whose rows went to a sink), and the first attributes of
+    a :class:`Trace`.
 
     Attributes
     ----------
+    n_samples : int
+        Samples run.
+    finished_index : int
+        First sample whose setpoint is the path's end.
+    settled_index : int or None
+        First sample from which the actual position stays within ``settle_window`` of the
+        end point to the end of the run, or ``None`` if it did not settle.
+    settle_window : float
+        The settle window [pulse].
+    success : bool
+        The motion settled at the end with every drive within Umax.
+    message : str
+        What happened, in one line.
+    curve : NurbsCurve
+        The path [pulse].
+    machine : Machine
+        The machine model.
+    interpolator : str
+        Name of the interpolator.
+    """
+
+    n_samples: int
+    finished_index: int
+    settled_index: int | None
+    settle_window: float
+    success: bool
+    message: str
+    curve: NurbsCurve
+    machine: Machine
+    interpolator: str
+
+    @property
+    def cycle_time(self) -> float:
+        """Time at which the setpoint first reaches the path's end [s]."""
+        return self.finished_index * self.machine.sample_period
+
+
+@dataclass(frozen=True, eq=False)
+class Trace(RunOutcome):
+    """Everything the loop did, one row per sample k (t = k*Ts): the
+    :class:`RunOutcome` and the rows.
+
+    Attributes
+    ----------
+    n_samples, finished_index, settled_index, settle_window, success, message, curve, machine, interpolator
+        See :class:`RunOutcome`.
     t : ndarray, shape (n_samples,)
         Sample times [s].
     u : ndarray, shape (n_samples,)
@@ -73,23 +123,6 @@ class Trace:
         What the interpolator did at each sample (:class:`nurbsmotion.stepping.Status`):
         working, finished, limited (a step changed to keep the drive within Umax) or
         cornered (no admissible step: the drive exceeds Umax).
-    finished_index : int
-        First sample whose setpoint is the path's end.
-    settled_index : int or None
-        First sample from which the actual position stays within ``settle_window`` of the
-        end point to the end of the trace, or ``None`` if it did not settle.
-    settle_window : float
-        The settle window [pulse].
-    success : bool
-        The motion settled at the end with every drive within Umax.
-    message : str
-        What happened, in one line.
-    curve : NurbsCurve
-        The path [pulse].
-    machine : Machine
-        The machine model.
-    interpolator : str
-        Name of the interpolator.
     """
 
     t: np.ndarray
@@ -103,19 +136,6 @@ class Trace:
     feed: np.ndarray
     speed_bounds: np.ndarray | None
     status: np.ndarray
-    finished_index: int
-    settled_index: int | None
-    settle_window: float
-    success: bool
-    message: str
-    curve: NurbsCurve
-    machine: Machine
-    interpolator: str
-
-    @property
-    def cycle_time(self) -> float:
-        """Time at which the setpoint first reaches the path's end [s]."""
-        return float(self.t[self.finished_index])
 
     def metrics(self):
         """The SPEC section 9 figures (:class:`nurbsmotion.metrics.Metrics`)."""
@@ -314,6 +334,76 @@ def simulate(
     InfeasibleError
         If the interpolator cannot advance, or the end is not reached in ``max_samples``.
     """
+    outcome, rows, _ = _closed_loop(interpolator, machine, None, plant=plant,
+                                    settle_time=settle_time, settle_window=settle_window,
+                                    settle_limit=settle_limit, max_samples=max_samples,
+                                    progress=progress)
+    return _trace(outcome, rows, interpolator.records_bounds)
+
+
+def _trace(outcome: RunOutcome, rows: closed_loop.Rows, with_bounds: bool) -> Trace:
+    return Trace(
+        **{f.name: getattr(outcome, f.name) for f in fields(RunOutcome)},
+        t=np.arange(outcome.n_samples) * outcome.machine.sample_period, u=rows.u,
+        position_command=rows.command, position=rows.position,
+        speed_command=rows.speed_command, speed=rows.speed, drive=rows.drive,
+        drive_applied=rows.drive_applied, feed=rows.feed,
+        speed_bounds=rows.bounds if with_bounds else None, status=rows.status)
+
+
+def simulate_streamed(interpolator: Interpolator, machine: Machine, sink,
+                      **options) -> RunOutcome:
+    """:func:`simulate`, handing the rows to ``sink`` block by block instead of keeping
+    them: the memory a run needs does not grow with its length.
+
+    Parameters
+    ----------
+    interpolator, machine
+        As in :func:`simulate`.
+    sink : callable
+        ``sink(first, rows, finished, last)`` after every
+        :data:`nurbsmotion.closed_loop.SINK_BLOCK_SAMPLES` samples: the block's rows
+        (:class:`nurbsmotion.closed_loop.Rows`, samples ``first`` on, arrays of their own),
+        the first sample whose setpoint is the path's end (-1 while there is none) and
+        whether this is the run's last block.
+    **options
+        As in :func:`simulate` (``plant``, ``settle_time``, ``settle_window``,
+        ``settle_limit``, ``max_samples``, ``progress``).
+
+    Returns
+    -------
+    RunOutcome
+    """
+    if not callable(sink):
+        raise InvalidArgumentError(f"sink must be callable, got {sink!r:.60}")
+    return _closed_loop(interpolator, machine, sink, **options)[0]
+
+
+class _Tally:
+    """Counts over a run's rows, block by block: samples with a drive beyond Umax, samples
+    per status, and whether every position and drive is finite."""
+
+    def __init__(self, max_drive: float):
+        self.max_drive = max_drive
+        self.beyond = 0
+        self.status = np.zeros(len(Status), dtype=np.int64)
+        self.finite = True
+
+    def add(self, rows: closed_loop.Rows) -> None:
+        beyond = np.zeros(len(rows.u), dtype=bool)
+        for j in range(rows.drive.shape[1]):  # axis by axis: no temporary of the full rows
+            beyond |= np.abs(rows.drive[:, j]) > self.max_drive
+        self.beyond += int(np.count_nonzero(beyond))
+        self.status += np.bincount(rows.status, minlength=len(Status))
+        self.finite = self.finite and bool(np.all(np.isfinite(rows.position))
+                                           and np.all(np.isfinite(rows.drive)))
+
+
+def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=0.05,
+                 settle_window=1.0, settle_limit=10.0, max_samples=None, progress=None):
+    """The run behind :func:`simulate` and :func:`simulate_streamed`: ``(outcome, rows,
+    finite)``, ``rows`` None with a ``sink``, ``finite`` whether every position and drive
+    was finite."""
     if not isinstance(interpolator, Interpolator):
         raise InfeasibleError(f"interpolator must be an Interpolator, got "
                               f"{type(interpolator).__name__}")
@@ -354,10 +444,19 @@ def simulate(
                                     max(n_limit, n_settle), int(max_samples))
     guess = (curve.length / machine.max_axis_speed.min() if duration is None else duration)
     capacity = int(min(1.2 * guess / Ts + n_settle + hold + 64, 1 << 22))
+    tally = _Tally(machine.max_drive)
+
+    def counted(first, rows, finished, last):
+        tally.add(rows)
+        sink(first, rows, finished, last)
+
     code, rows, loop = closed_loop.run(
         interpolator.plan, interpolator.new_state(), machine.law(), pid_state(start), plant,
         machine.speed_measurement == "encoder", start, settling,
-        interpolator.records_bounds, capacity, progress)
+        interpolator.records_bounds, capacity, progress,
+        None if sink is None else counted)
+    if rows is not None:
+        tally.add(rows)
     u = float(loop.u[0])
     finished = int(loop.finished[0])
     if code == closed_loop.FAILED:
@@ -368,29 +467,20 @@ def simulate(
             f"{interpolator.name}: the path's end was not reached within {max_samples} "
             f"samples ({max_samples * Ts:g} s; u = {u:.6g})")
     settled = code == closed_loop.DONE
-    n = rows.u.shape[0]
     settled_index = loop.settled_index if settled else None
-    success, message = _verdict(rows, machine, settled, settled_index, n, Ts, settle_window,
+    success, message = _verdict(tally, settled, settled_index, Ts, settle_window,
                                 settle_limit)
-    return Trace(
-        t=np.arange(n) * Ts, u=rows.u, position_command=rows.command,
-        position=rows.position, speed_command=rows.speed_command, speed=rows.speed,
-        drive=rows.drive, drive_applied=rows.drive_applied, feed=rows.feed,
-        speed_bounds=rows.bounds if interpolator.records_bounds else None,
-        status=rows.status, finished_index=finished, settled_index=settled_index,
-        settle_window=float(settle_window), success=success, message=message, curve=curve,
-        machine=machine, interpolator=interpolator.name)
+    outcome = RunOutcome(int(loop.k[0]), finished, settled_index, float(settle_window),
+                         success, message, curve, machine, interpolator.name)
+    return outcome, rows, tally.finite
 
 
-def _verdict(rows, machine: Machine, settled: bool, settled_index, n: int, Ts: float,
-             window: float, limit: float) -> tuple[bool, str]:
+def _verdict(tally: _Tally, settled: bool, settled_index, Ts: float, window: float,
+             limit: float) -> tuple[bool, str]:
     """``(success, message)`` of a run: settled, and every drive within Umax."""
-    beyond = np.zeros(n, dtype=bool)
-    for j in range(rows.drive.shape[1]):  # axis by axis: no temporary of the full rows
-        beyond |= np.abs(rows.drive[:, j]) > machine.max_drive
-    over = int(np.count_nonzero(beyond))
-    counts = np.bincount(rows.status, minlength=len(Status))
-    limited, cornered = int(counts[Status.LIMITED]), int(counts[Status.CORNERED])
+    over = tally.beyond
+    limited = int(tally.status[Status.LIMITED])
+    cornered = int(tally.status[Status.CORNERED])
     parts = [f"settled within {window:g} pulse of the end at {settled_index * Ts:.6g} s"
              if settled else
              f"did not settle within {window:g} pulse of the end in {limit:g} s"]
@@ -422,15 +512,12 @@ def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
     max_samples : int
         Refuse (:class:`~nurbsmotion.errors.WorkLimitError`) a move that would take more
         samples than this, before any work (:data:`nurbsmotion.budget.MAX_SAMPLES`).
-    **simulate_options
-        Passed to :func:`simulate` (``plant``, ``settle_time``, ``settle_window``,
-        ``settle_limit``, ``progress``).
-    max_samples : int
-        Refuse (:class:`~nurbsmotion.errors.WorkLimitError`) a move that would take more
-        samples than this, before any work (:data:`nurbsmotion.budget.MAX_SAMPLES`).
     interpolator_options : dict, optional
         Passed to the interpolator (:func:`nurbsmotion.interpolators.make_interpolator`),
         e.g. ``{"corner_tolerance": 500.0}`` [pulse] for ``planned``.
+    **simulate_options
+        Passed to :func:`simulate` (``plant``, ``settle_time``, ``settle_window``,
+        ``settle_limit``, ``progress``).
 
     Raises
     ------
@@ -439,21 +526,55 @@ def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
     InfeasibleError
         If the interpolator cannot advance, or the loop diverges.
     """
+    ip = _named_interpolator(curve, machine, feed, interpolator, max_samples,
+                             interpolator_options)
+    outcome, rows = _checked(ip, machine, None, simulate_options)
+    return _trace(outcome, rows, ip.records_bounds)
+
+
+def run_streamed(curve: NurbsCurve, machine: Machine, feed, sink,
+                 interpolator: str = "paper", *, max_samples: int = MAX_SAMPLES,
+                 interpolator_options: dict | None = None,
+                 **simulate_options) -> RunOutcome:
+    """:func:`run`, handing the rows to ``sink`` block by block instead of keeping them
+    (see :func:`simulate_streamed`).
+
+    Raises
+    ------
+    InvalidArgumentError, InvalidMachineError, WorkLimitError
+        From :func:`check_run_arguments`, before any work.
+    InfeasibleError
+        If the interpolator cannot advance, or the loop diverges (after the sink has seen
+        the rows).
+    """
+    if not callable(sink):
+        raise InvalidArgumentError(f"sink must be callable, got {sink!r:.60}")
+    ip = _named_interpolator(curve, machine, feed, interpolator, max_samples,
+                             interpolator_options)
+    return _checked(ip, machine, sink, simulate_options)[0]
+
+
+def _named_interpolator(curve, machine, feed, interpolator: str, max_samples: int,
+                        options: dict | None) -> Interpolator:
+    """The interpolator :func:`run` runs, after :func:`check_run_arguments`."""
     if not isinstance(curve, NurbsCurve):
         raise InvalidArgumentError(f"curve must be a NurbsCurve, got {curve!r:.60}")
     if not isinstance(machine, Machine):
         raise InvalidArgumentError(f"machine must be a Machine, got {machine!r:.60}")
     feed = feed_in_pulses(feed, curve, machine)
     check_run_arguments(curve, machine, feed, max_samples)
-    path = to_pulses(curve, machine)
-    trace = simulate(make_interpolator(interpolator, path, machine, feed,
-                                       **(interpolator_options or {})),
-                     machine, **simulate_options)
-    if not (np.all(np.isfinite(trace.position)) and np.all(np.isfinite(trace.drive))):
+    return make_interpolator(interpolator, to_pulses(curve, machine), machine, feed,
+                             **(options or {}))
+
+
+def _checked(interpolator: Interpolator, machine: Machine, sink, options: dict):
+    """``(outcome, rows)`` of the closed loop; a diverged loop is an error."""
+    outcome, rows, finite = _closed_loop(interpolator, machine, sink, **options)
+    if not finite:
         raise InfeasibleError(
             f"the closed loop diverged (non-finite positions or drives) running "
-            f"{interpolator} on machine {machine.name!r}")
-    return trace
+            f"{interpolator.name} on machine {machine.name!r}")
+    return outcome, rows
 
 
 def check_run_arguments(curve, machine, feed, max_samples: int = MAX_SAMPLES, *,

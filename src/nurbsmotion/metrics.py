@@ -29,7 +29,7 @@ from .geometry import distances_to
 from .nurbs import NurbsCurve
 from .stepping import Status
 
-__all__ = ["Metrics", "trace_metrics", "feed_fluctuation", "contour_error", "nearest_parameter",
+__all__ = ["Metrics", "RunningMetrics", "trace_metrics", "feed_fluctuation", "contour_error", "nearest_parameter",
            "settle_time", "overshoot", "SATURATION_TOLERANCE", "SETTLE_WINDOW"]
 
 SATURATION_TOLERANCE = 1e-6
@@ -119,16 +119,25 @@ def feed_fluctuation(position: np.ndarray, feed: np.ndarray, sample_period: floa
     :meth:`nurbsmotion.loop.SetpointSeries.feed_fluctuation`."""
     if finished_index < 2:
         return 0.0, 0.0
-    speed = np.zeros(finished_index - 1)  # steps k - 1 -> k, k = 1 .. end - 1, axis by axis
-    for j in range(position.shape[1]):
-        speed += np.diff(position[:finished_index, j]) ** 2
-    speed = np.sqrt(speed, out=speed) / sample_period
-    vcmd = feed[1:finished_index]
-    moving = vcmd > 0  # a step that commands no motion has no fluctuation
-    if not np.any(moving):
+    rel = _fluctuation(position[1:finished_index], position[0], feed[1:finished_index],
+                       sample_period)
+    if rel.size == 0:
         return 0.0, 0.0
-    rel = (speed[moving] - vcmd[moving]) / vcmd[moving]
     return float(np.max(np.abs(rel))), float(np.sqrt(np.mean(rel**2)))
+
+
+def _fluctuation(position: np.ndarray, previous: np.ndarray, feed: np.ndarray,
+                 sample_period: float) -> np.ndarray:
+    """``(|thd[k] - thd[k-1]|/Ts - Vcmd[k]) / Vcmd[k]`` of the steps into the rows of
+    ``position`` (the row before the first is ``previous``), for the steps that command
+    motion (``feed > 0``), shape (m',)."""
+    speed = np.zeros(len(position))
+    for j in range(position.shape[1]):  # axis by axis: no temporary of the full rows
+        step = np.diff(position[:, j], prepend=previous[j])
+        speed += step * step
+    speed = np.sqrt(speed, out=speed) / sample_period
+    moving = feed > 0  # a step that commands no motion has no fluctuation
+    return (speed[moving] - feed[moving]) / feed[moving]
 
 
 _TURN_PER_CELL = 0.1
@@ -459,38 +468,173 @@ def overshoot(position: np.ndarray, point: np.ndarray, direction: np.ndarray) ->
     return max(0.0, float(np.max((position - point) @ n)))
 
 
-def _corner_overshoot(trace) -> float:
-    """Largest :func:`overshoot` of the actual position at the path's sharp corners.
+class RunningMetrics:
+    """The figures of :func:`trace_metrics`, gathered block by block as a run streams
+    (:func:`nurbsmotion.loop.simulate_streamed`): memory independent of the run's length.
 
-    At a corner at ``u_c`` the direction measured is the incoming tangent's part normal
-    to the outgoing tangent (the incoming tangent itself at a reversal): along it the path
-    does not advance after the corner, so any positive excursion passes the corner. The
-    samples counted run from the first whose setpoint is at or past the corner until the
-    setpoint passes half way to the next corner (or the end)."""
-    curve = trace.curve
-    corners = curve.sharp_corners()
-    if corners.size == 0:
-        return 0.0
-    t_in = curve.limit_tangent(corners, "left")  # unit, also where C' = 0 (a cusp)
-    t_out = curve.limit_tangent(corners, "right")
-    nexts = np.append(corners[1:], 1.0)
-    worst = 0.0
-    for u_c, u_next, a, b, point in zip(corners, nexts, t_in, t_out, curve(corners)):
-        normal = a - (a @ b) * b
-        if np.linalg.norm(normal) < 1e-9:  # a reversal: back along the incoming line
-            normal = a
-        reached = np.flatnonzero(trace.u >= u_c)
-        left = np.flatnonzero(trace.u >= 0.5 * (u_c + u_next))
-        if reached.size == 0:
-            continue
-        stop = left[0] if left.size else len(trace.u)
-        worst = max(worst, overshoot(trace.position[reached[0]:stop], point, normal))
-    return worst
+    Parameters
+    ----------
+    curve : NurbsCurve
+        The path [pulse].
+    machine : Machine
+    settle_window : float
+        Radius of the settling window around the end point [pulse], > 0.
+
+    Call :meth:`add` with the rows in order, then :meth:`result`.
+    """
+
+    def __init__(self, curve: NurbsCurve, machine, settle_window: float):
+        if not (math.isfinite(settle_window) and settle_window > 0):
+            raise ValueError(f"settle window must be finite and > 0 pulse, got "
+                             f"{settle_window!r}")
+        self.curve, self.machine, self.window = curve, machine, float(settle_window)
+        n_axes = curve.n_axes
+        self.n = 0
+        self.follow_max = np.zeros(n_axes)
+        self.follow_sq = np.zeros(n_axes)
+        self.drive_max = np.zeros(n_axes)
+        self.saturated = np.zeros(n_axes, dtype=np.int64)
+        self.cornered = np.zeros(n_axes, dtype=np.int64)
+        self.limited = 0
+        self.contour_max = 0.0
+        self.contour_sq = 0.0
+        self.fluct_max = 0.0
+        self.fluct_sq = 0.0
+        self.fluct_n = 0
+        self.previous_command = None  # the last row's setpoint, for the next block's step
+        self.last_outside = -1  # last sample outside the settle window
+        self.end = curve(1.0)
+        self.end_direction = curve(1.0, 1, "left")
+        self.end_overshoot = 0.0
+        corners = curve.sharp_corners()
+        self.corner_u = corners
+        self.corner_mid = 0.5 * (corners + np.append(corners[1:], 1.0))
+        if corners.size:
+            t_in = curve.limit_tangent(corners, "left")  # unit, also where C' = 0 (a cusp)
+            t_out = curve.limit_tangent(corners, "right")
+            normal = t_in - np.sum(t_in * t_out, axis=1)[:, None] * t_out
+            reversal = np.linalg.norm(normal, axis=1) < 1e-9  # back along the incoming line
+            normal[reversal] = t_in[reversal]
+            self.corner_points, self.corner_normals = curve(corners), normal
+        self.corner_overshoot = 0.0
+        self.u_max = -math.inf  # the setpoint's parameter so far, its running maximum
+
+    def add(self, u, feed, status, command, position, drive, finished: int) -> None:
+        """Take the next rows.
+
+        Parameters
+        ----------
+        u, feed, status : ndarray, shape (m,)
+            The rows' curve parameter, commanded feed [pulse/s] and status.
+        command, position, drive : ndarray, shape (m, n_axes)
+            thd [pulse], tha [pulse], u before clipping [V].
+        finished : int
+            First sample of the run whose setpoint is the path's end, -1 if none so far.
+        """
+        first, m = self.n, len(u)
+        if m == 0:
+            return
+        umax = self.machine.max_drive
+        corner_rows = status == Status.CORNERED
+        for j in range(command.shape[1]):  # axis by axis: no temporary of the full rows
+            follow = command[:, j] - position[:, j]
+            self.follow_max[j] = max(self.follow_max[j], np.max(np.abs(follow)))
+            self.follow_sq[j] += np.dot(follow, follow)
+            a = np.abs(drive[:, j])
+            self.drive_max[j] = max(self.drive_max[j], np.max(a))
+            self.saturated[j] += np.count_nonzero(a > umax * (1 + SATURATION_TOLERANCE))
+            self.cornered[j] += np.count_nonzero(corner_rows & (a > umax))
+        del follow, a
+        self.limited += int(np.count_nonzero(status == Status.LIMITED))
+        contour = contour_error(self.curve, position)
+        self.contour_max = max(self.contour_max, float(np.max(contour)))
+        self.contour_sq += float(np.dot(contour, contour))
+        del contour
+        self._add_fluctuation(first, feed, command, finished)
+        outside = np.flatnonzero(distances_to(position, self.end) > self.window)
+        if outside.size:
+            self.last_outside = first + int(outside[-1])
+        if 0 <= finished < first + m:
+            self.end_overshoot = max(self.end_overshoot, overshoot(
+                position[max(0, finished - first):], self.end, self.end_direction))
+        self._add_corners(u, position)
+        self.n = first + m
+
+    def _add_fluctuation(self, first, feed, command, finished) -> None:
+        """Steps k - 1 -> k for k = 1 .. finished - 1 (see :func:`feed_fluctuation`)."""
+        stop = len(feed) if finished < 0 else min(len(feed), finished - first)
+        skip = 1 if first == 0 else 0  # row 0 is the start: no step into it
+        previous = command[0] if first == 0 else self.previous_command
+        self.previous_command = command[-1].copy()
+        if stop <= skip:
+            return
+        rel = _fluctuation(command[skip:stop], previous, feed[skip:stop],
+                           self.machine.sample_period)
+        if rel.size:
+            self.fluct_max = max(self.fluct_max, float(np.max(np.abs(rel))))
+            self.fluct_sq += float(np.dot(rel, rel))
+            self.fluct_n += int(rel.size)
+
+    def _add_corners(self, u, position) -> None:
+        """:func:`overshoot` at each sharp corner at ``u_c``, along the incoming tangent's
+        part normal to the outgoing tangent (the incoming tangent itself at a reversal):
+        along it the path does not advance after the corner, so any positive excursion
+        passes the corner. The samples counted run from the first whose setpoint is at or
+        past the corner until the setpoint passes half way to the next corner (or the
+        end)."""
+        if self.corner_u.size == 0:
+            return
+        reached = np.maximum.accumulate(np.maximum(u, self.u_max))
+        self.u_max = float(reached[-1])
+        start = np.searchsorted(reached, self.corner_u, "left")
+        stop = np.searchsorted(reached, self.corner_mid, "left")
+        for c in np.flatnonzero(start < stop):
+            self.corner_overshoot = max(self.corner_overshoot, overshoot(
+                position[start[c]:stop[c]], self.corner_points[c], self.corner_normals[c]))
+
+    def result(self, finished_index: int, success: bool, message: str) -> Metrics:
+        """The figures of the rows taken, for a run that reached the end at sample
+        ``finished_index`` with the verdict ``(success, message)``."""
+        names = self.machine.axis_names
+        n = max(self.n, 1)
+        Ts = self.machine.sample_period
+        if self.last_outside < 0:
+            settle = 0.0
+        elif self.last_outside == self.n - 1:
+            settle = math.inf
+        else:
+            settle = (self.last_outside + 1) * Ts
+
+        def per_axis(values):
+            return {a: float(v) for a, v in zip(names, values)}
+
+        fluct_rms = math.sqrt(self.fluct_sq / self.fluct_n) if self.fluct_n else 0.0
+        return Metrics(
+            cycle_time_s=finished_index * Ts,
+            steps=int(finished_index),
+            max_following_error=per_axis(self.follow_max),
+            rms_following_error=per_axis(np.sqrt(self.follow_sq / n)),
+            max_contour_error=self.contour_max,
+            rms_contour_error=math.sqrt(self.contour_sq / n),
+            max_drive_ratio=per_axis(self.drive_max / self.machine.max_drive),
+            saturated_samples={a: int(v) for a, v in zip(names, self.saturated)},
+            feed_fluctuation_max=self.fluct_max,
+            feed_fluctuation_rms=fluct_rms,
+            settle_time_s=settle,
+            settled=math.isfinite(settle),
+            settle_window=self.window,
+            end_overshoot=self.end_overshoot,
+            corner_overshoot=self.corner_overshoot,
+            limited_samples=self.limited,
+            cornered_samples={a: int(v) for a, v in zip(names, self.cornered)},
+            success=bool(success),
+            message=message,
+        )
 
 
 def trace_metrics(trace, settle_window: float | None = None) -> Metrics:
     """All SPEC section 9 and 10 figures of a :class:`~nurbsmotion.loop.Trace` but the
-    time-optimal bound.
+    time-optimal bound (:class:`RunningMetrics` over the whole trace).
 
     Parameters
     ----------
@@ -501,48 +645,7 @@ def trace_metrics(trace, settle_window: float | None = None) -> Metrics:
     """
     if settle_window is None:
         settle_window = trace.settle_window
-    names = trace.machine.axis_names
-    umax = trace.machine.max_drive
-    cornered = trace.status == Status.CORNERED
-    # Axis by axis, so that no temporary is larger than one column of the trace.
-    follow_max, follow_rms, ratio, saturated, cornered_axes = [], [], [], [], []
-    for j in range(len(names)):
-        follow = trace.position_command[:, j] - trace.position[:, j]
-        follow_max.append(np.max(np.abs(follow)))
-        follow_rms.append(np.sqrt(np.dot(follow, follow) / len(follow)))
-        drive = np.abs(trace.drive[:, j])
-        ratio.append(np.max(drive) / umax)
-        saturated.append(np.count_nonzero(drive > umax * (1 + SATURATION_TOLERANCE)))
-        cornered_axes.append(np.count_nonzero(cornered & (drive > umax)))
-    del follow, drive
-    contour = contour_error(trace.curve, trace.position)
-    fl_max, fl_rms = feed_fluctuation(trace.position_command, trace.feed,
-                                      trace.machine.sample_period, trace.finished_index)
-    end = trace.curve(1.0)
-    settle = settle_time(trace.t, trace.position, end, settle_window)
-
-    def per_axis(values):
-        return {n: float(v) for n, v in zip(names, values)}
-
-    return Metrics(
-        cycle_time_s=trace.cycle_time,
-        steps=int(trace.finished_index),
-        max_following_error=per_axis(follow_max),
-        rms_following_error=per_axis(follow_rms),
-        max_contour_error=float(np.max(contour)),
-        rms_contour_error=float(np.sqrt(np.dot(contour, contour) / len(contour))),
-        max_drive_ratio=per_axis(ratio),
-        saturated_samples={n: int(v) for n, v in zip(names, saturated)},
-        feed_fluctuation_max=fl_max,
-        feed_fluctuation_rms=fl_rms,
-        settle_time_s=settle,
-        settled=math.isfinite(settle),
-        settle_window=float(settle_window),
-        end_overshoot=overshoot(trace.position[trace.finished_index:], end,
-                                trace.curve(1.0, 1, "left")),
-        corner_overshoot=_corner_overshoot(trace),
-        limited_samples=int(np.count_nonzero(trace.status == Status.LIMITED)),
-        cornered_samples={n: int(v) for n, v in zip(names, cornered_axes)},
-        success=bool(trace.success),
-        message=trace.message,
-    )
+    running = RunningMetrics(trace.curve, trace.machine, settle_window)
+    running.add(trace.u, trace.feed, trace.status, trace.position_command, trace.position,
+                trace.drive, trace.finished_index)
+    return running.result(trace.finished_index, trace.success, trace.message)

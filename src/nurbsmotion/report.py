@@ -27,17 +27,19 @@ import io
 import json
 import math
 import os
+import sys
+from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable
+from typing import Callable, Iterable, NamedTuple
 
 import numpy as np
 
-from ._io import write_output
+from ._io import atomic_output, write_output
 from .errors import OutputExistsError
 
 __all__ = ["SUMMARY_KEYS", "SUMMARY_LENGTH_KEYS", "TRACE_FORMATS", "TRACE_FILES",
-           "trace_columns", "write_trace", "write_trace_csv", "estimate_trace_bytes",
+           "trace_columns", "TraceWriter", "write_trace", "write_trace_csv", "estimate_trace_bytes",
            "trace_rows", "summary", "summary_units", "write_json", "markdown_table",
            "check_writable"]
 
@@ -92,68 +94,88 @@ def check_writable(paths: Iterable[Path], overwrite: bool) -> None:
 
 @dataclass(frozen=True)
 class _Column:
-    """One trace column: its name and how to read rows ``idx`` of it from a trace."""
+    """One trace column: its name and how to read rows ``idx`` of it from a trace block
+    (a :class:`~nurbsmotion.loop.Trace` or a :class:`_Block`)."""
 
     name: str
-    read: Callable[[np.ndarray], np.ndarray]
+    read: Callable[[object, np.ndarray], np.ndarray]
 
 
-def _columns(trace, length_unit: str | None, pulses_per_length_unit: float | None):
+class _Block(NamedTuple):
+    """Rows of a streamed run under the :class:`~nurbsmotion.loop.Trace` names."""
+
+    t: np.ndarray
+    u: np.ndarray
+    position_command: np.ndarray
+    position: np.ndarray
+    drive: np.ndarray
+    drive_applied: np.ndarray
+    speed_bounds: np.ndarray | None
+
+
+def _columns(machine, with_bounds: bool, length_unit: str | None,
+             pulses_per_length_unit: float | None) -> list[_Column]:
     """The trace file's columns, in order (see the module docstring)."""
-    cols = [_Column("t", lambda i: trace.t[i]), _Column("u", lambda i: trace.u[i])]
-    Ke = trace.machine.Ke
-    bounds = trace.speed_bounds
-    for j, a in enumerate(trace.machine.axis_names):
-        cols += [_Column(f"{a}_cmd", lambda i, j=j: trace.position_command[i, j]),
-                 _Column(f"{a}_act", lambda i, j=j: trace.position[i, j]),
-                 _Column(f"{a}_drive", lambda i, j=j: trace.drive[i, j]),
-                 _Column(f"{a}_drive_applied", lambda i, j=j: trace.drive_applied[i, j])]
-        if bounds is not None:
-            cols += [_Column(f"{a}_speed_min", lambda i, j=j: bounds[i, j, 0] * Ke[j]),
-                     _Column(f"{a}_speed_max", lambda i, j=j: bounds[i, j, 1] * Ke[j])]
+    cols = [_Column("t", lambda b, i: b.t[i]), _Column("u", lambda b, i: b.u[i])]
+    Ke = machine.Ke
+    for j, a in enumerate(machine.axis_names):
+        cols += [_Column(f"{a}_cmd", lambda b, i, j=j: b.position_command[i, j]),
+                 _Column(f"{a}_act", lambda b, i, j=j: b.position[i, j]),
+                 _Column(f"{a}_drive", lambda b, i, j=j: b.drive[i, j]),
+                 _Column(f"{a}_drive_applied", lambda b, i, j=j: b.drive_applied[i, j])]
+        if with_bounds:
+            cols += [_Column(f"{a}_speed_min", lambda b, i, j=j: b.speed_bounds[i, j, 0] * Ke[j]),
+                     _Column(f"{a}_speed_max", lambda b, i, j=j: b.speed_bounds[i, j, 1] * Ke[j])]
     if length_unit is None:
         return cols
     L, k = length_unit, 1.0 / pulses_per_length_unit
-    for j, a in enumerate(trace.machine.axis_names):
-        cols += [_Column(f"{a}_cmd_{L}", lambda i, j=j: trace.position_command[i, j] * k),
-                 _Column(f"{a}_act_{L}", lambda i, j=j: trace.position[i, j] * k)]
-        if bounds is not None:
+    for j, a in enumerate(machine.axis_names):
+        cols += [_Column(f"{a}_cmd_{L}", lambda b, i, j=j: b.position_command[i, j] * k),
+                 _Column(f"{a}_act_{L}", lambda b, i, j=j: b.position[i, j] * k)]
+        if with_bounds:
             cols += [
-                _Column(f"{a}_speed_min_{L}_per_s", lambda i, j=j: bounds[i, j, 0] * Ke[j] * k),
-                _Column(f"{a}_speed_max_{L}_per_s", lambda i, j=j: bounds[i, j, 1] * Ke[j] * k),
+                _Column(f"{a}_speed_min_{L}_per_s",
+                        lambda b, i, j=j: b.speed_bounds[i, j, 0] * Ke[j] * k),
+                _Column(f"{a}_speed_max_{L}_per_s",
+                        lambda b, i, j=j: b.speed_bounds[i, j, 1] * Ke[j] * k),
             ]
     return cols
+
+
+def _kept(first: int, n: int, every: int, finished: int, last: bool) -> np.ndarray:
+    """Rows (0 .. n-1) of samples ``first .. first+n-1`` a trace file keeps: every
+    ``every``-th sample, the one where the end is reached and, in the run's last block,
+    the last one."""
+    if every < 1:
+        raise ValueError(f"trace_every must be >= 1, got {every}")
+    if every == 1:
+        return np.arange(n)
+    keep = np.arange((-first) % every, n, every)
+    extra = [finished - first] if 0 <= finished - first < n else []
+    if last and n:
+        extra.append(n - 1)
+    return np.union1d(keep, extra).astype(np.int64)
 
 
 def trace_rows(trace, every: int = 1) -> np.ndarray:
     """Sample indices a trace file keeps: every ``every``-th, plus the sample where the
     end is reached and the last one, shape (m,)."""
-    n = len(trace.t)
-    if every < 1:
-        raise ValueError(f"trace_every must be >= 1, got {every}")
-    if every == 1:
-        return np.arange(n)
-    return np.union1d(np.arange(0, n, every), [trace.finished_index, n - 1])
+    return _kept(0, len(trace.t), every, trace.finished_index, True)
 
 
 def trace_columns(trace, length_unit: str | None = None,
                   pulses_per_length_unit: float | None = None) -> tuple[list[str], np.ndarray]:
     """Header and data of the trace file, shape (n_samples, n_columns) (small traces; the
     writers stream instead)."""
-    cols = _columns(trace, length_unit, pulses_per_length_unit)
+    cols = _columns(trace.machine, trace.speed_bounds is not None, length_unit,
+                    pulses_per_length_unit)
     idx = np.arange(len(trace.t))
-    return [c.name for c in cols], np.column_stack([c.read(idx) for c in cols])
-
-
-def _chunk_table(cols, idx):
-    import pyarrow as pa
-
-    return pa.table({c.name: np.ascontiguousarray(c.read(idx), dtype=float) for c in cols})
+    return [c.name for c in cols], np.column_stack([c.read(trace, idx) for c in cols])
 
 
 def _chunks(rows: np.ndarray):
     """Row selections of :data:`TRACE_CHUNK_ROWS` rows: slices where ``rows`` is every
-    sample (views, no copy), index arrays otherwise."""
+    row (views, no copy), index arrays otherwise."""
     every_row = len(rows) == 0 or (rows[-1] - rows[0] == len(rows) - 1)
     for start in range(0, len(rows), TRACE_CHUNK_ROWS):
         if every_row:
@@ -163,11 +185,18 @@ def _chunks(rows: np.ndarray):
             yield rows[start:start + TRACE_CHUNK_ROWS]
 
 
-def _csv_bytes(cols, idx) -> bytes:
+def _chunk_table(cols, block, idx):
+    import pyarrow as pa
+
+    return pa.table({c.name: np.ascontiguousarray(c.read(block, idx), dtype=float)
+                     for c in cols})
+
+
+def _csv_bytes(cols, block, idx) -> bytes:
     import pyarrow.csv as pacsv
 
     buffer = io.BytesIO()
-    pacsv.write_csv(_chunk_table(cols, idx), buffer,
+    pacsv.write_csv(_chunk_table(cols, block, idx), buffer,
                     write_options=pacsv.WriteOptions(include_header=False,
                                                      quoting_style="none"))
     return buffer.getvalue()
@@ -177,63 +206,79 @@ def _rows_in(idx) -> int:
     return idx.stop - idx.start if isinstance(idx, slice) else len(idx)
 
 
-def _write_csv_chunks(handle, cols, rows, progress) -> None:
+class _CsvChunks:
     """CSV text of the chunks, formatted on a few threads (pyarrow releases the GIL)
     and written in order; at most ``workers + 1`` chunks are held at a time."""
-    from collections import deque
-    from concurrent.futures import ThreadPoolExecutor
 
-    # pyarrow quotes header names; the header is written here, unquoted, as csv readers
-    # and the contract expect.
-    handle.write((",".join(c.name for c in cols) + "\n").encode())
-    workers = max(1, min(2, os.cpu_count() or 1))
-    pending: deque = deque()
-    with ThreadPoolExecutor(workers) as pool:
-        def drain(limit: int) -> None:
-            while len(pending) > limit:
-                n, future = pending.popleft()
-                handle.write(future.result())
-                if progress is not None:
-                    progress(n)
+    def __init__(self, handle, cols, progress, workers: int):
+        from concurrent.futures import ThreadPoolExecutor
 
+        # pyarrow quotes header names; the header is written here, unquoted, as csv
+        # readers and the contract expect.
+        handle.write((",".join(c.name for c in cols) + "\n").encode())
+        self.handle, self.cols, self.progress = handle, cols, progress
+        self.workers = workers
+        self.pool = ThreadPoolExecutor(self.workers)
+        self.pending: deque = deque()
+
+    def write(self, block, rows: np.ndarray) -> None:
         for idx in _chunks(rows):
-            pending.append((_rows_in(idx), pool.submit(_csv_bytes, cols, idx)))
-            drain(workers)
-        drain(0)
+            self.pending.append((_rows_in(idx),
+                                 self.pool.submit(_csv_bytes, self.cols, block, idx)))
+            self._drain(self.workers)
+
+    def _drain(self, limit: int) -> None:
+        while len(self.pending) > limit:
+            n, future = self.pending.popleft()
+            self.handle.write(future.result())
+            if self.progress is not None:
+                self.progress(n)
+
+    def close(self, completed: bool) -> None:
+        try:
+            if completed:
+                self._drain(0)
+        finally:
+            self.pool.shutdown(cancel_futures=True)
 
 
-def _write_parquet_chunks(handle, cols, rows, progress) -> None:
+class _ParquetChunks:
     """Parquet row groups of the chunks: plain byte-stream-split doubles with zstd (float
     columns gain nothing from dictionaries, which cost most of the time)."""
-    import pyarrow.parquet as pq
 
-    writer = None
-    try:
+    def __init__(self, handle, cols, progress, workers: int):
+        self.handle, self.cols, self.progress = handle, cols, progress
+        self.writer = None
+
+    def write(self, block, rows: np.ndarray) -> None:
+        import pyarrow.parquet as pq
+
         for idx in _chunks(rows):
-            table = _chunk_table(cols, idx)
-            if writer is None:
-                writer = pq.ParquetWriter(handle, table.schema, use_dictionary=False,
-                                          compression="zstd",
-                                          column_encoding="BYTE_STREAM_SPLIT")
-            writer.write_table(table)
-            if progress is not None:
-                progress(_rows_in(idx))
-    finally:
-        if writer is not None:
-            writer.close()
+            table = _chunk_table(self.cols, block, idx)
+            if self.writer is None:
+                self.writer = pq.ParquetWriter(self.handle, table.schema,
+                                               use_dictionary=False, compression="zstd",
+                                               column_encoding="BYTE_STREAM_SPLIT")
+            self.writer.write_table(table)
+            if self.progress is not None:
+                self.progress(_rows_in(idx))
+
+    def close(self, completed: bool) -> None:
+        if self.writer is not None:
+            self.writer.close()
 
 
-def write_trace(trace, path, *, fmt: str = "csv", every: int = 1,
-                length_unit: str | None = None, pulses_per_length_unit: float | None = None,
-                overwrite: bool = False,
-                progress: Callable[[int], None] | None = None) -> Path:
-    """Write the trace file, streamed in chunks, atomically.
+class TraceWriter:
+    """The trace file, written as the rows come, atomically: a temporary file in the
+    target's folder, renamed to ``path`` when the ``with`` block ends normally (removed
+    when it raises).
 
     Parameters
     ----------
-    trace : Trace
     path : path-like
         Target file (``trace.csv`` or ``trace.parquet``).
+    machine : Machine
+        The run's machine (axis names, Ke).
     fmt : {"csv", "parquet"}
         CSV (shortest text that reads back to the same double) or Parquet.
     every : int
@@ -246,14 +291,83 @@ def write_trace(trace, path, *, fmt: str = "csv", every: int = 1,
         Replace an existing file.
     progress : callable, optional
         Called with the number of rows written after each chunk.
+    threads : int, optional
+        Threads formatting CSV chunks; by default two (one where fewer cores). A run
+        that streams its rows here keeps one core busy itself: one thread is enough.
+
+    Use as a context manager; :meth:`add` is a sink of
+    :func:`nurbsmotion.loop.simulate_streamed`.
     """
-    if fmt not in TRACE_FORMATS:
-        raise ValueError(f"trace format must be one of {TRACE_FORMATS}, got {fmt!r}")
-    cols = _columns(trace, length_unit, pulses_per_length_unit)
-    rows = trace_rows(trace, every)
-    write = _write_csv_chunks if fmt == "csv" else _write_parquet_chunks
-    return write_output(path, lambda h: write(h, cols, rows, progress), overwrite=overwrite,
-                        binary=True)
+
+    def __init__(self, path, machine, *, fmt: str = "csv", every: int = 1,
+                 length_unit: str | None = None,
+                 pulses_per_length_unit: float | None = None, overwrite: bool = False,
+                 progress: Callable[[int], None] | None = None, threads: int | None = None):
+        if fmt not in TRACE_FORMATS:
+            raise ValueError(f"trace format must be one of {TRACE_FORMATS}, got {fmt!r}")
+        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+            raise ValueError(f"trace_every must be an integer >= 1, got {every!r}")
+        self.path, self.machine, self.fmt, self.every = Path(path), machine, fmt, every
+        self.unit, self.per_unit = length_unit, pulses_per_length_unit
+        self.overwrite, self.progress = overwrite, progress
+        self.threads = max(1, min(2, os.cpu_count() or 1)) if threads is None else threads
+        self.rows_written = 0
+        self._row_bytes = 0.0
+        self._output = self._handle = self._chunks = None
+
+    def __enter__(self) -> "TraceWriter":
+        self._output = atomic_output(self.path, overwrite=self.overwrite, binary=True)
+        self._handle = self._output.__enter__()
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        try:
+            if self._chunks is not None:
+                self._chunks.close(exc_type is None)
+        except BaseException:
+            self._output.__exit__(*sys.exc_info())
+            raise
+        return bool(self._output.__exit__(exc_type, exc, tb))
+
+    def bytes_per_row(self) -> float:
+        """Bytes a row of the file takes, estimated from the first block's rows (0 before
+        any)."""
+        return self._row_bytes
+
+    def add(self, first: int, rows, finished: int, last: bool) -> None:
+        """Write the kept ones of a block of samples ``first ..``: ``rows`` a
+        :class:`nurbsmotion.closed_loop.Rows`, ``finished`` the first sample at the
+        path's end (-1: none yet), ``last`` whether no rows follow (a sink of
+        :func:`nurbsmotion.loop.simulate_streamed`)."""
+        times = (first + np.arange(len(rows.u))) * self.machine.sample_period
+        self._write(_Block(times, rows.u, rows.command, rows.position, rows.drive,
+                           rows.drive_applied, rows.bounds if rows.bounds.shape[0] else None),
+                    first, finished, last)
+
+    def _write(self, block, first: int, finished: int, last: bool) -> None:
+        """:meth:`add` of a block under the :class:`~nurbsmotion.loop.Trace` names."""
+        kept = _kept(first, len(block.u), self.every, finished, last)
+        if self._chunks is None:
+            cols = _columns(self.machine, block.speed_bounds is not None, self.unit,
+                            self.per_unit)
+            make = _CsvChunks if self.fmt == "csv" else _ParquetChunks
+            self._chunks = make(self._handle, cols, self.progress, self.threads)
+            self._row_bytes = _bytes_per_row(self.fmt, cols, block, kept)
+        self._chunks.write(block, kept)
+        self.rows_written += len(kept)
+
+
+def write_trace(trace, path, *, fmt: str = "csv", every: int = 1,
+                length_unit: str | None = None, pulses_per_length_unit: float | None = None,
+                overwrite: bool = False,
+                progress: Callable[[int], None] | None = None) -> Path:
+    """Write the trace file of a :class:`~nurbsmotion.loop.Trace`, streamed in chunks,
+    atomically (see :class:`TraceWriter` for the parameters)."""
+    with TraceWriter(path, trace.machine, fmt=fmt, every=every, length_unit=length_unit,
+                     pulses_per_length_unit=pulses_per_length_unit, overwrite=overwrite,
+                     progress=progress) as writer:
+        writer._write(trace, 0, trace.finished_index, True)
+    return Path(path)
 
 
 def write_trace_csv(trace, path: Path, *, overwrite: bool = True) -> Path:
@@ -265,15 +379,22 @@ def estimate_trace_bytes(trace, *, fmt: str = "csv", every: int = 1,
                          length_unit: str | None = None,
                          pulses_per_length_unit: float | None = None) -> int:
     """Size the trace file would have [byte], from 2,000 of its rows spread over the run."""
-    cols = _columns(trace, length_unit, pulses_per_length_unit)
+    cols = _columns(trace.machine, trace.speed_bounds is not None, length_unit,
+                    pulses_per_length_unit)
     rows = trace_rows(trace, every)
+    return int(_bytes_per_row(fmt, cols, trace, rows) * len(rows))
+
+
+def _bytes_per_row(fmt: str, cols, block, rows: np.ndarray) -> float:
+    """Bytes a row of the file takes, from up to 2,000 of ``rows`` of ``block``."""
+    if len(rows) == 0:
+        return 0.0
     sample = rows[np.linspace(0, len(rows) - 1, min(len(rows), 2000)).astype(int)]
     buffer = io.BytesIO()
-    if fmt == "csv":
-        _write_csv_chunks(buffer, cols, sample, None)
-    else:
-        _write_parquet_chunks(buffer, cols, sample, None)
-    return int(buffer.tell() * len(rows) / len(sample))
+    chunks = (_CsvChunks if fmt == "csv" else _ParquetChunks)(buffer, cols, None, 1)
+    chunks.write(block, sample)
+    chunks.close(True)
+    return buffer.tell() / len(sample)
 
 
 def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,

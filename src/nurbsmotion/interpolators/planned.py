@@ -55,7 +55,7 @@ from ..control import pid_affine, pid_output
 from ..errors import InfeasibleError
 from ..feed import FeedLimit
 from ..machine import Machine
-from ..motion_plan import MotionPlan, axis_zoh, plan_motion
+from ..motion_plan import axis_zoh, plan_motion
 from ..nurbs import NurbsCurve
 from .base import Interpolator, positive_feed
 
@@ -385,12 +385,14 @@ class PlannedInterpolator(Interpolator):
         self.machine = machine
         self.tracking_pole = float(tracking_pole)
         self.drive_headroom = float(drive_headroom)
-        self.motion: MotionPlan = plan_motion(curve, machine, feed,
-                                              corner_tolerance=corner_tolerance,
-                                              drive_fraction=drive_fraction,
-                                              grid_size=grid_size, max_samples=max_samples)
+        # The motion's speed and drive are not kept: the plan's drive_speed and
+        # drive_accel hold them (u_ff = drive_speed + drive_accel), and a long move's
+        # memory is mostly these per-sample arrays.
+        p = plan_motion(curve, machine, feed, corner_tolerance=corner_tolerance,
+                        drive_fraction=drive_fraction, grid_size=grid_size,
+                        max_samples=max_samples)
+        self.duration = p.duration
         a, b0, c, b1 = axis_zoh(machine)
-        p = self.motion
         drive_speed = p.speed / machine.Kc
         drive_accel = np.zeros_like(p.speed)
         drive_accel[:-1] = (p.speed[1:] - p.speed[:-1]) / b0
@@ -406,7 +408,7 @@ class PlannedInterpolator(Interpolator):
             rate_gain=1.0 - self.tracking_pole)
 
     def nominal_duration(self) -> float:
-        return self.motion.duration
+        return self.duration
 
     def new_state(self) -> PlannedState:
         n = self.machine.n_axes
