@@ -206,3 +206,25 @@ def test_a_failing_sink_leaves_no_trace_file(tmp_path, monkeypatch):
         with report.TraceWriter(tmp_path / "trace.csv", m) as writer:
             run_streamed(nm.make_die_bonder_pi(), m, 1e6, sink, "paper")
     assert os.listdir(tmp_path) == []
+
+
+def test_ctrl_c_while_the_command_loads_ends_with_one_line():
+    """The command's entry point imports the command line inside its own handler: a
+    Ctrl-C while numpy and numba load exits 130 with one line, no traceback."""
+    script = (
+        "import sys\n"
+        "class Interrupt:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'nurbsmotion.cli':\n"
+        "            raise KeyboardInterrupt\n"
+        "sys.meta_path.insert(0, Interrupt())\n"
+        "sys.argv = ['nurbsmotion', 'run', 'butterfly']\n"
+        "from nurbsmotion.__main__ import main\n"
+        "sys.exit(main())\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(SRC)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+    done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 130
+    assert done.stderr.strip().splitlines() == [
+        "nurbsmotion run: interrupted; no output was written"]

@@ -10,30 +10,30 @@ from .errors import (  # noqa: E402
     NurbsmotionError,
     PathFileError,
 )
-from .nurbs import (
-    NurbsCurve,
-    builtin_path,
-    make_arc,
-    make_butterfly,
-    make_circle,
-    make_die_bonder_pi,
-    make_line,
-    make_polyline,
-)
-from .joining import elevate_degree, join
-
 __all__ = ["InfeasibleError", "InvalidCurveError", "InvalidMachineError", "NurbsmotionError",
            "PathFileError", "NurbsCurve", "builtin_path", "make_arc", "make_butterfly",
            "make_circle", "make_die_bonder_pi", "make_line", "make_polyline",
            "elevate_degree", "join", "load_path", "resolve_path", "save_path"]
 
+_LAZY = {"NurbsCurve": "nurbs", "builtin_path": "nurbs", "make_arc": "nurbs",
+         "make_butterfly": "nurbs", "make_circle": "nurbs", "make_die_bonder_pi": "nurbs",
+         "make_line": "nurbs", "make_polyline": "nurbs", "elevate_degree": "joining",
+         "join": "joining", "load_path": "paths", "resolve_path": "paths",
+         "save_path": "paths"}
+"""Names loaded with their module on first use (PEP 562): importing the package costs
+nothing, so the command can take a Ctrl-C while numpy and numba load."""
+
 
 def __getattr__(name):
-    """The path-file functions load with :mod:`nurbsmotion.paths` on first use."""
-    if name in ("load_path", "resolve_path", "save_path"):
-        from . import paths
+    if name in _LAZY:
+        from importlib import import_module
 
-        return getattr(paths, name)
+        return getattr(import_module(f".{_LAZY[name]}", __name__), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
+
 
 __version__ = "0.1.0"
