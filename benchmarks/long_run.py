@@ -3,12 +3,14 @@
 The butterfly on the die-bonder at the feed that takes 600 s (its length / 600 s, about
 0.64 mm/s), ``paper`` interpolator (its planning is one sample ahead, so the figure is the
 loop, the metrics and the trace writer), with ``trace.csv``, ``trace.parquet`` and no
-trace, then the same three with the default ``planned``; in a fresh process each: wall
+trace, then the same three with the default ``planned``. Without figures the run streams
+(the rows go block by block to the metrics and the trace file, none is kept); in a fresh process each: wall
 time from the interpreter's start to its exit, the CPU time it used (on a loaded machine
 the wall time grows, the CPU time hardly), and the peak resident set size (VmHWM). Then
 the same run's stages one by one in one process: the imports, the loop, the metrics, the
 time-optimal bound, and writing the trace as CSV and as Parquet; ``planned``'s plan, loop
-and metrics; and the load average.
+and metrics, then its plan and its streamed loop with the metrics and ``trace.csv``
+written block by block (what the command does); and the load average.
 
 Last, Ctrl-C: the same ``run`` (the default ``planned``, ``trace.csv``) as a command in a
 subprocess, sent SIGINT at several moments of its work; each time the latency from the
@@ -82,6 +84,21 @@ t["plan"] = time.perf_counter() - t0
 t0 = time.perf_counter(); tr = simulate(ip, m); t["planned_loop"] = time.perf_counter() - t0
 del ip
 t0 = time.perf_counter(); tr.metrics(); t["planned_metrics"] = time.perf_counter() - t0
+del tr
+from nurbsmotion.loop import simulate_streamed
+from nurbsmotion.metrics import RunningMetrics
+from nurbsmotion.report import TraceWriter
+t0 = time.perf_counter(); ip = make_interpolator("planned", path, m, path.length / 600.0)
+running = RunningMetrics(path, m, 1.0)
+with TraceWriter(out / "streamed.csv", m, length_unit="mm", pulses_per_length_unit=1000.0,
+                 threads=1) as writer:
+    def sink(first, rows, finished, last):
+        running.add(rows.u, rows.feed, rows.status, rows.command, rows.position, rows.drive,
+                    finished)
+        writer.add(first, rows, finished, last)
+    outcome = simulate_streamed(ip, m, sink)
+running.result(outcome.finished_index, outcome.success, outcome.message)
+t["planned_streamed"] = time.perf_counter() - t0
 print(json.dumps(t))
 """
 
@@ -118,7 +135,8 @@ def main(repeats: int = 1) -> str:
             f"time-optimal bound {s['bound']:.2f} s, trace.csv {s['csv']:.2f} s "
             f"({s['csv_mb']:.0f} MB), trace.parquet {s['parquet']:.2f} s "
             f"({s['parquet_mb']:.0f} MB); `planned`: plan {s['plan']:.2f} s, loop "
-            f"{s['planned_loop']:.2f} s, metrics {s['planned_metrics']:.2f} s. Wall time "
+            f"{s['planned_loop']:.2f} s, metrics {s['planned_metrics']:.2f} s; plan, loop, "
+            f"metrics and trace.csv streamed together {s['planned_streamed']:.2f} s. Wall time "
             f"includes starting Python and importing "
             f"(kernels from the disk cache). Load average at the end: {load:.1f} on "
             f"{os.cpu_count()} cores.")
@@ -126,9 +144,9 @@ def main(repeats: int = 1) -> str:
                                                    "peak RSS [MB]"], rows, note=note)
 
 
-INTERRUPT_DELAYS = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5)
+INTERRUPT_DELAYS = (0.1, 0.3, 1.0, 1.5, 2.0, 2.5, 3.0)
 """Seconds after the command's start at which SIGINT is sent (imports, planning, the
-loop, the metrics, the trace file: where each falls depends on the machine)."""
+loop with the metrics and the trace file: where each falls depends on the machine)."""
 
 
 def interrupt_once(delay: float) -> dict:
@@ -141,7 +159,7 @@ def interrupt_once(delay: float) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "out"
         proc = subprocess.Popen(
-            [sys.executable, "-m", "nurbsmotion.cli", "run", "butterfly", "--feed", feed,
+            [sys.executable, "-m", "nurbsmotion", "run", "butterfly", "--feed", feed,
              "--no-figures", "--out", str(out)],
             env=python_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         time.sleep(delay)

@@ -7,16 +7,38 @@ work, with one line and exit code 130, not a traceback.
 
 from __future__ import annotations
 
+import signal
 import sys
+
+
+class _Interrupted:
+    """SIGINT handler while the command line loads: remembers the Ctrl-C and raises
+    KeyboardInterrupt (a C extension that is loading may turn it into an ImportError)."""
+
+    seen = False
+
+    def __call__(self, signum, frame):
+        self.seen = True
+        raise KeyboardInterrupt
 
 
 def main() -> int:
     """Import the command line and run it; returns the exit code."""
+    interrupted = _Interrupted()
     try:
-        from .cli import main as run
-
+        previous = signal.signal(signal.SIGINT, interrupted)
+    except ValueError:  # not the main thread: no handler of ours
+        previous = None
+    try:
+        try:
+            from .cli import main as run
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
         return run()  # it reports a Ctrl-C during its work itself
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ImportError):
+        if not (interrupted.seen or sys.exc_info()[0] is KeyboardInterrupt):
+            raise
         command = " ".join(sys.argv[1:2])
         print(f"nurbsmotion{' ' + command if command else ''}: interrupted; no output was "
               "written", file=sys.stderr)
