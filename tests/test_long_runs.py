@@ -36,9 +36,12 @@ def test_ctrl_c_inside_a_compiler_callback_is_retried_not_raised():
 
 
 @pytest.mark.skipif(not hasattr(signal, "SIGINT") or os.name != "posix", reason="POSIX")
-def test_sigint_during_a_long_run_exits_130_with_one_line_and_writes_nothing(tmp_path):
-    """The command is interrupted once its work has started (its staging folder exists):
-    exit code 130, one line on stderr, and the output folder keeps only what was there."""
+@pytest.mark.parametrize("signum", ["SIGINT", "SIGTERM"])
+def test_sigint_during_a_long_run_exits_130_with_one_line_and_writes_nothing(tmp_path,
+                                                                             signum):
+    """The command is interrupted (Ctrl-C, or SIGTERM from a machine shutting down) once
+    its work has started (its staging folder exists): exit code 130, one line on stderr,
+    and the output folder keeps only what was there."""
     out = tmp_path / "out"
     out.mkdir()
     (out / "notes.txt").write_text("keep")
@@ -53,7 +56,7 @@ def test_sigint_during_a_long_run_exits_130_with_one_line_and_writes_nothing(tmp
         while proc.poll() is None and not any(p.name.startswith(".nurbsmotion-")
                                               for p in out.iterdir()):
             time.sleep(0.01)
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(getattr(signal, signum))
         _, err = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:

@@ -726,12 +726,16 @@ def _interrupt(signum, frame) -> None:
 
 @contextlib.contextmanager
 def _interruptible():
-    """Ctrl-C raises KeyboardInterrupt wherever the command is (see :func:`_interrupt`);
-    the previous handlers are restored after. Only in the main thread (where signals go)."""
+    """Ctrl-C (and SIGTERM) raise KeyboardInterrupt wherever the command is (see
+    :func:`_interrupt`); the previous handlers are restored after. Only in the main thread
+    (where signals go)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    saved = {s: signal.signal(s, _interrupt) for s in (signal.SIGINT, signal.SIGALRM)}
+    # SIGTERM (a machine shutting down, a job scheduler) stops the command like Ctrl-C:
+    # its staging folder and temporary files are removed on the way out.
+    saved = {s: signal.signal(s, _interrupt)
+             for s in (signal.SIGINT, signal.SIGALRM, signal.SIGTERM)}
     try:
         yield
     finally:
