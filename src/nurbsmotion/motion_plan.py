@@ -406,20 +406,12 @@ def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, toleran
     return y, param, np.array(corner_times)
 
 
-def _realise(y_cmd: np.ndarray, alpha, beta, a, b0):
-    """Speed, position and drive of the model's plant under the zero-phase-error inverse of
-    the commanded positions ``y_cmd`` (shape (n, n_axes), at rest at both ends)."""
-    w = np.empty_like(y_cmd)
-    theta = np.empty_like(y_cmd)
-    u = np.empty_like(y_cmd)
-    _realise_into(np.ascontiguousarray(y_cmd), alpha, beta, a, b0, w, theta, u)
-    return w, theta, u
-
-
 @njit(cache=True)
 def _realise_into(y_cmd, alpha, beta, a, b0, w, theta, u):
-    """:func:`_realise` in one pass per axis: with ``d[k] = y[k+1] - y[k]``,
-    ``w[k] = (beta*d[k-1] + alpha*d[k]) / (alpha + beta)^2``,
+    """Speed ``w``, position ``theta`` and drive ``u`` (written, each shape (n, n_axes))
+    of the model's plant under the zero-phase-error inverse of the commanded positions
+    ``y_cmd`` (shape (n, n_axes), at rest at both ends), in one pass per axis: with
+    ``d[k] = y[k+1] - y[k]``, ``w[k] = (beta*d[k-1] + alpha*d[k]) / (alpha + beta)^2``,
     ``u[k] = (w[k+1] - a*w[k]) / b0`` (0 at the last sample, as w) and
     ``theta[k+1] = y[0] + sum_{i<=k} (alpha*w[i] + beta*w[i+1])``."""
     n = y_cmd.shape[0]
@@ -440,9 +432,51 @@ def _realise_into(y_cmd, alpha, beta, a, b0, w, theta, u):
         u[n - 1, j] = 0.0
 
 
+@njit(cache=True, fastmath={"nnan", "ninf", "nsz"})  # max in any order: exact
+def _precompensate(y, alpha, beta, a, b0, rounds, limit, y_cmd, rounds_out):
+    """:func:`_drive_sequence`'s rounds, compiled: ``y_cmd`` (in: ``y``, C-contiguous,
+    shape (n, n_axes)) is corrected by the realised position's error each round.
+    ``rounds_out`` (2, 3, n, n_axes) receives ``(w, theta, u)`` of two rounds: returned is
+    the index of the round with the smallest error whose drive stays within ``limit``, or
+    -1 if there is none (then index 0 holds the last round). The two sets take turns, so
+    no round is copied."""
+    n, n_axes = y.shape
+    yf, cf = y.reshape(-1), y_cmd.reshape(-1)
+    best_error = math.inf
+    best = -1
+    cur = 0
+    for _ in range(rounds + 1):
+        w, theta, u = rounds_out[cur, 0], rounds_out[cur, 1], rounds_out[cur, 2]
+        _realise_into(y_cmd, alpha, beta, a, b0, w, theta, u)
+        tf, uf = theta.reshape(-1), u.reshape(-1)
+        worst = 0.0
+        peak = 0.0
+        for i in range(yf.shape[0]):  # flat: no branch, vectorised
+            worst = max(worst, abs(yf[i] - tf[i]))
+            peak = max(peak, abs(uf[i]))
+        improved = worst < best_error and peak <= limit
+        if improved:
+            best_error = worst
+            best = cur
+        if worst <= PRECOMPENSATION_TOLERANCE:
+            break
+        for i in range(3 * n_axes, max(3 * n_axes, (n - 2) * n_axes)):
+            cf[i] += yf[i] - tf[i]
+        for k in range(min(3, n)):      # u[0] = 0 and w[1] = 0: the loop starts at rest
+            for j in range(n_axes):
+                y_cmd[k, j] = y[0, j]
+        for k in range(max(0, n - 2), n):  # at rest on the end
+            for j in range(n_axes):
+                y_cmd[k, j] = y[n - 1, j]
+        if improved:  # keep it: the next round goes to the other set
+            cur = 1 - cur
+    return best
+
+
 def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
                     limit: float = math.inf):
-    """Step 3: the drive sequence whose response follows ``y`` (see module docstring).
+    """Step 3: the drive sequence whose response follows ``y`` (see module docstring):
+    ``(w, theta, u)``, each shape (n, n_axes).
 
     Rounds of pre-compensation until the realised position is within
     :data:`PRECOMPENSATION_TOLERANCE` of ``y`` or ``rounds`` are done; returned is the
@@ -452,20 +486,11 @@ def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
     a, b0, c, b1 = axis_zoh(machine)
     beta = b1 / b0
     alpha = c - a * beta
-    y_cmd = y.copy()
-    best, best_error = None, math.inf
-    for _ in range(rounds + 1):
-        realised = _realise(y_cmd, alpha, beta, a, b0)
-        error = y - realised[1]
-        worst = float(np.max(np.abs(error)))
-        if worst < best_error and np.max(np.abs(realised[2])) <= limit:
-            best, best_error = realised, worst
-        if worst <= PRECOMPENSATION_TOLERANCE:
-            break
-        y_cmd = y_cmd + error
-        y_cmd[:3] = y[0]          # u[0] = 0 and w[1] = 0: the loop starts at rest
-        y_cmd[-2:] = y[-1]        # at rest on the end
-    return realised if best is None else best
+    y = np.ascontiguousarray(y, dtype=float)
+    out = np.empty((2, 3) + y.shape)
+    best = _precompensate(y, alpha, beta, a, b0, rounds, float(limit), y.copy(), out)
+    # copies: a view would keep both rounds of a long plan alive as long as the plan
+    return tuple(array.copy() for array in out[max(best, 0)])
 
 
 def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
