@@ -4,8 +4,8 @@ The butterfly on the die-bonder at the feed that takes 600 s (its length / 600 s
 0.64 mm/s), ``paper`` interpolator (its planning is one sample ahead, so the figure is the
 loop, the metrics and the trace writer), with ``trace.csv``, ``trace.parquet`` and no
 trace, then the same three with the default ``planned``. Without figures the run streams
-(the rows go block by block to the metrics and the trace file, none is kept); in a fresh process each: wall
-time from the interpreter's start to its exit, the CPU time it used (on a loaded machine
+(the rows go block by block to the metrics and the trace file, none is kept). In a fresh
+process each: wall time from the interpreter's start to its exit, the CPU time it used (on a loaded machine
 the wall time grows, the CPU time hardly), and the peak resident set size (VmHWM). Then
 the same run's stages one by one in one process: the imports, the loop, the metrics, the
 time-optimal bound, and writing the trace as CSV and as Parquet; ``planned``'s plan, loop

@@ -314,8 +314,8 @@ def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | Non
                 writer.add(first, rows, finished, last)
             if announce and writer.rows_written and math.isfinite(expected):
                 announce = False
-                rows = max(writer.rows_written, int(expected / args.trace_every))
-                _trace_notice(args, file, rows, writer.bytes_per_row() * rows, samples)
+                total = max(writer.rows_written, int(expected / args.trace_every))
+                _trace_notice(args, file, total, writer.bytes_per_row() * total, samples)
 
         outcome = run_streamed(path, machine, feed, sink, args.interpolator,
                                progress=lambda k: samples.update(k - samples.n),

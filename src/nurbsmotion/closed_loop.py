@@ -41,7 +41,8 @@ from .control import pid_commit, pid_output
 from .servo import plant_step
 
 __all__ = ["Rows", "Settling", "LoopState", "AxisState", "DONE", "FULL", "FAILED",
-           "OUT_OF_SAMPLES", "PAUSED", "BLOCK_SAMPLES", "SINK_BLOCK_SAMPLES", "new_rows", "run_samples"]
+           "OUT_OF_SAMPLES", "PAUSED", "BLOCK_SAMPLES", "SINK_BLOCK_SAMPLES", "new_rows",
+           "run_samples"]
 
 DONE, FULL, FAILED, OUT_OF_SAMPLES, PAUSED = 0, 1, 2, 3, 4
 """Return codes of :func:`run_samples`: settled; rows full (grow them and call again);

@@ -91,13 +91,13 @@ class RunOutcome:
 
 @dataclass(frozen=True, eq=False)
 class Trace(RunOutcome):
-    """Everything the loop did, one row per sample k (t = k*Ts): the
-    :class:`RunOutcome` and the rows.
+    """Everything the loop did, one row per sample k (t = k*Ts): the attributes of
+    :class:`RunOutcome` (``n_samples``, ``finished_index``, ``settled_index``,
+    ``settle_window``, ``success``, ``message``, ``curve``, ``machine``,
+    ``interpolator``), and the rows.
 
     Attributes
     ----------
-    n_samples, finished_index, settled_index, settle_window, success, message, curve, machine, interpolator
-        See :class:`RunOutcome`.
     t : ndarray, shape (n_samples,)
         Sample times [s].
     u : ndarray, shape (n_samples,)

@@ -29,8 +29,8 @@ from .geometry import distances_to
 from .nurbs import NurbsCurve
 from .stepping import Status
 
-__all__ = ["Metrics", "RunningMetrics", "trace_metrics", "feed_fluctuation", "contour_error", "nearest_parameter",
-           "settle_time", "overshoot", "SATURATION_TOLERANCE", "SETTLE_WINDOW"]
+__all__ = ["Metrics", "RunningMetrics", "trace_metrics", "feed_fluctuation", "contour_error",
+           "nearest_parameter", "settle_time", "overshoot", "SATURATION_TOLERANCE", "SETTLE_WINDOW"]
 
 SATURATION_TOLERANCE = 1e-6
 """Relative excess over Umax below which a sample is not counted as saturated."""

@@ -346,6 +346,8 @@ class TraceWriter:
 
     def _write(self, block, first: int, finished: int, last: bool) -> None:
         """:meth:`add` of a block under the :class:`~nurbsmotion.loop.Trace` names."""
+        if self._handle is None:
+            raise RuntimeError("a TraceWriter writes inside its with block only")
         kept = _kept(first, len(block.u), self.every, finished, last)
         if self._chunks is None:
             cols = _columns(self.machine, block.speed_bounds is not None, self.unit,
