@@ -792,9 +792,12 @@ def _path_key(case: Case) -> tuple:
             case.base_dir)
 
 
-def _run_batch(function: Callable, batch: list[Case]) -> list[dict]:
-    """A Dask task: the rows of ``batch``."""
-    return [function(c) for c in batch]
+def _run_batch(function: Callable, batch: list[Case]) -> bytes:
+    """A Dask task: the rows of ``batch``, pickled together. Dask measures (``sizeof``)
+    and serializes a task's result on the worker, and the scheduler forwards it: a bytes
+    object costs it next to nothing, a list of dicts of some 70 keys each is walked key by
+    key (about a millisecond of the worker's CPU time for a task's rows)."""
+    return pickle.dumps([function(c) for c in batch], protocol=pickle.HIGHEST_PROTOCOL)
 
 
 _CHUNK_SECONDS = 0.25
@@ -806,6 +809,17 @@ _DASK_CHUNK_SECONDS = 1.0
 """The same for a Dask task, which costs the scheduler, the worker and this process
 several milliseconds of CPU time (the 2-worker LocalCluster's engine overhead went from
 1.7 to 3.0-3.4 ms a case with 250 ms tasks)."""
+
+_MIN_CHUNK_SHARE = 0.1
+"""The smallest chunk toward the end, as a share of a full one (at least one case): the
+last chunks are cut to balance the workers, but an exchange costs the same for a few
+milliseconds of cases as for a full chunk (a Dask task of one 20 ms case: about 5 ms of
+CPU time in the scheduler, the worker and this process)."""
+
+_DASK_WORKERS_SECONDS = 5.0
+"""How often a campaign on Dask asks the scheduler which workers it has [s]: a worker
+that joins gets work within this time, and the campaign does not add a round trip
+through the scheduler (whose answer grows with the cluster) to every task."""
 
 _TAIL_SECONDS = 0.05
 """Once every path has been given out, a worker is sent its next chunk before it ends
@@ -850,7 +864,8 @@ class _Planner:
     none when that would not end sooner, so that the workers finish together without
     building a path's tables twice for a few cases. The case time and the tables' time
     are measured from the rows so far (``case_cpu_s``). A worker is given about
-    ``chunk_seconds`` of work at a time, less toward the end.
+    ``chunk_seconds`` of work at a time, less toward the end: the rest of a path, and
+    whole paths after it while they fit (their tables counted).
     """
 
     def __init__(self, cases: list[Case], chunk_seconds: float = _CHUNK_SECONDS):
@@ -917,11 +932,26 @@ class _Planner:
                 return []
         c = self.case_time(_path_key(slot.own[0]))
         # No more than a share of the work left (guided self-scheduling): the chunks
-        # shrink toward the end, where their cases could no longer be shared out.
-        seconds = min(self.chunk_seconds, self.left * (c or 0.0) / (4 * len(slots)))
+        # shrink toward the end, where their cases could no longer be shared out; but
+        # not below a tenth of a full chunk, whose exchange would then cost more than
+        # the last imbalance it can save.
+        seconds = max(min(self.chunk_seconds, self.left * (c or 0.0) / (4 * len(slots))),
+                      self.chunk_seconds * _MIN_CHUNK_SHARE)
         size = 1 if not c else max(1, min(len(slot.own), int(seconds / c)))
         chunk = [slot.own.popleft() for _ in range(size)]
-        self.left -= size
+        # A path that ends within the chunk leaves room for the next paths, whole, while
+        # their cases and tables fit too: a campaign of paths with a few short cases each
+        # is not sent a path at a time.
+        spent, table = size * (c or 0.0), self.table_time()
+        while c and not slot.own and self.paths:
+            key = _path_key(self.paths[0][0])
+            n, c_next = len(self.paths[0]), self.case_time(key)
+            extra = (0.0 if key in slot.warm else table) + n * c_next
+            if spent + extra > seconds:
+                break
+            chunk += self.paths.popleft()
+            spent += extra
+        self.left -= len(chunk)
         for case in chunk:
             key = _path_key(case)
             if key not in slot.warm:
@@ -1193,10 +1223,14 @@ def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[
         tasks: dict = {}  # future key -> (slot or None for a case alone, its cases)
         done = as_completed()
 
+        asked = [-math.inf]  # when the scheduler was last asked for its workers
+
         def feed() -> None:
-            for addr, info in client.scheduler_info()["workers"].items():
-                for k in range(info.get("nthreads", 1)):
-                    slots.setdefault((addr, k), _Slot())
+            if time.monotonic() - asked[0] >= _DASK_WORKERS_SECONDS:
+                asked[0] = time.monotonic()
+                for addr, nthreads in client.nthreads().items():
+                    for k in range(nthreads):
+                        slots.setdefault((addr, k), _Slot())
             order = list(slots.values())
             for (addr, _), slot in slots.items():
                 while len(slot.chunks) < (2 if planner.ahead(slot) else 1):
@@ -1216,7 +1250,7 @@ def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[
                 ids = {c.case_id for c in chunk}
                 slot.sent = deque(c for c in slot.sent if c.case_id not in ids)
             try:
-                rows = fut.result()
+                rows = pickle.loads(fut.result())
             except Exception as exc:  # KilledWorker, or a result that cannot be sent
                 if len(chunk) > 1:
                     for case in chunk:
