@@ -347,6 +347,22 @@ def test_serial_pool_and_dask_give_the_same_rows(tmp_path):
         assert values(tables[name]) == ref, name
 
 
+def test_the_documented_dask_settings_are_dask_settings():
+    """DASK_SETTINGS are settings Dask knows, of the type of its defaults, and the
+    environment variables docs/campaign.md sets for the scheduler and workers."""
+    dask = pytest.importorskip("dask")
+    pytest.importorskip("dask.distributed")
+    import re
+
+    for key, value in campaign.DASK_SETTINGS.items():
+        assert type(dask.config.get(key)) is type(value), key  # KeyError if unknown
+    text = (Path(__file__).parents[1] / "docs" / "campaign.md").read_text()
+    env = dict(re.findall(r"\b(DASK_[A-Z_]+)=(\S+)", text))
+    documented = dask.config.collect_env(env)
+    for key, value in campaign.DASK_SETTINGS.items():
+        assert dask.config.get(key, config=documented) == value, key
+
+
 # ------------------------------------------------------------------ random-path sweep
 def _three_axis_machine(tmp_path) -> Path:
     import tomli_w
