@@ -931,18 +931,20 @@ class _Planner:
             elif not self._steal(slot, slots):
                 return []
         c = self.case_time(_path_key(slot.own[0]))
-        # No more than a share of the work left (guided self-scheduling): the chunks
-        # shrink toward the end, where their cases could no longer be shared out; but
-        # not below a tenth of a full chunk, whose exchange would then cost more than
-        # the last imbalance it can save.
-        seconds = max(min(self.chunk_seconds, self.left * (c or 0.0) / (4 * len(slots))),
+        table = self.table_time()
+        # No more than a share of the work left, the tables of the paths not given out
+        # counted (guided self-scheduling): the chunks shrink toward the end, where their
+        # cases could no longer be shared out; but not below a tenth of a full chunk,
+        # whose exchange would then cost more than the last imbalance it can save.
+        left = self.left * (c or 0.0) + len(self.paths) * table
+        seconds = max(min(self.chunk_seconds, left / (4 * len(slots))),
                       self.chunk_seconds * _MIN_CHUNK_SHARE)
         size = 1 if not c else max(1, min(len(slot.own), int(seconds / c)))
         chunk = [slot.own.popleft() for _ in range(size)]
         # A path that ends within the chunk leaves room for the next paths, whole, while
         # their cases and tables fit too: a campaign of paths with a few short cases each
         # is not sent a path at a time.
-        spent, table = size * (c or 0.0), self.table_time()
+        spent = size * (c or 0.0)
         while c and not slot.own and self.paths:
             key = _path_key(self.paths[0][0])
             n, c_next = len(self.paths[0]), self.case_time(key)
