@@ -25,7 +25,10 @@ own CPU time (``case_cpu_s``, the CPU time of the thread that ran the case), per
 as a share of the case time; the part spent in this process is given too. On Dask, much
 of it is the cluster's own background work (heartbeats, monitors, the workers'
 profiler), which goes by the second, not by the case: a loaded machine, stretching the
-run's wall time, raises it. *Work* is the cases' CPU time over the serial run's: above 1 when a path's
+run's wall time, raises it. So the cluster's CPU time a second at rest is measured
+(5 s with no task) and the overhead is also given as it would have been at the
+load-corrected wall time (the measured overhead less that rate times the wall time the
+load added) — an estimate; on an idle machine the two agree. *Work* is the cases' CPU time over the serial run's: above 1 when a path's
 tables are built by two workers, or when two busy cores slow each other (shared caches
 and memory; on a loaded machine, other programs too).
 
@@ -54,6 +57,10 @@ import _common  # noqa: F401  (puts src/ on the path)
 
 from nurbsmotion import campaign
 from nurbsmotion.campaign import load_study, read_rows, run_study, study_cases
+
+
+_REST_SECONDS = 5.0
+"""How long the started LocalCluster is watched with no task [s]."""
 
 
 def _cpu(who) -> float:
@@ -104,7 +111,7 @@ def timed(study, cases, client=None, workers=None) -> dict:
             "load": (load, os.getloadavg()[0])}
 
 
-def show(name: str, r: dict, serial: dict | None = None) -> None:
+def show(name: str, r: dict, serial: dict | None = None, rest: float | None = None) -> None:
     n = r["n"]
     over = r["cpu"] - r["case_cpu"]
     text = (f"{name}: {r['wall']:.1f} s, {n / r['wall']:.2f} cases/s wall; load-corrected "
@@ -116,6 +123,13 @@ def show(name: str, r: dict, serial: dict | None = None) -> None:
         text += (f"; work {r['case_cpu'] / serial['case_cpu']:.3f} x serial's; scaling "
                  f"{serial['wall'] / r['wall']:.2f}x wall, "
                  f"{serial['corrected'] / r['corrected']:.2f}x load-corrected")
+    if rest is not None:
+        # The cluster's background work goes by the second: had the run taken its
+        # load-corrected wall time, it would have cost that much less.
+        idle = over - rest * (r["wall"] - r["corrected"])
+        text += (f"; overhead at the load-corrected wall time {idle / n * 1e3:.1f} ms a case "
+                 f"= {idle / r['case_cpu']:.1%} (the cluster at rest: {rest * 1e3:.0f} ms "
+                 "CPU a second)")
     print(text, flush=True)
 
 
@@ -177,12 +191,17 @@ def main() -> None:
             client.run(lambda: None)  # every worker has run the plugin's setup
             ready = time.perf_counter() - t0
             cpu = _cpu(resource.RUSAGE_SELF) - cpu0 + _cluster_cpu(client)
+            # What the scheduler, the nannies and the workers spend with no task [CPU s/s]
+            rest0, t1 = _cpu(resource.RUSAGE_SELF) + _cluster_cpu(client), time.perf_counter()
+            time.sleep(_REST_SECONDS)
+            rest = (_cpu(resource.RUSAGE_SELF) + _cluster_cpu(client) - rest0) / (
+                time.perf_counter() - t1)
             label = f"2-worker Dask LocalCluster, {name}"
             print(f"{label}: start-up (not in its figures) {started:.1f} s to start, "
-                  f"{ready:.1f} s with the kernels loaded; {cpu:.1f} s CPU in all",
-                  flush=True)
-            show(label, timed(study, cases, client), serial)
-            show(f"{label}, again", timed(study, cases, client), serial)
+                  f"{ready:.1f} s with the kernels loaded; {cpu:.1f} s CPU in all; at rest "
+                  f"{rest * 1e3:.0f} ms CPU a second", flush=True)
+            show(label, timed(study, cases, client), serial, rest)
+            show(f"{label}, again", timed(study, cases, client), serial, rest)
 
 
 if __name__ == "__main__":
