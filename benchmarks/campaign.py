@@ -35,9 +35,9 @@ and memory; on a loaded machine, other programs too).
 Every configuration starts with the kernels loaded: this process loads them before the
 serial run (forked local workers inherit them); the Dask cluster is started and each of
 its workers loads them (the engine's worker plugin) before its first timed run, and that
-start-up is reported on its own line. The LocalCluster runs twice: with Dask's default
-settings, and with :data:`nurbsmotion.campaign.DASK_SETTINGS` (as ``docs/campaign.md``
-starts a cluster's scheduler and workers).
+start-up is reported on its own line. The LocalCluster runs twice: with
+:data:`nurbsmotion.campaign.DASK_SETTINGS` (as ``docs/campaign.md`` starts a cluster's
+scheduler and workers), and with Dask's default settings.
 
     python benchmarks/campaign.py [--study FILE] [--cases 1000]
 """
@@ -178,7 +178,9 @@ def main() -> None:
         return
     import dask
 
-    for name, settings in (("Dask's defaults", {}), ("DASK_SETTINGS", campaign.DASK_SETTINGS)):
+    # DASK_SETTINGS first: a nanny puts its workers' environment (Dask's default
+    # MALLOC_TRIM_THRESHOLD_) into this process's os.environ, which later nannies pass on.
+    for name, settings in (("DASK_SETTINGS", campaign.DASK_SETTINGS), ("Dask's defaults", {})):
         cpu0 = _cpu(resource.RUSAGE_SELF)
         t0 = time.perf_counter()
         with dask.config.set(settings), LocalCluster(

@@ -348,17 +348,20 @@ def test_serial_pool_and_dask_give_the_same_rows(tmp_path):
 
 
 def test_the_documented_dask_settings_are_dask_settings():
-    """DASK_SETTINGS are settings Dask knows, of the type of its defaults, and the
-    environment variables docs/campaign.md sets for the scheduler and workers."""
+    """DASK_SETTINGS are settings Dask knows (a value of None unsets one), of the type of
+    its defaults, and the configuration file docs/campaign.md gives the scheduler and
+    workers."""
     dask = pytest.importorskip("dask")
     pytest.importorskip("dask.distributed")
     import re
 
+    import yaml
+
     for key, value in campaign.DASK_SETTINGS.items():
-        assert type(dask.config.get(key)) is type(value), key  # KeyError if unknown
+        default = dask.config.get(key)  # KeyError if Dask does not know it
+        assert value is None or type(default) is type(value), key
     text = (Path(__file__).parents[1] / "docs" / "campaign.md").read_text()
-    env = dict(re.findall(r"\b(DASK_[A-Z_]+)=(\S+)", text))
-    documented = dask.config.collect_env(env)
+    documented = yaml.safe_load(re.search(r"<<'EOF'\n(.*?)\nEOF\n", text, re.S).group(1))
     for key, value in campaign.DASK_SETTINGS.items():
         assert dask.config.get(key, config=documented) == value, key
 
