@@ -1215,10 +1215,10 @@ before starting a ``LocalCluster``, or the configuration file of ``docs/campaign
 times a second for the dashboard's profile (5-8 ms of its event loop's CPU time a second,
 measured on a 2-core VM), and every scheduler, nanny and worker wakes 50 times a second
 to time its event loop (a few ms of CPU a second each): a 2-worker LocalCluster at rest
-uses 49-57 ms of CPU a second with Dask's defaults, 25-27 ms with these. And Dask's
+uses 47-57 ms of CPU a second with Dask's defaults, 22-27 ms with these. And Dask's
 nannies start their workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which turns off
 glibc's adaptive mmap threshold: every array over 128 KiB is then mapped and unmapped
-afresh, and a case took 8-10 % more CPU time than in a plain process (0.99-1.03 times
+afresh, and a case took 9-13 % more CPU time than in a plain process (0.99-1.03 times
 the serial run's without it, on the 1,000-case study). On a campaign's ~1 s tasks of
 CPU-bound cases, none of these tells anything the task's own times do not, and the
 workers then allocate as the serial and local runs do."""
