@@ -347,6 +347,25 @@ def test_serial_pool_and_dask_give_the_same_rows(tmp_path):
         assert values(tables[name]) == ref, name
 
 
+def test_the_documented_dask_settings_are_dask_settings():
+    """DASK_SETTINGS are settings Dask knows (a value of None unsets one), of the type of
+    its defaults, and the configuration file docs/campaign.md gives the scheduler and
+    workers."""
+    dask = pytest.importorskip("dask")
+    pytest.importorskip("dask.distributed")
+    import re
+
+    import yaml
+
+    for key, value in campaign.DASK_SETTINGS.items():
+        default = dask.config.get(key)  # KeyError if Dask does not know it
+        assert value is None or type(default) is type(value), key
+    text = (Path(__file__).parents[1] / "docs" / "campaign.md").read_text()
+    documented = yaml.safe_load(re.search(r"<<'EOF'\n(.*?)\nEOF\n", text, re.S).group(1))
+    for key, value in campaign.DASK_SETTINGS.items():
+        assert dask.config.get(key, config=documented) == value, key
+
+
 # ------------------------------------------------------------------ random-path sweep
 def _three_axis_machine(tmp_path) -> Path:
     import tomli_w

@@ -50,7 +50,7 @@ else:  # pragma: no cover
 
 __all__ = ["Study", "Case", "load_study", "study_cases", "run_case", "run_study",
            "read_rows", "digest", "write_digest", "case_trace", "find_case", "STATUS_OK",
-           "STATUS_ERROR", "WORKER_DIED"]
+           "STATUS_ERROR", "WORKER_DIED", "DASK_SETTINGS"]
 
 STATUS_OK, STATUS_ERROR = "ok", "error"
 WORKER_DIED = "WorkerDied"
@@ -442,7 +442,9 @@ def run_case(case: Case) -> dict:
     """One row of the dataset: the case's parameters and seed, ``status``, and every
     ``summary.json`` key (per-axis values as ``key_<axis>``); a case that raises gives
     ``status = "error"`` with ``error_type`` and ``error_message`` instead of figures."""
-    t0, cpu0 = time.perf_counter(), time.process_time()
+    # The CPU time of this thread, not of the process: a Dask worker runs its event loop
+    # (heartbeats, transfers, its profiler) beside the case, which is not the case's work.
+    t0, cpu0 = time.perf_counter(), time.thread_time()
     row = _case_columns(case)
     try:
         with _cpu_limit(case.time_limit):
@@ -461,7 +463,7 @@ def run_case(case: Case) -> dict:
         for axis, t, k in zip(_machine(case.machine, case.base_dir).axis_names, tau_s, kc_s):
             row[f"tau_scale_{axis}"], row[f"Kc_scale_{axis}"] = float(t), float(k)
     row["case_time_s"] = time.perf_counter() - t0
-    row["case_cpu_s"] = time.process_time() - cpu0
+    row["case_cpu_s"] = time.thread_time() - cpu0
     return row
 
 
@@ -790,9 +792,12 @@ def _path_key(case: Case) -> tuple:
             case.base_dir)
 
 
-def _run_batch(function: Callable, batch: list[Case]) -> list[dict]:
-    """A Dask task: the rows of ``batch``."""
-    return [function(c) for c in batch]
+def _run_batch(function: Callable, batch: list[Case]) -> bytes:
+    """A Dask task: the rows of ``batch``, pickled together. Dask measures (``sizeof``)
+    and serializes a task's result on the worker, and the scheduler forwards it: a bytes
+    object costs it next to nothing, a list of dicts of some 70 keys each is walked key by
+    key (about a millisecond of the worker's CPU time for a task's rows)."""
+    return pickle.dumps([function(c) for c in batch], protocol=pickle.HIGHEST_PROTOCOL)
 
 
 _CHUNK_SECONDS = 0.25
@@ -802,8 +807,19 @@ back together: an exchange with a local worker cost about a millisecond of CPU t
 
 _DASK_CHUNK_SECONDS = 1.0
 """The same for a Dask task, which costs the scheduler, the worker and this process
-several milliseconds of CPU time (the 2-worker LocalCluster's engine overhead went from
-1.7 to 3.0-3.4 ms a case with 250 ms tasks)."""
+several milliseconds of CPU time (about 3 ms in the client and a LocalCluster's
+scheduler, 2.5 ms in the worker, measured on 200 tasks of 50 rows on a 2-core VM)."""
+
+_MIN_CHUNK_SHARE = 0.1
+"""The smallest chunk toward the end, as a share of a full one (at least one case): the
+last chunks are cut to balance the workers, but an exchange costs the same for a few
+milliseconds of cases as for a full chunk (a Dask task of one 20 ms case: about 5 ms of
+CPU time in the scheduler, the worker and this process)."""
+
+_DASK_WORKERS_SECONDS = 5.0
+"""How often a campaign on Dask asks the scheduler which workers it has [s]: a worker
+that joins gets work within this time, and the campaign does not add a round trip
+through the scheduler (whose answer grows with the cluster) to every task."""
 
 _TAIL_SECONDS = 0.05
 """Once every path has been given out, a worker is sent its next chunk before it ends
@@ -848,7 +864,8 @@ class _Planner:
     none when that would not end sooner, so that the workers finish together without
     building a path's tables twice for a few cases. The case time and the tables' time
     are measured from the rows so far (``case_cpu_s``). A worker is given about
-    ``chunk_seconds`` of work at a time, less toward the end.
+    ``chunk_seconds`` of work at a time, less toward the end: the rest of a path, and
+    whole paths after it while they fit (their tables counted).
     """
 
     def __init__(self, cases: list[Case], chunk_seconds: float = _CHUNK_SECONDS):
@@ -914,12 +931,29 @@ class _Planner:
             elif not self._steal(slot, slots):
                 return []
         c = self.case_time(_path_key(slot.own[0]))
-        # No more than a share of the work left (guided self-scheduling): the chunks
-        # shrink toward the end, where their cases could no longer be shared out.
-        seconds = min(self.chunk_seconds, self.left * (c or 0.0) / (4 * len(slots)))
+        table = self.table_time()
+        # No more than a share of the work left, the tables of the paths not given out
+        # counted (guided self-scheduling): the chunks shrink toward the end, where their
+        # cases could no longer be shared out; but not below a tenth of a full chunk,
+        # whose exchange would then cost more than the last imbalance it can save.
+        left = self.left * (c or 0.0) + len(self.paths) * table
+        seconds = max(min(self.chunk_seconds, left / (4 * len(slots))),
+                      self.chunk_seconds * _MIN_CHUNK_SHARE)
         size = 1 if not c else max(1, min(len(slot.own), int(seconds / c)))
         chunk = [slot.own.popleft() for _ in range(size)]
-        self.left -= size
+        # A path that ends within the chunk leaves room for the next paths, whole, while
+        # their cases and tables fit too: a campaign of paths with a few short cases each
+        # is not sent a path at a time.
+        spent = size * (c or 0.0)
+        while c and not slot.own and self.paths:
+            key = _path_key(self.paths[0][0])
+            n, c_next = len(self.paths[0]), self.case_time(key)
+            extra = (0.0 if key in slot.warm else table) + n * c_next
+            if spent + extra > seconds:
+                break
+            chunk += self.paths.popleft()
+            spent += extra
+        self.left -= len(chunk)
         for case in chunk:
             key = _path_key(case)
             if key not in slot.warm:
@@ -1172,6 +1206,24 @@ def _died(case: Case, message: str) -> dict:
     return row
 
 
+DASK_SETTINGS = {"distributed.worker.profile.enabled": False,
+                 "distributed.admin.tick.interval": "1s",
+                 "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+"""Dask settings a campaign's cluster runs best with: ``dask.config.set(DASK_SETTINGS)``
+before starting a ``LocalCluster``, or the configuration file of ``docs/campaign.md`` for
+``dask scheduler`` and ``dask worker``. Every Dask worker samples its task's stack 100
+times a second for the dashboard's profile (5-8 ms of its event loop's CPU time a second,
+measured on a 2-core VM), and every scheduler, nanny and worker wakes 50 times a second
+to time its event loop (a few ms of CPU a second each): a 2-worker LocalCluster at rest
+uses 47-57 ms of CPU a second with Dask's defaults, 22-27 ms with these. And Dask's
+nannies start their workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which turns off
+glibc's adaptive mmap threshold: every array over 128 KiB is then mapped and unmapped
+afresh, and a case took 9-13 % more CPU time than in a plain process (0.99-1.03 times
+the serial run's without it, on the 1,000-case study). On a campaign's ~1 s tasks of
+CPU-bound cases, none of these tells anything the task's own times do not, and the
+workers then allocate as the serial and local runs do."""
+
+
 def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[dict]:
     """On a Dask cluster, fed by a :class:`_Planner` as the local workers are: one slot
     per worker thread, each with a task queued behind the one it runs but at the very
@@ -1191,10 +1243,14 @@ def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[
         tasks: dict = {}  # future key -> (slot or None for a case alone, its cases)
         done = as_completed()
 
+        asked = [-math.inf]  # when the scheduler was last asked for its workers
+
         def feed() -> None:
-            for addr, info in client.scheduler_info()["workers"].items():
-                for k in range(info.get("nthreads", 1)):
-                    slots.setdefault((addr, k), _Slot())
+            if time.monotonic() - asked[0] >= _DASK_WORKERS_SECONDS:
+                asked[0] = time.monotonic()
+                for addr, nthreads in client.nthreads().items():
+                    for k in range(nthreads):
+                        slots.setdefault((addr, k), _Slot())
             order = list(slots.values())
             for (addr, _), slot in slots.items():
                 while len(slot.chunks) < (2 if planner.ahead(slot) else 1):
@@ -1214,7 +1270,7 @@ def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[
                 ids = {c.case_id for c in chunk}
                 slot.sent = deque(c for c in slot.sent if c.case_id not in ids)
             try:
-                rows = fut.result()
+                rows = pickle.loads(fut.result())
             except Exception as exc:  # KilledWorker, or a result that cannot be sent
                 if len(chunk) > 1:
                     for case in chunk:
