@@ -465,7 +465,10 @@ def overshoot(position: np.ndarray, point: np.ndarray, direction: np.ndarray) ->
     if len(position) == 0:
         return 0.0
     n = direction / np.linalg.norm(direction)
-    return max(0.0, float(np.max((position - point) @ n)))
+    along = np.zeros(len(position))
+    for j in range(position.shape[1]):  # not BLAS: see RunningMetrics.add
+        along += (position[:, j] - point[j]) * n[j]
+    return max(0.0, float(np.max(along)))
 
 
 class RunningMetrics:
@@ -534,12 +537,15 @@ class RunningMetrics:
         first, m = self.n, len(u)
         if m == 0:
             return
+        # Sums of squares by np.sum, not np.dot: a BLAS call wakes OpenBLAS's threads,
+        # which then spin beside the compiled loop of the next block (on two busy cores
+        # a streamed run took 3x as long).
         umax = self.machine.max_drive
         corner_rows = status == Status.CORNERED
         for j in range(command.shape[1]):  # axis by axis: no temporary of the full rows
             follow = command[:, j] - position[:, j]
             self.follow_max[j] = max(self.follow_max[j], np.max(np.abs(follow)))
-            self.follow_sq[j] += np.dot(follow, follow)
+            self.follow_sq[j] += np.sum(follow * follow)
             a = np.abs(drive[:, j])
             self.drive_max[j] = max(self.drive_max[j], np.max(a))
             self.saturated[j] += np.count_nonzero(a > umax * (1 + SATURATION_TOLERANCE))
@@ -548,7 +554,7 @@ class RunningMetrics:
         self.limited += int(np.count_nonzero(status == Status.LIMITED))
         contour = contour_error(self.curve, position)
         self.contour_max = max(self.contour_max, float(np.max(contour)))
-        self.contour_sq += float(np.dot(contour, contour))
+        self.contour_sq += float(np.sum(contour * contour))
         del contour
         self._add_fluctuation(first, feed, command, finished)
         outside = np.flatnonzero(distances_to(position, self.end) > self.window)
@@ -572,7 +578,7 @@ class RunningMetrics:
                            self.machine.sample_period)
         if rel.size:
             self.fluct_max = max(self.fluct_max, float(np.max(np.abs(rel))))
-            self.fluct_sq += float(np.dot(rel, rel))
+            self.fluct_sq += float(np.sum(rel * rel))
             self.fluct_n += int(rel.size)
 
     def _add_corners(self, u, position) -> None:
