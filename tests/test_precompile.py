@@ -1,0 +1,71 @@
+"""The first ``run`` on an empty numba cache compiles its closed loop in a second process
+(:mod:`nurbsmotion._precompile`, issue 9): the made-up arguments have the types a run
+passes, nothing starts when the loop is cached, and Ctrl-C ends both processes."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from conftest import interrupt_command, source_env
+from nurbsmotion import _precompile
+from nurbsmotion.cli import main
+from nurbsmotion.interpolators import LOOP_METHODS
+
+
+@pytest.mark.parametrize("name", LOOP_METHODS)
+def test_the_made_up_arguments_have_the_types_a_run_passes(tmp_path, name):
+    """A run compiles (or loads) the loop and the kernels of ``examples_here`` for exactly
+    the signatures of the made-up arguments: the two processes compile what the run uses;
+    and once the loop is cached, no second process starts."""
+    assert main(["run", "die-bonder-pi", "--feed", "0.5m/s", "--interpolator", name,
+                 "--no-figures", "--no-trace", "--out", str(tmp_path / "run")]) == 0
+    for kernel, args in [_precompile.loop_example(name), *_precompile.examples_here(name)]:
+        sig = _precompile._signature(args)
+        assert sig in kernel.signatures, (kernel.py_func.__qualname__, sig, kernel.signatures)
+    with _precompile.Precompiler(name) as second:
+        assert second.process is None
+
+
+def _precompilers(cache: str) -> list[int]:
+    """Pids of the live second processes whose numba cache is ``cache``."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            if (b"nurbsmotion._precompile" in (proc / "cmdline").read_bytes()
+                    and f"NUMBA_CACHE_DIR={cache}".encode()
+                    in (proc / "environ").read_bytes().split(b"\0")
+                    and (proc / "stat").read_text().split()[2] not in "ZX"):
+                found.append(int(proc.name))
+        except OSError:
+            pass
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/environ").exists(), reason="needs Linux /proc")
+def test_ctrl_c_on_a_cold_start_ends_both_processes(tmp_path):
+    """Interrupted while both compile, the command exits 130 with its one line, and its
+    second process is gone with it."""
+    cache = str(tmp_path / "cache")
+    appeared = []  # when the second process was first seen [monotonic s]
+
+    def both_compiling() -> bool:
+        if not appeared and _precompilers(cache):
+            appeared.append(time.monotonic())
+        return bool(appeared) and time.monotonic() > appeared[0] + 0.5
+
+    code, err = interrupt_command(["run", "die-bonder-pi", "--feed", "1m/s", "--no-figures",
+                                   "--out", str(tmp_path / "o")], both_compiling,
+                                  source_env(NUMBA_CACHE_DIR=cache))
+    assert appeared, "no second process was started on an empty cache"
+    assert code == 130
+    assert err.strip().splitlines() == ["nurbsmotion run: interrupted; no output was written"]
+    deadline = time.monotonic() + 10
+    while _precompilers(cache) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _precompilers(cache)
+    assert not (tmp_path / "o").exists()
