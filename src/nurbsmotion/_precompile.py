@@ -75,7 +75,7 @@ def loop_example(interpolator: str) -> tuple | None:
     return run_samples, (plan, state, law, np.zeros(n, PID_STATE), f(n, 2, 2, **ro),
                          f(n, 2, **ro), f(n, **ro), True, f(n, **ro),
                          Settling(f(n, **ro), 0.0, 0, 0, 0, 0), LoopState.new(),
-                         AxisState(f(n), f(n), f(n)), new_rows(1, n, True), 0, f(n), f(n),
+                         AxisState(f(n), f(n), f(n)), new_rows(1, n, True), 0, 0, f(n), f(n),
                          f(n), f(n, 2))
 
 
