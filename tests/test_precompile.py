@@ -4,29 +4,47 @@ passes, nothing starts when the loop is cached, and Ctrl-C ends both processes."
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 from pathlib import Path
 
 import pytest
 
 from conftest import interrupt_command, source_env
-from nurbsmotion import _precompile
-from nurbsmotion.cli import main
 from nurbsmotion.interpolators import LOOP_METHODS
 
+GCODE = str(Path(__file__).resolve().parents[1] / "examples" / "butterfly.ngc") + "#2"
 
-@pytest.mark.parametrize("name", LOOP_METHODS)
-def test_the_made_up_arguments_have_the_types_a_run_passes(tmp_path, name):
-    """A run compiles (or loads) the loop and the kernels of ``examples_here`` for exactly
-    the signatures of the made-up arguments: the two processes compile what the run uses;
-    and once the loop is cached, no second process starts."""
-    assert main(["run", "die-bonder-pi", "--feed", "0.5m/s", "--interpolator", name,
-                 "--no-figures", "--no-trace", "--out", str(tmp_path / "run")]) == 0
-    for kernel, args in [_precompile.loop_example(name), *_precompile.examples_here(name)]:
-        sig = _precompile._signature(args)
-        assert sig in kernel.signatures, (kernel.py_func.__qualname__, sig, kernel.signatures)
-    with _precompile.Precompiler(name) as second:
-        assert second.process is None
+_RUN_SCRIPT = r"""
+import sys
+from nurbsmotion import _precompile
+from nurbsmotion.cli import main
+
+name, path, out = sys.argv[1:]
+assert main(["run", path, "--feed", "0.05m/s", "--interpolator", name, "--no-figures",
+             "--no-trace", "--quiet", "--out", out]) == 0
+for kernel, args in [_precompile.loop_example(name), *_precompile.examples_here(name)]:
+    assert kernel.signatures == [_precompile._signature(args)], (
+        kernel.py_func.__qualname__, kernel.signatures, _precompile._signature(args))
+with _precompile.Precompiler(name) as second:
+    assert second.process is None, "the loop is cached: no second process"
+print("ok")
+"""
+
+
+@pytest.mark.parametrize("name, path", [*((m, "die-bonder-pi") for m in LOOP_METHODS),
+                                        ("paper", GCODE)])  # G-code: a feed per piece
+def test_the_made_up_arguments_have_the_types_a_run_passes(tmp_path, name, path):
+    """In a fresh process, a run compiles (or loads) the loop and the kernels of
+    ``examples_here`` for exactly the signatures of the made-up arguments, and no other:
+    the two processes compile what the run uses; and once the loop is cached, no second
+    process starts."""
+    done = subprocess.run([sys.executable, "-c", _RUN_SCRIPT, name, path,
+                           str(tmp_path / "run")], capture_output=True, text=True,
+                          env=source_env(), timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.strip().endswith("ok")
 
 
 def _precompilers(cache: str) -> list[int]:

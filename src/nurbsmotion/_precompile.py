@@ -55,10 +55,12 @@ def loop_example(interpolator: str) -> tuple | None:
     f, n = _zeros, 2  # n_axes: any number gives the same types
     path = PathData(f(2, writeable=False), f(1, 2, n + 1, writeable=False), f(1),
                     f(n, writeable=False))
+    feed = (f(2, writeable=False), f(1, writeable=False), f(1, writeable=False))
     if interpolator == "paper":
-        plan, state = PaperPlan(path, 1, f(2), f(1), f(1), f(n)), StepState.new(path)
+        plan = PaperPlan(path, 1, *feed, f(n))
+        state = StepState.new(path)
     elif interpolator in ("taylor1", "taylor2"):
-        plan = TaylorPlan(path, int(interpolator[-1]), f(2), f(1), f(1))
+        plan = TaylorPlan(path, int(interpolator[-1]), *feed)
         state = StepState.new(path)
     elif interpolator == "planned":
         plan = PlannedPlan(f(1), f(1, n), f(1, n), f(1, n), f(1, n),
