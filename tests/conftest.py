@@ -61,10 +61,10 @@ def source_env(**extra: str) -> dict:
 
 
 def interrupt_command(argv: list[str], ready, env: dict | None = None) -> tuple[int, str]:
-    """Run ``nurbsmotion *argv`` in a child process, send it SIGINT (Ctrl-C) as soon as
+    """Run ``python -m nurbsmotion *argv`` in a child process, send it SIGINT (Ctrl-C) as soon as
     ``ready()`` is true (polled; also if the child has ended first), and return its exit
     code and stderr."""
-    proc = subprocess.Popen([sys.executable, "-m", "nurbsmotion.cli", *argv],
+    proc = subprocess.Popen([sys.executable, "-m", "nurbsmotion", *argv],
                             env=source_env() if env is None else env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
