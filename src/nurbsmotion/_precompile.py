@@ -95,8 +95,8 @@ def examples_here(interpolator: str) -> list[tuple]:
                                 f(2, 1), 1, 0.0, f(0, 1), f(0), f(0), np.zeros(1, np.int64)))]
     if interpolator == "planned":
         pairs += [(motion_plan._averaged_arc, (f(2), f(2), f(2), 0.0, 0, 0, f(1), f(1))),
-                  (motion_plan._realise_into, (f(1, 1), f(1), f(1), f(1), f(1), f(1, 1),
-                                               f(1, 1), f(1, 1))),
+                  (motion_plan._precompensate, (f(1, 1), f(1), f(1), f(1), f(1), 0, 0.0,
+                                                f(1, 1), f(2, 3, 1, 1))),
                   (planned._support_into, (f(1, 1), f(1, 1), np.zeros(2, np.int64), f(1),
                                            f(1), 0, f(1, 1, 1)))]
     return pairs
