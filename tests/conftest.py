@@ -21,6 +21,11 @@ sweeps) to run more.
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 from hypothesis import HealthCheck, assume, note, settings
@@ -43,6 +48,34 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
 )
 settings.load_profile("nurbsmotion")
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+
+
+def source_env(**extra: str) -> dict:
+    """The environment of a child Python that imports this checkout's nurbsmotion."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(SRC)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+    env.update(extra)
+    return env
+
+
+def interrupt_command(argv: list[str], ready, env: dict | None = None) -> tuple[int, str]:
+    """Run ``python -m nurbsmotion *argv`` in a child process, send it SIGINT (Ctrl-C) as soon as
+    ``ready()`` is true (polled; also if the child has ended first), and return its exit
+    code and stderr."""
+    proc = subprocess.Popen([sys.executable, "-m", "nurbsmotion", *argv],
+                            env=source_env() if env is None else env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        while proc.poll() is None and not ready():
+            time.sleep(0.01)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    return proc.returncode, err
 
 
 def clamped_knots(degree: int, interior: np.ndarray, multiplicities, domain=(0.0, 1.0)):

@@ -211,7 +211,7 @@ def power_basis(U, Pw, p: int, starts) -> np.ndarray:
 def _power_basis_into(U, Pw, p, starts, out, ders, ndu, wl, wr, a):
     n = Pw.shape[0]
     for i in range(starts.shape[0]):
-        span = find_span(n, p, U, starts[i], False)
+        span = find_span(n, p, U, starts[i], np.bool_(False))  # not a literal: one signature
         basis_derivatives(span, starts[i], p, p, U, ders, ndu, wl, wr, a)
         factorial = 1.0
         for k in range(p + 1):

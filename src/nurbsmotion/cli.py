@@ -177,6 +177,14 @@ def _progress(args, **kwargs):
 
 
 def _cmd_run(args) -> int:
+    from ._precompile import Precompiler
+
+    # On an empty numba cache the closed loop compiles on the other core meanwhile.
+    with Precompiler(args.interpolator) as precompiler:
+        return _run(args, precompiler)
+
+
+def _run(args, precompiler) -> int:
     from .loop import check_run_arguments, run, to_pulses
     from .report import TRACE_FILES, summary, write_json
 
@@ -227,6 +235,7 @@ def _cmd_run(args) -> int:
         bar.update()
         stage(stages[1])
         expected = estimate_samples(path.length, lowest, machine.sample_period)
+        precompiler.wait()
         run_options = dict(max_samples=args.max_samples, interpolator_options=options,
                            plant=plant, settle_window=window)
         file = None if args.no_trace else out / TRACE_FILES[args.trace_format]

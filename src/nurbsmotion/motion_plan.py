@@ -199,7 +199,7 @@ def _averaged_arc(s, V, t, h, n_fine, lag, times, out):
     n_total = n_fine + lag                   # length of the averaged fine sequence
     ring = np.full(lag, s0)                  # the profile's last lag values, at m mod lag
     seg = 0
-    acc = _segment_acceleration(s, V, 0)
+    acc = _segment_acceleration(s, V, np.int64(seg))  # not a literal 0: one signature
     m = -1                                   # last fine index produced
     f_prev = s0
     f_cur = s0

@@ -55,6 +55,7 @@ def feed_table(feed, curve: NurbsCurve) -> tuple[np.ndarray, np.ndarray, np.ndar
     breaks : ndarray, shape (m + 1,)
     start, end : ndarray, shape (m,)
         V at the start and the end of each interval [path units/s], finite and > 0.
+        Read-only, all three.
 
     Raises
     ------
@@ -74,9 +75,13 @@ def feed_table(feed, curve: NurbsCurve) -> tuple[np.ndarray, np.ndarray, np.ndar
             if not (math.isfinite(V[i]) and V[i] > 0):
                 raise InfeasibleError(f"the feed function returned {float(V[i])!r} at "
                                       f"u = {ui:.9g}; a feed must be finite and > 0")
-        return u, V[:-1], V[1:]
-    V = positive_feed(feed)
-    return np.array([0.0, 1.0]), np.array([V]), np.array([V])
+        table = u, V[:-1], V[1:]
+    else:
+        V = positive_feed(feed)
+        table = np.array([0.0, 1.0]), np.array([V]), np.array([V])
+    for a in table:  # read-only, as a FeedLimit's are: one compiled loop for every feed
+        a.flags.writeable = False
+    return table
 
 
 def table_duration(curve: NurbsCurve, breaks, start, end) -> float:
