@@ -35,7 +35,10 @@ def main() -> int:
         finally:
             if previous is not None:
                 signal.signal(signal.SIGINT, previous)
-        return run()  # it reports a Ctrl-C during its work itself
+        code = run()  # it reports a Ctrl-C during its work itself
+        if previous is not None:  # the work is done and its files are complete: a late
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C must not kill the exit
+        return code
     except (KeyboardInterrupt, ImportError):
         if not (interrupted.seen or sys.exc_info()[0] is KeyboardInterrupt):
             raise

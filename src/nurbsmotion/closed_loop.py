@@ -132,7 +132,7 @@ def new_rows(capacity: int, n_axes: int, with_bounds: bool) -> Rows:
                 np.empty((capacity if with_bounds else 0, n_axes, 2)))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # a sink's thread (metrics, trace file) runs meanwhile
 def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settling, loop,
                 axes, rows, first, stop, command, velocity, position, bounds):
     """Run the loop from ``loop.k[0]`` until it ends, ``rows`` are full or sample ``stop``

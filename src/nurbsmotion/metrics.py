@@ -265,7 +265,7 @@ def nearest_parameter(curve: NurbsCurve, points: np.ndarray, grid_size: int = 20
     return best_u, best_d
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # a streamed run searches beside its loop
 def _nearest_points(gu, gp, tr, tl, coef, cell_length, box_lo, box_hi, leaves, h, pts,
                     out_u, out_d, hint):
     """:func:`nearest_parameter` for the rows of ``pts`` into ``out_u``, ``out_d``;

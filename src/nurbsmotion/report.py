@@ -192,14 +192,15 @@ def _chunk_table(cols, block, idx):
                      for c in cols})
 
 
-def _csv_bytes(cols, block, idx) -> bytes:
+def _csv_bytes(cols, block, idx, handle=None) -> bytes | None:
+    """CSV text of rows ``idx`` of ``block``, or None once written to ``handle``."""
     import pyarrow.csv as pacsv
 
-    buffer = io.BytesIO()
+    buffer = io.BytesIO() if handle is None else handle
     pacsv.write_csv(_chunk_table(cols, block, idx), buffer,
                     write_options=pacsv.WriteOptions(include_header=False,
                                                      quoting_style="none"))
-    return buffer.getvalue()
+    return buffer.getvalue() if handle is None else None
 
 
 def _rows_in(idx) -> int:
@@ -218,11 +219,16 @@ class _CsvChunks:
         handle.write((",".join(c.name for c in cols) + "\n").encode())
         self.handle, self.cols, self.progress = handle, cols, progress
         self.workers = workers
-        self.pool = ThreadPoolExecutor(self.workers)
+        self.pool = ThreadPoolExecutor(workers) if workers else None
         self.pending: deque = deque()
 
     def write(self, block, rows: np.ndarray) -> None:
         for idx in _chunks(rows):
+            if self.pool is None:  # straight to the file: no copy of the text is held
+                _csv_bytes(self.cols, block, idx, self.handle)
+                if self.progress is not None:
+                    self.progress(_rows_in(idx))
+                continue
             self.pending.append((_rows_in(idx),
                                  self.pool.submit(_csv_bytes, self.cols, block, idx)))
             self._drain(self.workers)
@@ -239,7 +245,8 @@ class _CsvChunks:
             if completed:
                 self._drain(0)
         finally:
-            self.pool.shutdown(cancel_futures=True)
+            if self.pool is not None:
+                self.pool.shutdown(cancel_futures=True)
 
 
 class _ParquetChunks:
@@ -292,8 +299,8 @@ class TraceWriter:
     progress : callable, optional
         Called with the number of rows written after each chunk.
     threads : int, optional
-        Threads formatting CSV chunks; by default two (one where fewer cores). A run
-        that streams its rows here keeps one core busy itself: one thread is enough.
+        Threads formatting CSV chunks; by default two (one where fewer cores); 0 formats
+        them in the calling thread (a sink that already runs beside the loop).
 
     Use as a context manager; :meth:`add` is a sink of
     :func:`nurbsmotion.loop.simulate_streamed`.
@@ -310,6 +317,9 @@ class TraceWriter:
         self.path, self.machine, self.fmt, self.every = Path(path), machine, fmt, every
         self.unit, self.per_unit = length_unit, pulses_per_length_unit
         self.overwrite, self.progress = overwrite, progress
+        if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
+                                    or threads < 0):
+            raise ValueError(f"threads must be an integer >= 0, got {threads!r}")
         self.threads = max(1, min(2, os.cpu_count() or 1)) if threads is None else threads
         self.rows_written = 0
         self._row_bytes = 0.0
@@ -393,7 +403,7 @@ def _bytes_per_row(fmt: str, cols, block, rows: np.ndarray) -> float:
         return 0.0
     sample = rows[np.linspace(0, len(rows) - 1, min(len(rows), 2000)).astype(int)]
     buffer = io.BytesIO()
-    chunks = (_CsvChunks if fmt == "csv" else _ParquetChunks)(buffer, cols, None, 1)
+    chunks = (_CsvChunks if fmt == "csv" else _ParquetChunks)(buffer, cols, None, 0)
     chunks.write(block, sample)
     chunks.close(True)
     return buffer.tell() / len(sample)
