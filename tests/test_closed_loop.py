@@ -14,8 +14,8 @@ import nurbsmotion as nm
 from nurbsmotion import closed_loop
 from nurbsmotion.control import pid_state
 from nurbsmotion.interpolators import (PaperInterpolator, PlannedInterpolator, Status,
-                                       TaylorInterpolator, make_interpolator)
-from nurbsmotion.loop import run, settle_hold_samples, simulate, to_pulses
+                                       TaylorInterpolator)
+from nurbsmotion.loop import run, settle_hold_samples, simulate
 from nurbsmotion.machine import Axis, Machine, die_bonder
 from nurbsmotion.servo import ServoPlant
 from random_curves import N_CASES, random_curve
@@ -187,7 +187,6 @@ def test_every_interpolator_runs_with_every_law():
     from nurbsmotion.control import PidGains
 
     rng = np.random.default_rng(3)
-    base = die_bonder()
     pid_axes = tuple(Axis(f"a{j}", 0.31, 2506.17, 1591.5494,
                           pid=PidGains(Pgain=0.0136, Igain=0.02, Dgain=0.03 / 1591.5494,
                                        FF1=1 / (2506.17 * 1591.5494),

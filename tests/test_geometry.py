@@ -15,11 +15,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from scipy.integrate import quad
-from scipy.optimize import brentq, minimize_scalar
+from scipy.optimize import minimize_scalar
 
 from conftest import EXACT, TIGHT, curves
 from nurbsmotion import (
-    InvalidCurveError,
     NurbsCurve,
     builtin_path,
     make_arc,

@@ -7,7 +7,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from nurbsmotion import InvalidMachineError, PathFileError
-from nurbsmotion.machine import Axis, Machine, die_bonder, load_machine
+from nurbsmotion.machine import Axis, die_bonder, load_machine
 from nurbsmotion.servo import ServoPlant
 
 

@@ -442,12 +442,21 @@ def settle_time(t: np.ndarray, position: np.ndarray, end: np.ndarray,
     """
     if not (math.isfinite(window) and window > 0):
         raise ValueError(f"settle window must be finite and > 0 pulse, got {window!r}")
+    first = _settled_from(_last_outside(position, end, window), len(t))
+    return math.inf if first is None else float(t[first])
+
+
+def _last_outside(position: np.ndarray, end: np.ndarray, window: float) -> int:
+    """Index of the last row of ``position`` farther than ``window`` from ``end``, -1 if
+    none."""
     outside = np.flatnonzero(distances_to(position, end) > window)
-    if outside.size == 0:
-        return float(t[0])
-    if outside[-1] == len(t) - 1:
-        return math.inf
-    return float(t[outside[-1] + 1])
+    return int(outside[-1]) if outside.size else -1
+
+
+def _settled_from(last_outside: int, n: int) -> int | None:
+    """First sample after which all of ``n`` stay inside the window, ``None`` if the
+    last is outside (not settled)."""
+    return None if last_outside == n - 1 else last_outside + 1
 
 
 def overshoot(position: np.ndarray, point: np.ndarray, direction: np.ndarray) -> float:
@@ -557,9 +566,9 @@ class RunningMetrics:
         self.contour_sq += float(np.sum(contour * contour))
         del contour
         self._add_fluctuation(first, feed, command, finished)
-        outside = np.flatnonzero(distances_to(position, self.end) > self.window)
-        if outside.size:
-            self.last_outside = first + int(outside[-1])
+        last = _last_outside(position, self.end, self.window)
+        if last >= 0:
+            self.last_outside = first + last
         if 0 <= finished < first + m:
             self.end_overshoot = max(self.end_overshoot, overshoot(
                 position[max(0, finished - first):], self.end, self.end_direction))
@@ -604,12 +613,8 @@ class RunningMetrics:
         names = self.machine.axis_names
         n = max(self.n, 1)
         Ts = self.machine.sample_period
-        if self.last_outside < 0:
-            settle = 0.0
-        elif self.last_outside == self.n - 1:
-            settle = math.inf
-        else:
-            settle = (self.last_outside + 1) * Ts
+        settled = _settled_from(self.last_outside, self.n)
+        settle = math.inf if settled is None else settled * Ts
 
         def per_axis(values):
             return {a: float(v) for a, v in zip(names, values)}
