@@ -93,8 +93,7 @@ running = RunningMetrics(path, m, 1.0)
 with TraceWriter(out / "streamed.csv", m, length_unit="mm", pulses_per_length_unit=1000.0,
                  threads=1) as writer:
     def sink(first, rows, finished, last):
-        running.add(rows.u, rows.feed, rows.status, rows.command, rows.position, rows.drive,
-                    finished)
+        running.add(first, rows, finished, last)
         writer.add(first, rows, finished, last)
     outcome = simulate_streamed(ip, m, sink)
 running.result(outcome.finished_index, outcome.success, outcome.message)

@@ -148,8 +148,7 @@ def test_a_streamed_run_gives_the_figures_and_file_of_the_whole_run(
 
         def sink(first, rows, finished, last):
             blocks.append((first, len(rows.u), finished, last))
-            running.add(rows.u, rows.feed, rows.status, rows.command, rows.position,
-                        rows.drive, finished)
+            running.add(first, rows, finished, last)
             for w in writers:
                 w.add(first, rows, finished, last)
 

@@ -301,12 +301,9 @@ def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | Non
                   unit: str, per_unit: float, expected: float):
     """Run the loop with its rows streamed to the metrics and the trace file (if any);
     return the metrics."""
-    from .loop import run_streamed
+    from .loop import background_sink, run_streamed
     from .metrics import RunningMetrics
     from .report import TraceWriter
-
-    from collections import deque
-    from concurrent.futures import ThreadPoolExecutor
 
     running = RunningMetrics(path, machine, run_options["settle_window"])
     with contextlib.ExitStack() as stack:
@@ -316,19 +313,11 @@ def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | Non
         samples = stack.enter_context(_progress(
             args, total=_total(expected), unit="sample", unit_scale=True,
             desc="closed loop" if writer is None else f"closed loop -> {file.name}"))
-        # The metrics and the file take each block on one thread of their own while the
-        # loop runs the next one (both compiled parts release the GIL); blocks are taken
-        # in order, and at most one waits. (One thread: each thread that allocates gets
-        # its own malloc arena, ~10 MB more at the peak.)
-        pool = ThreadPoolExecutor(1)
-        stack.callback(pool.shutdown, wait=True, cancel_futures=True)
-        pending: deque = deque()
         announce = writer is not None
 
         def consume(first, rows, finished, last):
             nonlocal announce
-            running.add(rows.u, rows.feed, rows.status, rows.command, rows.position,
-                        rows.drive, finished)
+            running.add(first, rows, finished, last)
             if writer is not None:
                 writer.add(first, rows, finished, last)
             if announce and writer.rows_written and math.isfinite(expected):
@@ -336,16 +325,11 @@ def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | Non
                 total = max(writer.rows_written, int(expected / args.trace_every))
                 _trace_notice(args, file, total, writer.bytes_per_row() * total, samples)
 
-        def sink(first, rows, finished, last):
-            pending.append(pool.submit(consume, first, rows, finished, last))
-            while len(pending) > 1:
-                pending.popleft().result()
-
+        # the metrics and the file beside the loop; left before the writer closes
+        sink = stack.enter_context(background_sink(consume))
         outcome = run_streamed(path, machine, feed, sink, args.interpolator,
                                progress=lambda k: samples.update(k - samples.n),
                                **run_options)
-        while pending:
-            pending.popleft().result()
     return running.result(outcome.finished_index, outcome.success, outcome.message)
 
 
@@ -440,8 +424,8 @@ def _cmd_campaign(args) -> int:
         Path(args.study).stem + "-campaign")
     if args.case:
         return _campaign_case(find_case(study, args.case), out / args.case, args)
-    # A machine that shuts down sends SIGTERM: stop as on Ctrl-C, finished rows written.
-    previous = signal.signal(signal.SIGTERM, _interrupt)
+    # Ctrl-C or SIGTERM (a machine that shuts down; main's handler): the finished rows
+    # are written.
     try:
         result = run_study(study, out, workers=args.workers, scheduler=args.scheduler,
                            resume=args.resume, overwrite=args.overwrite,
@@ -451,8 +435,6 @@ def _cmd_campaign(args) -> int:
               f"go on with: nurbsmotion campaign {args.study} --out {out} --resume",
               file=sys.stderr)
         return 130
-    finally:
-        signal.signal(signal.SIGTERM, previous)
     print(f"{result.n_cases} cases: {result.computed} run now, {result.skipped} already "
           f"done, {result.failed} failed, {result.wall_time_s:.1f} s -> {out}/digest.md")
     return 0

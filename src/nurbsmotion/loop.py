@@ -13,6 +13,7 @@ settled there. It changes none of the objects it is given.
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -32,8 +33,8 @@ from .stepping import Status
 from .units import feed_in_pulses
 
 __all__ = ["Trace", "RunOutcome", "SetpointSeries", "simulate", "simulate_streamed",
-           "interpolate", "run", "run_streamed", "to_pulses", "settle_hold_samples",
-           "check_run_arguments"]
+           "background_sink", "interpolate", "run", "run_streamed", "to_pulses",
+           "settle_hold_samples", "check_run_arguments"]
 
 
 def to_pulses(curve: NurbsCurve, machine: Machine) -> NurbsCurve:
@@ -377,6 +378,37 @@ def simulate_streamed(interpolator: Interpolator, machine: Machine, sink,
     if not callable(sink):
         raise InvalidArgumentError(f"sink must be callable, got {sink!r:.60}")
     return _closed_loop(interpolator, machine, sink, **options)[0]
+
+
+@contextmanager
+def background_sink(sink):
+    """``sink`` on one thread of its own, a block behind the loop: the compiled loop and
+    the search of the metrics release the GIL, so a sink that gathers figures or writes a
+    file costs hardly any time beside the loop. Blocks are taken in order, at most one
+    waits; leaving the ``with`` waits for the last one (on an error, the ones not yet
+    taken are dropped).
+
+    Yields the callable to give :func:`simulate_streamed` or :func:`run_streamed`.
+    """
+    from collections import deque
+    from concurrent.futures import ThreadPoolExecutor
+
+    # One thread: every thread that allocates gets a malloc arena of its own (~10 MB more
+    # at the peak of a long run).
+    pool = ThreadPoolExecutor(1)
+    pending: deque = deque()
+
+    def handoff(first, rows, finished, last):
+        pending.append(pool.submit(sink, first, rows, finished, last))
+        while len(pending) > 1:
+            pending.popleft().result()
+
+    try:
+        yield handoff
+        while pending:
+            pending.popleft().result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 class _Tally:

@@ -492,7 +492,8 @@ class RunningMetrics:
     settle_window : float
         Radius of the settling window around the end point [pulse], > 0.
 
-    Call :meth:`add` with the rows in order, then :meth:`result`.
+    Give it the rows in order (:meth:`add`, a sink of
+    :func:`nurbsmotion.loop.simulate_streamed`), then take :meth:`result`.
     """
 
     def __init__(self, curve: NurbsCurve, machine, settle_window: float):
@@ -531,7 +532,18 @@ class RunningMetrics:
         self.corner_overshoot = 0.0
         self.u_max = -math.inf  # the setpoint's parameter so far, its running maximum
 
-    def add(self, u, feed, status, command, position, drive, finished: int) -> None:
+    def add(self, first: int, rows, finished: int, last: bool) -> None:
+        """Take a block of samples ``first ..`` (``rows``: a
+        :class:`nurbsmotion.closed_loop.Rows`); ``finished`` is the first sample at the
+        path's end (-1: none yet), ``last`` whether no rows follow (unused: the figures
+        are complete after every block)."""
+        if first != self.n:
+            raise ValueError(f"rows from sample {first} after {self.n} samples: blocks "
+                             "must come in order")
+        self._add(rows.u, rows.feed, rows.status, rows.command, rows.position, rows.drive,
+                  finished)
+
+    def _add(self, u, feed, status, command, position, drive, finished: int) -> None:
         """Take the next rows.
 
         Parameters
@@ -657,6 +669,6 @@ def trace_metrics(trace, settle_window: float | None = None) -> Metrics:
     if settle_window is None:
         settle_window = trace.settle_window
     running = RunningMetrics(trace.curve, trace.machine, settle_window)
-    running.add(trace.u, trace.feed, trace.status, trace.position_command, trace.position,
-                trace.drive, trace.finished_index)
+    running._add(trace.u, trace.feed, trace.status, trace.position_command, trace.position,
+                 trace.drive, trace.finished_index)
     return running.result(trace.finished_index, trace.success, trace.message)
