@@ -922,6 +922,15 @@ class _Planner:
         c = self.case_time(_path_key(queue[-1])) if queue else None
         return c is None or c <= _TAIL_SECONDS
 
+    def fill(self, slot: _Slot, slots: list[_Slot]) -> Iterable[list[Case]]:
+        """The chunks to send ``slot`` now (each taken by :meth:`next_chunk`): until it
+        holds one beyond the one it runs (see :meth:`ahead`), or nothing is left for it."""
+        while len(slot.chunks) < (2 if self.ahead(slot) else 1):
+            chunk = self.next_chunk(slot, slots)
+            if not chunk:
+                return
+            yield chunk
+
     def next_chunk(self, slot: _Slot, slots: list[_Slot]) -> list[Case]:
         """The next cases for ``slot`` (moved to its ``sent``), or ``[]``: all given out,
         or the rest is better left where it is."""
@@ -1088,10 +1097,7 @@ class _LocalWorkers:
                 w.chunks.append(1)
                 w.send([w.retry])
             return
-        while len(w.chunks) < (2 if self.planner.ahead(w) else 1):
-            chunk = self.planner.next_chunk(w, self.workers)
-            if not chunk:
-                return
+        for chunk in self.planner.fill(w, self.workers):
             w.send(chunk)
 
     def rows(self) -> Iterable[dict]:
@@ -1253,10 +1259,7 @@ def _execute_dask(cases: list[Case], scheduler, function: Callable) -> Iterable[
                         slots.setdefault((addr, k), _Slot())
             order = list(slots.values())
             for (addr, _), slot in slots.items():
-                while len(slot.chunks) < (2 if planner.ahead(slot) else 1):
-                    chunk = planner.next_chunk(slot, order)
-                    if not chunk:
-                        break
+                for chunk in planner.fill(slot, order):
                     fut = client.submit(_run_batch, function, chunk, workers=[addr],
                                         allow_other_workers=True, retries=1, pure=False)
                     tasks[fut.key] = (slot, chunk)

@@ -702,7 +702,7 @@ class _Reader:
                     self.chain = PieceChain(self.path_of(state.position(int(rel[0]))))
                 ends = np.empty((len(rel), len(self.axes)))
                 for c, axis in enumerate(self.axes):
-                    ends[:, c] = state.column(axis)[rel + 1]
+                    ends[:, c] = state.column(axis, rel + 1)
                 self.chain.add_lines(ends)
                 self.piece_feeds.frombytes(state.feed[rel + 1].tobytes())
                 self.piece_lines.frombytes(run.line[part].tobytes())
@@ -1184,10 +1184,12 @@ class _RunState:
         self.pieces = s + np.flatnonzero(g1 & moves_path & ~stop)
         self.breaks = s + np.flatnonzero((g0 & (moves_path | moves_other)) | (g1 & moves_other & ~moves_path))
 
-    def column(self, i: int) -> np.ndarray:
-        """Axis ``i`` before each row, shape (e - s + 1,) [output units]."""
+    def column(self, i: int, rows: np.ndarray):
+        """Axis ``i`` before the rows ``rows`` (relative to ``s``) [output units]: an array,
+        or its start value where the run never moves it (no array of the whole run per
+        call: a stretch between two stop rows costs its own rows only)."""
         col = self._columns.get(i)
-        return col if col is not None else np.full(self.e - self.s + 1, self.start[i])
+        return col[rows] if col is not None else self.start[i]
 
     def position(self, j: int) -> list:
         """X..W before row ``s + j`` [output units]."""
