@@ -139,9 +139,8 @@ def test_each_samples_support_from_the_stored_ones_equals_the_full_support():
     """The planned step's support of every sample, rebuilt from the plan's stored one at
     every SUPPORT_BLOCK-th sample and the samples before it, equals the support stored at
     every sample (stops inside, on and next to a block's start, and none)."""
-    from nurbsmotion.interpolators.planned import (_DIRECTIONS, SUPPORT_BLOCK,
-                                                   SUPPORT_DIRECTIONS, PlannedPlan,
-                                                   _support, _support_at)
+    from nurbsmotion.interpolators.planned import (SUPPORT_BLOCK, SUPPORT_DIRECTIONS,
+                                                   PlannedPlan, _support, _support_at)
 
     rng = np.random.default_rng(12)
     for n, stops in ((203, []), (203, [5, 8, 9, 16, 17, 100, 202]), (3, [1])):
@@ -150,8 +149,7 @@ def test_each_samples_support_from_the_stored_ones_equals_the_full_support():
         full = _support(accel, speed, stops)
         plan = PlannedPlan(*([None] * 3), speed, accel,
                            _support(accel, speed, stops, SUPPORT_BLOCK),
-                           np.append(stops, n), np.cos(_DIRECTIONS), np.sin(_DIRECTIONS),
-                           *([None] * 6), 0.0, 0.0)
+                           np.append(stops, n), *([None] * 6), 0.0, 0.0)
         out = np.empty((2, SUPPORT_DIRECTIONS))
         for i in range(n):
             np.testing.assert_array_equal(_support_at(plan, i, out), full[i])

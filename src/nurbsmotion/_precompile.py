@@ -65,8 +65,7 @@ def loop_example(interpolator: str) -> tuple | None:
     elif interpolator == "planned":
         plan = PlannedPlan(f(1), f(1, n), f(1, n), f(1, n), f(1, n),
                            f(1, n, SUPPORT_DIRECTIONS), np.zeros(2, np.int64),
-                           *(f(k) for k in (SUPPORT_DIRECTIONS, SUPPORT_DIRECTIONS,
-                                            n, n, n, n, n, n)), 0.0, 0.0)
+                           *(f(n) for _ in range(6)), 0.0, 0.0)
         state = PlannedState(f(1), f(1), f(1), f(2, n), f(12, n), f(5, n), f(n), f(n),
                              f(n), f(n, SUPPORT_DIRECTIONS))
     else:
@@ -97,8 +96,8 @@ def examples_here(interpolator: str) -> list[tuple]:
         pairs += [(motion_plan._averaged_arc, (f(2), f(2), f(2), 0.0, 0, 0, f(1), f(1))),
                   (motion_plan._precompensate, (f(1, 1), f(1), f(1), f(1), f(1), 0, 0.0,
                                                 f(1, 1), f(2, 3, 1, 1))),
-                  (planned._support_into, (f(1, 1), f(1, 1), np.zeros(2, np.int64), f(1),
-                                           f(1), 0, f(1, 1, 1)))]
+                  (planned._support_into, (f(1, 1), f(1, 1), np.zeros(2, np.int64), 0,
+                                           f(1, 1, 1)))]
     return pairs
 
 

@@ -274,15 +274,9 @@ def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float):
         duration = (n_fine + OVERSAMPLE - 1) * h
 
         def motion(times, s=s, u=u, V=V, t=t, n_fine=n_fine):
-            times = np.ascontiguousarray(times, dtype=float)
-            order = None
-            if times.size > 1 and np.any(times[1:] < times[:-1]):
-                order = np.argsort(times, kind="stable")
-                times = times[order]
+            times = np.ascontiguousarray(times, dtype=float)  # nondecreasing
             sk = np.empty_like(times)
             _averaged_arc(s, V, t, h, n_fine, OVERSAMPLE, times, sk)
-            if order is not None:
-                sk[order] = sk.copy()
             uk = np.interp(sk, s, u)
             inner = (sk > s[0]) & (sk < s[-1])
             if np.any(inner):
@@ -326,7 +320,7 @@ def _farthest_from(points: np.ndarray, path: np.ndarray, corner: np.ndarray) -> 
     twice the points' largest distance to it: only those samples are compared, in chunks
     of :data:`BLEND_CHUNK` points (the same distances as comparing all, without a
     points-by-samples temporary of a long piece)."""
-    radius = float(np.max(np.linalg.norm(points - corner, axis=1)))
+    radius = float(np.max(distances_to(points, corner)))
     near = path[distances_to(path, corner) <= 2.0 * radius * (1 + 1e-9) + 1e-300]
     worst = 0.0
     for i in range(0, len(points), BLEND_CHUNK):

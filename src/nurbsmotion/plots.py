@@ -522,6 +522,7 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
     """The desired path against each run's actual positions, the contour error over time,
     and square zooms (equal axes) on the corners; a 3-D path as a 3-D view and its three
     projections. ``curve`` and the runs are in the report unit."""
+    from matplotlib.colors import to_rgba
     from matplotlib.ticker import MaxNLocator
 
     nearest = [nearest_parameter(curve, r.position) for r in runs]
@@ -595,10 +596,9 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
         for r in runs:
             # the samples are what the encoder measured; the faint line only orders them
             # (the machine does not move in straight lines between samples)
-            ax.plot(r.position[:, 0], r.position[:, 1], color=r.color, linestyle=r.linestyle,
-                    linewidth=0.8, alpha=0.35)
-            ax.plot(r.position[:, 0], r.position[:, 1], color=r.color, linestyle="none",
-                    marker=".", markersize=5)
+            ax.plot(r.position[:, 0], r.position[:, 1], color=to_rgba(r.color, 0.35),
+                    linestyle=r.linestyle, linewidth=0.8, marker=".", markersize=5,
+                    markerfacecolor=r.color, markeredgecolor=r.color)
         (cx, cy), h = z.center, z.half_width
         ax.set_xlim(cx - h, cx + h)
         ax.set_ylim(cy - h, cy + h)

@@ -322,6 +322,7 @@ class TraceWriter:
             raise ValueError(f"threads must be an integer >= 0, got {threads!r}")
         self.threads = max(1, min(2, os.cpu_count() or 1)) if threads is None else threads
         self.rows_written = 0
+        self._first = None  # (columns, block, kept rows) of the first block, for the size
         self._row_bytes = 0.0
         self._output = self._handle = self._chunks = None
 
@@ -341,7 +342,9 @@ class TraceWriter:
 
     def bytes_per_row(self) -> float:
         """Bytes a row of the file takes, estimated from the first block's rows (0 before
-        any)."""
+        any); formatted on the first call only."""
+        if self._first is not None:
+            self._row_bytes, self._first = _bytes_per_row(self.fmt, *self._first), None
         return self._row_bytes
 
     def add(self, first: int, rows, finished: int, last: bool) -> None:
@@ -364,7 +367,7 @@ class TraceWriter:
                             self.per_unit)
             make = _CsvChunks if self.fmt == "csv" else _ParquetChunks
             self._chunks = make(self._handle, cols, self.progress, self.threads)
-            self._row_bytes = _bytes_per_row(self.fmt, cols, block, kept)
+            self._first = (cols, block, kept)
         self._chunks.write(block, kept)
         self.rows_written += len(kept)
 

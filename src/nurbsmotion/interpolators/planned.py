@@ -301,8 +301,6 @@ class PlannedPlan(NamedTuple):
     drive_accel: np.ndarray      # (n, n_axes) [V]
     support: np.ndarray          # (ceil(n / SUPPORT_BLOCK), n_axes, SUPPORT_DIRECTIONS) [V]
     bounds: np.ndarray           # (n_stops + 1,) the stops' first samples, then n
-    cosines: np.ndarray          # (SUPPORT_DIRECTIONS,) the support's directions
-    sines: np.ndarray
     a: np.ndarray                # (n_axes,) the model's ZOH plant
     b0: np.ndarray
     c: np.ndarray
@@ -402,7 +400,6 @@ class PlannedInterpolator(Interpolator):
             drive_speed=drive_speed, drive_accel=drive_accel,
             support=_support(drive_accel, drive_speed, p.stop_indices, SUPPORT_BLOCK),
             bounds=np.append(np.asarray(p.stop_indices, dtype=np.int64), p.n_samples),
-            cosines=np.cos(_DIRECTIONS), sines=np.sin(_DIRECTIONS),
             a=a, b0=b0, c=c, b1=b1, kp=kp, kd=kd, headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole)
@@ -513,6 +510,8 @@ stepping.register(PlannedPlan, planned_step)
 
 
 _DIRECTIONS = np.linspace(0.0, 0.5 * np.pi, SUPPORT_DIRECTIONS)
+_COSINES, _SINES = np.cos(_DIRECTIONS), np.sin(_DIRECTIONS)
+"""The support's directions (constants of the compiled code)."""
 
 
 def _support(accel: np.ndarray, speed: np.ndarray, stops: np.ndarray,
@@ -525,30 +524,30 @@ def _support(accel: np.ndarray, speed: np.ndarray, stops: np.ndarray,
     out = np.empty((-(-len(accel) // block),) + accel.shape[1:] + (SUPPORT_DIRECTIONS,))
     bounds = np.concatenate([[0], np.asarray(stops, dtype=np.int64), [len(accel)]])
     _support_into(np.ascontiguousarray(accel), np.ascontiguousarray(speed), bounds,
-                  np.cos(_DIRECTIONS), np.sin(_DIRECTIONS), block, out)
+                  block, out)
     return out
 
 
 @njit(cache=True, inline="always")
-def _raise_to_sample(out, accel, speed, k, cosines, sines):
+def _raise_to_sample(out, accel, speed, k):
     """``out`` (n_axes, SUPPORT_DIRECTIONS) [V] raised to sample ``k``'s
     ``|cos(p)*accel + sin(p)*speed|`` where that is larger."""
     for j in range(out.shape[0]):
         for d in range(out.shape[1]):
-            v = abs(cosines[d] * accel[k, j] + sines[d] * speed[k, j])
+            v = abs(_COSINES[d] * accel[k, j] + _SINES[d] * speed[k, j])
             if v > out[j, d]:
                 out[j, d] = v
 
 
 @njit(cache=True)
-def _support_into(accel, speed, bounds, cosines, sines, block, out):
+def _support_into(accel, speed, bounds, block, out):
     """:func:`_support`'s running maxima, backwards from each stop in ``bounds``."""
-    running = np.empty((accel.shape[1], cosines.shape[0]))
+    running = np.empty((accel.shape[1], SUPPORT_DIRECTIONS))
     for b in range(bounds.shape[0] - 1):
         lo, hi = bounds[b], bounds[b + 1]
         running[:] = 0.0
         for k in range(hi - 1, lo - 1, -1):
-            _raise_to_sample(running, accel, speed, k, cosines, sines)
+            _raise_to_sample(running, accel, speed, k)
             if k % block == 0:  # element by element: a slice copy compiles a shape check
                 for j in range(running.shape[0]):  # with its error message (2 s of a
                     for d in range(running.shape[1]):  # cold start)
@@ -574,8 +573,7 @@ def _support_at(plan, i, out):
         for d in range(out.shape[1]):
             out[j, d] = plan.support[stored, j, d] if stored >= 0 else 0.0
     for k in range(i, end):
-        _raise_to_sample(out, plan.drive_accel, plan.drive_speed, k, plan.cosines,
-                         plan.sines)
+        _raise_to_sample(out, plan.drive_accel, plan.drive_speed, k)
     return out
 
 
