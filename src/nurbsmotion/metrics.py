@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numba import njit
 
-from ._kernels import horner, power_basis
+from ._kernels import horner, power_basis, rational_horner
 from .geometry import distances_to
 
 from .nurbs import NurbsCurve
@@ -344,10 +344,7 @@ def _g_at(coef, t, q):
     dg = 0.0
     r2 = 0.0
     for j in range(dim):
-        v0, v1, v2 = horner(coef, j, t)
-        c0 = v0 / w0
-        c1 = (v1 - w1 * c0) / w0
-        c2 = (v2 - 2.0 * w1 * c1 - w2 * c0) / w0
+        c0, c1, c2 = rational_horner(coef, j, t, w0, w1, w2)
         r = c0 - q[j]
         g += r * c1
         dg += c1 * c1 + r * c2
