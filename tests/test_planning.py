@@ -74,6 +74,26 @@ def test_bound_pi_and_grid_convergence():
     assert abs(coarse - fine) <= 2e-3 * fine
 
 
+@pytest.mark.parametrize("seed", [2, 5])
+def test_bound_resolves_a_near_cusp(seed, monkeypatch):
+    """A smooth turn of radius below one pulse inside a knot span (a near-cusp) at 2 m/s:
+    at the planner's 4,000 grid points the bound equals the Richardson extrapolation of
+    uniform grids without the turn refinement (320,000 and 1,280,000 points; first order
+    in the spacing) to 0.1 %; the uniform grid of 4,000 points alone is off by over 20 %
+    (these seeds step over the turn or land on it)."""
+    from nurbsmotion import planning
+    from nurbsmotion.paths.random_paths import random_path
+    curve = random_path("near_cusps", [77, seed], n_axes=2)
+    feed = 2e6
+    refined = time_optimal_bound(curve, MACHINE, feed, grid_size=4000)
+    monkeypatch.setattr(planning, "MAX_TURN", math.inf)
+    uniform, coarse, fine = (time_optimal_bound(curve, MACHINE, feed, grid_size=g)
+                             for g in (4000, 320_000, 1_280_000))
+    extrapolated = fine - (coarse - fine) / 3.0
+    assert refined == pytest.approx(extrapolated, rel=1e-3)
+    assert abs(uniform / extrapolated - 1) > 0.2
+
+
 def test_bound_orders():
     """The bound grows as the feed or the drive falls; an ideal drive gives L/F."""
     t = [time_optimal_bound(PI, MACHINE, F, grid_size=3000) for F in (2e6, 1e6, 5e5)]
