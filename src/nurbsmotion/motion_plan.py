@@ -39,9 +39,13 @@ is built offline in four steps:
 4. **Drive limit.** Where the drive sequence uses more than ``drive_fraction`` of Umax on
    some axis (the sampled motion needs a little more than the continuous one, the speed
    profile's grid may step over a curvature peak, and blends add drives), the drive limit
-   of step 1 is lowered by the square of the excess over the distance the motion covers in
-   a few samples around it, and the plan is rebuilt; where that does not lower the drive
-   (the grid steps over a curvature peak), the grid is refined.
+   of step 1 is divided by the excess over the distance the motion covers in a few
+   samples around it (a profile's acceleration, and its squared speed where the curvature
+   limits it, scale with the limit, and so does the drive they need), and the plan is
+   rebuilt. An excess left after that comes from further away than the easing reaches,
+   so round r divides by its r-th power (squared, cubed, ...: a stubborn excess is gone
+   in a few rounds, at the cost of easing a little more than it needs); where easing
+   does not lower the drive, the grid is refined.
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
@@ -568,7 +572,9 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
             widen *= 2.0
         last_use = use
         half = np.maximum(speed * Ts * (1 + INVERSE_REACH) * widen, spacing)
-        factor = (drive_fraction / per_sample[k]) ** 2  # overshoots downwards
+        # The first round's excess is the profile's own (its drive scales with its limit):
+        # divided by it; what is left comes from further away (module docstring, step 4).
+        factor = (drive_fraction / per_sample[k]) ** (1 + len(eases))
         eases.append((curve.arc_length(param[k]), half, factor))
     else:
         # The excess that easing could not remove comes from the pre-compensation's last
