@@ -161,6 +161,24 @@ def test_plan_is_the_model_plants_response_to_its_drive():
     assert np.max(contour_error(PI, plan.position)) <= 5.0
 
 
+@pytest.mark.parametrize("seed, feed", [(42, 8.3e4), (141, 9.9e5), (7, 3e6)])
+def test_plan_lands_on_the_end_when_the_desired_motion_does(seed, feed):
+    """A short, fast move, where the pre-compensation leaves a pulse or two: the plan is
+    at rest exactly on the end from the sample the desired motion arrives there, and it
+    is still the model plant's response to its drive (ServoPlant) within Umax."""
+    from nurbsmotion.paths.random_paths import random_path
+    curve = random_path("short_moves", [10, seed], n_axes=2)
+    plan = plan_motion(curve, MACHINE, feed)
+    arrive = int(np.flatnonzero(np.any(plan.desired != plan.desired[-1], axis=1))[-1]) + 1
+    np.testing.assert_array_equal(plan.position[arrive:],
+                                  np.broadcast_to(curve(1.0), plan.position[arrive:].shape))
+    plant = ServoPlant.of_machine(MACHINE, curve(0.0))
+    speed, position = plant.response(plan.drive[:-1])
+    np.testing.assert_allclose(position, plan.position, atol=1e-6)
+    np.testing.assert_allclose(speed, plan.speed, atol=1e-6, rtol=1e-9)
+    assert np.max(np.abs(plan.drive)) <= MACHINE.max_drive
+
+
 @pytest.mark.parametrize("feed, settle_ratio", [(2e5, 1.03), (1e6, 1.10)])
 def test_planned_pi_nominal(feed, settle_ratio):
     """Pi, nominal plant: no saturated sample, contour error <= 5 um, end overshoot

@@ -8,7 +8,7 @@ state ``x = [w, theta]``,
     theta[k+1] = theta[k] + c*w[k] + b1*u[k]
 
 so a drive sequence u[k] determines the motion, and a motion determines its drive. The plan
-is built offline in four steps:
+is built offline in five steps:
 
 1. **Path speed.** The time-optimal speed along the path (:func:`planning.speed_profile`:
    phase-plane passes under the feedforward drive limit ``|tau*xdd + xd| <= f*Umax*Kc*Ke``,
@@ -46,6 +46,9 @@ is built offline in four steps:
    so round r divides by its r-th power (squared, cubed, ...: a stubborn excess is gone
    in a few rounds, at the cost of easing a little more than it needs); where easing
    does not lower the drive, the grid is refined.
+5. **Landing** (:func:`_land_on_end`). The last drives are changed by the least that
+   puts the plant at rest exactly on the end at the sample the desired motion arrives
+   there, instead of approaching it over the samples after.
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
@@ -471,6 +474,68 @@ def _precompensate(y, alpha, beta, a, b0, rounds, limit, y_cmd, rounds_out):
     return best
 
 
+def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
+                 machine: Machine, limit: float) -> None:
+    """Step 5: bring the plan to rest exactly on the end at the sample N where the desired
+    motion arrives there (in place).
+
+    What the pre-compensation leaves (a pulse or two on a short, fast move, whose motion
+    is mostly near the Nyquist frequency) ends as a slow approach to the end after the
+    desired motion has arrived, which the move's settle time pays for. The plant is
+    linear, so a change du of the last m drives moves sample k by
+    ``sum_i h[k - 1 - i] du[i]`` with ``h[p] = A^p B`` (the ZOH plant, SPEC section 3).
+    Per axis, the change that puts the state at N at rest on the end and otherwise departs
+    least from ``y`` (equality-constrained least squares over the window's positions) is
+    applied, and the drive is 0 after N. m grows from 2 until the changed drive is within
+    ``limit`` [V] and the window's positions depart from ``y`` by no more than the old ones
+    did from N - 1 on or in the window; if no m up to N - 1 (u[0] = 0 stays) does, the
+    plan is left as it is."""
+    end = y[-1]
+    moving = np.flatnonzero(np.any(y != end, axis=1))
+    arrive = int(moving[-1]) + 1 if moving.size else 0
+    if arrive < 2 or arrive >= len(y):
+        return
+    tail_error = float(np.max(np.abs(theta[arrive - 1:] - y[arrive - 1:])))
+    if tail_error == 0.0:
+        return
+    a, b0, c, b1 = axis_zoh(machine)
+    for m in range(2, arrive):
+        k0 = arrive - m
+        du = np.empty((m, len(a)))
+        for j in range(len(a)):
+            h = np.empty((m, 2))             # h[p] = A^p B: [speed, position]
+            h[0] = b0[j], b1[j]
+            for q in range(1, m):
+                h[q] = a[j] * h[q - 1, 0], c[j] * h[q - 1, 0] + h[q - 1, 1]
+            lag = np.subtract.outer(np.arange(m), np.arange(m))  # row q: sample k0 + q + 1
+            H = np.where(lag >= 0, h[np.clip(lag, 0, m - 1), 1], 0.0)
+            E = np.vstack([h[m - 1 - np.arange(m), 0], H[m - 1]])
+            kkt = np.zeros((m + 2, m + 2))
+            kkt[:m, :m] = H[:-1].T @ H[:-1]
+            kkt[:m, m:] = E.T
+            kkt[m:, :m] = E
+            rhs = np.concatenate([-H[:-1].T @ (theta[k0 + 1:arrive, j] - y[k0 + 1:arrive, j]),
+                                  [-w[arrive, j], end[j] - theta[arrive, j]]])
+            du[:, j] = np.linalg.lstsq(kkt, rhs, rcond=None)[0][:m]
+        drive = u[k0:arrive] + du
+        if np.max(np.abs(drive)) > limit:
+            continue
+        w_new, theta_new = w[k0:arrive + 1].copy(), theta[k0:arrive + 1].copy()
+        for i in range(m):
+            w_new[i + 1] = a * w_new[i] + b0 * drive[i]
+            theta_new[i + 1] = theta_new[i] + c * w_new[i] + b1 * drive[i]
+        if np.max(np.abs(theta_new - y[k0:arrive + 1])) > max(
+                tail_error, float(np.max(np.abs(theta[k0:arrive] - y[k0:arrive])))):
+            continue
+        u[k0:arrive] = drive
+        w[k0:arrive + 1] = w_new
+        theta[k0:arrive + 1] = theta_new
+        u[arrive:] = 0.0
+        w[arrive:] = 0.0
+        theta[arrive:] = end
+        return
+
+
 def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
                     limit: float = math.inf):
     """Step 3: the drive sequence whose response follows ``y`` (see module docstring):
@@ -586,6 +651,7 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
             raise InfeasibleError(
                 f"the planned drive needs {use:.3g} x Umax after {DRIVE_FIT_ROUNDS} rounds "
                 "of easing the path speed's drive limit where it exceeds it")
+    _land_on_end(y, w, theta, u, machine, drive_fraction * umax)
     theta[-1] = y[-1]
     w[-1] = 0.0
     return MotionPlan(position=theta, speed=w, drive=u, parameter=param, desired=y,
