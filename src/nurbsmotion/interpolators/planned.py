@@ -12,19 +12,27 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    position increments, b1 and beta = c*b0 - a*b1) is identified by recursive least
    squares from the positions measured and the drives applied, starting from the model
    (:func:`_identify`; a linear regression exact for any tau and Kc); the deviation
-   from the plan's state is measured (position) and propagated through the model from the feedback's last drive (speed);
-2. a time-scaling governor advances the plan's clock by ``rate`` in (0, 1] samples: the
-   largest rate at which the *estimated* plant can follow the plan's drive (speed part
-   times the rate, acceleration part times its square) at every sample of a look-ahead
-   within ``1 - drive_headroom`` of Umax (never below the plan's own use), lowered further
-   after a sample whose drive demand exceeded Umax; it changes by at most
-   ``1 - tracking_pole`` per sample. The demand is that of the same samples (speed and
-   acceleration parts together, :func:`_demand`) up to the next stop: a weaker plant is
-   slowed down before it has to brake, so it can still stop at the next corner;
-3. the drive is the estimated plant's feedforward of the plan at that clock plus a state
-   feedback on the deviation whose gains put both poles of the model's deviation dynamics
-   at ``tracking_pole``, clipped to +-Umax: *every drive is within the limit by
-   construction*, whatever the true plant;
+   from the plan's state is measured (position) and propagated through the identified
+   plant from the feedback's last drive (speed);
+2. a time-scaling governor advances the plan's clock by ``rate`` in (0, 1] samples. The
+   *estimated* plant follows the plan at rate r with the drive ``ga*A*r^2 + gv*V*r``
+   (A, V: the acceleration and speed parts of the plan's drive), which must stay within
+   ``1 - drive_headroom`` of Umax (never below the plan's own use). Over the next
+   :data:`RATE_WINDOW` plan samples a backward pass finds the largest rate of each sample
+   from which the clock can still be slowed to the next samples' rates with the drive
+   that is left (:func:`_window_rate`: slowing the clock slows the plant, and costs
+   drive); beyond the window, up to the next stop, one uniform rate bounds it (the
+   support function of the plan's drive there, :func:`_demand`). The governor moves the
+   rate towards the window's, lowered further after a sample whose drive demand exceeded
+   Umax, by at most ``1 - tracking_pole`` and at most what the drive left at the clock
+   can change; the clock advances by the mean of the old and the new rate (the plant's
+   speed moves between them over the sample). A weaker plant is thus slowed down where it
+   must be, just before it accelerates or brakes, not over the whole way to the next stop;
+3. the drive is the estimated plant's feedforward of the plan at that clock (with the
+   clock's own change of rate, ``ga*V/(1 - a)*dr``) plus a state feedback on the
+   deviation whose gains put both poles of the *identified* plant's deviation dynamics at
+   ``tracking_pole`` (:func:`_pole_gains`), clipped to +-Umax: *every drive is within the
+   limit by construction*, whatever the true plant;
 4. the loop's law is affine in the setpoint between its clamps,
    ``u = slope*thd + offset`` with slope > 0 (:func:`nurbsmotion.control.pid_affine`,
    from the law's memory and the measured state), so the setpoint that produces exactly
@@ -82,6 +90,14 @@ only; each sample's own is the stored one at the next such sample maxed with the
 samples before it (:func:`_support_at`): the same values, an eighth of the memory (a
 10-minute move's support held 86 MB)."""
 
+RATE_WINDOW = 32
+"""Plan samples ahead over which the governor plans the clock's rate sample by sample
+(:func:`_window_rate`); beyond them, up to the next stop, it bounds the rate by one
+uniform value (a user-free parameter of cost against speed: the rate can change by a
+few hundredths to a few tenths per sample, so 32 samples cover its whole range on the
+benchmarks' plants; a longer window costs more per sample and gains only where the rate
+must change by more)."""
+
 RATE_BISECTIONS = 20
 """Bisections of the governor's largest rate (to 1e-6 of a sample per sample)."""
 
@@ -102,6 +118,26 @@ def _gains(est, j, a, b0, c, b1):
     ga = min(max(ga, 1.0 / GAIN_RANGE), GAIN_RANGE)
     gv = ga * (1.0 - est[0, j]) / (1.0 - a)
     return ga, min(max(gv, 1.0 / GAIN_RANGE), GAIN_RANGE)
+
+
+@njit(cache=True)
+def _estimated_plant(est, j, b0, ga):
+    """Axis j's identified ZOH plant ``(a', b0', c', b1')``: a' and b1' as estimated,
+    ``b0' = b0/ga`` (:func:`_gains`) and c' from ``beta' = c'*b0' - a'*b1'``."""
+    ae, b1e = est[0, j], est[1, j]
+    b0e = b0 / ga
+    return ae, b0e, (est[2, j] + ae * b1e) / b0e, b1e
+
+
+@njit(cache=True)
+def _pole_gains(a, b0, c, b1, pole):
+    """State-feedback gains ``(k_theta, k_w)`` that put both poles of the deviation
+    dynamics of the ZOH plant ``x[k+1] = [[a, 0], [c, 1]] x[k] + [b0, b1] u[k]`` at
+    ``pole`` (Ackermann's formula in closed form)."""
+    det = b0 * (c * b0 + (1.0 - a) * b1)
+    k_w = (b0 * c * (a + 1.0 - 2.0 * pole) - b1 * (a - pole) ** 2) / det
+    k_theta = b0 * (1.0 - pole) ** 2 / det
+    return k_theta, k_w
 
 
 @njit(cache=True)
@@ -177,8 +213,83 @@ def _demand(support, j, x, y):
 
 
 @njit(cache=True)
+def _first_root(p, q, c):
+    """The smallest positive root of ``p*r^2 + q*r + c = 0``, at most 1 (1 if none)."""
+    best = 1.0
+    if abs(p) <= 1e-300:
+        if q != 0.0 and -c / q > 0.0:
+            best = min(best, -c / q)
+        return best
+    disc = q * q - 4.0 * p * c
+    if disc < 0.0:
+        return best
+    t = -0.5 * (q + math.copysign(math.sqrt(disc), q))
+    for r in (t / p, c / t if t != 0.0 else -1.0):
+        if r > 0.0:
+            best = min(best, r)
+    return best
+
+
+@njit(cache=True)
+def _static_rate(p, q, limit):
+    """The largest rate r in [0, 1] with ``|p*r^2 + q*r| <= limit`` for every r' in
+    [0, r] (the first crossing of +-limit by the parabola through 0)."""
+    return min(_first_root(p, q, -limit), _first_root(p, q, limit))
+
+
+@njit(cache=True)
+def _rate_room(f, speed, limit):
+    """``(slow, fast)``: how much of ``limit`` [V] is left for slowing the clock down and
+    for speeding it up, given the drive ``f`` [V] the sample already needs and the sign of
+    the axis' motion ``speed`` (slowing needs a drive against the motion)."""
+    s = 1.0 if speed >= 0.0 else -1.0
+    return max(limit + s * f, 0.0), max(limit - s * f, 0.0)
+
+
+@njit(cache=True)
+def _window_rate(i0, r_tail, gains, a, drive_speed, drive_accel, headroom, umax):
+    """The largest clock rate at plan samples ``i0`` and ``i0 + 1`` (the clock passes
+    both within the sample) from which the estimated plant can follow the plan: a
+    backward pass over the plan samples ``i0 .. i0 + RATE_WINDOW`` from ``r_tail`` (the
+    uniform rate that holds from there to the next stop; the window may cross stops: the
+    plan is at rest there, and its rate may change freely). At sample k the rate r may be
+    at most the static rate
+    (:func:`_static_rate`: ``|ga*A*r^2 + gv*V*r|`` within the limit) and at most the next
+    sample's rate plus what the drive left can take off over one plan sample: slowing the
+    clock by dr slows axis j by ``w_ff*dr``, which costs ``ga*V/(1 - a)*dr`` [V] (V the
+    speed part of the plan's drive, ``w_ff/Kc``), over 1/r loop samples. ``gains`` (2,
+    n_axes): ga, gv. Both sample k's and k + 1's drives bound the change (the clock may
+    lie anywhere between them while the rate changes)."""
+    end = min(i0 + RATE_WINDOW, drive_speed.shape[0])
+    r_next = r_tail
+    r_after = r_next  # the rate at sample i0 + 1: the clock passes it within the sample
+    for k in range(end - 1, i0 - 1, -1):
+        r_k = 1.0
+        for j in range(drive_speed.shape[1]):
+            # the clock lies anywhere between k and k + 1 while the rate changes: both
+            # samples' drives must leave room for it
+            for kk in range(k, min(k + 2, end)):
+                A, V = drive_accel[kk, j], drive_speed[kk, j]
+                p, q = gains[0, j] * A, gains[1, j] * V
+                limit = max((1.0 - headroom) * umax, abs(A + V))
+                r_k = min(r_k, _static_rate(p, q, limit))
+                cost = gains[0, j] * abs(V) / (1.0 - a[j])
+                if cost > 0.0:
+                    # slowing from r at k to r_next at k + 1 (r - r_next per plan sample,
+                    # so (r - r_next)*r per loop sample): s*(p*r^2 + q*r)
+                    # - cost*(r - r_next)*r >= -limit, s the sign of the motion; its first
+                    # crossing from r = 0
+                    s = 1.0 if V >= 0.0 else -1.0
+                    r_k = min(r_k, _first_root(s * p - cost, s * q + cost * r_next, limit))
+        if k == i0 + 1:
+            r_after = r_k
+        r_next = r_k
+    return min(r_next, r_after)
+
+
+@njit(cache=True)
 def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
-                plan_drive_speed, plan_drive_accel, support, a, b0, c, b1, kp, kd, umax,
+                plan_drive_speed, plan_drive_accel, support, gains, a, b0, c, b1, umax,
                 headroom, rate_gain, slope, offset, out_setpoint, out_drive):
     """One sample of the planned interpolator (module docstring, steps 1-4).
 
@@ -208,18 +319,19 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
         The feedforward drive's speed part w_ff/Kc and acceleration part
         (w_ff[k+1]-w_ff[k])/b0 [V] (u_ff is their sum at rate 1).
     support : ndarray, shape (n_axes, SUPPORT_DIRECTIONS)
-        Per axis, the support function of the plan's drive parts from the sample of the
-        clock up to the next stop (:func:`_support_at`).
+        Per axis, the support function of the plan's drive parts from the window's end
+        (:data:`RATE_WINDOW` samples after the clock's) up to the next stop
+        (:func:`_support_at`; zero when the window reaches the plan's end).
+    gains : ndarray, shape (2, n_axes)
+        Scratch: the estimated plant's ga and gv (:func:`_gains`).
     a, b0, c, b1 : ndarray, shape (n_axes,)
         The model's ZOH plant (:func:`nurbsmotion.motion_plan.axis_zoh`).
-    kp, kd : ndarray, shape (n_axes,)
-        Feedback gains on the position [V/pulse] and speed [V/(rad/s)] deviation.
     umax : float
         Umax [V].
     headroom : float
         Fraction of Umax the governor keeps for the feedback.
     rate_gain : float
-        Largest change of the rate per sample.
+        Largest change of the rate per sample; ``1 - rate_gain`` is the tracking pole.
     slope, offset : ndarray, shape (n_axes,)
         The law's affine form at this sample: u[k] = slope*thd[k] + offset [V/pulse, V].
     out_setpoint, out_drive : ndarray, shape (n_axes,)
@@ -238,12 +350,15 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
     f = phi - i0 if i1 > i0 else 0.0
     # 1a. identify the plant's exact sampled model from the measured positions and the
     # drives applied (recursive least squares, see :func:`_identify`)
-    r_max = 1.0
+    r_tail = 1.0
     for j in range(n_axes):
         ga, gv = _identify(est, hist, j, position[j], a[j], b0[j], c[j], b1[j])
-        # 2a. the clock's largest rate at which the estimated plant can follow the plan
-        # up to the next stop: |ga*A*r^2 + gv*V*r| <= (1 - headroom)*Umax at every sample
-        # the plan itself may use the full drive; the headroom applies beyond the model
+        gains[0, j] = ga
+        gains[1, j] = gv
+        # 2a. the largest uniform rate at which the estimated plant can follow the plan
+        # from the window's end to the next stop: |ga*A*r^2 + gv*V*r| <= (1 - headroom)*Umax
+        # at every sample there; the plan itself may use the full drive, the headroom
+        # applies beyond the model
         limit = max((1.0 - headroom) * umax, _demand(support, j, 1.0, 1.0))
         if _demand(support, j, ga, gv) > limit:
             lo, hi = 0.0, 1.0
@@ -253,15 +368,30 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
                     hi = mid
                 else:
                     lo = mid
-            r_max = min(r_max, lo)
-    # 2b. governor: towards the largest rate, slower after a drive demand beyond Umax
-    target = r_max
+            r_tail = min(r_tail, lo)
+    # 2b. sample by sample over the window, slowing down only as late as the drive can
+    target = _window_rate(i0, r_tail, gains, a, plan_drive_speed, plan_drive_accel,
+                          headroom, umax)
+    # 2c. governor: towards that rate, slower after a drive demand beyond Umax, changing
+    # no faster than the drive left at the clock can change the plant's speed
     if excess_prev > 0.0:
         target = min(target, rate * (1.0 - rate_gain * excess_prev))
+    down, up = rate_gain, rate_gain
+    for j in range(n_axes):
+        A = plan_drive_accel[i0, j] * (1.0 - f) + plan_drive_accel[i1, j] * f
+        V = plan_drive_speed[i0, j] * (1.0 - f) + plan_drive_speed[i1, j] * f
+        cost = gains[0, j] * abs(V) / (1.0 - a[j])
+        if cost > 0.0:
+            limit = max((1.0 - headroom) * umax, abs(A + V))
+            slow, fast = _rate_room(gains[0, j] * A * rate * rate + gains[1, j] * V * rate,
+                                    V, limit)
+            down = min(down, slow / cost)
+            up = min(up, fast / cost)
+    rate_old = rate
     if target < rate:
-        rate = max(target, rate - rate_gain, rate_gain)
+        rate = max(target, rate - down, rate_gain)
     else:
-        rate = min(target, rate + rate_gain)
+        rate = min(target, rate + up)
     excess = 0.0
     worst = 0.0
     for j in range(n_axes):
@@ -270,14 +400,18 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
         th = plan_position[i0, j] * (1.0 - f) + plan_position[i1, j] * f
         e_th = th - position[j]
         worst = max(worst, abs(e_th))
-        e_w_prev = (e_th - dev[0, j] - b1[j] * dev[1, j]) / c[j]
-        e_w = a[j] * e_w_prev + b0[j] * dev[1, j]
-        # 3. drive: feedforward of the estimated plant at the clock plus feedback, clipped
         ga, gv = _gains(est, j, a[j], b0[j], c[j], b1[j])
-        uf = ((plan_drive_speed[i0, j] * (1.0 - f) + plan_drive_speed[i1, j] * f) * rate * gv
+        ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], ga)
+        e_w_prev = (e_th - dev[0, j] - b1e * dev[1, j]) / ce
+        e_w = ae * e_w_prev + b0e * dev[1, j]
+        # 3. drive: feedforward of the estimated plant at the clock plus feedback, clipped
+        kpe, kde = _pole_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
+        V = plan_drive_speed[i0, j] * (1.0 - f) + plan_drive_speed[i1, j] * f
+        uf = (V * rate * gv
               + (plan_drive_accel[i0, j] * (1.0 - f) + plan_drive_accel[i1, j] * f)
-              * rate * rate * ga)
-        u = uf + kp[j] * e_th + kd[j] * e_w
+              * rate * rate * ga
+              + ga * V / (1.0 - a[j]) * (rate - rate_old))  # the clock's own change
+        u = uf + kpe * e_th + kde * e_w
         if abs(u) > umax:
             excess = max(excess, abs(u) / umax - 1.0)
             u = umax if u > 0 else -umax
@@ -288,7 +422,9 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
         # 4. the setpoint that produces exactly this drive
         out_drive[j] = u
         out_setpoint[j] = (u - offset[j]) / slope[j]
-    return min(phi + rate, n - 1.0), rate, excess
+    # the plant's speed moves from the old rate's to the new one over the sample: the
+    # clock advances by their mean
+    return min(phi + 0.5 * (rate_old + rate), n - 1.0), rate, excess
 
 
 class PlannedPlan(NamedTuple):
@@ -305,8 +441,6 @@ class PlannedPlan(NamedTuple):
     b0: np.ndarray
     c: np.ndarray
     b1: np.ndarray
-    kp: np.ndarray               # (n_axes,) feedback gains [V/pulse]
-    kd: np.ndarray               # (n_axes,) [V/(rad/s)]
     headroom: float
     rate_gain: float
 
@@ -314,7 +448,8 @@ class PlannedPlan(NamedTuple):
 class PlannedState(NamedTuple):
     """The online state: the plan's clock [samples], its rate and the last excess
     (shape (1,) each), the deviation, estimate and history arrays of :func:`online_step`,
-    and per-axis scratch (the law's slope and offset, the drive, the support)."""
+    and per-axis scratch (the law's slope and offset, the drive, the support, the
+    estimated plant's gains)."""
 
     phi: np.ndarray
     rate: np.ndarray
@@ -326,6 +461,7 @@ class PlannedState(NamedTuple):
     offset: np.ndarray
     drive: np.ndarray
     support: np.ndarray
+    gains: np.ndarray
 
 
 class PlannedInterpolator(Interpolator):
@@ -394,13 +530,12 @@ class PlannedInterpolator(Interpolator):
         drive_speed = p.speed / machine.Kc
         drive_accel = np.zeros_like(p.speed)
         drive_accel[:-1] = (p.speed[1:] - p.speed[:-1]) / b0
-        kp, kd = _feedback_gains(a, b0, c, b1, self.tracking_pole)
         self.plan = PlannedPlan(
             parameter=p.parameter, desired=p.desired, position=p.position,
             drive_speed=drive_speed, drive_accel=drive_accel,
             support=_support(drive_accel, drive_speed, p.stop_indices, SUPPORT_BLOCK),
             bounds=np.append(np.asarray(p.stop_indices, dtype=np.int64), p.n_samples),
-            a=a, b0=b0, c=c, b1=b1, kp=kp, kd=kd, headroom=self.drive_headroom,
+            a=a, b0=b0, c=c, b1=b1, headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole)
 
@@ -411,7 +546,8 @@ class PlannedInterpolator(Interpolator):
         n = self.machine.n_axes
         return PlannedState(np.ones(1), np.ones(1), np.zeros(1), np.zeros((2, n)),
                             _prior_estimate(self.plan), np.zeros((5, n)), np.empty(n),
-                            np.empty(n), np.empty(n), np.empty((n, SUPPORT_DIRECTIONS)))
+                            np.empty(n), np.empty(n), np.empty((n, SUPPORT_DIRECTIONS)),
+                            np.empty((2, n)))
 
 
 @njit(cache=True)
@@ -468,12 +604,16 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
         bounds[j, 0] = np.nan
         bounds[j, 1] = np.nan
     phi = state.phi[0]
+    tail = int(phi) + RATE_WINDOW  # the window's end (:func:`_window_rate`)
+    if tail < plan.position.shape[0]:
+        _support_at(plan, tail, state.support)
+    else:
+        state.support[:] = 0.0
     phi_next, rate, excess = online_step(
         phi, state.rate[0], state.excess[0], state.dev, state.est, state.hist, position,
-        plan.position, plan.drive_speed, plan.drive_accel,
-        _support_at(plan, min(int(phi), plan.position.shape[0] - 1), state.support),
-        plan.a, plan.b0, plan.c, plan.b1, plan.kp, plan.kd, law[0]["maxoutput"],
-        plan.headroom, plan.rate_gain, state.slope, state.offset, command, state.drive)
+        plan.position, plan.drive_speed, plan.drive_accel, state.support, state.gains,
+        plan.a, plan.b0, plan.c, plan.b1, law[0]["maxoutput"], plan.headroom,
+        plan.rate_gain, state.slope, state.offset, command, state.drive)
     state.phi[0] = phi_next
     state.rate[0] = rate
     state.excess[0] = excess
@@ -555,20 +695,28 @@ def _support_into(accel, speed, bounds, block, out):
 
 
 @njit(cache=True)
-def _support_at(plan, i, out):
-    """The support of sample ``i`` (:func:`_support` with ``block = 1``) into ``out``
-    (n_axes, SUPPORT_DIRECTIONS) [V]: the stored one at the next stored sample before the
-    next stop, raised to the samples from ``i`` to there. Returns ``out``."""
-    block = SUPPORT_BLOCK
-    lo, up = 0, plan.bounds.shape[0] - 1  # the next stop: the first bound > i (the last
-    while lo < up:                        # bound, the plan's length, is > i)
+def _next_stop(plan, i):
+    """The first sample of the next stop after sample ``i``: the first bound > i (the
+    last bound, the plan's length, is > i)."""
+    lo, up = 0, plan.bounds.shape[0] - 1
+    while lo < up:
         mid = (lo + up) // 2
         if plan.bounds[mid] > i:
             up = mid
         else:
             lo = mid + 1
-    end = i if i % block == 0 else min((i // block + 1) * block, plan.bounds[lo])
-    stored = end // block if end < plan.bounds[lo] else -1
+    return plan.bounds[lo]
+
+
+@njit(cache=True)
+def _support_at(plan, i, out):
+    """The support of sample ``i`` (:func:`_support` with ``block = 1``) into ``out``
+    (n_axes, SUPPORT_DIRECTIONS) [V]: the stored one at the next stored sample before the
+    next stop, raised to the samples from ``i`` to there. Returns ``out``."""
+    block = SUPPORT_BLOCK
+    stop = _next_stop(plan, i)
+    end = i if i % block == 0 else min((i // block + 1) * block, stop)
+    stored = end // block if end < stop else -1
     for j in range(out.shape[0]):
         for d in range(out.shape[1]):
             out[j, d] = plan.support[stored, j, d] if stored >= 0 else 0.0
@@ -590,17 +738,3 @@ def _prior_estimate(plan: PlannedPlan) -> np.ndarray:
     est[7] = (GAIN_RANGE * b1) ** 2
     est[11] = (GAIN_RANGE * beta) ** 2
     return est
-
-
-def _feedback_gains(a, b0, c, b1, pole):
-    """State-feedback gains (on the position and speed deviation) that put both poles of
-    the model's deviation dynamics at ``pole`` (Ackermann's formula), shape (2, n_axes)."""
-    out = np.empty((2, len(a)))
-    for j in range(len(a)):
-        A = np.array([[a[j], 0.0], [c[j], 1.0]])
-        B = np.array([b0[j], b1[j]])
-        ctrb = np.column_stack([B, A @ B])
-        phiA = A @ A - 2 * pole * A + pole * pole * np.eye(2)
-        K = np.linalg.solve(ctrb, phiA)[1]          # last row of C^-1 phi(A): [Kw, Ktheta]
-        out[0, j], out[1, j] = K[1], K[0]
-    return out
