@@ -90,13 +90,13 @@ only; each sample's own is the stored one at the next such sample maxed with the
 samples before it (:func:`_support_at`): the same values, an eighth of the memory (a
 10-minute move's support held 86 MB)."""
 
-RATE_WINDOW = 32
+RATE_WINDOW = 16
 """Plan samples ahead over which the governor plans the clock's rate sample by sample
 (:func:`_window_rate`); beyond them, up to the next stop, it bounds the rate by one
-uniform value (a user-free parameter of cost against speed: the rate can change by a
-few hundredths to a few tenths per sample, so 32 samples cover its whole range on the
-benchmarks' plants; a longer window costs more per sample and gains only where the rate
-must change by more)."""
+uniform value, which is safe but slower. A parameter of cost against speed: the drive
+left beside the plan changes the rate by about 0.05 (2 m/s on the die-bonder) to over 0.3
+per sample, so 16 samples let it fall from 1 to 0.2 before the samples that need it; 32
+gave the same runs on the die-bonder's Pi and butterfly at twice the cost per sample."""
 
 RATE_BISECTIONS = 20
 """Bisections of the governor's largest rate (to 1e-6 of a sample per sample)."""
@@ -263,7 +263,9 @@ def _window_rate(i0, r_tail, gains, a, drive_speed, drive_accel, headroom, umax)
     end = min(i0 + RATE_WINDOW, drive_speed.shape[0])
     r_next = r_tail
     r_after = r_next  # the rate at sample i0 + 1: the clock passes it within the sample
+    static_next = 1.0  # sample k + 1's static rate (the window's end: the tail's)
     for k in range(end - 1, i0 - 1, -1):
+        static = 1.0
         r_k = 1.0
         for j in range(drive_speed.shape[1]):
             # the clock lies anywhere between k and k + 1 while the rate changes: both
@@ -272,7 +274,8 @@ def _window_rate(i0, r_tail, gains, a, drive_speed, drive_accel, headroom, umax)
                 A, V = drive_accel[kk, j], drive_speed[kk, j]
                 p, q = gains[0, j] * A, gains[1, j] * V
                 limit = max((1.0 - headroom) * umax, abs(A + V))
-                r_k = min(r_k, _static_rate(p, q, limit))
+                if kk == k:
+                    static = min(static, _static_rate(p, q, limit))
                 cost = gains[0, j] * abs(V) / (1.0 - a[j])
                 if cost > 0.0:
                     # slowing from r at k to r_next at k + 1 (r - r_next per plan sample,
@@ -281,6 +284,8 @@ def _window_rate(i0, r_tail, gains, a, drive_speed, drive_accel, headroom, umax)
                     # crossing from r = 0
                     s = 1.0 if V >= 0.0 else -1.0
                     r_k = min(r_k, _first_root(s * p - cost, s * q + cost * r_next, limit))
+        r_k = min(r_k, static, static_next)
+        static_next = static
         if k == i0 + 1:
             r_after = r_k
         r_next = r_k
