@@ -199,13 +199,23 @@ def test_planned_follows_its_plan_on_the_nominal_plant():
     np.testing.assert_allclose(trace.position[:n], it.plan.position, atol=1e-3)
 
 
+def _scipy_zoh(j, tau_scale, kc_scale):
+    """Axis j of the die-bonder with tau and Kc scaled: its ZOH coefficients
+    ``(a, b0, c, b1)`` from scipy's matrix exponential of
+    ``[w, theta, u]' = [[-1/tau, 0, kc/tau], [ke, 0, 0], [0, 0, 0]] [w, theta, u]``."""
+    from scipy.linalg import expm
+
+    tau, kc, ke = (MACHINE.tau[j] * tau_scale, MACHINE.Kc[j] * kc_scale, MACHINE.Ke[j])
+    E = expm(np.array([[-1 / tau, 0, kc / tau], [ke, 0, 0], [0, 0, 0]])
+             * MACHINE.sample_period)
+    return E[0, 0], E[0, 2], E[1, 0], E[1, 2]
+
+
 @pytest.mark.parametrize("tau_scale, kc_scale", [(0.6, 1.7), (1.9, 0.55)])
 def test_identification_finds_the_true_sampled_plant(tau_scale, kc_scale):
     """The recursive least squares of the online step, fed the positions of a plant
     whose tau and Kc differ from the model (ServoPlant, matrix exponential) under a
     random drive, converges to that plant's ZOH coefficients (scipy's expm)."""
-    from scipy.linalg import expm
-
     from nurbsmotion.interpolators.planned import _identify, _prior_estimate
 
     it = PlannedInterpolator(PI, MACHINE, 1e6)
@@ -221,13 +231,8 @@ def test_identification_finds_the_true_sampled_plant(tau_scale, kc_scale):
             _identify(est, hist, j, position[k, j], it.plan.a[j], it.plan.b0[j],
                       it.plan.c[j], it.plan.b1[j])
             hist[1, j], hist[0, j] = hist[0, j], drive[k, j]
-    Ts = MACHINE.sample_period
     for j in range(2):
-        tau, kc, ke = (MACHINE.tau[j] * tau_scale, MACHINE.Kc[j] * kc_scale,
-                       MACHINE.Ke[j])
-        # [w, theta, u]' = [[-1/tau, 0, kc/tau], [ke, 0, 0], [0, 0, 0]] [w, theta, u]
-        E = expm(np.array([[-1 / tau, 0, kc / tau], [ke, 0, 0], [0, 0, 0]]) * Ts)
-        a, c, b0, b1 = E[0, 0], E[1, 0], E[0, 2], E[1, 2]
+        a, b0, c, b1 = _scipy_zoh(j, tau_scale, kc_scale)
         # 1 - a sets the speed part of the drive: within 2 % of it
         assert abs(est[0, j] - a) <= 0.02 * (1 - a)
         np.testing.assert_allclose(est[1:3, j], [b1, c * b0 - a * b1], rtol=1e-3)
@@ -264,16 +269,10 @@ def test_a_weaker_plant_is_slowed_only_where_it_must_be(butterfly, tau_scale, kc
 def test_feedback_gains_place_the_identified_plants_poles(tau_scale, kc_scale):
     """The online feedback's gains for a plant's ZOH coefficients (scipy's expm of the
     continuous plant) put both eigenvalues of A - B K (numpy) at the tracking pole."""
-    from scipy.linalg import expm
-
     from nurbsmotion.interpolators.planned import _pole_gains
 
-    Ts = MACHINE.sample_period
     for j in range(2):
-        tau, kc, ke = (MACHINE.tau[j] * tau_scale, MACHINE.Kc[j] * kc_scale,
-                       MACHINE.Ke[j])
-        E = expm(np.array([[-1 / tau, 0, kc / tau], [ke, 0, 0], [0, 0, 0]]) * Ts)
-        a, c, b0, b1 = E[0, 0], E[1, 0], E[0, 2], E[1, 2]
+        a, b0, c, b1 = _scipy_zoh(j, tau_scale, kc_scale)
         k_theta, k_w = _pole_gains(a, b0, c, b1, 0.7)
         closed = np.array([[a, 0.0], [c, 1.0]]) - np.outer([b0, b1], [k_w, k_theta])
         np.testing.assert_allclose(np.linalg.eigvals(closed), [0.7, 0.7], atol=1e-6)
