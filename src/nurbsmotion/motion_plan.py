@@ -114,6 +114,11 @@ samples put that place where the motion is already at rest, so that the approach
 end is met (on the die-bonder, with 3 such samples the last one before them missed the
 end by up to 1.4 pulses, an overshoot; with 10, by under 0.03)."""
 
+LANDING_SAMPLES = 64
+"""Most drives the landing of step 5 changes (:func:`_land_on_end`; each window size tried
+costs a least-squares solve of its size). On the 300 seeded random paths of
+``benchmarks/planner_sweep.py`` it changed 2-22."""
+
 INVERSE_REACH = 3
 """Samples over which a desired position shapes the drive of step 3 (the zero-phase
 inverse reads the commanded positions one sample either side of the speed it gives, and
@@ -488,8 +493,8 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     least from ``y`` (equality-constrained least squares over the window's positions) is
     applied, and the drive is 0 after N. m grows from 2 until the changed drive is within
     ``limit`` [V] and the window's positions depart from ``y`` by no more than the old ones
-    did from N - 1 on or in the window; if no m up to N - 1 (u[0] = 0 stays) does, the
-    plan is left as it is."""
+    did from N - 1 on or in the window; if no m up to :data:`LANDING_SAMPLES` (and N - 1:
+    u[0] = 0 stays) does, the plan is left as it is."""
     end = y[-1]
     moving = np.flatnonzero(np.any(y != end, axis=1))
     arrive = int(moving[-1]) + 1 if moving.size else 0
@@ -499,7 +504,7 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     if tail_error == 0.0:
         return
     a, b0, c, b1 = axis_zoh(machine)
-    for m in range(2, arrive):
+    for m in range(2, min(arrive, LANDING_SAMPLES + 1)):
         k0 = arrive - m
         du = np.empty((m, len(a)))
         for j in range(len(a)):

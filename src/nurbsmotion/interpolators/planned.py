@@ -71,10 +71,10 @@ __all__ = ["PlannedInterpolator", "online_step", "DEFAULT_TRACKING_POLE",
            "DEFAULT_DRIVE_HEADROOM"]
 
 DEFAULT_TRACKING_POLE = 0.7
-"""Both poles of the model's deviation dynamics under the online feedback: a deviation from
-the plan decays by this factor per sample on the model's plant (a user parameter: closer to
-0 follows a mismatched plant more tightly and tolerates less mismatch, closer to 1 the
-reverse)."""
+"""Both poles of the deviation dynamics under the online feedback, placed on the identified
+plant: a deviation from the plan decays by this factor per sample (a user parameter:
+closer to 0 follows the plan more tightly and leaves less drive to the governor's rate
+changes, closer to 1 the reverse)."""
 
 DEFAULT_DRIVE_HEADROOM = 0.1
 """Fraction of Umax the governor keeps free for the feedback when it scales the plan's
@@ -401,11 +401,12 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
     worst = 0.0
     for j in range(n_axes):
         # 1b. deviation from the plan's state: position measured; speed from the position
-        # deviation's last increment and the last drive's deviation (exact on the model)
+        # deviation's last increment and the last drive's deviation, through the
+        # identified plant (exact when it is the true one)
         th = plan_position[i0, j] * (1.0 - f) + plan_position[i1, j] * f
         e_th = th - position[j]
         worst = max(worst, abs(e_th))
-        ga, gv = _gains(est, j, a[j], b0[j], c[j], b1[j])
+        ga, gv = gains[0, j], gains[1, j]
         ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], ga)
         e_w_prev = (e_th - dev[0, j] - b1e * dev[1, j]) / ce
         e_w = ae * e_w_prev + b0e * dev[1, j]
@@ -700,28 +701,20 @@ def _support_into(accel, speed, bounds, block, out):
 
 
 @njit(cache=True)
-def _next_stop(plan, i):
-    """The first sample of the next stop after sample ``i``: the first bound > i (the
-    last bound, the plan's length, is > i)."""
-    lo, up = 0, plan.bounds.shape[0] - 1
-    while lo < up:
-        mid = (lo + up) // 2
-        if plan.bounds[mid] > i:
-            up = mid
-        else:
-            lo = mid + 1
-    return plan.bounds[lo]
-
-
-@njit(cache=True)
 def _support_at(plan, i, out):
     """The support of sample ``i`` (:func:`_support` with ``block = 1``) into ``out``
     (n_axes, SUPPORT_DIRECTIONS) [V]: the stored one at the next stored sample before the
     next stop, raised to the samples from ``i`` to there. Returns ``out``."""
     block = SUPPORT_BLOCK
-    stop = _next_stop(plan, i)
-    end = i if i % block == 0 else min((i // block + 1) * block, stop)
-    stored = end // block if end < stop else -1
+    lo, up = 0, plan.bounds.shape[0] - 1  # the next stop: the first bound > i (the last
+    while lo < up:                        # bound, the plan's length, is > i)
+        mid = (lo + up) // 2
+        if plan.bounds[mid] > i:
+            up = mid
+        else:
+            lo = mid + 1
+    end = i if i % block == 0 else min((i // block + 1) * block, plan.bounds[lo])
+    stored = end // block if end < plan.bounds[lo] else -1
     for j in range(out.shape[0]):
         for d in range(out.shape[1]):
             out[j, d] = plan.support[stored, j, d] if stored >= 0 else 0.0
