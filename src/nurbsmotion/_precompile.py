@@ -66,8 +66,8 @@ def loop_example(interpolator: str) -> tuple | None:
         plan = PlannedPlan(f(1), f(1, n), f(1, n), f(1, n), f(1, n),
                            f(1, n, SUPPORT_DIRECTIONS), np.zeros(2, np.int64),
                            *(f(n) for _ in range(4)), 0.0, 0.0)
-        state = PlannedState(f(1), f(1), f(1), f(2, n), f(12, n), f(5, n), f(n), f(n),
-                             f(n), f(n, SUPPORT_DIRECTIONS), f(2, n))
+        state = PlannedState(f(1), f(1), f(1), f(12, n), f(5, n), f(n), f(n), f(n),
+                             f(n, SUPPORT_DIRECTIONS), f(2, n))
     else:
         return None
     law = np.zeros(n, PID_LAW)

@@ -12,8 +12,8 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    position increments, b1 and beta = c*b0 - a*b1) is identified by recursive least
    squares from the positions measured and the drives applied, starting from the model
    (:func:`_identify`; a linear regression exact for any tau and Kc); the deviation
-   from the plan's state is measured (position) and propagated through the identified
-   plant from the feedback's last drive (speed);
+   from the plan's state is the measured position's, and the speed's through the
+   identified plant from the last position increment and drive;
 2. a time-scaling governor advances the plan's clock by ``rate`` in (0, 1] samples. The
    *estimated* plant follows the plan at rate r with the drive ``ga*A*r^2 + gv*V*r``
    (A, V: the acceleration and speed parts of the plan's drive), which must stay within
@@ -28,9 +28,10 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    can change; the clock advances by the mean of the old and the new rate (the plant's
    speed moves between them over the sample). A weaker plant is thus slowed down where it
    must be, just before it accelerates or brakes, not over the whole way to the next stop;
-3. the drive is the estimated plant's feedforward of the plan at that clock (with the
-   clock's own change of rate, ``ga*V/(1 - a)*dr``) plus a state feedback on the
-   deviation whose gains put both poles of the *identified* plant's deviation dynamics at
+3. the drive is the identified plant's drive from the plan's speed at the clock (times the
+   rate it had) to the plan's speed at the next clock (times the new rate), both exact
+   between samples (:func:`_plan_speed_at`), plus a state feedback on the deviation whose
+   gains put both poles of the *identified* plant's deviation dynamics at
    ``tracking_pole`` (:func:`_pole_gains`), clipped to +-Umax: *every drive is within the
    limit by construction*, whatever the true plant;
 4. the loop's law is affine in the setpoint between its clamps,
@@ -118,6 +119,23 @@ def _gains(est, j, a, b0, c, b1):
     ga = min(max(ga, 1.0 / GAIN_RANGE), GAIN_RANGE)
     gv = ga * (1.0 - est[0, j]) / (1.0 - a)
     return ga, min(max(gv, 1.0 / GAIN_RANGE), GAIN_RANGE)
+
+
+@njit(cache=True)
+def _plan_speed_at(drive_speed, drive_accel, phi, j, a, b0):
+    """The plan's speed [rad/s] of axis j at clock ``phi`` [samples]: the model's plant
+    from the plan's speed at sample i = floor(phi) under its drive there, over the fraction
+    f = phi - i of a sample (ZOH, exact between samples: ``w(i + f) = a^f*w[i]
+    + b0*(1 - a^f)/(1 - a)*u[i]``, with ``w[i] = Kc*V[i]``, ``Kc = b0/(1 - a)`` and
+    ``u[i] = V[i] + A[i]``, the plan's drive parts)."""
+    n = drive_speed.shape[0]
+    i = min(int(phi), n - 1)
+    f = phi - i if i < n - 1 else 0.0
+    w_i = b0 / (1.0 - a) * drive_speed[i, j]
+    if f <= 0.0:
+        return w_i
+    g = -math.expm1(f * math.log(a))             # 1 - a^f
+    return (1.0 - g) * w_i + b0 * g / (1.0 - a) * (drive_speed[i, j] + drive_accel[i, j])
 
 
 @njit(cache=True)
@@ -293,7 +311,7 @@ def _window_rate(i0, r_tail, gains, a, drive_speed, drive_accel, headroom, umax)
 
 
 @njit(cache=True)
-def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
+def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
                 plan_drive_speed, plan_drive_accel, support, gains, a, b0, c, b1, umax,
                 headroom, rate_gain, slope, offset, out_setpoint, out_drive):
     """One sample of the planned interpolator (module docstring, steps 1-4).
@@ -308,8 +326,6 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
         The clock's rate over the last sample, in (0, 1].
     excess_prev : float
         How far the last sample's drive demand exceeded Umax (relative; 0 if not).
-    dev : ndarray, shape (2, n_axes)
-        In/out: the last position deviation [pulse] and drive deviation u_ff - u [V].
     est : ndarray, shape (12, n_axes)
         In/out: the plant's identified sampled model and its covariance
         (:func:`_identify`).
@@ -397,40 +413,40 @@ def online_step(phi, rate, excess_prev, dev, est, hist, position, plan_position,
         rate = max(target, rate - down, rate_gain)
     else:
         rate = min(target, rate + up)
+    # the plant's speed moves from the old rate's to the new one over the sample: the
+    # clock advances by their mean
+    phi_next = min(phi + 0.5 * (rate_old + rate), n - 1.0)
     excess = 0.0
     worst = 0.0
     for j in range(n_axes):
-        # 1b. deviation from the plan's state: position measured; speed from the position
-        # deviation's last increment and the last drive's deviation, through the
-        # identified plant (exact when it is the true one)
+        # 1b. deviation from the plan's state: position measured; the plant's speed from
+        # its last position increment and drive (hist rows 3 and 0, :func:`_identify`)
+        # through the identified plant (exact when it is the true one)
         th = plan_position[i0, j] * (1.0 - f) + plan_position[i1, j] * f
         e_th = th - position[j]
         worst = max(worst, abs(e_th))
-        ga, gv = gains[0, j], gains[1, j]
-        ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], ga)
-        e_w_prev = (e_th - dev[0, j] - b1e * dev[1, j]) / ce
-        e_w = ae * e_w_prev + b0e * dev[1, j]
-        # 3. drive: feedforward of the estimated plant at the clock plus feedback, clipped
+        ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], gains[0, j])
+        w_last = (hist[3, j] - b1e * hist[0, j]) / ce
+        w_now = ae * w_last + b0e * hist[0, j]
+        w_ref = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi, j, a[j], b0[j])
+        e_w = w_ref * rate_old - w_now
+        # 3. drive: the estimated plant's drive from the plan's speed at the clock (at the
+        # rate it had) to its speed at the next clock (at the new rate), plus feedback;
+        # clipped
+        w_next = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi_next, j, a[j],
+                                b0[j])
+        uf = (w_next * rate - ae * w_ref * rate_old) / b0e
         kpe, kde = _pole_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
-        V = plan_drive_speed[i0, j] * (1.0 - f) + plan_drive_speed[i1, j] * f
-        uf = (V * rate * gv
-              + (plan_drive_accel[i0, j] * (1.0 - f) + plan_drive_accel[i1, j] * f)
-              * rate * rate * ga
-              + ga * V / (1.0 - a[j]) * (rate - rate_old))  # the clock's own change
         u = uf + kpe * e_th + kde * e_w
         if abs(u) > umax:
             excess = max(excess, abs(u) / umax - 1.0)
             u = umax if u > 0 else -umax
-        dev[0, j] = e_th
-        dev[1, j] = uf - u  # the feedback's part: what moves the plant off the plan
         hist[1, j] = hist[0, j]
         hist[0, j] = u
         # 4. the setpoint that produces exactly this drive
         out_drive[j] = u
         out_setpoint[j] = (u - offset[j]) / slope[j]
-    # the plant's speed moves from the old rate's to the new one over the sample: the
-    # clock advances by their mean
-    return min(phi + 0.5 * (rate_old + rate), n - 1.0), rate, excess
+    return phi_next, rate, excess
 
 
 class PlannedPlan(NamedTuple):
@@ -453,14 +469,13 @@ class PlannedPlan(NamedTuple):
 
 class PlannedState(NamedTuple):
     """The online state: the plan's clock [samples], its rate and the last excess
-    (shape (1,) each), the deviation, estimate and history arrays of :func:`online_step`,
+    (shape (1,) each), the estimate and history arrays of :func:`online_step`,
     and per-axis scratch (the law's slope and offset, the drive, the support, the
     estimated plant's gains)."""
 
     phi: np.ndarray
     rate: np.ndarray
     excess: np.ndarray
-    dev: np.ndarray
     est: np.ndarray
     hist: np.ndarray
     slope: np.ndarray
@@ -550,10 +565,9 @@ class PlannedInterpolator(Interpolator):
 
     def new_state(self) -> PlannedState:
         n = self.machine.n_axes
-        return PlannedState(np.ones(1), np.ones(1), np.zeros(1), np.zeros((2, n)),
-                            _prior_estimate(self.plan), np.zeros((5, n)), np.empty(n),
-                            np.empty(n), np.empty(n), np.empty((n, SUPPORT_DIRECTIONS)),
-                            np.empty((2, n)))
+        return PlannedState(np.ones(1), np.ones(1), np.zeros(1), _prior_estimate(self.plan),
+                            np.zeros((5, n)), np.empty(n), np.empty(n), np.empty(n),
+                            np.empty((n, SUPPORT_DIRECTIONS)), np.empty((2, n)))
 
 
 @njit(cache=True)
@@ -616,7 +630,7 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
     else:
         state.support[:] = 0.0
     phi_next, rate, excess = online_step(
-        phi, state.rate[0], state.excess[0], state.dev, state.est, state.hist, position,
+        phi, state.rate[0], state.excess[0], state.est, state.hist, position,
         plan.position, plan.drive_speed, plan.drive_accel, state.support, state.gains,
         plan.a, plan.b0, plan.c, plan.b1, law[0]["maxoutput"], plan.headroom,
         plan.rate_gain, state.slope, state.offset, command, state.drive)
@@ -630,13 +644,11 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
         if not found:
             status = stepping.CORNERED
         if setpoint != command[j]:
-            # a clamp of the law: the identification and the deviation see the drive the
-            # plant gets
+            # a clamp of the law: the identification and the speed estimate see the drive
+            # the plant gets
             umax = law[j]["maxoutput"]
             out = _law_output(law, law_state, j, setpoint, position[j], velocity[j])
-            applied = min(max(out, -umax), umax)
-            state.dev[1, j] += state.drive[j] - applied
-            state.hist[0, j] = applied
+            state.hist[0, j] = min(max(out, -umax), umax)
         command[j] = setpoint
     n = plan.parameter.shape[0]
     i0 = min(int(phi), n - 1)
