@@ -1,4 +1,4 @@
-"""Issue 10 evaluation of the ``planned`` interpolator: the tables of items 2-5 (and 1, 7).
+"""Issue 10 evaluation of the ``planned`` interpolator: items 1-6 (item 7: planner_sweep.py).
 
 Prints, for the die-bonder preset (Ts = 1 ms, 1 pulse = 1 um), with ``taylor2``, ``paper``
 and ``planned`` side by side where it applies:
@@ -14,6 +14,7 @@ and ``planned`` side by side where it applies:
   (Pi at 1 m/s, butterfly at 0.1 m/s; ``planned`` only; items 1, 4);
 - corner tolerance eps = 0, 10 um, 0.1, 0.5, 1 mm on the Pi at 1 and 2 m/s: settle over
   the stop-at-corner bound and the contour error to the original sharp path (item 5);
+- move-and-settle of the Pi at 0.2-8 m/s and the butterfly at 0.05-0.8 m/s (item 6);
 - planning time of ``planned`` (and of TOPP-RA where ``toppra`` is importable, via
   benchmarks/toppra_compare.py's set-up);
 - item 7 (seeded random paths) is benchmarks/planner_sweep.py.
@@ -153,6 +154,22 @@ def corner_tolerance(m):
     print()
 
 
+MONOTONE_FEEDS = {"die-bonder-pi": (2e5, 5e5, 1e6, 1.5e6, 2e6, 3e6, 4e6, 6e6, 8e6),
+                  "butterfly": (5e4, 1e5, 2e5, 4e5, 8e5)}
+
+
+def faster_is_never_slower(m):
+    print("## Item 6: move-and-settle against the commanded feed (planned, nominal)\n")
+    print("| path | feeds [m/s] | settle [s] | never slower when faster |\n|---|---|---|---|")
+    for path, feeds in MONOTONE_FEEDS.items():
+        curve = to_pulses(builtin_path(path), m)
+        settles = [settle_time(run(curve, m, F, "planned")[0], curve(1.0)) for F in feeds]
+        print(f"| {path} | {' / '.join(f'{F / 1e6:g}' for F in feeds)} | "
+              f"{' / '.join(f'{s:.3f}' for s in settles)} | "
+              f"{all(b <= a for a, b in zip(settles, settles[1:]))} |")
+    print()
+
+
 def planning_time(m):
     print("## Planning time (median of 3) [s]\n")
     print("| path | feed [m/s] | planned | TOPP-RA |\n|---|---|---|---|")
@@ -177,6 +194,7 @@ def main():
     nominal(m)
     mismatch(m)
     corner_tolerance(m)
+    faster_is_never_slower(m)
     planning_time(m)
     print(f"(wall time {time.perf_counter() - t0:.0f} s)")
 
