@@ -504,17 +504,21 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     if tail_error == 0.0:
         return
     a, b0, c, b1 = axis_zoh(machine)
-    for m in range(2, min(arrive, LANDING_SAMPLES + 1)):
+    size = min(arrive - 1, LANDING_SAMPLES)
+    h = np.empty((len(a), size, 2))              # h[j, p] = A^p B: [speed, position]
+    h[:, 0, 0], h[:, 0, 1] = b0, b1
+    for p in range(1, size):
+        h[:, p, 0] = a * h[:, p - 1, 0]
+        h[:, p, 1] = c * h[:, p - 1, 0] + h[:, p - 1, 1]
+    for m in range(2, size + 1):
         k0 = arrive - m
+        lag = np.subtract.outer(np.arange(m), np.arange(m))  # row q: sample k0 + q + 1
         du = np.empty((m, len(a)))
+        moved = np.empty((m, 2, len(a)))     # the change of [w, theta] at k0 + 1 .. arrive
         for j in range(len(a)):
-            h = np.empty((m, 2))             # h[p] = A^p B: [speed, position]
-            h[0] = b0[j], b1[j]
-            for q in range(1, m):
-                h[q] = a[j] * h[q - 1, 0], c[j] * h[q - 1, 0] + h[q - 1, 1]
-            lag = np.subtract.outer(np.arange(m), np.arange(m))  # row q: sample k0 + q + 1
-            H = np.where(lag >= 0, h[np.clip(lag, 0, m - 1), 1], 0.0)
-            E = np.vstack([h[m - 1 - np.arange(m), 0], H[m - 1]])
+            Hw, H = (np.where(lag >= 0, h[j, np.clip(lag, 0, m - 1), i], 0.0)
+                     for i in (0, 1))
+            E = np.vstack([Hw[m - 1], H[m - 1]])
             kkt = np.zeros((m + 2, m + 2))
             kkt[:m, :m] = H[:-1].T @ H[:-1]
             kkt[:m, m:] = E.T
@@ -522,19 +526,18 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
             rhs = np.concatenate([-H[:-1].T @ (theta[k0 + 1:arrive, j] - y[k0 + 1:arrive, j]),
                                   [-w[arrive, j], end[j] - theta[arrive, j]]])
             du[:, j] = np.linalg.lstsq(kkt, rhs, rcond=None)[0][:m]
+            moved[:, 0, j], moved[:, 1, j] = Hw @ du[:, j], H @ du[:, j]
         drive = u[k0:arrive] + du
         if np.max(np.abs(drive)) > limit:
             continue
-        w_new, theta_new = w[k0:arrive + 1].copy(), theta[k0:arrive + 1].copy()
-        for i in range(m):
-            w_new[i + 1] = a * w_new[i] + b0 * drive[i]
-            theta_new[i + 1] = theta_new[i] + c * w_new[i] + b1 * drive[i]
-        if np.max(np.abs(theta_new - y[k0:arrive + 1])) > max(
+        w_new = w[k0 + 1:arrive + 1] + moved[:, 0]
+        theta_new = theta[k0 + 1:arrive + 1] + moved[:, 1]
+        if np.max(np.abs(theta_new - y[k0 + 1:arrive + 1])) > max(
                 tail_error, float(np.max(np.abs(theta[k0:arrive] - y[k0:arrive])))):
             continue
         u[k0:arrive] = drive
-        w[k0:arrive + 1] = w_new
-        theta[k0:arrive + 1] = theta_new
+        w[k0 + 1:arrive + 1] = w_new
+        theta[k0 + 1:arrive + 1] = theta_new
         u[arrive:] = 0.0
         w[arrive:] = 0.0
         theta[arrive:] = end
