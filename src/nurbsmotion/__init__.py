@@ -10,11 +10,6 @@ from .errors import (  # noqa: E402
     NurbsmotionError,
     PathFileError,
 )
-__all__ = ["InfeasibleError", "InvalidCurveError", "InvalidMachineError", "NurbsmotionError",
-           "PathFileError", "NurbsCurve", "builtin_path", "make_arc", "make_butterfly",
-           "make_circle", "make_die_bonder_pi", "make_line", "make_polyline",
-           "elevate_degree", "join", "load_path", "resolve_path", "save_path"]
-
 _LAZY = {"NurbsCurve": "nurbs", "builtin_path": "nurbs", "make_arc": "nurbs",
          "make_butterfly": "nurbs", "make_circle": "nurbs", "make_die_bonder_pi": "nurbs",
          "make_line": "nurbs", "make_polyline": "nurbs", "elevate_degree": "joining",
@@ -22,6 +17,9 @@ _LAZY = {"NurbsCurve": "nurbs", "builtin_path": "nurbs", "make_arc": "nurbs",
          "save_path": "paths"}
 """Names loaded with their module on first use (PEP 562): importing the package costs
 nothing, so the command can take a Ctrl-C while numpy and numba load."""
+
+__all__ = ["InfeasibleError", "InvalidCurveError", "InvalidMachineError", "NurbsmotionError",
+           "PathFileError", *_LAZY]
 
 
 def __getattr__(name):

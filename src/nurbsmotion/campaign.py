@@ -957,7 +957,7 @@ class _Planner:
         while c and not slot.own and self.paths:
             key = _path_key(self.paths[0][0])
             n, c_next = len(self.paths[0]), self.case_time(key)
-            extra = (0.0 if key in slot.warm else table) + n * c_next
+            extra = table + n * c_next  # a path not given out yet: no worker has its tables
             if spent + extra > seconds:
                 break
             chunk += self.paths.popleft()

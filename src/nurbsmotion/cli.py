@@ -313,14 +313,14 @@ def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | Non
         samples = stack.enter_context(_progress(
             args, total=_total(expected), unit="sample", unit_scale=True,
             desc="closed loop" if writer is None else f"closed loop -> {file.name}"))
-        announce = writer is not None
+        announce = writer is not None and math.isfinite(expected)
 
         def consume(first, rows, finished, last):
             nonlocal announce
             running.add(first, rows, finished, last)
             if writer is not None:
                 writer.add(first, rows, finished, last)
-            if announce and writer.rows_written and math.isfinite(expected):
+            if announce and writer.rows_written:
                 announce = False
                 total = max(writer.rows_written, int(expected / args.trace_every))
                 _trace_notice(args, file, total, writer.bytes_per_row() * total, samples)
@@ -721,7 +721,7 @@ library is raised again (raised there, ctypes would print it and drop it)."""
 
 
 def _interrupt(signum, frame) -> None:
-    """SIGINT (and the retry's SIGALRM): KeyboardInterrupt, except inside llvmlite's
+    """SIGINT and SIGTERM (and the retry's SIGALRM): KeyboardInterrupt, except inside llvmlite's
     callbacks (numba loading or compiling a kernel), where it is retried shortly."""
     f = frame
     while f is not None:

@@ -53,6 +53,10 @@ BLOCK_SAMPLES = 1 << 16
 """Samples per call of the compiled loop: between calls Python runs, so Ctrl-C stops a
 long run within one block (a few hundredths of a second)."""
 
+SETTLE_WINDOW = 1.0
+"""Default distance from the end point within which the motion counts as settled [pulse]
+(the loop's settle detection and :func:`nurbsmotion.metrics.settle_time`)."""
+
 SINK_BLOCK_SAMPLES = 1 << 14
 """Samples per block handed to a sink (:func:`run`): a few MB of rows, so that the
 blocks a sink still holds (a trace writer's chunks in flight) cost little memory."""
@@ -256,7 +260,8 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
 
 def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
         settling: Settling, with_bounds: bool, capacity: int, progress=None, sink=None):
-    """:func:`run_samples` from sample 0 to the end, in blocks of :data:`BLOCK_SAMPLES`.
+    """:func:`run_samples` from sample 0 to the end, in blocks of :data:`BLOCK_SAMPLES`
+    (:data:`SINK_BLOCK_SAMPLES` with a ``sink``).
 
     Parameters
     ----------

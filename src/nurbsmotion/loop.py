@@ -32,6 +32,12 @@ from .servo import ServoPlant
 from .stepping import Status
 from .units import feed_in_pulses
 
+SETTLE_TIME = 0.05
+"""Default least time a run goes on holding the end point [s] (:func:`simulate`)."""
+
+SETTLE_LIMIT = 10.0
+"""Default longest wait for the motion to settle after the setpoint reached the end [s]."""
+
 __all__ = ["Trace", "RunOutcome", "SetpointSeries", "simulate", "simulate_streamed",
            "background_sink", "interpolate", "run", "run_streamed", "to_pulses",
            "settle_hold_samples", "check_run_arguments"]
@@ -290,9 +296,9 @@ def simulate(
     machine: Machine,
     *,
     plant: ServoPlant | None = None,
-    settle_time: float = 0.05,
-    settle_window: float = 1.0,
-    settle_limit: float = 10.0,
+    settle_time: float = SETTLE_TIME,
+    settle_window: float = closed_loop.SETTLE_WINDOW,
+    settle_limit: float = SETTLE_LIMIT,
     max_samples: int | None = None,
     progress=None,
 ) -> Trace:
@@ -369,7 +375,8 @@ def simulate_streamed(interpolator: Interpolator, machine: Machine, sink,
         whether this is the run's last block.
     **options
         As in :func:`simulate` (``plant``, ``settle_time``, ``settle_window``,
-        ``settle_limit``, ``max_samples``, ``progress``).
+        ``settle_limit``, ``max_samples``, ``progress``; ``progress`` is called after every
+        block of the sink's size).
 
     Returns
     -------
@@ -390,23 +397,24 @@ def background_sink(sink):
 
     Yields the callable to give :func:`simulate_streamed` or :func:`run_streamed`.
     """
-    from collections import deque
     from concurrent.futures import ThreadPoolExecutor
 
     # One thread: every thread that allocates gets a malloc arena of its own (~10 MB more
     # at the peak of a long run).
     pool = ThreadPoolExecutor(1)
-    pending: deque = deque()
+    previous = None
 
     def handoff(first, rows, finished, last):
-        pending.append(pool.submit(sink, first, rows, finished, last))
-        while len(pending) > 1:
-            pending.popleft().result()
+        nonlocal previous
+        submitted = pool.submit(sink, first, rows, finished, last)
+        if previous is not None:
+            previous.result()
+        previous = submitted
 
     try:
         yield handoff
-        while pending:
-            pending.popleft().result()
+        if previous is not None:
+            previous.result()
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
@@ -431,8 +439,9 @@ class _Tally:
                                            and np.all(np.isfinite(rows.drive)))
 
 
-def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=0.05,
-                 settle_window=1.0, settle_limit=10.0, max_samples=None, progress=None):
+def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=SETTLE_TIME,
+                 settle_window=closed_loop.SETTLE_WINDOW, settle_limit=SETTLE_LIMIT,
+                 max_samples=None, progress=None):
     """The run behind :func:`simulate` and :func:`simulate_streamed`: ``(outcome, rows,
     finite)``, ``rows`` None with a ``sink``, ``finite`` whether every position and drive
     was finite."""

@@ -27,6 +27,7 @@ from ._kernels import horner, power_basis, rational_horner
 from .geometry import distances_to
 
 from .nurbs import NurbsCurve
+from .closed_loop import SETTLE_WINDOW
 from .stepping import Status
 
 __all__ = ["Metrics", "RunningMetrics", "trace_metrics", "feed_fluctuation", "contour_error",
@@ -35,8 +36,6 @@ __all__ = ["Metrics", "RunningMetrics", "trace_metrics", "feed_fluctuation", "co
 SATURATION_TOLERANCE = 1e-6
 """Relative excess over Umax below which a sample is not counted as saturated."""
 
-SETTLE_WINDOW = 1.0
-"""Default distance from the end point within which the motion counts as settled [pulse]."""
 
 
 @dataclass(frozen=True)
@@ -437,10 +436,15 @@ def settle_time(t: np.ndarray, position: np.ndarray, end: np.ndarray,
     float
         ``inf`` if the last sample is outside the window (not settled within the trace).
     """
-    if not (math.isfinite(window) and window > 0):
-        raise ValueError(f"settle window must be finite and > 0 pulse, got {window!r}")
+    _check_window(window)
     first = _settled_from(_last_outside(position, end, window), len(t))
     return math.inf if first is None else float(t[first])
+
+
+def _check_window(window: float) -> None:
+    """A settle window [pulse] must be finite and > 0."""
+    if not (math.isfinite(window) and window > 0):
+        raise ValueError(f"settle window must be finite and > 0 pulse, got {window!r}")
 
 
 def _last_outside(position: np.ndarray, end: np.ndarray, window: float) -> int:
@@ -494,9 +498,7 @@ class RunningMetrics:
     """
 
     def __init__(self, curve: NurbsCurve, machine, settle_window: float):
-        if not (math.isfinite(settle_window) and settle_window > 0):
-            raise ValueError(f"settle window must be finite and > 0 pulse, got "
-                             f"{settle_window!r}")
+        _check_window(settle_window)
         self.curve, self.machine, self.window = curve, machine, float(settle_window)
         n_axes = curve.n_axes
         self.n = 0

@@ -62,7 +62,9 @@ def feed_table(feed, curve: NurbsCurve) -> tuple[np.ndarray, np.ndarray, np.ndar
     InfeasibleError
         Naming the value (and for a function, the parameter) that is not finite and > 0.
     """
-    if isinstance(feed, FeedLimit):  # validated at its construction
+    if not (isinstance(feed, FeedLimit) or callable(feed)):
+        feed = FeedLimit.constant(positive_feed(feed))
+    if isinstance(feed, FeedLimit):  # validated at its construction; read-only arrays
         return feed.breakpoints, feed.speeds, feed.speeds
     if callable(feed):
         u = np.union1d(np.linspace(0.0, 1.0, FEED_FUNCTION_SAMPLES + 1), curve.breakpoints)
@@ -75,13 +77,8 @@ def feed_table(feed, curve: NurbsCurve) -> tuple[np.ndarray, np.ndarray, np.ndar
             if not (math.isfinite(V[i]) and V[i] > 0):
                 raise InfeasibleError(f"the feed function returned {float(V[i])!r} at "
                                       f"u = {ui:.9g}; a feed must be finite and > 0")
-        table = u, V[:-1], V[1:]
-    else:
-        V = positive_feed(feed)
-        table = np.array([0.0, 1.0]), np.array([V]), np.array([V])
-    for a in table:  # read-only, as a FeedLimit's are: one compiled loop for every feed
-        a.flags.writeable = False
-    return table
+    u.flags.writeable = V.flags.writeable = False  # as a FeedLimit's: one compiled loop
+    return u, V[:-1], V[1:]
 
 
 def table_duration(curve: NurbsCurve, breaks, start, end) -> float:

@@ -698,13 +698,14 @@ class _Reader:
                 self.end_contour()
             if len(part):
                 rel = part - state.s  # rows of line pieces, relative to the state's first
+                ends_at = rel + 1
                 if self.chain is None:
                     self.chain = PieceChain(self.path_of(state.position(int(rel[0]))))
                 ends = np.empty((len(rel), len(self.axes)))
                 for c, axis in enumerate(self.axes):
-                    ends[:, c] = state.column(axis, rel + 1)
+                    ends[:, c] = state.column(axis, ends_at)
                 self.chain.add_lines(ends)
-                self.piece_feeds.frombytes(state.feed[rel + 1].tobytes())
+                self.piece_feeds.frombytes(state.feed[ends_at].tobytes())
                 self.piece_lines.frombytes(run.line[part].tobytes())
         j = t - state.s
         self.pos = state.position(j)
