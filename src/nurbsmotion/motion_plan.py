@@ -185,6 +185,12 @@ class MotionPlan:
         return np.ceil(self.corner_times - 1e-9).astype(int)
 
     @property
+    def arrival(self) -> int:
+        """The first sample from which the desired motion rests on the end (0 if it never
+        leaves it)."""
+        return _arrival(self.desired)
+
+    @property
     def n_samples(self) -> int:
         return len(self.position)
 
@@ -479,6 +485,12 @@ def _precompensate(y, alpha, beta, a, b0, rounds, limit, y_cmd, rounds_out):
     return best
 
 
+def _arrival(y: np.ndarray) -> int:
+    """The first sample from which the positions ``y`` (n, n_axes) rest on their last."""
+    moving = np.flatnonzero(np.any(y != y[-1], axis=1))
+    return int(moving[-1]) + 1 if moving.size else 0
+
+
 def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
                  machine: Machine, limit: float) -> None:
     """Step 5: bring the plan to rest exactly on the end at the sample N where the desired
@@ -496,8 +508,7 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     did from N - 1 on or in the window; if no m up to :data:`LANDING_SAMPLES` (and N - 1:
     u[0] = 0 stays) does, the plan is left as it is."""
     end = y[-1]
-    moving = np.flatnonzero(np.any(y != end, axis=1))
-    arrive = int(moving[-1]) + 1 if moving.size else 0
+    arrive = _arrival(y)
     if arrive < 2 or arrive >= len(y):
         return
     tail_error = float(np.max(np.abs(theta[arrive - 1:] - y[arrive - 1:])))

@@ -32,8 +32,11 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    rate it had) to the plan's speed at the next clock (times the new rate), both exact
    between samples (:func:`_plan_speed_at`), plus a state feedback on the deviation whose
    gains put both poles of the *identified* plant's deviation dynamics at
-   ``tracking_pole`` (:func:`_pole_gains`), clipped to +-Umax: *every drive is within the
-   limit by construction*, whatever the true plant;
+   ``tracking_pole`` (:func:`_pole_gains`) and, once the plan's clock has reached the
+   plan's rest on the end, at 0 (deadbeat: what a plant that differs from the model has
+   left of the move closes in two samples instead of decaying at the tracking pole),
+   clipped to +-Umax: *every drive is within the limit by construction*, whatever the
+   true plant;
 4. the loop's law is affine in the setpoint between its clamps,
    ``u = slope*thd + offset`` with slope > 0 (:func:`nurbsmotion.control.pid_affine`,
    from the law's memory and the measured state), so the setpoint that produces exactly
@@ -313,7 +316,7 @@ def _window_rate(i0, r_tail, gains, a, drive_speed, drive_accel, headroom, umax)
 @njit(cache=True)
 def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
                 plan_drive_speed, plan_drive_accel, support, gains, a, b0, c, b1, umax,
-                headroom, rate_gain, slope, offset, out_setpoint, out_drive):
+                headroom, rate_gain, rest, slope, offset, out_setpoint, out_drive):
     """One sample of the planned interpolator (module docstring, steps 1-4).
 
     Plain loops over floats and float arrays, so that numba compiles it unchanged.
@@ -353,6 +356,9 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
         Fraction of Umax the governor keeps for the feedback.
     rate_gain : float
         Largest change of the rate per sample; ``1 - rate_gain`` is the tracking pole.
+    rest : int
+        The plan sample from which the plan rests on the end: from there on the
+        feedback is deadbeat.
     slope, offset : ndarray, shape (n_axes,)
         The law's affine form at this sample: u[k] = slope*thd[k] + offset [V/pulse, V].
     out_setpoint, out_drive : ndarray, shape (n_axes,)
@@ -436,7 +442,7 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
         w_next = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi_next, j, a[j],
                                 b0[j])
         uf = (w_next * rate - ae * w_ref * rate_old) / b0e
-        kpe, kde = _pole_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
+        kpe, kde = _pole_gains(ae, b0e, ce, b1e, 0.0 if phi >= rest else 1.0 - rate_gain)
         u = uf + kpe * e_th + kde * e_w
         if abs(u) > umax:
             excess = max(excess, abs(u) / umax - 1.0)
@@ -465,6 +471,7 @@ class PlannedPlan(NamedTuple):
     b1: np.ndarray
     headroom: float
     rate_gain: float
+    rest: int                    # the first sample of the plan's rest on the end
 
 
 class PlannedState(NamedTuple):
@@ -558,7 +565,7 @@ class PlannedInterpolator(Interpolator):
             bounds=np.append(np.asarray(p.stop_indices, dtype=np.int64), p.n_samples),
             a=a, b0=b0, c=c, b1=b1, headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
-            rate_gain=1.0 - self.tracking_pole)
+            rate_gain=1.0 - self.tracking_pole, rest=p.arrival)
 
     def nominal_duration(self) -> float:
         return self.duration
@@ -633,7 +640,7 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
         phi, state.rate[0], state.excess[0], state.est, state.hist, position,
         plan.position, plan.drive_speed, plan.drive_accel, state.support, state.gains,
         plan.a, plan.b0, plan.c, plan.b1, law[0]["maxoutput"], plan.headroom,
-        plan.rate_gain, state.slope, state.offset, command, state.drive)
+        plan.rate_gain, plan.rest, state.slope, state.offset, command, state.drive)
     state.phi[0] = phi_next
     state.rate[0] = rate
     state.excess[0] = excess
