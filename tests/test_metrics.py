@@ -145,6 +145,32 @@ def test_overshoot_definition():
     assert overshoot(pos[:2], np.zeros(2), np.array([0.0, 1.0])) == 0.0
 
 
+def test_overshoot_is_at_most_the_distance_off_the_path():
+    """A sample beyond the point's plane but on the path (where the path bends back past
+    it) has not passed it: ``off_path`` bounds each sample's excursion."""
+    pos = np.array([[0.0, -5], [0.5, -1], [0.3, 2.5], [0.0, 0.1]])
+    up = np.array([0.0, 1.0])
+    assert overshoot(pos, np.zeros(2), up, np.array([9.0, 9.0, 0.0, 9.0])) \
+        == pytest.approx(0.1)
+    assert overshoot(pos, np.zeros(2), up, np.array([9.0, 9.0, 1.5, np.inf])) \
+        == pytest.approx(1.5)
+    assert overshoot(pos, np.zeros(2), up, np.full(4, np.inf)) == pytest.approx(2.5)
+
+
+def test_end_overshoot_of_a_closed_path():
+    """The butterfly is closed: past its end the path goes on from its start, so a plant
+    that passes the end stays near the path; it has passed the end all the same (the
+    figure is the excursion along the arrival direction after the setpoint arrived,
+    computed here from the trace)."""
+    machine = die_bonder()
+    curve = to_pulses(make_butterfly(), machine)
+    trace = run(curve, machine, 2e5, "paper", settle_time=0.05)
+    t = curve.limit_tangent(np.array([1.0]), "left")[0]
+    after = (trace.position[trace.finished_index:] - curve(1.0)) @ t
+    assert after.max() > 10.0
+    assert trace.metrics().end_overshoot == pytest.approx(after.max())
+
+
 def test_run_figures_against_the_trace():
     machine = die_bonder()
     trace = run(make_die_bonder_pi(), machine, 1e6, "taylor1", settle_time=0.3)

@@ -280,6 +280,24 @@ def test_a_weaker_plant_lands_on_the_pi_within_its_margin(tau_scale, kc_scale):
     assert np.max(contour_error(PI, trace.position)) <= 25.0
 
 
+def test_the_run_reports_a_pass_before_the_plan_arrives():
+    """On a plant whose Kc is 20 % below the model's, the Pi's place move passes the
+    place position (downwards, -y) before the plan's clock has reached its rest on the
+    end: the run's end_overshoot is that pass, computed here from the positions of the
+    place move, and the run finishes when the plan rests on the end."""
+    it = _planned_pi(1e6)[0]
+    plant = ServoPlant.of_machine(MACHINE, PI(0.0), electrical_gain_scale=0.8)
+    trace = simulate(it, MACHINE, plant=plant, settle_time=0.1)
+    place = trace.position[:, 0] > PI(1.0)[0] - 1.0   # on the place line, x = 60000
+    passed = max(0.0, -float(np.min(trace.position[place, 1] - PI(1.0)[1])))
+    assert passed > 1.0
+    assert trace.metrics().end_overshoot == pytest.approx(passed)
+    # the plan rests on the end (its pre-compensation's samples at rest after that are
+    # not part of the move) before the plant settles there
+    assert trace.u[trace.finished_index] == 1.0
+    assert trace.cycle_time <= settle_time(trace)
+
+
 @pytest.mark.parametrize("tau_scale, kc_scale", [(0.5, 1.0), (1.2, 0.8), (2.0, 0.5)])
 @pytest.mark.parametrize("pole", [0.7, 0.0])
 def test_feedback_gains_place_the_identified_plants_poles(tau_scale, kc_scale, pole):

@@ -67,8 +67,13 @@ class Metrics:
     settle_window : float
         [pulse]
     end_overshoot : float
-        How far the actual position passes the end point along the direction of arrival,
-        once the setpoint has arrived [pulse], >= 0.
+        How far the actual position passes the end point along the direction of arrival
+        [pulse], >= 0, from the sample whose setpoint is half way along the last
+        corner-free piece (or has arrived, if sooner) on: a machine running ahead of its
+        setpoint (``planned`` on a plant unlike the model) is counted too. A sample whose
+        nearest path point lies on that half piece passes the end by at most its distance
+        to the path (a path that bends back past the end's plane is not passed by
+        following it).
     corner_overshoot : float
         The same at the sharp corners (where the motion must stop), the largest over the
         corners [pulse], >= 0; 0 for a path without sharp corners.
@@ -460,7 +465,8 @@ def _settled_from(last_outside: int, n: int) -> int | None:
     return None if last_outside == n - 1 else last_outside + 1
 
 
-def overshoot(position: np.ndarray, point: np.ndarray, direction: np.ndarray) -> float:
+def overshoot(position: np.ndarray, point: np.ndarray, direction: np.ndarray,
+              off_path: np.ndarray | None = None) -> float:
     """How far ``position`` passes ``point`` along ``direction``, >= 0 [pulse].
 
     Parameters
@@ -471,6 +477,11 @@ def overshoot(position: np.ndarray, point: np.ndarray, direction: np.ndarray) ->
         [pulse]
     direction : ndarray, shape (n_axes,)
         Any non-zero length; only its direction counts.
+    off_path : ndarray, shape (n_samples,), optional
+        Each sample's distance to the part of the path around ``point`` [pulse] (inf
+        where its nearest path point lies elsewhere): a sample passes ``point`` by at
+        most that much (a sample on the path beyond ``point``'s plane, where the path
+        bends back past it, has not passed it).
     """
     if len(position) == 0:
         return 0.0
@@ -478,7 +489,16 @@ def overshoot(position: np.ndarray, point: np.ndarray, direction: np.ndarray) ->
     along = np.zeros(len(position))
     for j in range(position.shape[1]):  # not BLAS: see RunningMetrics.add
         along += (position[:, j] - point[j]) * n[j]
+    if off_path is not None:
+        along = np.minimum(along, off_path)
     return max(0.0, float(np.max(along)))
+
+
+def _off_piece(nearest: np.ndarray, distance: np.ndarray, lo: float, hi: float):
+    """:func:`overshoot`'s ``off_path``: each sample's distance to the path where its
+    nearest path parameter lies in [lo, hi], inf elsewhere (a closed path continues past
+    its end from its start: a sample there has left the part of the path that ends)."""
+    return np.where((nearest >= lo) & (nearest <= hi), distance, np.inf)
 
 
 class RunningMetrics:
@@ -521,6 +541,10 @@ class RunningMetrics:
         corners = curve.sharp_corners()
         self.corner_u = corners
         self.corner_mid = 0.5 * (corners + np.append(corners[1:], 1.0))
+        # each corner's (and the end's) overshoot counts from half way along the piece
+        # before it
+        self.corner_from = 0.5 * (corners + np.append(0.0, corners[:-1]))
+        self.end_from = 0.5 * (1.0 + (corners[-1] if corners.size else 0.0))
         if corners.size:
             t_in = curve.limit_tangent(corners, "left")  # unit, also where C' = 0 (a cusp)
             t_out = curve.limit_tangent(corners, "right")
@@ -572,18 +596,24 @@ class RunningMetrics:
             self.cornered[j] += np.count_nonzero(corner_rows & (a > umax))
         del follow, a
         self.limited += int(np.count_nonzero(status == Status.LIMITED))
-        contour = contour_error(self.curve, position)
+        nearest, contour = nearest_parameter(self.curve, position)
         self.contour_max = max(self.contour_max, float(np.max(contour)))
         self.contour_sq += float(np.sum(contour * contour))
-        del contour
         self._add_fluctuation(first, feed, command, finished)
         last = _last_outside(position, self.end, self.window)
         if last >= 0:
             self.last_outside = first + last
+        # the setpoint's parameter so far (its running maximum) places the samples on the
+        # path's pieces, whatever the actual position does
+        reached = np.maximum.accumulate(np.maximum(u, self.u_max))
+        self.u_max = float(reached[-1])
+        start = int(np.searchsorted(reached, self.end_from, "left"))
         if 0 <= finished < first + m:
-            self.end_overshoot = max(self.end_overshoot, overshoot(
-                position[max(0, finished - first):], self.end, self.end_direction))
-        self._add_corners(u, position)
+            start = min(start, max(0, finished - first))
+        self.end_overshoot = max(self.end_overshoot, overshoot(
+            position[start:], self.end, self.end_direction,
+            _off_piece(nearest[start:], contour[start:], self.end_from, 1.0)))
+        self._add_corners(reached, position, nearest, contour)
         self.n = first + m
 
     def _add_fluctuation(self, first, feed, command, finished) -> None:
@@ -601,22 +631,25 @@ class RunningMetrics:
             self.fluct_sq += float(np.sum(rel * rel))
             self.fluct_n += int(rel.size)
 
-    def _add_corners(self, u, position) -> None:
+    def _add_corners(self, reached, position, nearest, contour) -> None:
         """:func:`overshoot` at each sharp corner at ``u_c``, along the incoming tangent's
         part normal to the outgoing tangent (the incoming tangent itself at a reversal):
         along it the path does not advance after the corner, so any positive excursion
-        passes the corner. The samples counted run from the first whose setpoint is at or
-        past the corner until the setpoint passes half way to the next corner (or the
-        end)."""
+        off the path passes the corner. The samples counted run from the first whose
+        setpoint (``reached``: the running maximum of its parameter) is half way along
+        the piece before the corner until it passes half way to the next corner (or the
+        end): an actual position that runs ahead of its setpoint passes the corner before
+        the setpoint gets there. ``nearest``, ``contour``: each sample's nearest path
+        parameter and its distance (:func:`nearest_parameter`)."""
         if self.corner_u.size == 0:
             return
-        reached = np.maximum.accumulate(np.maximum(u, self.u_max))
-        self.u_max = float(reached[-1])
-        start = np.searchsorted(reached, self.corner_u, "left")
+        start = np.searchsorted(reached, self.corner_from, "left")
         stop = np.searchsorted(reached, self.corner_mid, "left")
         for c in np.flatnonzero(start < stop):
             self.corner_overshoot = max(self.corner_overshoot, overshoot(
-                position[start[c]:stop[c]], self.corner_points[c], self.corner_normals[c]))
+                position[start[c]:stop[c]], self.corner_points[c], self.corner_normals[c],
+                _off_piece(nearest[start[c]:stop[c]], contour[start[c]:stop[c]],
+                           self.corner_from[c], self.corner_mid[c])))
 
     def result(self, finished_index: int, success: bool, message: str) -> Metrics:
         """The figures of the rows taken, for a run that reached the end at sample

@@ -46,7 +46,9 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    lead the path and need not lie on it; the actual position is what must.
 
 Every sample's status says whether the governor slowed the plan or the drive was clipped
-(``LIMITED``); the step goes on steering after the plan's end until the run ends.
+(``LIMITED``). The move is finished (``FINISHED``: the setpoint has arrived) once the
+plan's clock reaches the plan's rest on the end; the step goes on steering after that
+until the run ends.
 
 Glossary
 --------
@@ -423,14 +425,12 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
     # clock advances by their mean
     phi_next = min(phi + 0.5 * (rate_old + rate), n - 1.0)
     excess = 0.0
-    worst = 0.0
     for j in range(n_axes):
         # 1b. deviation from the plan's state: position measured; the plant's speed from
         # its last position increment and drive (hist rows 3 and 0, :func:`_identify`)
         # through the identified plant (exact when it is the true one)
         th = plan_position[i0, j] * (1.0 - f) + plan_position[i1, j] * f
         e_th = th - position[j]
-        worst = max(worst, abs(e_th))
         ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], gains[0, j])
         w_last = (hist[3, j] - b1e * hist[0, j]) / ce
         w_now = ae * w_last + b0e * hist[0, j]
@@ -664,7 +664,7 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
     for j in range(n_axes):
         dist2 += (plan.desired[i1, j] - plan.desired[i0, j]) ** 2
     feed = rate * math.sqrt(dist2) / law[0]["period"]  # the plan's path speed at its clock
-    if phi >= n - 1:
+    if phi >= plan.rest:  # the plan rests on the end: the setpoint has arrived
         return 1.0, 0.0, stepping.FINISHED
     if status == stepping.WORKING and (excess > 0.0 or rate < 1.0):
         status = stepping.LIMITED
