@@ -445,20 +445,25 @@ def _realise_into(y_cmd, alpha, beta, a, b0, w, theta, u):
 
 
 @njit(cache=True, fastmath={"nnan", "ninf", "nsz"})  # max in any order: exact
-def _precompensate(y, alpha, beta, a, b0, rounds, limit, y_cmd, rounds_out):
+def _precompensate(y, alpha, beta, a, b0, rounds, limit, y_cmd, w0, theta0, u0, w1,
+                   theta1, u1):
     """:func:`_drive_sequence`'s rounds, compiled: ``y_cmd`` (in: ``y``, C-contiguous,
     shape (n, n_axes)) is corrected by the realised position's error each round.
-    ``rounds_out`` (2, 3, n, n_axes) receives ``(w, theta, u)`` of two rounds: returned is
-    the index of the round with the smallest error whose drive stays within ``limit``, or
-    -1 if there is none (then index 0 holds the last round). The two sets take turns, so
-    no round is copied."""
+    ``(w0, theta0, u0)`` and ``(w1, theta1, u1)`` (each shape (n, n_axes)) receive two
+    rounds: returned is the set (0 or 1) holding the round with the smallest error whose
+    drive stays within ``limit``, or -1 if there is none (then set 0 holds the last
+    round). The two sets take turns, so no round is copied, and they are separate arrays,
+    so the caller keeps the one it returns without the other."""
     n, n_axes = y.shape
     yf, cf = y.reshape(-1), y_cmd.reshape(-1)
     best_error = math.inf
     best = -1
     cur = 0
     for _ in range(rounds + 1):
-        w, theta, u = rounds_out[cur, 0], rounds_out[cur, 1], rounds_out[cur, 2]
+        if cur == 0:
+            w, theta, u = w0, theta0, u0
+        else:
+            w, theta, u = w1, theta1, u1
         _realise_into(y_cmd, alpha, beta, a, b0, w, theta, u)
         tf, uf = theta.reshape(-1), u.reshape(-1)
         worst = 0.0
@@ -569,10 +574,10 @@ def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
     beta = b1 / b0
     alpha = c - a * beta
     y = np.ascontiguousarray(y, dtype=float)
-    out = np.empty((2, 3) + y.shape)
-    best = _precompensate(y, alpha, beta, a, b0, rounds, float(limit), y.copy(), out)
-    # copies: a view would keep both rounds of a long plan alive as long as the plan
-    return tuple(array.copy() for array in out[max(best, 0)])
+    sets = [tuple(np.empty_like(y) for _ in range(3)) for _ in range(2)]
+    best = _precompensate(y, alpha, beta, a, b0, rounds, float(limit), y.copy(), *sets[0],
+                          *sets[1])
+    return sets[max(best, 0)]
 
 
 def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
