@@ -179,6 +179,32 @@ def test_plan_lands_on_the_end_when_the_desired_motion_does(seed, feed):
     assert np.max(np.abs(plan.drive)) <= MACHINE.max_drive
 
 
+def test_plan_lands_before_the_desired_motion_creeps_in(monkeypatch):
+    """The Pi at 0.2 m/s: the desired motion's last samples creep to the end (the
+    averaging halves its last braking); the plan lands exactly on the end up to
+    INVERSE_REACH + 1 samples sooner, on the path (within a quarter pulse), within Umax,
+    and still the model plant's response to its drive (ServoPlant)."""
+    from nurbsmotion import motion_plan as mp
+
+    arrivals = []
+    land = mp._land_on_end
+
+    def spy(y, *args):
+        arrivals.append(mp._arrival(y))
+        return land(y, *args)
+
+    monkeypatch.setattr(mp, "_land_on_end", spy)
+    plan = plan_motion(PI, MACHINE, 2e5)
+    assert arrivals[-1] - mp.INVERSE_REACH - 1 <= plan.arrival < arrivals[-1]
+    np.testing.assert_array_equal(plan.position[plan.arrival:],
+                                  np.broadcast_to(PI(1.0), plan.position[plan.arrival:].shape))
+    assert np.max(contour_error(PI, plan.position)) <= mp.PRECOMPENSATION_TOLERANCE
+    assert np.max(np.abs(plan.drive)) <= MACHINE.max_drive
+    speed, position = ServoPlant.of_machine(MACHINE, PI(0.0)).response(plan.drive[:-1])
+    np.testing.assert_allclose(position, plan.position, atol=1e-6)
+    np.testing.assert_allclose(speed, plan.speed, atol=1e-6, rtol=1e-9)
+
+
 @pytest.mark.parametrize("feed, settle_ratio", [(2e5, 1.03), (1e6, 1.10)])
 def test_planned_pi_nominal(feed, settle_ratio):
     """Pi, nominal plant: no saturated sample, contour error <= 5 um, end overshoot

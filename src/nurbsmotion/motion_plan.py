@@ -47,8 +47,10 @@ is built offline in five steps:
    in a few rounds, at the cost of easing a little more than it needs); where easing
    does not lower the drive, the grid is refined.
 5. **Landing** (:func:`_land_on_end`). The last drives are changed by the least that
-   puts the plant at rest exactly on the end at the sample the desired motion arrives
-   there, instead of approaching it over the samples after.
+   puts the plant at rest exactly on the end, at the earliest sample (up to
+   ``INVERSE_REACH + 1`` before the desired motion arrives there) at which the drive
+   allows it without leaving the desired path, instead of approaching it over the
+   samples after.
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
@@ -123,7 +125,9 @@ INVERSE_REACH = 3
 """Samples over which a desired position shapes the drive of step 3 (the zero-phase
 inverse reads the commanded positions one sample either side of the speed it gives, and
 the drive is the speed's difference): step 4 eases the drive limit over the distance the
-motion covers in this many samples plus the one of the averaging."""
+motion covers in this many samples plus the one of the averaging, and step 5 lands up to
+this many samples plus one before the desired motion arrives, changing at most as many
+drives."""
 
 
 def axis_zoh(machine: Machine):
@@ -496,29 +500,44 @@ def _arrival(y: np.ndarray) -> int:
     return int(moving[-1]) + 1 if moving.size else 0
 
 
+def _distance_to_polyline(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Distance [pulse] of each of ``points`` (m, n_axes) to the polyline through
+    ``vertices`` (q >= 2, n_axes), shape (m,)."""
+    a, b = vertices[None, :-1], vertices[None, 1:]
+    ab = b - a
+    rel = points[:, None] - a
+    t = np.clip(np.sum(rel * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-300),
+                0.0, 1.0)
+    return np.min(np.linalg.norm(rel - t[..., None] * ab, axis=-1), axis=1)
+
+
 def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
-                 machine: Machine, limit: float) -> None:
-    """Step 5: bring the plan to rest exactly on the end at the sample N where the desired
-    motion arrives there (in place).
+                 machine: Machine, limit: float) -> int:
+    """Step 5: bring the plan to rest exactly on the end, at the earliest sample N the
+    drive allows, no later than the sample where the desired motion arrives there (in
+    place). Returns N (the arrival if the plan is left as it is).
 
     What the pre-compensation leaves (a pulse or two on a short, fast move, whose motion
     is mostly near the Nyquist frequency) ends as a slow approach to the end after the
-    desired motion has arrived, which the move's settle time pays for. The plant is
-    linear, so a change du of the last m drives moves sample k by
-    ``sum_i h[k - 1 - i] du[i]`` with ``h[p] = A^p B`` (the ZOH plant, SPEC section 3).
-    Per axis, the change that puts the state at N at rest on the end and otherwise departs
-    least from ``y`` (equality-constrained least squares over the window's positions) is
-    applied, and the drive is 0 after N. m grows from 2 until the changed drive is within
-    ``limit`` [V] and the window's positions depart from ``y`` by no more than the old ones
-    did from N - 1 on or in the window; if no m up to :data:`LANDING_SAMPLES` (and N - 1:
-    u[0] = 0 stays) does, the plan is left as it is."""
+    desired motion has arrived, which the move's settle time pays for; and the desired
+    motion's last samples creep (the averaging of step 1 halves the last braking, and the
+    arrival is rounded up to a sample). The plant is linear, so a change du of the last
+    m drives moves sample k by ``sum_i h[k - 1 - i] du[i]`` with ``h[p] = A^p B`` (the ZOH
+    plant, SPEC section 3). Per axis, the change that puts the state at N at rest on the
+    end and otherwise departs least from ``y`` (equality-constrained least squares over
+    the window's positions) is applied, and the drive is 0 after N. It is kept if the
+    changed drive is within ``limit`` [V] and the window's positions stay as near the
+    desired path (the polyline through ``y``) as the plan was to ``y`` there (at least
+    within :data:`PRECOMPENSATION_TOLERANCE`). N runs from the arrival less the samples
+    the averaging and the inverse shape (``INVERSE_REACH + 1``), changing at most that
+    many drives, up to the arrival itself, where m grows up to :data:`LANDING_SAMPLES`
+    (and N - 1: u[0] = 0 stays); if none does, the plan is left as it is."""
     end = y[-1]
     arrive = _arrival(y)
     if arrive < 2 or arrive >= len(y):
-        return
-    tail_error = float(np.max(np.abs(theta[arrive - 1:] - y[arrive - 1:])))
-    if tail_error == 0.0:
-        return
+        return arrive
+    if float(np.max(np.abs(theta[arrive - 1:] - y[arrive - 1:]))) == 0.0:
+        return arrive
     a, b0, c, b1 = axis_zoh(machine)
     size = min(arrive - 1, LANDING_SAMPLES)
     h = np.empty((len(a), size, 2))              # h[j, p] = A^p B: [speed, position]
@@ -526,38 +545,44 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     for p in range(1, size):
         h[:, p, 0] = a * h[:, p - 1, 0]
         h[:, p, 1] = c * h[:, p - 1, 0] + h[:, p - 1, 1]
-    for m in range(2, size + 1):
-        k0 = arrive - m
-        lag = np.subtract.outer(np.arange(m), np.arange(m))  # row q: sample k0 + q + 1
-        du = np.empty((m, len(a)))
-        moved = np.empty((m, 2, len(a)))     # the change of [w, theta] at k0 + 1 .. arrive
-        for j in range(len(a)):
-            Hw, H = (np.where(lag >= 0, h[j, np.clip(lag, 0, m - 1), i], 0.0)
-                     for i in (0, 1))
-            E = np.vstack([Hw[m - 1], H[m - 1]])
-            kkt = np.zeros((m + 2, m + 2))
-            kkt[:m, :m] = H[:-1].T @ H[:-1]
-            kkt[:m, m:] = E.T
-            kkt[m:, :m] = E
-            rhs = np.concatenate([-H[:-1].T @ (theta[k0 + 1:arrive, j] - y[k0 + 1:arrive, j]),
-                                  [-w[arrive, j], end[j] - theta[arrive, j]]])
-            du[:, j] = np.linalg.lstsq(kkt, rhs, rcond=None)[0][:m]
-            moved[:, 0, j], moved[:, 1, j] = Hw @ du[:, j], H @ du[:, j]
-        drive = u[k0:arrive] + du
-        if np.max(np.abs(drive)) > limit:
-            continue
-        w_new = w[k0 + 1:arrive + 1] + moved[:, 0]
-        theta_new = theta[k0 + 1:arrive + 1] + moved[:, 1]
-        if np.max(np.abs(theta_new - y[k0 + 1:arrive + 1])) > max(
-                tail_error, float(np.max(np.abs(theta[k0:arrive] - y[k0:arrive])))):
-            continue
-        u[k0:arrive] = drive
-        w[k0 + 1:arrive + 1] = w_new
-        theta[k0 + 1:arrive + 1] = theta_new
-        u[arrive:] = 0.0
-        w[arrive:] = 0.0
-        theta[arrive:] = end
-        return
+    reach = INVERSE_REACH + 1
+    for N in range(max(arrive - reach, 2), arrive + 1):
+        most = min(N - 1, size if N == arrive else reach)
+        first = max(N - most - 1, 0)
+        tolerance = max(PRECOMPENSATION_TOLERANCE,
+                        float(np.max(np.abs(theta[first:] - y[first:]))))
+        for m in range(2, most + 1):
+            k0 = N - m
+            lag = np.subtract.outer(np.arange(m), np.arange(m))  # row q: sample k0 + q + 1
+            du = np.empty((m, len(a)))
+            moved = np.empty((m, 2, len(a)))  # the change of [w, theta] at k0 + 1 .. N
+            for j in range(len(a)):
+                Hw, H = (np.where(lag >= 0, h[j, np.clip(lag, 0, m - 1), i], 0.0)
+                         for i in (0, 1))
+                E = np.vstack([Hw[m - 1], H[m - 1]])
+                kkt = np.zeros((m + 2, m + 2))
+                kkt[:m, :m] = H[:-1].T @ H[:-1]
+                kkt[:m, m:] = E.T
+                kkt[m:, :m] = E
+                rhs = np.concatenate([-H[:-1].T @ (theta[k0 + 1:N, j] - y[k0 + 1:N, j]),
+                                      [-w[N, j], end[j] - theta[N, j]]])
+                du[:, j] = np.linalg.lstsq(kkt, rhs, rcond=None)[0][:m]
+                moved[:, 0, j], moved[:, 1, j] = Hw @ du[:, j], H @ du[:, j]
+            drive = u[k0:N] + du
+            if np.max(np.abs(drive)) > limit:
+                continue
+            theta_new = theta[k0 + 1:N + 1] + moved[:, 1]
+            if np.max(_distance_to_polyline(theta_new, y[max(k0 - 1, 0):arrive + 1])) \
+                    > tolerance:
+                continue
+            u[k0:N] = drive
+            w[k0 + 1:N + 1] += moved[:, 0]
+            theta[k0 + 1:N + 1] = theta_new
+            u[N:] = 0.0
+            w[N:] = 0.0
+            theta[N:] = end
+            return N
+    return arrive
 
 
 def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
@@ -675,7 +700,9 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
             raise InfeasibleError(
                 f"the planned drive needs {use:.3g} x Umax after {DRIVE_FIT_ROUNDS} rounds "
                 "of easing the path speed's drive limit where it exceeds it")
-    _land_on_end(y, w, theta, u, machine, drive_fraction * umax)
+    landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax)
+    y[landed:] = y[-1]       # the desired motion rests where the plan does
+    param[landed:] = 1.0
     theta[-1] = y[-1]
     w[-1] = 0.0
     return MotionPlan(position=theta, speed=w, drive=u, parameter=param, desired=y,
