@@ -157,6 +157,40 @@ def test_overshoot_is_at_most_the_distance_off_the_path():
     assert overshoot(pos, np.zeros(2), up, np.full(4, np.inf)) == pytest.approx(2.5)
 
 
+def _end_overshoot_of(curve, position, u, finished):
+    """The run's end overshoot for made-up rows: actual ``position`` (n, 2) [pulse] and
+    setpoint parameter ``u`` (n,), the setpoint at the end from sample ``finished``."""
+    from nurbsmotion.closed_loop import new_rows
+
+    n = len(u)
+    rows = new_rows(n, 2, False)
+    for r in rows[:9]:
+        r[...] = 0.0
+    rows.u[:], rows.position[:], rows.command[:] = u, position, position
+    m = metrics.RunningMetrics(curve, die_bonder(), 1.0)
+    m.add(0, rows, finished, True)
+    return m.end_overshoot
+
+
+def test_end_overshoot_before_the_setpoint_arrives():
+    """A machine that runs ahead of its setpoint passes the end (by 3 pulses, along the
+    final direction +x) before the setpoint gets there: counted. A hook, whose path
+    bends back past the end's plane: a sample beyond that plane but nearest to the hook's
+    middle has not passed the end; one beyond the end itself has."""
+    line = NurbsCurve(1, [0, 0, 1, 1], [[0.0, 0.0], [100.0, 0.0]])
+    u = np.array([0.0, 0.3, 0.6, 0.8, 0.9, 0.95, 1.0])
+    x = np.array([0.0, 40.0, 80.0, 103.0, 101.0, 100.0, 100.0])
+    assert _end_overshoot_of(line, np.column_stack([x, 0 * x]), u, 6) == pytest.approx(3.0)
+    # the hook: up from (0, 0) to (0, 100), then right and down to end at (50, 50),
+    # arriving downwards (-y): the path's top is 50 pulses beyond the end's plane
+    hook = NurbsCurve(1, [0, 0, 1 / 3, 2 / 3, 1, 1],
+                      [[0.0, 0.0], [0.0, 100.0], [50.0, 100.0], [50.0, 50.0]])
+    u = np.array([0.0, 0.4, 0.6, 0.8, 0.95, 1.0, 1.0])
+    pos = np.array([[0, 0], [0, 100], [25, 102], [50, 80], [50.5, 60], [50, 48],
+                    [50, 50.0]])
+    assert _end_overshoot_of(hook, pos, u, 5) == pytest.approx(2.0)
+
+
 def test_end_overshoot_of_a_closed_path():
     """The butterfly is closed: past its end the path goes on from its start, so a plant
     that passes the end stays near the path; it has passed the end all the same (the

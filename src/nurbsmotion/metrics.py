@@ -70,10 +70,10 @@ class Metrics:
         How far the actual position passes the end point along the direction of arrival
         [pulse], >= 0, from the sample whose setpoint is half way along the last
         corner-free piece (or has arrived, if sooner) on: a machine running ahead of its
-        setpoint (``planned`` on a plant unlike the model) is counted too. A sample whose
-        nearest path point lies on that half piece passes the end by at most its distance
-        to the path (a path that bends back past the end's plane is not passed by
-        following it).
+        setpoint (``planned`` on a plant unlike the model) is counted too. Only samples
+        whose nearest path point is the end (or, on a closed path, lies on the first half
+        piece, which continues it) have passed it: one nearer an earlier point of a path
+        that bends back past the end's plane is still on its way.
     corner_overshoot : float
         The same at the sharp corners (where the motion must stop), the largest over the
         corners [pulse], >= 0; 0 for a path without sharp corners.
@@ -478,10 +478,10 @@ def overshoot(position: np.ndarray, point: np.ndarray, direction: np.ndarray,
     direction : ndarray, shape (n_axes,)
         Any non-zero length; only its direction counts.
     off_path : ndarray, shape (n_samples,), optional
-        Each sample's distance to the part of the path around ``point`` [pulse] (inf
-        where its nearest path point lies elsewhere): a sample passes ``point`` by at
-        most that much (a sample on the path beyond ``point``'s plane, where the path
-        bends back past it, has not passed it).
+        A bound per sample on how far it passes ``point`` [pulse]: 0 for a sample that
+        has not passed it whatever its side of ``point``'s plane (its nearest path point
+        lies before ``point``, on a path that bends back past that plane), inf for no
+        bound (:func:`_past`).
     """
     if len(position) == 0:
         return 0.0
@@ -494,11 +494,20 @@ def overshoot(position: np.ndarray, point: np.ndarray, direction: np.ndarray,
     return max(0.0, float(np.max(along)))
 
 
-def _off_piece(nearest: np.ndarray, distance: np.ndarray, lo: float, hi: float):
-    """:func:`overshoot`'s ``off_path``: each sample's distance to the path where its
-    nearest path parameter lies in [lo, hi], inf elsewhere (a closed path continues past
-    its end from its start: a sample there has left the part of the path that ends)."""
-    return np.where((nearest >= lo) & (nearest <= hi), distance, np.inf)
+PARAMETER_TOLERANCE = 1e-9
+"""A sample whose nearest path parameter lies within this of a corner's (or the end's)
+has that point as its nearest path point."""
+
+
+def _past(nearest: np.ndarray, *spans) -> np.ndarray:
+    """:func:`overshoot`'s ``off_path`` for the samples that can have passed a point:
+    inf for a sample whose nearest path parameter lies in one of the closed ``spans``
+    ``(lo, hi)`` (the point itself and the path after it), 0 for the others (their
+    nearest path point lies before it: they are still on the way)."""
+    counted = np.zeros(len(nearest), dtype=bool)
+    for lo, hi in spans:
+        counted |= (nearest >= lo - PARAMETER_TOLERANCE) & (nearest <= hi)
+    return np.where(counted, np.inf, 0.0)
 
 
 class RunningMetrics:
@@ -545,6 +554,10 @@ class RunningMetrics:
         # before it
         self.corner_from = 0.5 * (corners + np.append(0.0, corners[:-1]))
         self.end_from = 0.5 * (1.0 + (corners[-1] if corners.size else 0.0))
+        # past the end: the end itself, and on a closed path the first half piece too
+        self.past_end = [(1.0, 1.0)]
+        if np.linalg.norm(self.end - curve(0.0)) <= self.window:
+            self.past_end.append((0.0, 0.5 * (corners[0] if corners.size else 1.0)))
         if corners.size:
             t_in = curve.limit_tangent(corners, "left")  # unit, also where C' = 0 (a cusp)
             t_out = curve.limit_tangent(corners, "right")
@@ -612,8 +625,8 @@ class RunningMetrics:
             start = min(start, max(0, finished - first))
         self.end_overshoot = max(self.end_overshoot, overshoot(
             position[start:], self.end, self.end_direction,
-            _off_piece(nearest[start:], contour[start:], self.end_from, 1.0)))
-        self._add_corners(reached, position, nearest, contour)
+            _past(nearest[start:], *self.past_end)))
+        self._add_corners(reached, position, nearest)
         self.n = first + m
 
     def _add_fluctuation(self, first, feed, command, finished) -> None:
@@ -631,16 +644,16 @@ class RunningMetrics:
             self.fluct_sq += float(np.sum(rel * rel))
             self.fluct_n += int(rel.size)
 
-    def _add_corners(self, reached, position, nearest, contour) -> None:
+    def _add_corners(self, reached, position, nearest) -> None:
         """:func:`overshoot` at each sharp corner at ``u_c``, along the incoming tangent's
         part normal to the outgoing tangent (the incoming tangent itself at a reversal):
         along it the path does not advance after the corner, so any positive excursion
-        off the path passes the corner. The samples counted run from the first whose
-        setpoint (``reached``: the running maximum of its parameter) is half way along
-        the piece before the corner until it passes half way to the next corner (or the
-        end): an actual position that runs ahead of its setpoint passes the corner before
-        the setpoint gets there. ``nearest``, ``contour``: each sample's nearest path
-        parameter and its distance (:func:`nearest_parameter`)."""
+        passes the corner. The samples counted run from the first whose setpoint
+        (``reached``: the running maximum of its parameter) is half way along the piece
+        before the corner until it passes half way to the next corner (or the end): an
+        actual position that runs ahead of its setpoint passes the corner before the
+        setpoint gets there; of those, the ones whose nearest path point (``nearest``,
+        :func:`nearest_parameter`) is the corner or lies after it (:func:`_past`)."""
         if self.corner_u.size == 0:
             return
         start = np.searchsorted(reached, self.corner_from, "left")
@@ -648,8 +661,7 @@ class RunningMetrics:
         for c in np.flatnonzero(start < stop):
             self.corner_overshoot = max(self.corner_overshoot, overshoot(
                 position[start[c]:stop[c]], self.corner_points[c], self.corner_normals[c],
-                _off_piece(nearest[start[c]:stop[c]], contour[start[c]:stop[c]],
-                           self.corner_from[c], self.corner_mid[c])))
+                _past(nearest[start[c]:stop[c]], (self.corner_u[c], self.corner_mid[c]))))
 
     def result(self, finished_index: int, success: bool, message: str) -> Metrics:
         """The figures of the rows taken, for a run that reached the end at sample

@@ -36,7 +36,11 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    plan's rest on the end, at 0 (deadbeat: what a plant that differs from the model has
    left of the move closes in two samples instead of decaying at the tracking pole),
    clipped to +-Umax: *every drive is within the limit by construction*, whatever the
-   true plant;
+   true plant. Once the plan moves an axis only towards its end, the drive also leaves
+   the identified plant able to stop before that end, braking at Umax from the next
+   sample on (:func:`_short_of_end`; the plan's own braking never needs more, so on the
+   model's plant it changes nothing): a plant weaker or stronger than the model does
+   not pass the end point;
 4. the loop's law is affine in the setpoint between its clamps,
    ``u = slope*thd + offset`` with slope > 0 (:func:`nurbsmotion.control.pid_affine`,
    from the law's memory and the measured state), so the setpoint that produces exactly
@@ -316,9 +320,53 @@ def _window_rate(i0, r_tail, gains, a, drive_speed, drive_accel, headroom, umax)
 
 
 @njit(cache=True)
+def _stopping_travel(w, a, b0, c, b1, brake):
+    """Travel [pulse] of a ZOH plant ``(a, b0, c, b1)`` from speed ``w`` [rad/s] under the
+    constant drive ``brake`` [V] until its speed is 0 (0 if ``brake`` does not oppose
+    ``w``): with ``w_inf = b0*brake/(1 - a)``, the speed ``w_inf + (w - w_inf)*a^t`` is 0
+    at ``a^t = -w_inf/(w - w_inf)``, and the travel to there is the ZOH position update
+    summed over t samples, ``c*(w_inf*t + (w - w_inf)*(1 - a^t)/(1 - a)) + b1*brake*t``
+    (exact for fractional t: it is the continuous plant's)."""
+    w_inf = b0 * brake / (1.0 - a)
+    if w == 0.0 or w * brake >= 0.0:
+        return 0.0
+    ratio = -w_inf / (w - w_inf)           # in (0, 1)
+    t = math.log(ratio) / math.log(a)
+    return c * (w_inf * t + (w - w_inf) * (1.0 - ratio) / (1.0 - a)) + b1 * brake * t
+
+
+@njit(cache=True)
+def _short_of_end(u, x, w, end, s, a, b0, c, b1, umax):
+    """The drive nearest ``u`` [V], within +-Umax, after which the ZOH plant ``(a, b0, c,
+    b1)`` at position ``x`` [pulse] and speed ``w`` [rad/s], braking at Umax from the
+    next sample on, stops before ``end`` [pulse] (moving in direction ``s``, +-1): the
+    travel grows with the drive, so it is ``u`` itself if that stops in time, the full
+    brake if nothing does, and else the bisected drive that stops on the end."""
+    brake = -s * umax
+
+    def beyond(v):
+        w1 = a * w + b0 * v
+        return s * (x + c * w + b1 * v + _stopping_travel(w1, a, b0, c, b1, brake) - end)
+
+    if beyond(u) <= 0.0:
+        return u
+    if beyond(brake) > 0.0:
+        return brake
+    good, bad = brake, u
+    for _ in range(RATE_BISECTIONS):
+        mid = 0.5 * (good + bad)
+        if beyond(mid) > 0.0:
+            bad = mid
+        else:
+            good = mid
+    return good
+
+
+@njit(cache=True)
 def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
                 plan_drive_speed, plan_drive_accel, support, gains, a, b0, c, b1, umax,
-                headroom, rate_gain, rest, slope, offset, out_setpoint, out_drive):
+                headroom, rate_gain, rest, approach, direction, slope, offset,
+                out_setpoint, out_drive):
     """One sample of the planned interpolator (module docstring, steps 1-4).
 
     Plain loops over floats and float arrays, so that numba compiles it unchanged.
@@ -361,6 +409,10 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
     rest : int
         The plan sample from which the plan rests on the end: from there on the
         feedback is deadbeat.
+    approach, direction : ndarray, shape (n_axes,)
+        Per axis, the plan sample from which the plan moves it only towards its end, and
+        that direction (+1 or -1; 0 if the axis never moves): from there on the drive
+        keeps the plant able to stop before the end (:func:`_short_of_end`).
     slope, offset : ndarray, shape (n_axes,)
         The law's affine form at this sample: u[k] = slope*thd[k] + offset [V/pulse, V].
     out_setpoint, out_drive : ndarray, shape (n_axes,)
@@ -447,6 +499,11 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
         if abs(u) > umax:
             excess = max(excess, abs(u) / umax - 1.0)
             u = umax if u > 0 else -umax
+        if phi >= approach[j] and direction[j] != 0.0:
+            # 3b. never past the end: the drive leaves the plant able to stop before
+            # the axis' end, braking at Umax from the next sample on
+            u = _short_of_end(u, position[j], w_now, plan_position[n - 1, j], direction[j],
+                              ae, b0e, ce, b1e, umax)
         hist[1, j] = hist[0, j]
         hist[0, j] = u
         # 4. the setpoint that produces exactly this drive
@@ -472,6 +529,8 @@ class PlannedPlan(NamedTuple):
     headroom: float
     rate_gain: float
     rest: int                    # the first sample of the plan's rest on the end
+    approach: np.ndarray         # (n_axes,) from here each axis moves only to its end
+    direction: np.ndarray        # (n_axes,) that direction, +-1 (0: never moves)
 
 
 class PlannedState(NamedTuple):
@@ -565,7 +624,8 @@ class PlannedInterpolator(Interpolator):
             bounds=np.append(np.asarray(p.stop_indices, dtype=np.int64), p.n_samples),
             a=a, b0=b0, c=c, b1=b1, headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
-            rate_gain=1.0 - self.tracking_pole, rest=p.arrival)
+            rate_gain=1.0 - self.tracking_pole, rest=p.arrival,
+            **dict(zip(("approach", "direction"), _final_approach(p.speed))))
 
     def nominal_duration(self) -> float:
         return self.duration
@@ -640,7 +700,8 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
         phi, state.rate[0], state.excess[0], state.est, state.hist, position,
         plan.position, plan.drive_speed, plan.drive_accel, state.support, state.gains,
         plan.a, plan.b0, plan.c, plan.b1, law[0]["maxoutput"], plan.headroom,
-        plan.rate_gain, plan.rest, state.slope, state.offset, command, state.drive)
+        plan.rate_gain, plan.rest, plan.approach, plan.direction, state.slope,
+        state.offset, command, state.drive)
     state.phi[0] = phi_next
     state.rate[0] = rate
     state.excess[0] = excess
@@ -740,6 +801,23 @@ def _support_at(plan, i, out):
     for k in range(i, end):
         _raise_to_sample(out, plan.drive_accel, plan.drive_speed, k)
     return out
+
+
+def _final_approach(speed: np.ndarray):
+    """Per axis of the plan's speeds (n, n_axes): the first sample from which the axis
+    moves only towards its end (after its last move the other way), and that direction
+    (the sign of its last non-zero speed; 0 for an axis that never moves). Two arrays,
+    shape (n_axes,)."""
+    n, n_axes = speed.shape
+    approach = np.full(n_axes, n, dtype=np.int64)
+    direction = np.zeros(n_axes)
+    for j in range(n_axes):
+        moving = np.flatnonzero(speed[:, j] != 0.0)
+        if moving.size:
+            direction[j] = np.sign(speed[moving[-1], j])
+            away = np.flatnonzero(speed[:, j] * direction[j] < 0.0)
+            approach[j] = away[-1] + 1 if away.size else 0
+    return approach, direction
 
 
 def _prior_estimate(plan: PlannedPlan) -> np.ndarray:
