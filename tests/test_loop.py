@@ -159,3 +159,19 @@ def test_a_ten_minute_move_runs_without_a_sample_limit():
     tr = run(curve, m, curve.length / 600.0, "paper", settle_time=0.0)
     assert tr.finished_index == pytest.approx(600_000, abs=10)
     assert tr.u[-1] == 1.0
+
+
+def test_a_diverging_loop_is_a_failed_run_that_says_so():
+    """Without a drive limit, a plant 300x stronger than the model makes the PD+ loop
+    unstable: the positions overflow. simulate() returns the trace with success False
+    and a message that says the loop diverged (not only that it did not settle)."""
+    from nurbsmotion.servo import ServoPlant
+
+    machine = die_bonder().with_options(max_drive=math.inf)
+    curve = nm.make_die_bonder_pi()
+    plant = ServoPlant.of_machine(machine, curve(0.0), electrical_gain_scale=300.0)
+    trace = simulate(TaylorInterpolator(curve, machine.sample_period, 2e5, 1), machine,
+                     plant=plant, settle_time=0.05, settle_limit=0.5)
+    assert not np.all(np.isfinite(trace.position))
+    assert not trace.success
+    assert trace.message.startswith("the closed loop diverged")

@@ -518,7 +518,7 @@ def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=SETTLE_
 
 def _verdict(tally: _Tally, settled: bool, settled_index, Ts: float, window: float,
              limit: float) -> tuple[bool, str]:
-    """``(success, message)`` of a run: settled, and every drive within Umax."""
+    """``(success, message)`` of a run: finite, settled, and every drive within Umax."""
     over = tally.beyond
     limited = int(tally.status[Status.LIMITED])
     cornered = int(tally.status[Status.CORNERED])
@@ -531,7 +531,9 @@ def _verdict(tally: _Tally, settled: bool, settled_index, Ts: float, window: flo
         parts.append(f"{limited} steps limited to keep the drive within Umax")
     if cornered:
         parts.append(f"{cornered} steps cornered (no admissible step)")
-    return settled and over == 0, "; ".join(parts)
+    if not tally.finite:
+        parts.insert(0, "the closed loop diverged (non-finite positions or drives)")
+    return tally.finite and settled and over == 0, "; ".join(parts)
 
 
 def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
