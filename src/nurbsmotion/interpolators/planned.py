@@ -625,7 +625,7 @@ class PlannedInterpolator(Interpolator):
             a=a, b0=b0, c=c, b1=b1, headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole, rest=p.arrival,
-            **dict(zip(("approach", "direction"), _final_approach(p.speed))))
+            **dict(zip(("approach", "direction"), _final_approach(p.speed, p.arrival))))
 
     def nominal_duration(self) -> float:
         return self.duration
@@ -803,14 +803,17 @@ def _support_at(plan, i, out):
     return out
 
 
-def _final_approach(speed: np.ndarray):
-    """Per axis of the plan's speeds (n, n_axes): the first sample from which the axis
-    moves only towards its end (after its last move the other way), and that direction
-    (the sign of its last non-zero speed; 0 for an axis that never moves). Two arrays,
-    shape (n_axes,)."""
+def _final_approach(speed: np.ndarray, rest: int):
+    """Per axis of the plan's speeds (n, n_axes), up to its rest on the end at sample
+    ``rest`` (what the pre-compensation leaves after that, a fraction of a pulse either
+    way when the landing could not be made exact, is not a move): the first sample from
+    which the axis moves only towards its end (after its last move the other way), and
+    that direction (the sign of its last non-zero speed; 0 for an axis that does not
+    move). Two arrays, shape (n_axes,)."""
     n, n_axes = speed.shape
     approach = np.full(n_axes, n, dtype=np.int64)
     direction = np.zeros(n_axes)
+    speed = speed[:max(rest, 1)]
     for j in range(n_axes):
         moving = np.flatnonzero(speed[:, j] != 0.0)
         if moving.size:
