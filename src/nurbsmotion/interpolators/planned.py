@@ -617,6 +617,7 @@ class PlannedInterpolator(Interpolator):
         drive_speed = p.speed / machine.Kc
         drive_accel = np.zeros_like(p.speed)
         drive_accel[:-1] = (p.speed[1:] - p.speed[:-1]) / b0
+        approach, direction = _final_approach(p.speed, p.arrival)
         self.plan = PlannedPlan(
             parameter=p.parameter, desired=p.desired, position=p.position,
             drive_speed=drive_speed, drive_accel=drive_accel,
@@ -624,8 +625,8 @@ class PlannedInterpolator(Interpolator):
             bounds=np.append(np.asarray(p.stop_indices, dtype=np.int64), p.n_samples),
             a=a, b0=b0, c=c, b1=b1, headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
-            rate_gain=1.0 - self.tracking_pole, rest=p.arrival,
-            **dict(zip(("approach", "direction"), _final_approach(p.speed, p.arrival))))
+            rate_gain=1.0 - self.tracking_pole, rest=p.arrival, approach=approach,
+            direction=direction)
 
     def nominal_duration(self) -> float:
         return self.duration
