@@ -63,7 +63,7 @@ def loop_example(interpolator: str) -> tuple | None:
         plan = TaylorPlan(path, int(interpolator[-1]), *feed)
         state = StepState.new(path)
     elif interpolator == "planned":
-        plan = PlannedPlan(f(1), f(1, n), f(1, n), f(1, n), f(1, n),
+        plan = PlannedPlan(f(1), f(1), f(1, n), f(1, n), f(1, n),
                            f(1, n, SUPPORT_DIRECTIONS), np.zeros(2, np.int64),
                            *(f(n) for _ in range(4)), 0.0, 0.0, 0, np.zeros(n, np.int64),
                            f(n))

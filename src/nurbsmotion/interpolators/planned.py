@@ -516,7 +516,7 @@ class PlannedPlan(NamedTuple):
     """What the online step reads (see :func:`online_step` for each array's meaning)."""
 
     parameter: np.ndarray        # (n,) curve parameter of each sample's desired position
-    desired: np.ndarray          # (n, n_axes) desired position [pulse]
+    path_step: np.ndarray        # (n,) the desired position's step to the next [pulse]
     position: np.ndarray         # (n, n_axes) theta_ff [pulse]
     drive_speed: np.ndarray      # (n, n_axes) [V]
     drive_accel: np.ndarray      # (n, n_axes) [V]
@@ -616,16 +616,21 @@ class PlannedInterpolator(Interpolator):
         a, b0, c, b1 = axis_zoh(machine)
         drive_speed = p.speed / machine.Kc
         drive_accel = np.zeros_like(p.speed)
-        drive_accel[:-1] = (p.speed[1:] - p.speed[:-1]) / b0
+        np.subtract(p.speed[1:], p.speed[:-1], out=drive_accel[:-1])
+        drive_accel /= b0
         approach, direction = _final_approach(p.speed, p.arrival)
+        path_step = _path_steps(p.desired)
+        parameter, position, stops, n, rest = (p.parameter, p.position, p.stop_indices,
+                                               p.n_samples, p.arrival)
+        del p  # its speed, drive and desired positions before the support is built
         self.plan = PlannedPlan(
-            parameter=p.parameter, desired=p.desired, position=p.position,
+            parameter=parameter, path_step=path_step, position=position,
             drive_speed=drive_speed, drive_accel=drive_accel,
-            support=_support(drive_accel, drive_speed, p.stop_indices, SUPPORT_BLOCK),
-            bounds=np.append(np.asarray(p.stop_indices, dtype=np.int64), p.n_samples),
+            support=_support(drive_accel, drive_speed, stops, SUPPORT_BLOCK),
+            bounds=np.append(np.asarray(stops, dtype=np.int64), n),
             a=a, b0=b0, c=c, b1=b1, headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
-            rate_gain=1.0 - self.tracking_pole, rest=p.arrival, approach=approach,
+            rate_gain=1.0 - self.tracking_pole, rest=rest, approach=approach,
             direction=direction)
 
     def nominal_duration(self) -> float:
@@ -721,11 +726,7 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
         command[j] = setpoint
     n = plan.parameter.shape[0]
     i0 = min(int(phi), n - 1)
-    i1 = min(i0 + 1, n - 1)
-    dist2 = 0.0
-    for j in range(n_axes):
-        dist2 += (plan.desired[i1, j] - plan.desired[i0, j]) ** 2
-    feed = rate * math.sqrt(dist2) / law[0]["period"]  # the plan's path speed at its clock
+    feed = rate * plan.path_step[i0] / law[0]["period"]  # the plan's path speed at its clock
     if phi >= plan.rest:  # the plan rests on the end: the setpoint has arrived
         return 1.0, 0.0, stepping.FINISHED
     if status == stepping.WORKING and (excess > 0.0 or rate < 1.0):
@@ -802,6 +803,16 @@ def _support_at(plan, i, out):
     for k in range(i, end):
         _raise_to_sample(out, plan.drive_accel, plan.drive_speed, k)
     return out
+
+
+def _path_steps(desired: np.ndarray) -> np.ndarray:
+    """``|desired[k + 1] - desired[k]|`` [pulse] for every sample k (0 at the last), shape
+    (n,), axis by axis (no temporary of the positions' size)."""
+    steps = np.zeros(len(desired))
+    for j in range(desired.shape[1]):
+        d = np.diff(desired[:, j])
+        steps[:-1] += np.square(d, out=d)
+    return np.sqrt(steps, out=steps)
 
 
 def _final_approach(speed: np.ndarray, rest: int):
