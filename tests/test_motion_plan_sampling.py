@@ -149,7 +149,7 @@ def test_each_samples_support_from_the_stored_ones_equals_the_full_support():
         full = _support(accel, speed, stops)
         plan = PlannedPlan(*([None] * 3), speed, accel,
                            _support(accel, speed, stops, SUPPORT_BLOCK),
-                           np.append(stops, n), *([None] * 4), 0.0, 0.0, n, None, None)
+                           np.append(stops, n), *([None] * 5), 0.0, 0.0, n, None, None)
         out = np.empty((2, SUPPORT_DIRECTIONS))
         for i in range(n):
             np.testing.assert_array_equal(_support_at(plan, i, out), full[i])

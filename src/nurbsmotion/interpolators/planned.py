@@ -131,19 +131,19 @@ def _gains(est, j, a, b0, c, b1):
 
 
 @njit(cache=True)
-def _plan_speed_at(drive_speed, drive_accel, phi, j, a, b0):
+def _plan_speed_at(drive_speed, drive_accel, phi, j, a, log_a, b0):
     """The plan's speed [rad/s] of axis j at clock ``phi`` [samples]: the model's plant
     from the plan's speed at sample i = floor(phi) under its drive there, over the fraction
     f = phi - i of a sample (ZOH, exact between samples: ``w(i + f) = a^f*w[i]
     + b0*(1 - a^f)/(1 - a)*u[i]``, with ``w[i] = Kc*V[i]``, ``Kc = b0/(1 - a)`` and
-    ``u[i] = V[i] + A[i]``, the plan's drive parts)."""
+    ``u[i] = V[i] + A[i]``, the plan's drive parts; ``log_a = log(a)``)."""
     n = drive_speed.shape[0]
     i = min(int(phi), n - 1)
     f = phi - i if i < n - 1 else 0.0
     w_i = b0 / (1.0 - a) * drive_speed[i, j]
     if f <= 0.0:
         return w_i
-    g = -math.expm1(f * math.log(a))             # 1 - a^f
+    g = -math.expm1(f * log_a)                   # 1 - a^f
     return (1.0 - g) * w_i + b0 * g / (1.0 - a) * (drive_speed[i, j] + drive_accel[i, j])
 
 
@@ -364,8 +364,8 @@ def _short_of_end(u, x, w, end, s, a, b0, c, b1, umax):
 
 @njit(cache=True)
 def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
-                plan_drive_speed, plan_drive_accel, support, gains, a, b0, c, b1, umax,
-                headroom, rate_gain, rest, approach, direction, slope, offset,
+                plan_drive_speed, plan_drive_accel, support, gains, a, b0, c, b1, log_a,
+                umax, headroom, rate_gain, rest, approach, direction, slope, offset,
                 out_setpoint, out_drive):
     """One sample of the planned interpolator (module docstring, steps 1-4).
 
@@ -400,6 +400,8 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
         Scratch: the estimated plant's ga and gv (:func:`_gains`).
     a, b0, c, b1 : ndarray, shape (n_axes,)
         The model's ZOH plant (:func:`nurbsmotion.motion_plan.axis_zoh`).
+    log_a : ndarray, shape (n_axes,)
+        log(a), for the plan's speed between samples (:func:`_plan_speed_at`).
     umax : float
         Umax [V].
     headroom : float
@@ -486,13 +488,14 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
         ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], gains[0, j])
         w_last = (hist[3, j] - b1e * hist[0, j]) / ce
         w_now = ae * w_last + b0e * hist[0, j]
-        w_ref = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi, j, a[j], b0[j])
+        w_ref = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi, j, a[j], log_a[j],
+                               b0[j])
         e_w = w_ref * rate_old - w_now
         # 3. drive: the estimated plant's drive from the plan's speed at the clock (at the
         # rate it had) to its speed at the next clock (at the new rate), plus feedback;
         # clipped
         w_next = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi_next, j, a[j],
-                                b0[j])
+                                log_a[j], b0[j])
         uf = (w_next * rate - ae * w_ref * rate_old) / b0e
         kpe, kde = _pole_gains(ae, b0e, ce, b1e, 0.0 if phi >= rest else 1.0 - rate_gain)
         u = uf + kpe * e_th + kde * e_w
@@ -526,6 +529,7 @@ class PlannedPlan(NamedTuple):
     b0: np.ndarray
     c: np.ndarray
     b1: np.ndarray
+    log_a: np.ndarray            # (n_axes,) log(a): a^f between samples
     headroom: float
     rate_gain: float
     rest: int                    # the first sample of the plan's rest on the end
@@ -618,17 +622,17 @@ class PlannedInterpolator(Interpolator):
         drive_accel = np.zeros_like(p.speed)
         np.subtract(p.speed[1:], p.speed[:-1], out=drive_accel[:-1])
         drive_accel /= b0
-        approach, direction = _final_approach(p.speed, p.arrival)
+        rest = p.arrival
+        approach, direction = _final_approach(p.speed, rest)
         path_step = _path_steps(p.desired)
-        parameter, position, stops, n, rest = (p.parameter, p.position, p.stop_indices,
-                                               p.n_samples, p.arrival)
+        parameter, position, stops, n = p.parameter, p.position, p.stop_indices, p.n_samples
         del p  # its speed, drive and desired positions before the support is built
         self.plan = PlannedPlan(
             parameter=parameter, path_step=path_step, position=position,
             drive_speed=drive_speed, drive_accel=drive_accel,
             support=_support(drive_accel, drive_speed, stops, SUPPORT_BLOCK),
             bounds=np.append(np.asarray(stops, dtype=np.int64), n),
-            a=a, b0=b0, c=c, b1=b1, headroom=self.drive_headroom,
+            a=a, b0=b0, c=c, b1=b1, log_a=np.log(a), headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole, rest=rest, approach=approach,
             direction=direction)
@@ -705,7 +709,7 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
     phi_next, rate, excess = online_step(
         phi, state.rate[0], state.excess[0], state.est, state.hist, position,
         plan.position, plan.drive_speed, plan.drive_accel, state.support, state.gains,
-        plan.a, plan.b0, plan.c, plan.b1, law[0]["maxoutput"], plan.headroom,
+        plan.a, plan.b0, plan.c, plan.b1, plan.log_a, law[0]["maxoutput"], plan.headroom,
         plan.rate_gain, plan.rest, plan.approach, plan.direction, state.slope,
         state.offset, command, state.drive)
     state.phi[0] = phi_next
