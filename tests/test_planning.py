@@ -24,7 +24,7 @@ from nurbsmotion.motion_plan import plan_motion
 from nurbsmotion.machine import die_bonder
 from nurbsmotion.nurbs import NurbsCurve
 from nurbsmotion.planning import speed_profile, time_optimal_bound
-from nurbsmotion.servo import ServoPlant
+from nurbsmotion.servo import ServoPlant, zoh_matrices
 
 MACHINE = die_bonder()
 PI = nm.make_die_bonder_pi()
@@ -102,6 +102,92 @@ def test_bound_orders():
     assert weak > t[1]
     assert time_optimal_bound(PI, die_bonder(max_drive=math.inf), 1e6) == \
         pytest.approx(PI.length / 1e6)
+
+
+# ------------------------------------------------------------------ the sampled bound
+def _end_state_of_unit_drives(Ad, Bd, n):
+    """Columns: the state [w, theta] at sample n after a unit drive at sample i alone,
+    from rest (simulated with the ZOH matrices)."""
+    out = np.zeros((2, n))
+    for i in range(n):
+        x = Bd.copy()
+        for _ in range(i + 1, n):
+            x = Ad @ x
+        out[:, i] = x
+    return out
+
+
+def _linprog_reach(Ad, Bd, n, slack):
+    from scipy.optimize import linprog
+    E = _end_state_of_unit_drives(Ad, Bd, n)
+    res = linprog(-E[1], A_ub=np.vstack([E[0], -E[0]]), b_ub=[slack, slack],
+                  bounds=[(-1, 1)] * n, method="highs")
+    assert res.status == 0
+    return -res.fun
+
+
+@pytest.mark.parametrize("tau, Kc, Ke, n, slack", [
+    (0.31, 2506.17, 1591.5494, 1, 0.0), (0.31, 2506.17, 1591.5494, 7, 0.0),
+    (0.135, 3156.23, 1591.5494, 40, 0.0), (0.02, 100.0, 10.0, 25, 3.0),
+    (0.31, 2506.17, 1591.5494, 30, 5.0), (5e-4, 50.0, 2.0, 12, 0.5)])
+def test_rest_to_rest_reach_matches_linear_programming(tau, Kc, Ke, n, slack):
+    """The weighted-median dual of :func:`planning._rest_to_rest_reach` gives the farthest
+    move of the ZOH axis in n samples that scipy's HiGHS finds on the primal LP, built
+    from the plant's matrices by simulation (to 1e-9)."""
+    from nurbsmotion.planning import _rest_to_rest_reach
+    Ad, Bd = zoh_matrices(tau, Kc, Ke, 1e-3)
+    got = _rest_to_rest_reach(Ad[0, 0], Bd[0], Ad[1, 0], Bd[1], n, slack)
+    assert got == pytest.approx(_linprog_reach(Ad, Bd, n, slack), rel=1e-9, abs=1e-9)
+
+
+@pytest.mark.parametrize("L", [40.0, 5_000.0, 120_000.0])
+def test_sampled_stop_bound_of_a_line(L):
+    """One axis, one piece: the dead first sample plus the least n for which HiGHS finds
+    a drive sequence that ends on the end (window 0) with a motor speed the next drive
+    can hold there for a sample (``|w| <= b1*Umax/c``); not below the continuous bound
+    without a feed limit less that sample's worth of motion, and within two samples of
+    it."""
+    from nurbsmotion.planning import sampled_stop_bound
+    from scipy.optimize import linprog
+    Ts = MACHINE.sample_period
+    Ad, Bd = zoh_matrices(MACHINE.tau[0], MACHINE.Kc[0], MACHINE.Ke[0], Ts)
+    slack = Bd[1] / Ad[1, 0]
+    n = 1
+    while True:
+        E = _end_state_of_unit_drives(Ad, Bd, n)
+        res = linprog(np.zeros(n), A_ub=np.vstack([E[0], -E[0]]), b_ub=[slack, slack],
+                      A_eq=E[1:], b_eq=[L / MACHINE.max_drive], bounds=[(-1, 1)] * n,
+                      method="highs")
+        if res.status == 0:
+            break
+        n += 1
+    line = nm.make_line([0.0, 0.0], [L, 0.0])
+    got = sampled_stop_bound(line, MACHINE, settle_window=0.0)
+    assert got == pytest.approx((1 + n) * Ts)
+    M = MACHINE.max_drive * MACHINE.Kc[0] * MACHINE.Ke[0]
+    continuous = line_time(L, M * (1 - 1e-9), M, MACHINE.tau[0])
+    assert continuous - Ts <= n * Ts <= continuous + 2 * Ts
+    # a settle window lets the last piece end a pulse short
+    assert sampled_stop_bound(line, MACHINE) <= got
+
+
+def test_sampled_stop_bound_is_below_every_run():
+    """On the Pi (three stop corners): ``planned``'s and ``paper``'s move-and-settle are
+    never below the sampled bound, which is itself below the continuous one at 1 m/s
+    (whose pieces it rounds up to samples but whose path and feed it ignores); a window
+    that is not a finite number >= 0 is refused."""
+    from nurbsmotion.metrics import settle_time
+    from nurbsmotion.planning import sampled_stop_bound
+    curve = to_pulses(PI, MACHINE)
+    bound = sampled_stop_bound(curve, MACHINE)
+    assert bound < time_optimal_bound(curve, MACHINE, 1e6)
+    for method in ("planned", "paper"):
+        tr = simulate(make_interpolator(method, curve, MACHINE, 1e6), MACHINE,
+                      settle_time=0.05)
+        assert settle_time(tr.t, tr.position, curve(1.0)) >= bound
+    for bad in (-1.0, math.nan, math.inf):
+        with pytest.raises(ValueError, match="settle_window"):
+            sampled_stop_bound(curve, MACHINE, settle_window=bad)
 
 
 def test_profile_rests_at_corners_and_ends():

@@ -47,8 +47,9 @@ from .errors import InfeasibleError
 from .feed import FeedLimit
 from .machine import Machine
 from .nurbs import NurbsCurve
+from .servo import zoh_matrices
 
-__all__ = ["SpeedProfile", "speed_profile", "time_optimal_bound"]
+__all__ = ["SpeedProfile", "speed_profile", "time_optimal_bound", "sampled_stop_bound"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -453,6 +454,112 @@ def _check_feed(feed) -> float:
     if not (math.isfinite(F) and F > 0):
         raise InfeasibleError(f"feed must be finite and > 0, got {feed!r} pulse/s")
     return F
+
+
+def _rest_to_rest_reach(a: float, b0: float, c: float, b1: float, n: int,
+                        speed_slack: float = 0.0) -> float:
+    """The farthest [pulse per V of Umax] one ZOH axis (SPEC section 3: ``w[k+1] = a*w[k] +
+    b0*u[k]``, ``theta[k+1] = theta[k] + c*w[k] + b1*u[k]``) moves in ``n`` samples from
+    rest, under ``|u| <= 1``, ending with ``|w[n]| <= speed_slack`` [rad/s per V].
+
+    The drive of sample ``n - 1 - p`` moves the end state by ``G[p] = b1 + c*b0*(1 -
+    a^p)/(1 - a)`` and ``Gw[p] = b0*a^p``; by linear-programming duality, ``max G.u``
+    subject to ``|Gw.u| <= slack`` and ``|u| <= 1`` equals ``min_l sum|G - l*Gw| +
+    slack*|l|``, a weighted median: ``l`` is the weighted median of ``G/Gw`` (weights
+    ``Gw``) together with 0 (weight ``slack``)."""
+    if n <= 0:
+        return 0.0
+    p = np.arange(n, dtype=float)
+    Gw = b0 * a ** p
+    G = b1 + c * b0 * (-np.expm1(p * math.log(a))) / (1.0 - a)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(Gw > 0, G / Gw, math.inf)
+    ratio = np.append(ratio, 0.0)
+    weight = np.append(Gw, speed_slack)
+    order = np.argsort(ratio, kind="stable")
+    cumulative = np.cumsum(weight[order])
+    median = ratio[order][min(int(np.searchsorted(cumulative, 0.5 * cumulative[-1])),
+                              len(order) - 1)]
+    if not math.isfinite(median):
+        median = 0.0
+    return float(np.sum(np.abs(G - median * Gw)) + speed_slack * abs(median))
+
+
+def _least_samples(reach, distance: float) -> int:
+    """The least n >= 0 with ``reach(n) >= distance`` (``reach`` nondecreasing, 0 at 0):
+    doubling, then bisection."""
+    if distance <= 0:
+        return 0
+    hi = 1
+    while reach(hi) < distance:
+        hi *= 2
+        if hi > 1 << 40:
+            raise InfeasibleError(f"the drive cannot move {distance:g} pulse")
+    lo = hi // 2
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if reach(mid) >= distance:
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
+                       settle_window: float = 1.0) -> float:
+    """A lower bound [s] on the move-and-settle time of any motion of the sampled loop along
+    ``curve`` that stops at every sharp corner.
+
+    :func:`time_optimal_bound` lets the drive change at any instant; the loop's drive is
+    held for a sample (ZOH), its first drive u[0] is 0 (sample 0's setpoint is the start,
+    where the plant rests), and a plant at rest at a corner is there at a sample instant
+    (under a held drive it cannot come to rest between samples and stay). So the motion
+    takes one sample, then a whole number of samples per corner-free piece, each at least
+    what the slowest axis needs to move its displacement across the piece from rest to
+    rest under ``|u| <= Umax`` (:func:`_rest_to_rest_reach`, exact for the ZOH plant of
+    SPEC section 3). The last piece only has to end within ``settle_window`` of the end
+    on each axis, and slow enough to be within it at the next sample too: a motor speed
+    w moves the axis by at least ``c*|w| - b1*Umax`` over a sample, so ``|w| <= (2*window
+    + b1*Umax)/c``.
+    The path's shape and the feed are ignored (they only lengthen a motion), so this is a
+    bound, not a plan: on the die-bonder it is what no interpolator can beat, however it
+    treats the path between the corners.
+
+    Parameters
+    ----------
+    curve : NurbsCurve
+        The path [pulse].
+    machine : Machine
+        tau, Kc, Ke, Umax, Ts.
+    settle_window : float
+        Radius [pulse] of the settle window (as :func:`nurbsmotion.metrics.settle_time`).
+
+    Returns
+    -------
+    float
+        The bound [s], a whole number of samples.
+    """
+    if not (math.isfinite(settle_window) and settle_window >= 0):
+        raise ValueError(f"settle_window must be finite and >= 0, got {settle_window!r}")
+    Ts, umax = machine.sample_period, machine.max_drive
+    ends = np.concatenate([[0.0], curve.sharp_corners(), [1.0]])
+    stops = curve(ends)
+    samples = 1
+    for k in range(len(ends) - 1):
+        last = k == len(ends) - 2
+        need = 0
+        for j, (tau, Kc, Ke) in enumerate(zip(machine.tau, machine.Kc, machine.Ke)):
+            Ad, Bd = zoh_matrices(tau, Kc, Ke, Ts)
+            a, c, b0, b1 = Ad[0, 0], Ad[1, 0], Bd[0], Bd[1]
+            distance = abs(stops[k + 1, j] - stops[k, j]) - (settle_window if last else 0.0)
+            if not math.isfinite(umax):  # any distance in two samples (one if not at rest)
+                need = max(need, (1 if last else 2) if distance > 0 else 0)
+                continue
+            slack = (2.0 * settle_window / umax + b1) / c if last else 0.0
+            need = max(need, _least_samples(
+                lambda n: umax * _rest_to_rest_reach(a, b0, c, b1, n, slack), distance))
+        samples += need
+    return samples * Ts
 
 
 def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,
