@@ -50,7 +50,9 @@ is built offline in five steps:
    puts the plant at rest exactly on the end, at the earliest sample (up to
    ``INVERSE_REACH + 1`` before the desired motion arrives there) at which the drive
    allows it without leaving the desired path, instead of approaching it over the
-   samples after.
+   samples after; where that is not possible and the plan rings about the end after the
+   arrival (a short, fast move), at the earliest of the next as many samples that stays
+   as near the end.
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
@@ -167,6 +169,10 @@ class MotionPlan:
         middle of its blend).
     sample_period : float
         Ts [s].
+    arrival : int
+        The first sample from which the plan and its desired motion rest on the end: where
+        the landing (step 5) puts the plan exactly there; where it could not, the sample
+        from which the desired motion does (0 if it never leaves the start).
     corner_tolerance : float
         eps [pulse] the plan was made with (0: it stops at every sharp corner).
     """
@@ -179,6 +185,7 @@ class MotionPlan:
     drive_fraction: float
     corner_times: np.ndarray
     sample_period: float
+    arrival: int
     corner_tolerance: float = 0.0
 
     @property
@@ -187,12 +194,6 @@ class MotionPlan:
         if self.corner_tolerance > 0:
             return np.zeros(0, dtype=int)
         return np.ceil(self.corner_times - 1e-9).astype(int)
-
-    @property
-    def arrival(self) -> int:
-        """The first sample from which the desired motion rests on the end (0 if it never
-        leaves it)."""
-        return _arrival(self.desired)
 
     @property
     def n_samples(self) -> int:
@@ -514,8 +515,7 @@ def _distance_to_polyline(points: np.ndarray, vertices: np.ndarray) -> np.ndarra
 def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
                  machine: Machine, limit: float) -> int:
     """Step 5: bring the plan to rest exactly on the end, at the earliest sample N the
-    drive allows, no later than the sample where the desired motion arrives there (in
-    place). Returns N (the arrival if the plan is left as it is).
+    drive allows (in place). Returns N (the arrival if the plan is left as it is).
 
     What the pre-compensation leaves (a pulse or two on a short, fast move, whose motion
     is mostly near the Nyquist frequency) ends as a slow approach to the end after the
@@ -531,7 +531,11 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     within :data:`PRECOMPENSATION_TOLERANCE`). N runs from the arrival less the samples
     the averaging and the inverse shape (``INVERSE_REACH + 1``), changing at most that
     many drives, up to the arrival itself, where m grows up to :data:`LANDING_SAMPLES`
-    (and N - 1: u[0] = 0 stays); if none does, the plan is left as it is."""
+    (and N - 1: u[0] = 0 stays). If none does and the plan strays from the end after the
+    arrival by more than :data:`PRECOMPENSATION_TOLERANCE` (on a short, fast move it
+    rings there for several samples, by a pulse or two), N runs on up to that many
+    samples after the arrival, kept only if the plan then strays from the end by no more
+    than it did; if none does, the plan is left as it is."""
     end = y[-1]
     arrive = _arrival(y)
     if arrive < 2 or arrive >= len(y):
@@ -539,15 +543,17 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     if float(np.max(np.abs(theta[arrive - 1:] - y[arrive - 1:]))) == 0.0:
         return arrive
     a, b0, c, b1 = axis_zoh(machine)
-    size = min(arrive - 1, LANDING_SAMPLES)
+    reach = INVERSE_REACH + 1
+    strays = float(np.max(np.linalg.norm(theta[arrive:] - end, axis=1)))
+    later = min(reach, len(y) - 1 - arrive) if strays > PRECOMPENSATION_TOLERANCE else 0
+    size = min(arrive - 1 + later, LANDING_SAMPLES)
     h = np.empty((len(a), size, 2))              # h[j, p] = A^p B: [speed, position]
     h[:, 0, 0], h[:, 0, 1] = b0, b1
     for p in range(1, size):
         h[:, p, 0] = a * h[:, p - 1, 0]
         h[:, p, 1] = c * h[:, p - 1, 0] + h[:, p - 1, 1]
-    reach = INVERSE_REACH + 1
-    for N in range(max(arrive - reach, 2), arrive + 1):
-        most = min(N - 1, size if N == arrive else reach)
+    for N in range(max(arrive - reach, 2), arrive + later + 1):
+        most = min(N - 1, size if N >= arrive else reach)
         first = max(N - most - 1, 0)
         tolerance = max(PRECOMPENSATION_TOLERANCE,
                         float(np.max(np.abs(theta[first:] - y[first:]))))
@@ -572,8 +578,11 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
             if np.max(np.abs(drive)) > limit:
                 continue
             theta_new = theta[k0 + 1:N + 1] + moved[:, 1]
-            if np.max(_distance_to_polyline(theta_new, y[max(k0 - 1, 0):arrive + 1])) \
-                    > tolerance:
+            if np.max(_distance_to_polyline(
+                    theta_new, y[min(max(k0 - 1, 0), arrive - 1):arrive + 1])) > tolerance:
+                continue
+            after = theta_new[max(arrive - k0 - 1, 0):]
+            if N > arrive and np.max(np.linalg.norm(after - end, axis=1)) > strays:
                 continue
             u[k0:N] = drive
             w[k0 + 1:N + 1] += moved[:, 0]
@@ -707,4 +716,4 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     w[-1] = 0.0
     return MotionPlan(position=theta, speed=w, drive=u, parameter=param, desired=y,
                       drive_fraction=drive_fraction, corner_times=corners, sample_period=Ts,
-                      corner_tolerance=float(corner_tolerance))
+                      arrival=landed, corner_tolerance=float(corner_tolerance))
