@@ -258,6 +258,24 @@ def test_bound_prints_the_time_optimal_bound(capsys):
     assert float(capsys.readouterr().out) == pytest.approx(382.86 / 50, rel=2e-3)
 
 
+def test_bound_sampled_prints_the_sampled_stop_bound(capsys):
+    """``bound --sampled``: the library's sampled bound of the Pi (no feed needed), a
+    whole number of samples below the time-optimal bound at 1 m/s; a closed path without
+    corners gets the dead first sample only (the bound ignores the path's shape)."""
+    from nurbsmotion.loop import to_pulses
+    from nurbsmotion.machine import die_bonder
+    from nurbsmotion.planning import sampled_stop_bound
+    machine = die_bonder()
+    assert main(["bound", "die-bonder-pi", "--sampled"]) == 0
+    got = float(capsys.readouterr().out)
+    assert got == pytest.approx(
+        sampled_stop_bound(to_pulses(nm.make_die_bonder_pi(), machine), machine))
+    assert got / machine.sample_period == pytest.approx(round(got / machine.sample_period))
+    assert got < 0.1153
+    assert main(["bound", "butterfly", "--sampled"]) == 0
+    assert float(capsys.readouterr().out) == pytest.approx(machine.sample_period)
+
+
 def test_run_defaults_to_planned_and_reports_in_mm(tmp_path, capsys):
     assert main(["run", "butterfly", "--feed", "100mm/s", "--out", str(tmp_path),
                  "--no-figures"]) == 0

@@ -24,7 +24,7 @@ from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .errors import InvalidArgumentError, NurbsmotionError
 from .interpolators import LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
 from .machine import Machine, load_machine
-from .planning import time_optimal_bound
+from .planning import sampled_stop_bound, time_optimal_bound
 
 __all__ = ["main", "parse_feed"]
 
@@ -153,6 +153,9 @@ def _cmd_bound(args) -> int:
     contour = _contour(args, machine)
     curve = contour.curve
     machine.check_path(curve.n_axes)
+    if args.sampled:
+        print(f"{sampled_stop_bound(to_pulses(curve, machine), machine):.6g}")
+        return 0
     cap = None if args.feed is None else units.feed_in_pulses(args.feed, curve, machine)
     feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s",
                             per_shown=units.pulses_per_report_unit(curve.units, machine),
@@ -636,6 +639,11 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--machine", default="die-bonder", help=machine_help)
     b.add_argument("--feed", type=parse_feed, help=feed_help)
     b.add_argument("--units", choices=PATH_UNITS, help=units_help)
+    b.add_argument("--sampled", action="store_true",
+                   help="print instead a lower bound for any sampled motion that stops at "
+                   "every sharp corner [s]: one dead first sample, then whole samples per "
+                   "piece, each at least what the slowest axis needs from rest to rest "
+                   "(ignores the feed and the path's shape; within 1 pulse of the end)")
     b.set_defaults(func=_cmd_bound)
 
     c = command("contours", "list the contours of a path file: index, pieces, length, "

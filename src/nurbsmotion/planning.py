@@ -521,9 +521,9 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
     on each axis, and slow enough to be within it at the next sample too: a motor speed
     w moves the axis by at least ``c*|w| - b1*Umax`` over a sample, so ``|w| <= (2*window
     + b1*Umax)/c``.
-    The path's shape and the feed are ignored (they only lengthen a motion), so this is a
-    bound, not a plan: on the die-bonder it is what no interpolator can beat, however it
-    treats the path between the corners.
+    The path's shape and the feed are ignored (they only lengthen a motion; a closed path
+    without corners gets the dead sample alone), so this is a bound, not a plan: no
+    interpolator beats it, however it treats the path between the corners.
 
     Parameters
     ----------
