@@ -13,6 +13,7 @@ from nurbsmotion.interpolators import make_interpolator, make_open_loop
 from nurbsmotion.loop import interpolate, run, simulate, to_pulses
 from nurbsmotion.machine import die_bonder
 from nurbsmotion.plots import plot_comparison, plot_setpoints, plot_trace, settling_time
+from nurbsmotion.units import pulses_per_report_unit
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -145,8 +146,9 @@ def test_settling_time_is_the_closed_loops_slowest_decay(machine):
 def test_settle_figure_measures_from_the_path_end_for_planned(machine, tmp_path,
                                                               monkeypatch):
     """``planned``'s setpoints lead the path, so the command at the finished sample is not
-    the end point: the settle figure plots the actual position minus the curve's end,
-    and its titles say the axes settled (the summary's settle time is finite)."""
+    the end point: the settle figure plots the actual position minus the curve's end (in
+    the report unit, mm: 1,000 pulses on the die-bonder), and its titles say the axes
+    settled (the summary's settle time is finite)."""
     from nurbsmotion import plots
 
     seen = {}
@@ -164,5 +166,8 @@ def test_settle_figure_measures_from_the_path_end_for_planned(machine, tmp_path,
     assert trace.metrics().settled
     plot_trace(trace, tmp_path)
     end = path.end_points[1]
-    assert seen["last"] == pytest.approx(list(trace.position[-1] - end), abs=1e-9)
+    per_mm = pulses_per_report_unit(path.units, machine)
+    assert per_mm == 1000.0
+    assert seen["last"] == pytest.approx(list((trace.position[-1] - end) / per_mm),
+                                         rel=1e-9, abs=1e-15)
     assert all("not within" not in t for t in seen["titles"][::2])

@@ -450,20 +450,23 @@ def _realise_into(y_cmd, alpha, beta, a, b0, w, theta, u):
 
 
 @njit(cache=True, fastmath={"nnan", "ninf", "nsz"})  # max in any order: exact
-def _precompensate(y, alpha, beta, a, b0, rounds, limit, y_cmd, w0, theta0, u0, w1,
+def _precompensate(y, alpha, beta, a, b0, rounds, limit, slack, y_cmd, w0, theta0, u0, w1,
                    theta1, u1):
     """:func:`_drive_sequence`'s rounds, compiled: ``y_cmd`` (in: ``y``, C-contiguous,
     shape (n, n_axes)) is corrected by the realised position's error each round.
     ``(w0, theta0, u0)`` and ``(w1, theta1, u1)`` (each shape (n, n_axes)) receive two
-    rounds: returned is the set (0 or 1) holding the round with the smallest error whose
-    drive stays within ``limit``, or -1 if there is none (then set 0 holds the last
-    round). The two sets take turns, so no round is copied, and they are separate arrays,
-    so the caller keeps the one it returns without the other."""
+    rounds. Returned are a set (0 or 1) and whether it is accepted: the set holding the
+    round with the smallest error whose drive stays within ``limit``, accepted if that
+    error is within ``slack`` [pulse] of the smallest error of any round; otherwise the
+    set holding the last round. The two sets take turns, so no round is copied, and they
+    are separate arrays, so the caller keeps the one it returns without the other."""
     n, n_axes = y.shape
     yf, cf = y.reshape(-1), y_cmd.reshape(-1)
     best_error = math.inf
+    least_error = math.inf
     best = -1
     cur = 0
+    last = 0
     for _ in range(rounds + 1):
         if cur == 0:
             w, theta, u = w0, theta0, u0
@@ -476,6 +479,8 @@ def _precompensate(y, alpha, beta, a, b0, rounds, limit, y_cmd, w0, theta0, u0, 
         for i in range(yf.shape[0]):  # flat: no branch, vectorised
             worst = max(worst, abs(yf[i] - tf[i]))
             peak = max(peak, abs(uf[i]))
+        least_error = min(least_error, worst)
+        last = cur
         improved = worst < best_error and peak <= limit
         if improved:
             best_error = worst
@@ -492,7 +497,9 @@ def _precompensate(y, alpha, beta, a, b0, rounds, limit, y_cmd, w0, theta0, u0, 
                 y_cmd[k, j] = y[n - 1, j]
         if improved:  # keep it: the next round goes to the other set
             cur = 1 - cur
-    return best
+    if best >= 0 and best_error <= least_error + slack:
+        return best, True
+    return last, False
 
 
 def _arrival(y: np.ndarray) -> int:
@@ -595,23 +602,24 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
 
 
 def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
-                    limit: float = math.inf):
+                    limit: float = math.inf, slack: float = math.inf):
     """Step 3: the drive sequence whose response follows ``y`` (see module docstring):
-    ``(w, theta, u)``, each shape (n, n_axes).
+    ``(w, theta, u)``, each shape (n, n_axes), and whether its drive is accepted.
 
     Rounds of pre-compensation until the realised position is within
-    :data:`PRECOMPENSATION_TOLERANCE` of ``y`` or ``rounds`` are done; returned is the
+    :data:`PRECOMPENSATION_TOLERANCE` of ``y`` or ``rounds`` are done. Accepted is the
     round with the smallest position error among those whose drive stays within ``limit``
-    [V] (the rest of the error is motion the drive cannot make), or the last round if none
-    does."""
+    [V], if that error is within ``slack`` [pulse] of the smallest error of any round
+    (the rest of the error is motion the drive cannot make); otherwise the last round is
+    returned, not accepted (its drive says where the limit is exceeded)."""
     a, b0, c, b1 = axis_zoh(machine)
     beta = b1 / b0
     alpha = c - a * beta
     y = np.ascontiguousarray(y, dtype=float)
     sets = [tuple(np.empty_like(y) for _ in range(3)) for _ in range(2)]
-    best = _precompensate(y, alpha, beta, a, b0, rounds, float(limit), y.copy(), *sets[0],
-                          *sets[1])
-    return sets[max(best, 0)]
+    kept, accepted = _precompensate(y, alpha, beta, a, b0, rounds, float(limit),
+                                    float(slack), y.copy(), *sets[0], *sets[1])
+    return (*sets[kept], accepted)
 
 
 def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
@@ -673,14 +681,20 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         y, param, corners = _desired_motion(curve, profile, Ts, corner_tolerance, lead)
         y = np.vstack([y, np.repeat(y[-1:], END_REST, axis=0)])
         param = np.concatenate([param, np.ones(END_REST)])
-        w, theta, u = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS)
-        if not math.isfinite(umax):
-            use = 0.0
+        # A round within the limit that is as near y as the best one, give or take what
+        # the loop cannot see (PRECOMPENSATION_TOLERANCE), ends the easing.
+        w, theta, u, accepted = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS,
+                                                drive_fraction * umax * (1 + 1e-9),
+                                                PRECOMPENSATION_TOLERANCE)
+        if accepted:
             break
         per_sample = np.max(np.abs(u), axis=1) / umax
+        if np.max(per_sample) <= drive_fraction * (1 + 1e-9):
+            # The last round is within the limit, but an earlier one beyond it was nearer
+            # y: ease where that one exceeds it.
+            w, theta, u, _ = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS)
+            per_sample = np.max(np.abs(u), axis=1) / umax
         use = float(np.max(per_sample))
-        if use <= drive_fraction * (1 + 1e-9):
-            break
         # Ease the profile's drive limit where the sampled drive exceeds it, over the
         # distance the motion covers while the averaging and the inverse see it.
         k = np.nonzero(per_sample > drive_fraction)[0]
@@ -702,10 +716,10 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     else:
         # The excess that easing could not remove comes from the pre-compensation's last
         # rounds (motion near the Nyquist frequency): keep its last round within the limit.
-        w, theta, u = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS,
-                                      drive_fraction * umax * (1 + 1e-9))
-        use = float(np.max(np.abs(u))) / umax
-        if use > drive_fraction * (1 + 1e-9):
+        w, theta, u, accepted = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS,
+                                                drive_fraction * umax * (1 + 1e-9))
+        if not accepted:
+            use = float(np.max(np.abs(u))) / umax
             raise InfeasibleError(
                 f"the planned drive needs {use:.3g} x Umax after {DRIVE_FIT_ROUNDS} rounds "
                 "of easing the path speed's drive limit where it exceeds it")
