@@ -291,6 +291,37 @@ def test_plan_lands_before_the_desired_motion_creeps_in(monkeypatch):
     np.testing.assert_allclose(speed, plan.speed, atol=1e-6, rtol=1e-9)
 
 
+@pytest.mark.parametrize("seed, feed", [(0, 2e5), (28, 1e6), (30, 1e6)])
+def test_short_move_rests_as_soon_as_the_drive_allows(seed, feed, monkeypatch):
+    """Random short moves (bound 4-12 ms, mostly near the Nyquist frequency): step 6
+    compresses the desired motion in time and solves every drive at once, so the plan
+    rests on the end 1-2 samples sooner than the landing alone, within Umax, still the
+    model plant's response to its drive (ServoPlant), and no farther from the curve than
+    the plan it replaces (exact distances, metrics.contour_error); run on the nominal
+    plant it settles when its plan rests and passes the end by under 1 um."""
+    from nurbsmotion import motion_plan as mp
+    from nurbsmotion.metrics import settle_time
+    from nurbsmotion.paths.random_paths import random_path
+    curve = random_path("short_moves", [10, seed], n_axes=2)
+    with monkeypatch.context() as patch:
+        patch.setattr(mp, "_compress", lambda *args: None)
+        before = plan_motion(curve, MACHINE, feed)
+    plan = plan_motion(curve, MACHINE, feed)
+    assert plan.arrival < before.arrival
+    end = curve(1.0)
+    np.testing.assert_array_equal(plan.position[plan.arrival:],
+                                  np.broadcast_to(end, plan.position[plan.arrival:].shape))
+    assert np.max(np.abs(plan.drive)) <= MACHINE.max_drive
+    speed, position = ServoPlant.of_machine(MACHINE, curve(0.0)).response(plan.drive[:-1])
+    np.testing.assert_allclose(position, plan.position, atol=1e-6)
+    np.testing.assert_allclose(speed, plan.speed, atol=1e-6, rtol=1e-9)
+    was = max(mp.PRECOMPENSATION_TOLERANCE, float(np.max(contour_error(curve, before.position))))
+    assert np.max(contour_error(curve, plan.position)) <= was + 0.01
+    tr = simulate(PlannedInterpolator(curve, MACHINE, feed), MACHINE, settle_time=0.02)
+    assert settle_time(tr.t, tr.position, end) <= plan.arrival * MACHINE.sample_period + 1e-12
+    assert tr.metrics().end_overshoot <= 1.0
+
+
 @pytest.mark.parametrize("feed, settle_ratio", [(2e5, 1.03), (1e6, 1.10)])
 def test_planned_pi_nominal(feed, settle_ratio):
     """Pi, nominal plant: no saturated sample, contour error <= 5 um, end overshoot

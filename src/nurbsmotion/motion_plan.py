@@ -8,7 +8,7 @@ state ``x = [w, theta]``,
     theta[k+1] = theta[k] + c*w[k] + b1*u[k]
 
 so a drive sequence u[k] determines the motion, and a motion determines its drive. The plan
-is built offline in five steps:
+is built offline in six steps:
 
 1. **Path speed.** The time-optimal speed along the path (:func:`planning.speed_profile`:
    phase-plane passes under the feedforward drive limit ``|tau*xdd + xd| <= f*Umax*Kc*Ke``,
@@ -53,6 +53,11 @@ is built offline in five steps:
    samples after; where that is not possible and the plan rings about the end after the
    arrival (a short, fast move), at the earliest of the next as many samples that stays
    as near the end.
+6. **Short moves** (:func:`_compress`; at most :data:`LANDING_SAMPLES` samples, no stop
+   corner, no blend). The desired motion is compressed in time to rest at each earlier
+   sample in turn, from the first profile's duration on, and every drive is solved at
+   once, exactly at rest on the end; the first that stays within the drive limit, as
+   near the curve as the plan and short of the end, replaces the plan.
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
@@ -519,6 +524,45 @@ def _distance_to_polyline(points: np.ndarray, vertices: np.ndarray) -> np.ndarra
     return np.min(np.linalg.norm(rel - t[..., None] * ab, axis=-1), axis=1)
 
 
+def _impulse_responses(machine: Machine, size: int) -> np.ndarray:
+    """``h[j, p] = A^p B`` of every axis' ZOH plant (SPEC section 3), p < ``size``: the
+    change of [speed, position] p + 1 samples after a unit drive. Shape (n_axes, size, 2)."""
+    a, b0, c, b1 = axis_zoh(machine)
+    h = np.empty((len(a), size, 2))
+    h[:, 0, 0], h[:, 0, 1] = b0, b1
+    for p in range(1, size):
+        h[:, p, 0] = a * h[:, p - 1, 0]
+        h[:, p, 1] = c * h[:, p - 1, 0] + h[:, p - 1, 1]
+    return h
+
+
+def _rest_on_end(h: np.ndarray, theta: np.ndarray, w: np.ndarray, target: np.ndarray,
+                 end: np.ndarray, k0: int, N: int):
+    """The least change of the drives k0 .. N - 1 (m = N - k0 <= ``h.shape[1]`` of them)
+    that puts the plant at rest on ``end`` at sample N: per axis, equality-constrained
+    least squares of the positions ``theta[k0 + 1:N]`` (the plant's, shape (>N, n_axes),
+    with its speeds ``w``) against ``target``. The plant is linear, so a change du of the
+    drives moves sample k by ``sum_i h[k - 1 - i] du[i]``. Returns ``du`` (m, n_axes) and
+    the change it makes to [w, theta] at samples k0 + 1 .. N, shape (m, 2, n_axes)."""
+    m = N - k0
+    n_axes = h.shape[0]
+    lag = np.subtract.outer(np.arange(m), np.arange(m))  # row q: sample k0 + q + 1
+    du = np.empty((m, n_axes))
+    moved = np.empty((m, 2, n_axes))
+    for j in range(n_axes):
+        Hw, H = (np.where(lag >= 0, h[j, np.clip(lag, 0, m - 1), i], 0.0) for i in (0, 1))
+        E = np.vstack([Hw[m - 1], H[m - 1]])
+        kkt = np.zeros((m + 2, m + 2))
+        kkt[:m, :m] = H[:-1].T @ H[:-1]
+        kkt[:m, m:] = E.T
+        kkt[m:, :m] = E
+        rhs = np.concatenate([-H[:-1].T @ (theta[k0 + 1:N, j] - target[k0 + 1:N, j]),
+                              [-w[N, j], end[j] - theta[N, j]]])
+        du[:, j] = np.linalg.lstsq(kkt, rhs, rcond=None)[0][:m]
+        moved[:, 0, j], moved[:, 1, j] = Hw @ du[:, j], H @ du[:, j]
+    return du, moved
+
+
 def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
                  machine: Machine, limit: float) -> int:
     """Step 5: bring the plan to rest exactly on the end, at the earliest sample N the
@@ -549,38 +593,18 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
         return arrive
     if float(np.max(np.abs(theta[arrive - 1:] - y[arrive - 1:]))) == 0.0:
         return arrive
-    a, b0, c, b1 = axis_zoh(machine)
     reach = INVERSE_REACH + 1
     strays = float(np.max(np.linalg.norm(theta[arrive:] - end, axis=1)))
     later = min(reach, len(y) - 1 - arrive) if strays > PRECOMPENSATION_TOLERANCE else 0
-    size = min(arrive - 1 + later, LANDING_SAMPLES)
-    h = np.empty((len(a), size, 2))              # h[j, p] = A^p B: [speed, position]
-    h[:, 0, 0], h[:, 0, 1] = b0, b1
-    for p in range(1, size):
-        h[:, p, 0] = a * h[:, p - 1, 0]
-        h[:, p, 1] = c * h[:, p - 1, 0] + h[:, p - 1, 1]
+    h = _impulse_responses(machine, min(arrive - 1 + later, LANDING_SAMPLES))
     for N in range(max(arrive - reach, 2), arrive + later + 1):
-        most = min(N - 1, size if N >= arrive else reach)
+        most = min(N - 1, h.shape[1] if N >= arrive else reach)
         first = max(N - most - 1, 0)
         tolerance = max(PRECOMPENSATION_TOLERANCE,
                         float(np.max(np.abs(theta[first:] - y[first:]))))
         for m in range(2, most + 1):
             k0 = N - m
-            lag = np.subtract.outer(np.arange(m), np.arange(m))  # row q: sample k0 + q + 1
-            du = np.empty((m, len(a)))
-            moved = np.empty((m, 2, len(a)))  # the change of [w, theta] at k0 + 1 .. N
-            for j in range(len(a)):
-                Hw, H = (np.where(lag >= 0, h[j, np.clip(lag, 0, m - 1), i], 0.0)
-                         for i in (0, 1))
-                E = np.vstack([Hw[m - 1], H[m - 1]])
-                kkt = np.zeros((m + 2, m + 2))
-                kkt[:m, :m] = H[:-1].T @ H[:-1]
-                kkt[:m, m:] = E.T
-                kkt[m:, :m] = E
-                rhs = np.concatenate([-H[:-1].T @ (theta[k0 + 1:N, j] - y[k0 + 1:N, j]),
-                                      [-w[N, j], end[j] - theta[N, j]]])
-                du[:, j] = np.linalg.lstsq(kkt, rhs, rcond=None)[0][:m]
-                moved[:, 0, j], moved[:, 1, j] = Hw @ du[:, j], H @ du[:, j]
+            du, moved = _rest_on_end(h, theta, w, y, end, k0, N)
             drive = u[k0:N] + du
             if np.max(np.abs(drive)) > limit:
                 continue
@@ -599,6 +623,75 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
             theta[N:] = end
             return N
     return arrive
+
+
+COMPRESS_FINE = 32
+"""Curve points per sample interval of the path that step 6 measures a plan's distance to
+(the chord of a sample interval on a curvy short move leaves the curve by pulses; a 32nd of
+it by a thousandth as much)."""
+
+
+def _compress(curve: NurbsCurve, y: np.ndarray, param: np.ndarray, theta: np.ndarray,
+              arrival: int, machine: Machine, limit: float, earliest: int):
+    """Step 6: a short move (``arrival`` <= :data:`LANDING_SAMPLES`) that does not stop
+    on the way, at rest on the end at the earliest sample N from ``earliest`` on at which
+    the desired motion, compressed in time to arrive at N, can be followed; None if none
+    before ``arrival`` (and before the plan ``theta`` stays within its own accuracy of
+    the end) can.
+
+    On a short, fast move the desired motion is mostly near the Nyquist frequency, where
+    the pre-compensation of step 3 converges slowest and the easing of step 4 pays most:
+    the plan may come to rest samples after the drive could have brought it there. For
+    each N the desired positions ``y`` (n, n_axes) are resampled at ``(k - 1)*(arrival -
+    1)/(N - 1) + 1`` (the lead kept, linear between samples, the parameters ``param``
+    alike) and every drive from u[1] on is solved at once (:func:`_rest_on_end`). It is
+    kept if the drive stays within ``limit`` [V], the positions stay as near the curve
+    (:data:`COMPRESS_FINE` points per sample interval of the desired motion) as the plan
+    ``theta`` is (at least within :data:`PRECOMPENSATION_TOLERANCE`), and no sample whose
+    nearest of those points is the end passes it along the curve's tangent there by more
+    than that tolerance. Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 +
+    :data:`END_REST` samples."""
+    end, start = y[arrival], y[0]
+    index = np.arange(arrival + 1, dtype=float)
+    path = curve(np.interp(np.linspace(0.0, arrival, COMPRESS_FINE * arrival + 1), index,
+                           param[:arrival + 1]))
+    tolerance = max(PRECOMPENSATION_TOLERANCE,
+                    float(np.max(_distance_to_polyline(theta[:arrival + 1], path))))
+    tangent = curve(1.0, 1, "left")
+    tangent = tangent / max(float(np.linalg.norm(tangent)), 1e-300)
+    h = _impulse_responses(machine, arrival)
+    # the plan is within its own accuracy of the end from here on: only sooner is better
+    away = np.flatnonzero(np.linalg.norm(theta[:arrival + 1] - end, axis=1) > tolerance)
+    near = int(away[-1]) + 1 if away.size else 0
+    for N in range(max(earliest, 3), min(arrival, near)):
+        n = N + 1 + END_REST
+        source = np.minimum(1.0 + (np.arange(n) - 1.0) * (arrival - 1) / (N - 1), arrival)
+        source[0] = 0.0
+        new_param = np.interp(source, index, param[:arrival + 1])
+        target = curve(new_param)
+        rest = np.broadcast_to(start, target.shape)
+        du, moved = _rest_on_end(h, rest, np.zeros(target.shape), target, end, 1, N)
+        if np.max(np.abs(du)) > limit:
+            continue
+        positions = np.vstack([start, start, moved[:, 1]])
+        off = _distance_to_polyline(positions, path)
+        # past the end: the samples whose nearest point of the path is the end
+        past = np.linalg.norm(positions - end, axis=1) <= off * (1 + 1e-9) + 1e-12
+        if np.max(off) > tolerance or np.max((positions[past] - end) @ tangent,
+                                             initial=0.0) > PRECOMPENSATION_TOLERANCE:
+            continue
+        u = np.zeros_like(target)
+        u[1:N] = du
+        w = np.zeros_like(target)
+        w[2:N + 1] = moved[:, 0]
+        theta = np.broadcast_to(end, target.shape).copy()
+        theta[:N + 1] = positions
+        w[N] = 0.0
+        theta[N] = end
+        target[N:] = end
+        new_param[N:] = 1.0
+        return N, target, new_param, w, theta, u
+    return None
 
 
 def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
@@ -670,10 +763,12 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     last_use = math.inf
     widen = 1.0
     initial_grid = grid_size
+    fastest = math.inf  # the first profile's duration: no plan is faster [s]
     for _ in range(DRIVE_FIT_ROUNDS):
         profile = speed_profile(curve, machine, feed, drive_fraction=drive_fraction,
                                 drive_scale=drive_scale if eases else None,
                                 grid_size=grid_size, grids=grids)
+        fastest = min(fastest, profile.duration)
         if profile.duration / Ts > max_samples:
             raise InfeasibleError(
                 f"the planned motion takes {profile.duration:g} s, more than "
@@ -726,6 +821,11 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax)
     y[landed:] = y[-1]       # the desired motion rests where the plan does
     param[landed:] = 1.0
+    if landed <= LANDING_SAMPLES and corners.size == 0:
+        short = _compress(curve, y, param, theta, landed, machine, drive_fraction * umax,
+                          lead + int(math.ceil(fastest / Ts - 1e-9)))
+        if short is not None:
+            landed, y, param, w, theta, u = short
     theta[-1] = y[-1]
     w[-1] = 0.0
     return MotionPlan(position=theta, speed=w, drive=u, parameter=param, desired=y,
