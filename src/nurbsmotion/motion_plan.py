@@ -50,9 +50,7 @@ is built offline in six steps:
    puts the plant at rest exactly on the end, at the earliest sample (up to
    ``INVERSE_REACH + 1`` before the desired motion arrives there) at which the drive
    allows it without leaving the desired path, instead of approaching it over the
-   samples after; where that is not possible and the plan rings about the end after the
-   arrival (a short, fast move), at the earliest of the next as many samples that stays
-   as near the end.
+   samples after.
 6. **Short moves** (:func:`_compress`; at most :data:`LANDING_SAMPLES` samples, no stop
    corner, no blend). The desired motion is compressed in time to rest at each earlier
    sample in turn, from the first profile's duration on, and every drive is solved at
@@ -176,8 +174,9 @@ class MotionPlan:
         Ts [s].
     arrival : int
         The first sample from which the plan and its desired motion rest on the end: where
-        the landing (step 5) puts the plan exactly there; where it could not, the sample
-        from which the desired motion does (0 if it never leaves the start).
+        the landing (step 5) or a short move's compression (step 6) puts the plan exactly
+        there; where neither could, the sample from which the desired motion does (0 if it
+        never leaves the start).
     corner_tolerance : float
         eps [pulse] the plan was made with (0: it stops at every sharp corner).
     """
@@ -524,6 +523,15 @@ def _distance_to_polyline(points: np.ndarray, vertices: np.ndarray) -> np.ndarra
     return np.min(np.linalg.norm(rel - t[..., None] * ab, axis=-1), axis=1)
 
 
+def _past_end(positions: np.ndarray, off: np.ndarray, end: np.ndarray,
+              tangent: np.ndarray) -> float:
+    """How far [pulse] the ``positions`` (m, n_axes) whose nearest point of a path is its
+    ``end`` (their distance ``off`` to the path, shape (m,), is their distance to the end)
+    pass it along the path's unit ``tangent`` there (0 if none does)."""
+    past = np.linalg.norm(positions - end, axis=1) <= off * (1 + 1e-9) + 1e-12
+    return float(np.max((positions[past] - end) @ tangent, initial=0.0))
+
+
 def _impulse_responses(machine: Machine, size: int) -> np.ndarray:
     """``h[j, p] = A^p B`` of every axis' ZOH plant (SPEC section 3), p < ``size``: the
     change of [speed, position] p + 1 samples after a unit drive. Shape (n_axes, size, 2)."""
@@ -564,9 +572,10 @@ def _rest_on_end(h: np.ndarray, theta: np.ndarray, w: np.ndarray, target: np.nda
 
 
 def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
-                 machine: Machine, limit: float) -> int:
+                 machine: Machine, limit: float, tangent: np.ndarray) -> int:
     """Step 5: bring the plan to rest exactly on the end, at the earliest sample N the
-    drive allows (in place). Returns N (the arrival if the plan is left as it is).
+    drive allows, no later than the sample where the desired motion arrives there (in
+    place). Returns N (the arrival if the plan is left as it is).
 
     What the pre-compensation leaves (a pulse or two on a short, fast move, whose motion
     is mostly near the Nyquist frequency) ends as a slow approach to the end after the
@@ -579,14 +588,12 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     the window's positions) is applied, and the drive is 0 after N. It is kept if the
     changed drive is within ``limit`` [V] and the window's positions stay as near the
     desired path (the polyline through ``y``) as the plan was to ``y`` there (at least
-    within :data:`PRECOMPENSATION_TOLERANCE`). N runs from the arrival less the samples
+    within :data:`PRECOMPENSATION_TOLERANCE`) and none passes the end along the path's
+    unit ``tangent`` there by more than that tolerance (:func:`_past_end`). N runs from
+    the arrival less the samples
     the averaging and the inverse shape (``INVERSE_REACH + 1``), changing at most that
     many drives, up to the arrival itself, where m grows up to :data:`LANDING_SAMPLES`
-    (and N - 1: u[0] = 0 stays). If none does and the plan strays from the end after the
-    arrival by more than :data:`PRECOMPENSATION_TOLERANCE` (on a short, fast move it
-    rings there for several samples, by a pulse or two), N runs on up to that many
-    samples after the arrival, kept only if the plan then strays from the end by no more
-    than it did; if none does, the plan is left as it is."""
+    (and N - 1: u[0] = 0 stays); if none does, the plan is left as it is."""
     end = y[-1]
     arrive = _arrival(y)
     if arrive < 2 or arrive >= len(y):
@@ -594,11 +601,9 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     if float(np.max(np.abs(theta[arrive - 1:] - y[arrive - 1:]))) == 0.0:
         return arrive
     reach = INVERSE_REACH + 1
-    strays = float(np.max(np.linalg.norm(theta[arrive:] - end, axis=1)))
-    later = min(reach, len(y) - 1 - arrive) if strays > PRECOMPENSATION_TOLERANCE else 0
-    h = _impulse_responses(machine, min(arrive - 1 + later, LANDING_SAMPLES))
-    for N in range(max(arrive - reach, 2), arrive + later + 1):
-        most = min(N - 1, h.shape[1] if N >= arrive else reach)
+    h = _impulse_responses(machine, min(arrive - 1, LANDING_SAMPLES))
+    for N in range(max(arrive - reach, 2), arrive + 1):
+        most = min(N - 1, h.shape[1] if N == arrive else reach)
         first = max(N - most - 1, 0)
         tolerance = max(PRECOMPENSATION_TOLERANCE,
                         float(np.max(np.abs(theta[first:] - y[first:]))))
@@ -609,11 +614,10 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
             if np.max(np.abs(drive)) > limit:
                 continue
             theta_new = theta[k0 + 1:N + 1] + moved[:, 1]
-            if np.max(_distance_to_polyline(
-                    theta_new, y[min(max(k0 - 1, 0), arrive - 1):arrive + 1])) > tolerance:
-                continue
-            after = theta_new[max(arrive - k0 - 1, 0):]
-            if N > arrive and np.max(np.linalg.norm(after - end, axis=1)) > strays:
+            off = _distance_to_polyline(theta_new,
+                                        y[min(max(k0 - 1, 0), arrive - 1):arrive + 1])
+            if np.max(off) > tolerance \
+                    or _past_end(theta_new, off, end, tangent) > PRECOMPENSATION_TOLERANCE:
                 continue
             u[k0:N] = drive
             w[k0 + 1:N + 1] += moved[:, 0]
@@ -632,7 +636,8 @@ it by a thousandth as much)."""
 
 
 def _compress(curve: NurbsCurve, y: np.ndarray, param: np.ndarray, theta: np.ndarray,
-              arrival: int, machine: Machine, limit: float, earliest: int):
+              arrival: int, machine: Machine, limit: float, earliest: int,
+              tangent: np.ndarray):
     """Step 6: a short move (``arrival`` <= :data:`LANDING_SAMPLES`) that does not stop
     on the way, at rest on the end at the earliest sample N from ``earliest`` on at which
     the desired motion, compressed in time to arrive at N, can be followed; None if none
@@ -647,9 +652,9 @@ def _compress(curve: NurbsCurve, y: np.ndarray, param: np.ndarray, theta: np.nda
     alike) and every drive from u[1] on is solved at once (:func:`_rest_on_end`). It is
     kept if the drive stays within ``limit`` [V], the positions stay as near the curve
     (:data:`COMPRESS_FINE` points per sample interval of the desired motion) as the plan
-    ``theta`` is (at least within :data:`PRECOMPENSATION_TOLERANCE`), and no sample whose
-    nearest of those points is the end passes it along the curve's tangent there by more
-    than that tolerance. Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 +
+    ``theta`` is (at least within :data:`PRECOMPENSATION_TOLERANCE`), and no sample passes
+    the end along the curve's unit ``tangent`` there by more than that tolerance
+    (:func:`_past_end`). Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 +
     :data:`END_REST` samples."""
     end, start = y[arrival], y[0]
     index = np.arange(arrival + 1, dtype=float)
@@ -657,8 +662,6 @@ def _compress(curve: NurbsCurve, y: np.ndarray, param: np.ndarray, theta: np.nda
                            param[:arrival + 1]))
     tolerance = max(PRECOMPENSATION_TOLERANCE,
                     float(np.max(_distance_to_polyline(theta[:arrival + 1], path))))
-    tangent = curve(1.0, 1, "left")
-    tangent = tangent / max(float(np.linalg.norm(tangent)), 1e-300)
     h = _impulse_responses(machine, arrival)
     # the plan is within its own accuracy of the end from here on: only sooner is better
     away = np.flatnonzero(np.linalg.norm(theta[:arrival + 1] - end, axis=1) > tolerance)
@@ -675,10 +678,8 @@ def _compress(curve: NurbsCurve, y: np.ndarray, param: np.ndarray, theta: np.nda
             continue
         positions = np.vstack([start, start, moved[:, 1]])
         off = _distance_to_polyline(positions, path)
-        # past the end: the samples whose nearest point of the path is the end
-        past = np.linalg.norm(positions - end, axis=1) <= off * (1 + 1e-9) + 1e-12
-        if np.max(off) > tolerance or np.max((positions[past] - end) @ tangent,
-                                             initial=0.0) > PRECOMPENSATION_TOLERANCE:
+        if np.max(off) > tolerance \
+                or _past_end(positions, off, end, tangent) > PRECOMPENSATION_TOLERANCE:
             continue
         u = np.zeros_like(target)
         u[1:N] = du
@@ -818,12 +819,14 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
             raise InfeasibleError(
                 f"the planned drive needs {use:.3g} x Umax after {DRIVE_FIT_ROUNDS} rounds "
                 "of easing the path speed's drive limit where it exceeds it")
-    landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax)
+    tangent = curve(1.0, 1, "left")
+    tangent = tangent / max(float(np.linalg.norm(tangent)), 1e-300)
+    landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax, tangent)
     y[landed:] = y[-1]       # the desired motion rests where the plan does
     param[landed:] = 1.0
     if landed <= LANDING_SAMPLES and corners.size == 0:
         short = _compress(curve, y, param, theta, landed, machine, drive_fraction * umax,
-                          lead + int(math.ceil(fastest / Ts - 1e-9)))
+                          lead + int(math.ceil(fastest / Ts - 1e-9)), tangent)
         if short is not None:
             landed, y, param, w, theta, u = short
     theta[-1] = y[-1]
