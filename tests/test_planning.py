@@ -291,11 +291,11 @@ def test_plan_lands_before_the_desired_motion_creeps_in(monkeypatch):
     np.testing.assert_allclose(speed, plan.speed, atol=1e-6, rtol=1e-9)
 
 
-@pytest.mark.parametrize("seed, feed", [(0, 2e5), (28, 1e6), (30, 1e6)])
+@pytest.mark.parametrize("seed, feed", [(0, 1e6), (30, 1e6), (50, 2e5), (78, 1e6)])
 def test_short_move_rests_as_soon_as_the_drive_allows(seed, feed, monkeypatch):
     """Random short moves (bound 4-12 ms, mostly near the Nyquist frequency): step 6
     compresses the desired motion in time and solves every drive at once, so the plan
-    rests on the end 1-2 samples sooner than the landing alone, within Umax, still the
+    rests on the end a sample sooner than the landing alone, within Umax, still the
     model plant's response to its drive (ServoPlant), and no farther from the curve than
     the plan it replaces (exact distances, metrics.contour_error); run on the nominal
     plant it settles when its plan rests and passes the end by under 1 um."""

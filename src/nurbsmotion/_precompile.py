@@ -96,7 +96,7 @@ def examples_here(interpolator: str) -> list[tuple]:
     if interpolator == "planned":
         pairs += [(motion_plan._averaged_arc, (f(2), f(2), f(2), 0.0, 0, 0, f(1), f(1))),
                   (motion_plan._precompensate, (f(1, 1), f(1), f(1), f(1), f(1), 0, 0.0,
-                                                0.0, *(f(1, 1) for _ in range(7)))),
+                                                0.0, *(f(1, 1) for _ in range(7)), f(1))),
                   (planned._support_into, (f(1, 1), f(1, 1), np.zeros(2, np.int64), 0,
                                            f(1, 1, 1)))]
     return pairs

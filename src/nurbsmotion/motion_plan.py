@@ -455,22 +455,23 @@ def _realise_into(y_cmd, alpha, beta, a, b0, w, theta, u):
 
 @njit(cache=True, fastmath={"nnan", "ninf", "nsz"})  # max in any order: exact
 def _precompensate(y, alpha, beta, a, b0, rounds, limit, slack, y_cmd, w0, theta0, u0, w1,
-                   theta1, u1):
+                   theta1, u1, peaks):
     """:func:`_drive_sequence`'s rounds, compiled: ``y_cmd`` (in: ``y``, C-contiguous,
     shape (n, n_axes)) is corrected by the realised position's error each round.
     ``(w0, theta0, u0)`` and ``(w1, theta1, u1)`` (each shape (n, n_axes)) receive two
     rounds. Returned are a set (0 or 1) and whether it is accepted: the set holding the
     round with the smallest error whose drive stays within ``limit``, accepted if that
-    error is within ``slack`` [pulse] of the smallest error of any round; otherwise the
-    set holding the last round. The two sets take turns, so no round is copied, and they
-    are separate arrays, so the caller keeps the one it returns without the other."""
+    error is within ``slack`` [pulse] of the smallest error of any round (-1 and not
+    accepted if no round is within the limit). The two sets take turns, so no round is
+    copied, and they are separate arrays, so the caller keeps the one it returns without
+    the other. ``peaks`` (n,) receives the largest |drive| of every sample [V] in the
+    round with the smallest error (where the drive limit must be eased)."""
     n, n_axes = y.shape
     yf, cf = y.reshape(-1), y_cmd.reshape(-1)
     best_error = math.inf
     least_error = math.inf
     best = -1
     cur = 0
-    last = 0
     for _ in range(rounds + 1):
         if cur == 0:
             w, theta, u = w0, theta0, u0
@@ -483,8 +484,13 @@ def _precompensate(y, alpha, beta, a, b0, rounds, limit, slack, y_cmd, w0, theta
         for i in range(yf.shape[0]):  # flat: no branch, vectorised
             worst = max(worst, abs(yf[i] - tf[i]))
             peak = max(peak, abs(uf[i]))
-        least_error = min(least_error, worst)
-        last = cur
+        if worst < least_error:
+            least_error = worst
+            for k in range(n):
+                top = 0.0
+                for j in range(n_axes):
+                    top = max(top, abs(u[k, j]))
+                peaks[k] = top
         improved = worst < best_error and peak <= limit
         if improved:
             best_error = worst
@@ -501,9 +507,7 @@ def _precompensate(y, alpha, beta, a, b0, rounds, limit, slack, y_cmd, w0, theta
                 y_cmd[k, j] = y[n - 1, j]
         if improved:  # keep it: the next round goes to the other set
             cur = 1 - cur
-    if best >= 0 and best_error <= least_error + slack:
-        return best, True
-    return last, False
+    return best, best >= 0 and best_error <= least_error + slack
 
 
 def _arrival(y: np.ndarray) -> int:
@@ -647,9 +651,10 @@ def _compress(curve: NurbsCurve, y: np.ndarray, param: np.ndarray, theta: np.nda
     On a short, fast move the desired motion is mostly near the Nyquist frequency, where
     the pre-compensation of step 3 converges slowest and the easing of step 4 pays most:
     the plan may come to rest samples after the drive could have brought it there. For
-    each N the desired positions ``y`` (n, n_axes) are resampled at ``(k - 1)*(arrival -
-    1)/(N - 1) + 1`` (the lead kept, linear between samples, the parameters ``param``
-    alike) and every drive from u[1] on is solved at once (:func:`_rest_on_end`). It is
+    each N the desired motion's parameters ``param`` (n,) are resampled at ``(k -
+    1)*(arrival - 1)/(N - 1) + 1`` (the lead kept; linear between samples), the curve's
+    points there are the target, and every drive from u[1] on is solved at once
+    (:func:`_rest_on_end`; ``y`` (n, n_axes) gives the start and the end). It is
     kept if the drive stays within ``limit`` [V], the positions stay as near the curve
     (:data:`COMPRESS_FINE` points per sample interval of the desired motion) as the plan
     ``theta`` is (at least within :data:`PRECOMPENSATION_TOLERANCE`), and no sample passes
@@ -698,22 +703,24 @@ def _compress(curve: NurbsCurve, y: np.ndarray, param: np.ndarray, theta: np.nda
 def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
                     limit: float = math.inf, slack: float = math.inf):
     """Step 3: the drive sequence whose response follows ``y`` (see module docstring):
-    ``(w, theta, u)``, each shape (n, n_axes), and whether its drive is accepted.
+    ``(w, theta, u)``, each shape (n, n_axes), or None, and the largest |drive| of every
+    sample [V], shape (n,), in the round nearest ``y``.
 
     Rounds of pre-compensation until the realised position is within
-    :data:`PRECOMPENSATION_TOLERANCE` of ``y`` or ``rounds`` are done. Accepted is the
+    :data:`PRECOMPENSATION_TOLERANCE` of ``y`` or ``rounds`` are done. Returned is the
     round with the smallest position error among those whose drive stays within ``limit``
     [V], if that error is within ``slack`` [pulse] of the smallest error of any round
-    (the rest of the error is motion the drive cannot make); otherwise the last round is
-    returned, not accepted (its drive says where the limit is exceeded)."""
+    (the rest of the error is motion the drive cannot make); None otherwise (the peaks
+    say where the limit is exceeded)."""
     a, b0, c, b1 = axis_zoh(machine)
     beta = b1 / b0
     alpha = c - a * beta
     y = np.ascontiguousarray(y, dtype=float)
     sets = [tuple(np.empty_like(y) for _ in range(3)) for _ in range(2)]
+    peaks = np.empty(len(y))
     kept, accepted = _precompensate(y, alpha, beta, a, b0, rounds, float(limit),
-                                    float(slack), y.copy(), *sets[0], *sets[1])
-    return (*sets[kept], accepted)
+                                    float(slack), y.copy(), *sets[0], *sets[1], peaks)
+    return (sets[kept] if accepted else None), peaks
 
 
 def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
@@ -779,17 +786,12 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         param = np.concatenate([param, np.ones(END_REST)])
         # A round within the limit that is as near y as the best one, give or take what
         # the loop cannot see (PRECOMPENSATION_TOLERANCE), ends the easing.
-        w, theta, u, accepted = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS,
-                                                drive_fraction * umax * (1 + 1e-9),
-                                                PRECOMPENSATION_TOLERANCE)
-        if accepted:
+        plant, peaks = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS,
+                                       drive_fraction * umax * (1 + 1e-9),
+                                       PRECOMPENSATION_TOLERANCE)
+        if plant is not None:
             break
-        per_sample = np.max(np.abs(u), axis=1) / umax
-        if np.max(per_sample) <= drive_fraction * (1 + 1e-9):
-            # The last round is within the limit, but an earlier one beyond it was nearer
-            # y: ease where that one exceeds it.
-            w, theta, u, _ = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS)
-            per_sample = np.max(np.abs(u), axis=1) / umax
+        per_sample = peaks / umax
         use = float(np.max(per_sample))
         # Ease the profile's drive limit where the sampled drive exceeds it, over the
         # distance the motion covers while the averaging and the inverse see it.
@@ -812,13 +814,14 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     else:
         # The excess that easing could not remove comes from the pre-compensation's last
         # rounds (motion near the Nyquist frequency): keep its last round within the limit.
-        w, theta, u, accepted = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS,
-                                                drive_fraction * umax * (1 + 1e-9))
-        if not accepted:
-            use = float(np.max(np.abs(u))) / umax
+        plant, peaks = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS,
+                                       drive_fraction * umax * (1 + 1e-9))
+        if plant is None:
+            use = float(np.max(peaks)) / umax
             raise InfeasibleError(
                 f"the planned drive needs {use:.3g} x Umax after {DRIVE_FIT_ROUNDS} rounds "
                 "of easing the path speed's drive limit where it exceeds it")
+    w, theta, u = plant
     tangent = curve(1.0, 1, "left")
     tangent = tangent / max(float(np.linalg.norm(tangent)), 1e-300)
     landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax, tangent)
