@@ -69,6 +69,7 @@ import numpy as np
 from numba import njit
 
 from .. import stepping
+from .._memory import release_freed_memory
 from ..control import pid_affine, pid_output
 from ..errors import InfeasibleError
 from ..feed import FeedLimit
@@ -636,6 +637,7 @@ class PlannedInterpolator(Interpolator):
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole, rest=rest, approach=approach,
             direction=direction)
+        release_freed_memory()  # the plan's temporaries, before a long run's peak
 
     def nominal_duration(self) -> float:
         return self.duration
