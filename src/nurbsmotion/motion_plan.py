@@ -80,7 +80,7 @@ from .geometry import distances_to
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .planning import SpeedProfile, speed_profile
-from .servo import zoh_matrices
+from .servo import zoh_coefficients
 
 __all__ = ["MotionPlan", "plan_motion", "axis_zoh"]
 
@@ -136,14 +136,9 @@ drives."""
 
 
 def axis_zoh(machine: Machine):
-    """Per-axis coefficients ``(a, b0, c, b1)`` of the exact ZOH plant, each shape (n_axes,)."""
-    mats = [zoh_matrices(t, k, e, machine.sample_period)
-            for t, k, e in zip(machine.tau, machine.Kc, machine.Ke)]
-    a = np.array([A[0, 0] for A, _ in mats])
-    c = np.array([A[1, 0] for A, _ in mats])
-    b0 = np.array([B[0] for _, B in mats])
-    b1 = np.array([B[1] for _, B in mats])
-    return a, b0, c, b1
+    """Per-axis coefficients ``(a, b0, c, b1)`` of the exact ZOH plant, each shape (n_axes,)
+    (:func:`nurbsmotion.servo.zoh_coefficients`)."""
+    return zoh_coefficients(machine.tau, machine.Kc, machine.Ke, machine.sample_period)
 
 
 @dataclass(frozen=True, eq=False)
@@ -465,7 +460,8 @@ def _precompensate(y, alpha, beta, a, b0, rounds, limit, slack, y_cmd, w0, theta
     accepted if no round is within the limit). The two sets take turns, so no round is
     copied, and they are separate arrays, so the caller keeps the one it returns without
     the other. ``peaks`` (n,) receives the largest |drive| of every sample [V] in the
-    round with the smallest error (where the drive limit must be eased)."""
+    round with the smallest error when that round's drive exceeds ``limit`` (where the
+    drive limit must be eased; the round is not accepted then)."""
     n, n_axes = y.shape
     yf, cf = y.reshape(-1), y_cmd.reshape(-1)
     best_error = math.inf
@@ -486,6 +482,7 @@ def _precompensate(y, alpha, beta, a, b0, rounds, limit, slack, y_cmd, w0, theta
             peak = max(peak, abs(uf[i]))
         if worst < least_error:
             least_error = worst
+        if worst == least_error and peak > limit:  # the round nearest y, beyond the limit
             for k in range(n):
                 top = 0.0
                 for j in range(n_axes):

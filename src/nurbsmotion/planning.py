@@ -47,7 +47,7 @@ from .errors import InfeasibleError
 from .feed import FeedLimit
 from .machine import Machine
 from .nurbs import NurbsCurve
-from .servo import zoh_matrices
+from .servo import zoh_coefficients
 
 __all__ = ["SpeedProfile", "speed_profile", "time_optimal_bound", "sampled_stop_bound"]
 
@@ -544,13 +544,12 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
     Ts, umax = machine.sample_period, machine.max_drive
     ends = np.concatenate([[0.0], curve.sharp_corners(), [1.0]])
     stops = curve(ends)
+    axes = list(zip(*zoh_coefficients(machine.tau, machine.Kc, machine.Ke, Ts)))
     samples = 1
     for k in range(len(ends) - 1):
         last = k == len(ends) - 2
         need = 0
-        for j, (tau, Kc, Ke) in enumerate(zip(machine.tau, machine.Kc, machine.Ke)):
-            Ad, Bd = zoh_matrices(tau, Kc, Ke, Ts)
-            a, c, b0, b1 = Ad[0, 0], Ad[1, 0], Bd[0], Bd[1]
+        for j, (a, b0, c, b1) in enumerate(axes):
             distance = abs(stops[k + 1, j] - stops[k, j]) - (settle_window if last else 0.0)
             if not math.isfinite(umax):  # any distance in two samples (one if not at rest)
                 need = max(need, (1 if last else 2) if distance > 0 else 0)

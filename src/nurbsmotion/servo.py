@@ -24,7 +24,7 @@ from numba import njit
 
 from .errors import InvalidMachineError
 
-__all__ = ["ServoPlant", "zoh_matrices", "plant_step"]
+__all__ = ["ServoPlant", "zoh_matrices", "zoh_coefficients", "plant_step"]
 
 
 def zoh_matrices(time_constant: float, electrical_gain: float, mechanical_gain: float,
@@ -51,6 +51,19 @@ def zoh_matrices(time_constant: float, electrical_gain: float, mechanical_gain: 
     Ad = np.array([[1.0 - g, 0.0], [Ke * tau * g, 1.0]])
     Bd = np.array([Kc * g, Ke * Kc * tau * _x_minus_one_minus_exp(x)])
     return Ad, Bd
+
+
+def zoh_coefficients(time_constant, electrical_gain, mechanical_gain, sample_period):
+    """Per axis, the entries ``(a, b0, c, b1)`` of :func:`zoh_matrices` (``Ad = [[a, 0],
+    [c, 1]]``, ``Bd = [b0, b1]``), each shape (n_axes,), from per-axis tau [s], Kc
+    [(rad/s)/V] and Ke [pulse/rad] (sequences) and Ts [s]."""
+    mats = [zoh_matrices(t, k, e, sample_period)
+            for t, k, e in zip(time_constant, electrical_gain, mechanical_gain)]
+    a = np.array([A[0, 0] for A, _ in mats])
+    c = np.array([A[1, 0] for A, _ in mats])
+    b0 = np.array([B[0] for _, B in mats])
+    b1 = np.array([B[1] for _, B in mats])
+    return a, b0, c, b1
 
 
 def _x_minus_one_minus_exp(x: float) -> float:
