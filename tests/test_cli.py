@@ -147,6 +147,11 @@ def test_outputs_are_not_overwritten_unless_asked(tmp_path, capsys):
          "--settle-window must be > 0, got '0'"),
         (["run", "die-bonder-pi", "--feed", "1m/s", "--settle-window", "2parsec", "--out",
           "{out}"], "--settle-window unit 'parsec' unknown"),
+        (["run", "die-bonder-pi", "--feed", "1m/s", "--path-tolerance", "-1", "--out",
+          "{out}"], "--path-tolerance '-1' is not a length >= 0"),
+        (["run", "die-bonder-pi", "--feed", "1m/s", "--interpolator", "paper",
+          "--path-tolerance", "2um", "--out", "{out}"],
+         "--path-tolerance applies to the planned interpolator, not paper"),
     ],
 )
 def test_errors_are_one_clear_line(tmp_path, capsys, args, message):
@@ -402,6 +407,24 @@ def test_warnings_are_one_line_without_source_echo(tmp_path, capsys):
         f"nurbsmotion contours: warning: {ngc}, line 2: M3/M4/M5 spindle skipped: it does not change the path",
         f"nurbsmotion contours: warning: {ngc}, line 2: S spindle speed skipped: it does not change the path",
     ]
+
+
+def test_path_tolerance_takes_a_length_or_pulses(tmp_path):
+    """planned records its path tolerance (default one pulse) in pulses and the path's
+    unit; a run of another interpolator has none."""
+    for text, pulses in ((None, 1.0), ("3", 3.0), ("0.002mm", 2.0)):
+        out = tmp_path / str(text)
+        extra = [] if text is None else ["--path-tolerance", text]
+        assert main(["run", "die-bonder-pi", "--feed", "1m/s", *extra, "--out", str(out),
+                     "--no-figures", "--no-trace"]) == 0
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["path_tolerance"] == pytest.approx(pulses)
+        assert summary["path_tolerance_mm"] == pytest.approx(pulses * 1e-3)
+        assert summary["units"]["path_tolerance"] == "pulse"
+    out = tmp_path / "paper"
+    assert main(["run", "die-bonder-pi", "--feed", "1m/s", "--interpolator", "paper",
+                 "--out", str(out), "--no-figures", "--no-trace"]) == 0
+    assert "path_tolerance" not in json.loads((out / "summary.json").read_text())
 
 
 def test_settle_window_takes_a_length_or_pulses(tmp_path):

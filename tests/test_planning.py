@@ -291,20 +291,41 @@ def test_plan_lands_before_the_desired_motion_creeps_in(monkeypatch):
     np.testing.assert_allclose(speed, plan.speed, atol=1e-6, rtol=1e-9)
 
 
+def _continuous_positions(plan, machine, start, per_sample=8):
+    """The continuous plant under the plan's held drives (RK45, scipy; SPEC section 3:
+    tau*w' = -w + Kc*u, theta' = Ke*w), ``per_sample`` points in every sample interval."""
+    from scipy.integrate import solve_ivp
+    Ts, n_axes = machine.sample_period, len(start)
+    x = np.ravel(np.column_stack([np.zeros(n_axes), start]))
+    out = []
+    for u in plan.drive[:-1]:
+        def rhs(t, x, u=u):
+            w = x[0::2]
+            return np.ravel(np.column_stack([(-w + machine.Kc * u) / machine.tau,
+                                             machine.Ke * w]))
+        sol = solve_ivp(rhs, (0.0, Ts), x, t_eval=np.linspace(0.0, Ts, per_sample + 1),
+                        rtol=1e-10, atol=1e-9)
+        out.append(sol.y[1::2, :-1].T)
+        x = sol.y[:, -1]
+    return np.vstack(out)
+
+
 @pytest.mark.parametrize("seed, feed", [(0, 1e6), (30, 1e6), (50, 2e5), (78, 1e6)])
 def test_short_move_rests_as_soon_as_the_drive_allows(seed, feed, monkeypatch):
     """Random short moves (bound 4-12 ms, mostly near the Nyquist frequency): step 6
-    compresses the desired motion in time and solves every drive at once, so the plan
-    rests on the end a sample sooner than the landing alone, within Umax, still the
-    model plant's response to its drive (ServoPlant), and no farther from the curve than
-    the plan it replaces (exact distances, metrics.contour_error); run on the nominal
-    plant it settles when its plan rests and passes the end by under 1 um."""
+    frees the timing along the path and solves the drives at once, so the plan rests on
+    the end sooner than steps 1-5 alone, within Umax, still the model plant's response
+    to its drive (ServoPlant), and within the path tolerance (or as near the path as the
+    plan it replaces) not only at the samples but all along the continuous motion
+    (RK45, 8 points a sample; exact distances, metrics.contour_error), its nearest path
+    point moving forward no faster than the feed; run on the nominal plant it settles
+    when its plan rests and passes the end by under 1 um."""
     from nurbsmotion import motion_plan as mp
-    from nurbsmotion.metrics import settle_time
+    from nurbsmotion.metrics import nearest_parameter, settle_time
     from nurbsmotion.paths.random_paths import random_path
     curve = random_path("short_moves", [10, seed], n_axes=2)
     with monkeypatch.context() as patch:
-        patch.setattr(mp, "_compress", lambda *args: None)
+        patch.setattr(mp, "_shorten", lambda *args: None)
         before = plan_motion(curve, MACHINE, feed)
     plan = plan_motion(curve, MACHINE, feed)
     assert plan.arrival < before.arrival
@@ -315,11 +336,58 @@ def test_short_move_rests_as_soon_as_the_drive_allows(seed, feed, monkeypatch):
     speed, position = ServoPlant.of_machine(MACHINE, curve(0.0)).response(plan.drive[:-1])
     np.testing.assert_allclose(position, plan.position, atol=1e-6)
     np.testing.assert_allclose(speed, plan.speed, atol=1e-6, rtol=1e-9)
-    was = max(mp.PRECOMPENSATION_TOLERANCE, float(np.max(contour_error(curve, before.position))))
-    assert np.max(contour_error(curve, plan.position)) <= was + 0.01
+    allowed = max(mp.DEFAULT_PATH_TOLERANCE, float(np.max(contour_error(curve,
+                                                                         before.position))))
+    assert np.max(contour_error(curve, plan.position)) <= allowed * (1 + 1e-6)
+    # between the points it holds (at least every half sample) the motion stays within
+    # a tenth of the tolerance of it
+    moving = _continuous_positions(plan, MACHINE, curve(0.0))
+    assert np.max(contour_error(curve, moving)) <= 1.1 * allowed
+    u, _ = nearest_parameter(curve, plan.position)
+    assert np.all(np.diff(plan.parameter) >= 0)
+    progress = np.diff(curve.arc_length(u))
+    assert np.max(progress) <= feed * MACHINE.sample_period + 2 * allowed
     tr = simulate(PlannedInterpolator(curve, MACHINE, feed), MACHINE, settle_time=0.02)
     assert settle_time(tr.t, tr.position, end) <= plan.arrival * MACHINE.sample_period + 1e-12
     assert tr.metrics().end_overshoot <= 1.0
+
+
+def test_a_short_closed_move_goes_all_the_way_round(monkeypatch):
+    """A short full circle (start = end, 2 mm across, 0.5 m/s): step 6 may not skip the
+    path because its end point is its start. The plan's path points (its parameters)
+    run from the start round to the end, no farther apart than the feed allows in a
+    sample, and every sample is as near its point as the tolerance (or the plan of
+    steps 1-5) is."""
+    from nurbsmotion import motion_plan as mp
+    circle = nm.make_arc(np.zeros(2), 1000.0, 0.0, 2 * math.pi)
+    feed = 5e5
+    with monkeypatch.context() as patch:
+        patch.setattr(mp, "_shorten", lambda *args: None)
+        before = plan_motion(circle, MACHINE, feed)
+    plan = plan_motion(circle, MACHINE, feed)
+    assert plan.arrival < before.arrival
+    s = circle.arc_length(plan.parameter)
+    assert s[0] == 0.0 and s[-1] == pytest.approx(circle.length)
+    assert np.all(np.diff(s) >= 0)
+    assert np.max(np.diff(s)) <= feed * MACHINE.sample_period * (1 + 1e-6)
+    off = np.linalg.norm(plan.position - circle(plan.parameter), axis=1)
+    allowed = max(mp.DEFAULT_PATH_TOLERANCE,
+                  float(np.max(contour_error(circle, before.position))))
+    assert np.max(off) <= allowed * (1 + 1e-6)
+
+
+def test_path_tolerance_trades_accuracy_for_time():
+    """A wider path tolerance lets a short move arrive no later, a zero one keeps it as
+    near the path as the plan of steps 1-5; each stays within its tolerance."""
+    from nurbsmotion.paths.random_paths import random_path
+    curve = random_path("short_moves", [10, 78], n_axes=2)
+    arrivals, contours = [], []
+    for tolerance in (0.0, 1.0, 5.0):
+        plan = plan_motion(curve, MACHINE, 1e6, path_tolerance=tolerance)
+        arrivals.append(plan.arrival)
+        contours.append(float(np.max(contour_error(curve, plan.position))))
+    assert arrivals[0] >= arrivals[1] >= arrivals[2]
+    assert contours[1] <= 1.0 * (1 + 1e-6) and contours[2] <= 5.0 * (1 + 1e-6)
 
 
 @pytest.mark.parametrize("feed, settle_ratio", [(2e5, 1.03), (1e6, 1.10)])
@@ -583,6 +651,8 @@ def test_plan_too_long_is_infeasible_not_a_hang():
 
 @pytest.mark.parametrize("option, value", [("drive_fraction", 0.0), ("drive_fraction", 1.5),
                                            ("corner_tolerance", -1.0),
+                                           ("path_tolerance", -1.0),
+                                           ("path_tolerance", math.nan),
                                            ("tracking_pole", 1.0), ("drive_headroom", 1.0)])
 def test_bad_options(option, value):
     with pytest.raises(ValueError, match=option):

@@ -24,6 +24,7 @@ from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .errors import InvalidArgumentError, NurbsmotionError
 from .interpolators import LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
 from .machine import Machine, load_machine
+from .motion_plan import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
 from .planning import sampled_stop_bound, time_optimal_bound
 
 __all__ = ["main", "parse_feed"]
@@ -209,6 +210,14 @@ def _run(args, precompiler) -> int:
         raise InvalidArgumentError(
             f"--corner-tolerance applies to the planned interpolator, not {args.interpolator}")
     options = {"corner_tolerance": eps} if eps else {}
+    path_tolerance = DEFAULT_PATH_TOLERANCE
+    if args.path_tolerance is not None:
+        if args.interpolator != "planned":
+            raise InvalidArgumentError("--path-tolerance applies to the planned "
+                                       f"interpolator, not {args.interpolator}")
+        path_tolerance = units.length_in_pulses(args.path_tolerance, curve, machine,
+                                                "--path-tolerance", bare_unit="pulse")
+        options["path_tolerance"] = path_tolerance
     window = units.length_in_pulses(args.settle_window, curve, machine, "--settle-window",
                                     bare_unit="pulse")
     if window <= 0:
@@ -268,6 +277,9 @@ def _run(args, precompiler) -> int:
                  "corner_tolerance": eps,
                  f"corner_tolerance_{unit}": eps / per_unit,
                  f"settle_window_{unit}": window / per_unit}
+        if args.interpolator == "planned":
+            extra.update({"path_tolerance": path_tolerance,
+                          f"path_tolerance_{unit}": path_tolerance / per_unit})
         if contour.feed is not None:  # the file gave a feed: say which one ran
             extra["feed_used"] = note
         data = summary(metrics, interpolator=args.interpolator, feed=feed_number,
@@ -608,6 +620,11 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--corner-tolerance", default="0",
                    help="planned: how far the motion may leave a sharp corner instead of "
                    "stopping there, a length (0.5mm, 10um) or a number in the path's units")
+    r.add_argument("--path-tolerance",
+                   help="planned: how far from the path a short move (a plan of at most "
+                   f"{SHORT_MOVE_SAMPLES} samples without a stop) may go where that lets "
+                   "it arrive sooner, a length (2um) or a number of pulses (default: "
+                   f"{DEFAULT_PATH_TOLERANCE:g} pulse)")
     r.add_argument("--settle-window", default="1",
                    help="the motion has settled once it stays within this distance of the "
                    "end point: a length (1um, 0.001mm) or a number of pulses (default: 1 "

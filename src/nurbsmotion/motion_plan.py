@@ -51,11 +51,20 @@ is built offline in six steps:
    ``INVERSE_REACH + 1`` before the desired motion arrives there) at which the drive
    allows it without leaving the desired path, instead of approaching it over the
    samples after.
-6. **Short moves** (:func:`_compress`; at most :data:`LANDING_SAMPLES` samples, no stop
-   corner, no blend). The desired motion is compressed in time to rest at each earlier
-   sample in turn, from the first profile's duration on, and every drive is solved at
-   once, exactly at rest on the end; the first that stays within the drive limit, as
-   near the curve as the plan and short of the end, replaces the plan.
+6. **Short moves** (:func:`_shorten`; a plan of at most :data:`SHORT_MOVE_SAMPLES`
+   samples without a stop or a blend). Steps 1-5 fix the timing along the path (the
+   continuous profile, averaged and sampled); a short, fast move pays for that in whole
+   samples. Here the timing is free: the earliest sample N at which the plant can rest on
+   the end, its drive within the limit, while staying within ``path_tolerance`` of the
+   path (or, failing that, no farther than the plan it replaces) all along its motion
+   (checked at up to :data:`CHECK_POINTS` points a sample), its nearest path point moving
+   forward no faster than the feed, is found by sequential linear programming over the
+   drives and the plant's sampled states (the ZOH dynamics as equality constraints; a
+   point within a sample is its sample's state advanced in closed form). Each program
+   minimises the largest offset of the held points (the samples, the half samples and
+   those a round found off the path) from the path linearised at their nearest points,
+   within a trust region set by the curvature. N runs down from the plan's arrival while
+   one is found.
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
@@ -76,6 +85,7 @@ import numpy as np
 from numba import njit
 
 from .errors import InfeasibleError
+from .feed import FeedLimit
 from .geometry import distances_to
 from .machine import Machine
 from .nurbs import NurbsCurve
@@ -630,71 +640,302 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     return arrive
 
 
-COMPRESS_FINE = 32
-"""Curve points per sample interval of the path that step 6 measures a plan's distance to
-(the chord of a sample interval on a curvy short move leaves the curve by pulses; a 32nd of
-it by a thousandth as much)."""
+CHECK_POINTS = 32
+"""Most points per sample at which step 6 checks a move's distance to the path (as many
+as put the path's chord between two of them within the tolerance at the feed; the
+linear programs hold the samples, the half samples and the points found off the path)."""
+
+SHORTEN_ROUNDS = 24
+"""Most linear programs step 6 solves for one arrival sample (each re-linearises the path
+at the motion's nearest points)."""
+
+SHORT_MOVE_SAMPLES = 64
+"""Step 6 plans the moves that rest on the end within this many samples (its linear
+programs grow with the move: some 0.03-0.1 s each at 40-60 samples, and a move takes
+some tens of them; see ``benchmarks/RESULTS.md``)."""
+
+DEFAULT_PATH_TOLERANCE = 1.0
+"""How far [pulse] from the path step 6 may take a short move's motion by default: one
+pulse, the encoder's resolution (the plan it replaces is held within a quarter of it,
+:data:`PRECOMPENSATION_TOLERANCE`, where the drive allows)."""
 
 
-def _compress(curve: NurbsCurve, y: np.ndarray, param: np.ndarray, theta: np.ndarray,
-              arrival: int, machine: Machine, limit: float, earliest: int,
-              tangent: np.ndarray):
-    """Step 6: a short move (``arrival`` <= :data:`LANDING_SAMPLES`) that does not stop
-    on the way, at rest on the end at the earliest sample N from ``earliest`` on at which
-    the desired motion, compressed in time to arrive at N, can be followed; None if none
-    before ``arrival`` (and before the plan ``theta`` stays within its own accuracy of
-    the end) can.
+def _normal_directions(tangent: np.ndarray) -> np.ndarray:
+    """Unit directions normal to each unit ``tangent`` (m, n_axes), shape (m, r, n_axes):
+    an orthonormal basis of the normal space (the other columns of the Householder
+    reflection that takes the first axis to the tangent) and, where it is a plane, its
+    two diagonals (a regular octagon: a point whose offsets along all of them are within
+    E lies within E/cos(pi/8) = 1.08 E of the path)."""
+    m, n_axes = tangent.shape
+    v = tangent.copy()
+    v[:, 0] += np.where(tangent[:, 0] >= 0, 1.0, -1.0)
+    scale = 1.0 / (1.0 + np.abs(tangent[:, 0]))
+    H = np.eye(n_axes)[None] - scale[:, None, None] * v[:, :, None] * v[:, None, :]
+    basis = np.swapaxes(H[:, :, 1:], 1, 2)
+    if n_axes != 3:
+        return basis
+    diagonals = np.stack([basis[:, 0] + basis[:, 1], basis[:, 0] - basis[:, 1]], axis=1)
+    return np.concatenate([basis, diagonals / math.sqrt(2.0)], axis=1)
 
-    On a short, fast move the desired motion is mostly near the Nyquist frequency, where
-    the pre-compensation of step 3 converges slowest and the easing of step 4 pays most:
-    the plan may come to rest samples after the drive could have brought it there. For
-    each N the desired motion's parameters ``param`` (n,) are resampled at ``(k -
-    1)*(arrival - 1)/(N - 1) + 1`` (the lead kept; linear between samples), the curve's
-    points there are the target, and every drive from u[1] on is solved at once
-    (:func:`_rest_on_end`; ``y`` (n, n_axes) gives the start and the end). It is
-    kept if the drive stays within ``limit`` [V], the positions stay as near the curve
-    (:data:`COMPRESS_FINE` points per sample interval of the desired motion) as the plan
-    ``theta`` is (at least within :data:`PRECOMPENSATION_TOLERANCE`), and no sample passes
-    the end along the curve's unit ``tangent`` there by more than that tolerance
-    (:func:`_past_end`). Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 +
-    :data:`END_REST` samples."""
-    end, start = y[arrival], y[0]
-    index = np.arange(arrival + 1, dtype=float)
-    path = curve(np.interp(np.linspace(0.0, arrival, COMPRESS_FINE * arrival + 1), index,
-                           param[:arrival + 1]))
-    tolerance = max(PRECOMPENSATION_TOLERANCE,
-                    float(np.max(_distance_to_polyline(theta[:arrival + 1], path))))
-    h = _impulse_responses(machine, arrival)
-    # the plan is within its own accuracy of the end from here on: only sooner is better
-    away = np.flatnonzero(np.linalg.norm(theta[:arrival + 1] - end, axis=1) > tolerance)
-    near = int(away[-1]) + 1 if away.size else 0
-    for N in range(max(earliest, 3), min(arrival, near)):
-        n = N + 1 + END_REST
-        source = np.minimum(1.0 + (np.arange(n) - 1.0) * (arrival - 1) / (N - 1), arrival)
-        source[0] = 0.0
-        new_param = np.interp(source, index, param[:arrival + 1])
-        target = curve(new_param)
-        rest = np.broadcast_to(start, target.shape)
-        du, moved = _rest_on_end(h, rest, np.zeros(target.shape), target, end, 1, N)
-        if np.max(np.abs(du)) > limit:
-            continue
-        positions = np.vstack([start, start, moved[:, 1]])
-        off = _distance_to_polyline(positions, path)
-        if np.max(off) > tolerance \
-                or _past_end(positions, off, end, tangent) > PRECOMPENSATION_TOLERANCE:
-            continue
-        u = np.zeros_like(target)
-        u[1:N] = du
-        w = np.zeros_like(target)
-        w[2:N + 1] = moved[:, 0]
-        theta = np.broadcast_to(end, target.shape).copy()
-        theta[:N + 1] = positions
-        w[N] = 0.0
-        theta[N] = end
-        target[N:] = end
-        new_param[N:] = 1.0
-        return N, target, new_param, w, theta, u
+
+def _nearest_forward(curve: NurbsCurve, points: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Arc lengths [pulse] of the path points nearest ``points`` (m, n_axes) near the
+    guesses ``s`` (m,) (Newton on the arc length), made nondecreasing."""
+    length = curve.length
+    for _ in range(3):
+        p = curve.parameter_at(s)
+        s = np.clip(s + np.sum(curve.tangent(p) * (points - curve(p)), axis=1), 0.0, length)
+    return np.maximum.accumulate(s)
+
+
+def _partial_zoh(machine: Machine, points: int):
+    """ZOH coefficients ``(a, b0, c, b1)`` over j/``points`` of a sample, j = 0 ..
+    ``points``: each shape (points + 1, n_axes) (j = 0: no time, the identity)."""
+    zoh = [zoh_coefficients(machine.tau, machine.Kc, machine.Ke,
+                              machine.sample_period * j / points)
+             for j in range(1, points + 1)]
+    ident = (np.ones(len(machine.tau)), *(np.zeros(len(machine.tau)),) * 3)
+    return tuple(np.vstack([i, *(s[q] for s in zoh)]) for q, i in enumerate(ident))
+
+
+def _fine_positions(zoh, start: np.ndarray, u: np.ndarray):
+    """Speed [rad/s] and position [pulse] of the model's plant at every sample, each
+    shape (N + 1, n_axes), and its position at every fine point (``points`` per sample,
+    ``zoh`` from :func:`_partial_zoh`), shape (N*points + 1, n_axes), driven from rest
+    at ``start`` by ``u`` (N, n_axes; u[k] held over sample k)."""
+    a, b0, c, b1 = zoh
+    N = u.shape[0]
+    w = np.zeros((N + 1, len(start)))
+    theta = np.empty((N + 1, len(start)))
+    theta[0] = start
+    for k in range(N):
+        w[k + 1] = a[-1] * w[k] + b0[-1] * u[k]
+        theta[k + 1] = theta[k] + c[-1] * w[k] + b1[-1] * u[k]
+    fine = (theta[:-1, None] + c[None, :-1] * w[:-1, None]
+            + b1[None, :-1] * u[:, None]).reshape(-1, len(start))
+    return w, theta, np.vstack([fine, theta[-1:]])
+
+
+def _shorten_at(curve: NurbsCurve, zoh, N: int, s: np.ndarray, limit: float,
+                tolerance: float, tangent: np.ndarray, feed, Ts: float):
+    """One arrival sample N of step 6 (:func:`_shorten`): drives u[1] .. u[N-1]
+    (|u| <= ``limit`` [V]) that keep the plant within ``tolerance`` [pulse] of the curve
+    at every fine point inside the move (``zoh`` from :func:`_partial_zoh`: Q points
+    per sample, fine points Q + 1 .. N*Q - 1), their nearest points moving forward no
+    faster than ``feed`` and none past the end along its unit ``tangent``, and put it at
+    rest on the end at N; ``s`` (N*Q - Q - 1,) is the first guess of the nearest points'
+    arc lengths. Returns ``(u, s)`` (u shape (N, n_axes), u[0] = 0, and s at the fine
+    points), or None if the linearised programs find none.
+
+    The programs hold the samples, the half samples and every point that a round found
+    off the path (the worst of each sample interval); every fine point is checked.
+    Variables: the drives, the plant's state at every sample (the ZOH dynamics are
+    equality constraints; a held point's position is its sample's state advanced by its
+    part of the sample, three terms), each held point's |tangential step| and the
+    largest normal offset E, which is minimised (module docstring, step 6)."""
+    from scipy import sparse
+    from scipy.optimize import linprog
+
+    n_axes = curve.n_axes
+    Q = zoh[0].shape[0] - 1
+    length = curve.length
+    start, end = curve(0.0), curve(1.0)
+    a, b0, c, b1 = (x[-1] for x in zoh)
+    n_u = n_axes * (N - 1)
+    col_w = n_u + 2 * (np.arange(n_axes)[:, None] * (N + 1) + np.arange(N + 1))
+    col_theta = col_w + 1                                   # (n_axes, N + 1)
+    col_u = np.full((n_axes, N), -1)                        # u[0] = 0: no variable
+    col_u[:, 1:] = np.arange(n_u).reshape(n_axes, N - 1)
+    # the ZOH dynamics from sample to sample, two rows per axis and sample
+    k = np.arange(N)
+    rows, cols, vals = [], [], []
+    for j in range(n_axes):
+        for q, (out, terms, drive) in enumerate((
+                (col_w[j, 1:], [(col_w[j, :-1], -a[j])], -b0[j]),
+                (col_theta[j, 1:], [(col_theta[j, :-1], -1.0), (col_w[j, :-1], -c[j])],
+                 -b1[j]))):
+            r = (2 * j + q) * N + k
+            rows += [r, r[1:]] + [r] * len(terms)
+            cols += [out, col_u[j, 1:]] + [cc for cc, _ in terms]
+            vals += [np.ones(N), np.full(N - 1, drive)] + [np.full(N, v) for _, v in terms]
+    n_fixed = col_theta[-1, -1] + 1
+    fine = np.arange(Q + 1, N * Q)                          # the points inside the move
+    held = fine[fine % (Q // 2) == 0] - Q - 1               # index into fine
+    spread = {2: 1.0, 3: 1.0 / math.cos(math.pi / 8)}.get(n_axes, math.sqrt(n_axes - 1))
+    reach, previous = 1.0, math.inf
+    for rounds in range(SHORTEN_ROUNDS):
+        m = len(held)
+        col_step = n_fixed + np.arange(m)
+        col_E = n_fixed + m
+        n_var = col_E + 1
+        A_eq = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
+                                                          np.concatenate(cols))),
+                                 shape=(2 * n_axes * N, n_var))
+        f = fine[held]
+        ks, js = f // Q, f % Q                              # sample, part of it
+        # position of axis j at held point i: theta[ks] + c_js*w[ks] + b1_js*u[ks]
+        pos_cols = np.stack([col_theta[:, ks], col_w[:, ks], col_u[:, ks]], axis=-1)
+        pos_vals = np.stack([np.ones((n_axes, m)), zoh[2][js].T, zoh[3][js].T], axis=-1)
+
+        def rows_along(directions):
+            """Rows (m*r, n_var) of ``directions`` (m, r, n_axes) . position."""
+            r = directions.shape[1]
+            v = directions[..., None] * pos_vals.transpose(1, 0, 2)[:, None]
+            cc = np.broadcast_to(pos_cols.transpose(1, 0, 2)[:, None], v.shape)
+            rr = np.broadcast_to(np.arange(m * r).reshape(m, r)[:, :, None, None], v.shape)
+            keep = cc >= 0
+            return sparse.csr_matrix((v[keep], (rr[keep], cc[keep])), shape=(m * r, n_var))
+
+        sh = s[held]
+        p = curve.parameter_at(sh)
+        point, T = curve(p), curve.tangent(p)
+        # the chord C(s) + T d leaves the curve by about kappa d^2/2: within the tolerance
+        trust = np.minimum(reach * np.sqrt(2.0 * tolerance / np.maximum(
+            curve.curvature(p), 1e-300)), length)
+        normals = _normal_directions(T)                     # (m, r, n_axes)
+        A_t = rows_along(T[:, None, :])                     # d = A_t x - b_t
+        b_t = np.einsum("ij,ij->i", T, point)
+        A_n = rows_along(normals)
+        b_n = np.einsum("iqj,ij->iq", normals, point).ravel()
+        r = normals.shape[1]
+        E = sparse.csr_matrix((np.ones(m * r), (np.arange(m * r), np.full(m * r, col_E))),
+                              shape=(m * r, n_var))
+        S = sparse.csr_matrix((np.ones(m), (np.arange(m), col_step)), shape=(m, n_var))
+        D = sparse.diags([np.ones(m - 1), -np.ones(m - 1)], [0, 1], shape=(m - 1, m))
+        Dt = D @ A_t
+        # the nearest points move forward, no faster than the feed, from the start
+        # (sample 1) through every held point to the end (sample N)
+        F = np.asarray(feed(p) if isinstance(feed, FeedLimit) else np.full(m, feed))
+        gap = np.diff(np.concatenate([[Q], f, [N * Q]])) * Ts / Q
+        travel = np.maximum(F[1:], F[:-1]) * gap[1:-1]
+        ahead = sh[1:] - sh[:-1] + b_t[:-1] - b_t[1:]      # s + d nondecreasing
+        A_ub = sparse.vstack([A_n - E, -A_n - E, A_t - S, -A_t - S, A_t, -A_t, Dt, -Dt,
+                              A_t[:1], -A_t[-1:]]).tocsr()
+        b_ub = np.concatenate([b_n, -b_n, b_t, -b_t,
+                               np.minimum(trust, length - sh) + b_t,
+                               np.minimum(trust, sh) - b_t,
+                               ahead, travel - ahead,
+                               [F[0] * gap[0] - sh[0] + b_t[0]],
+                               [F[-1] * gap[-1] - length + sh[-1] - b_t[-1]]])
+        bounds = np.empty((n_var, 2))
+        bounds[:, 0], bounds[:, 1] = -np.inf, np.inf
+        bounds[:n_u] = (-limit, limit)
+        bounds[col_w[:, 0]] = bounds[col_w[:, -1]] = 0.0
+        bounds[col_theta[:, 0], 0] = bounds[col_theta[:, 0], 1] = start
+        bounds[col_theta[:, -1], 0] = bounds[col_theta[:, -1], 1] = end
+        bounds[col_step] = (0.0, np.inf)
+        bounds[col_E] = (0.0, np.inf)
+        cost = np.zeros(n_var)
+        cost[col_E] = 1.0
+        # a tie-break: of the motions with the least E, the one whose nearest points
+        # move least (the chord is exact there); moving all by the trust costs E/16
+        cost[col_step] = tolerance / (16.0 * m * trust)
+        res = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=np.zeros(A_eq.shape[0]),
+                      bounds=bounds, method="highs")
+        if res.status != 0:
+            return None
+        u = np.zeros((N, n_axes))
+        u[1:] = res.x[:n_u].reshape(n_axes, N - 1).T
+        positions = _fine_positions(zoh, start, u)[2][Q + 1:N * Q]
+        guess = s.copy()
+        guess[held] = np.clip(sh + np.einsum("ij,ij->i", T, positions[held] - point),
+                              0.0, length)
+        s_new = _nearest_forward(curve, positions, np.maximum.accumulate(guess))
+        off = np.linalg.norm(positions - curve(curve.parameter_at(s_new)), axis=1)
+        at_end = s_new >= length * (1 - 1e-12)
+        past = float(np.max((positions[at_end] - end) @ tangent, initial=0.0))
+        if np.max(off) <= tolerance and past <= PRECOMPENSATION_TOLERANCE:
+            return u, s_new
+        worst = float(np.max(off[held]))
+        E_now = float(res.x[col_E])
+        left = SHORTEN_ROUNDS - 1 - rounds
+        if E_now > tolerance and E_now - tolerance > left * (previous - E_now):
+            return None    # at this pace the program will not come within the tolerance
+        if worst > E_now * spread + tolerance / 16:
+            reach *= 0.5   # the chord misled the program: a smaller step
+        elif np.any(np.abs(guess[held] - sh) >= trust * (1 - 1e-6)):
+            reach *= 2.0   # the chord was right, and the trust region held it back
+        previous = min(previous, E_now)
+        # once the held points are within the tolerance, hold the worst point of each
+        # sample interval that is not
+        loose = np.ones(len(fine), bool)
+        loose[held] = False
+        bad = np.flatnonzero(loose & (off > tolerance))
+        if E_now <= tolerance and bad.size:
+            interval = fine[bad] // Q
+            order = np.lexsort((-off[bad], interval))
+            first = np.unique(interval[order], return_index=True)[1]
+            held = np.union1d(held, bad[order][first])
+            previous = math.inf
+        s = s_new
     return None
+
+
+def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: int,
+             machine: Machine, limit: float, tolerance: float, tangent: np.ndarray, feed):
+    """Step 6 (module docstring): the plan ``theta`` (n, n_axes) of a move that does not
+    stop on the way, at rest on the end at ``arrival`` (<= :data:`SHORT_MOVE_SAMPLES`),
+    replaced by one at rest there at the earliest sample N at which a drive within
+    ``limit`` [V] keeps the plant within ``tolerance`` [pulse] of the curve all along its
+    motion (failing that, as near as ``theta`` is), its nearest path point moving forward
+    no faster than ``feed`` and not past the end along its unit ``tangent``
+    (:func:`_shorten_at`); None if none before ``arrival`` does.
+
+    N runs down from ``arrival - 1`` while one is found. The first guess of the nearest
+    points is the plan's (its parameters ``param``, shape (n,)), compressed in time to
+    arrive at N; each later N starts from the last motion found, compressed by a sample.
+    Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
+    y the nearest path points of the samples."""
+    length = curve.length
+    Ts = machine.sample_period
+    kappa = float(np.max(curve.curvature(curve.geometry.uniform_parameters(
+        8 * CHECK_POINTS))))
+    fastest = feed.highest if isinstance(feed, FeedLimit) else feed
+    plan_s = curve.arc_length(param[:arrival + 1])
+    nearest = curve.parameter_at(_nearest_forward(curve, theta[:arrival + 1], plan_s))
+    own = float(np.max(np.linalg.norm(theta[:arrival + 1] - curve(nearest), axis=1)))
+
+    def descend(tolerance):
+        # fine points: the path's chord between two within the tolerance at the feed
+        Q = 2 * math.ceil(fastest * Ts * math.sqrt(kappa / (8.0 * tolerance)) / 2)
+        zoh = _partial_zoh(machine, int(min(max(Q, 2), CHECK_POINTS)))
+        Q = zoh[0].shape[0] - 1
+        times, s_known = np.arange(arrival + 1, dtype=float), plan_s
+        best = None
+        for N in range(arrival - 1, 2, -1):
+            t = np.arange(Q + 1, N * Q) / Q                   # fine points [samples]
+            guess = np.interp(1.0 + (t - 1.0) * (times[-1] - 1.0) / (N - 1.0), times,
+                              s_known)
+            found = _shorten_at(curve, zoh, N, np.maximum.accumulate(guess), limit,
+                                tolerance, tangent, feed, Ts)
+            if found is None:
+                break
+            best = (N, *found, zoh)
+            times = np.concatenate([[1.0], t, [N]])
+            s_known = np.concatenate([[0.0], found[1], [length]])
+        return best
+
+    # within the path tolerance; failing that, no farther from the path than the plan
+    for tolerance in dict.fromkeys([tolerance, max(tolerance, own)]):
+        best = descend(tolerance) if tolerance > 0 else None
+        if best is not None:
+            break
+    else:
+        return None
+    N, u_moving, s_fine, zoh = best
+    Q = zoh[0].shape[0] - 1
+    n = N + 1 + END_REST
+    start, end = curve(0.0), curve(1.0)
+    u = np.zeros((n, curve.n_axes))
+    u[:N] = u_moving
+    w, theta = (x[:-1] for x in _fine_positions(zoh, start, u)[:2])
+    w[N:], theta[N:] = 0.0, end
+    y = np.broadcast_to(end, theta.shape).copy()
+    new_param = np.ones(n)
+    y[:2], new_param[:2] = start, 0.0
+    new_param[2:N] = curve.parameter_at(s_fine[Q - 1::Q])  # samples 2 .. N - 1
+    y[2:N] = curve(new_param[2:N])
+    return N, y, new_param, w, theta, u
 
 
 def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
@@ -722,7 +963,8 @@ def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
 
 def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
                 corner_tolerance: float = 0.0, drive_fraction: float = 1.0,
-                grid_size: int = 4000, max_samples: int = 10_000_000) -> MotionPlan:
+                path_tolerance: float = DEFAULT_PATH_TOLERANCE, grid_size: int = 4000,
+                max_samples: int = 10_000_000) -> MotionPlan:
     """Plan the actual motion along ``curve`` and the drive that makes it (module docstring).
 
     Parameters
@@ -737,6 +979,9 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         eps [pulse], >= 0: how far the motion may leave a sharp corner (0: stop there).
     drive_fraction : float
         Fraction of Umax the planned drive may use, in (0, 1].
+    path_tolerance : float
+        [pulse], >= 0: how far from the path a short move's motion may go where that
+        lets it arrive sooner (step 6; never farther than the plan it replaces).
     grid_size : int
         Arc-length grid of the speed profile.
     max_samples : int
@@ -747,8 +992,10 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     InfeasibleError
         If the drive cannot move along the path or the plan is too long.
     """
-    if not (math.isfinite(corner_tolerance) and corner_tolerance >= 0):
-        raise ValueError(f"corner_tolerance must be finite and >= 0, got {corner_tolerance!r}")
+    for name, value in (("corner_tolerance", corner_tolerance),
+                        ("path_tolerance", path_tolerance)):
+        if not (math.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
     if not (0 < drive_fraction <= 1):
         raise ValueError(f"drive_fraction must lie in (0, 1], got {drive_fraction!r}")
     Ts = machine.sample_period
@@ -824,9 +1071,9 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax, tangent)
     y[landed:] = y[-1]       # the desired motion rests where the plan does
     param[landed:] = 1.0
-    if landed <= LANDING_SAMPLES and corners.size == 0:
-        short = _compress(curve, y, param, theta, landed, machine, drive_fraction * umax,
-                          lead + int(math.ceil(fastest / Ts - 1e-9)), tangent)
+    if landed <= SHORT_MOVE_SAMPLES and corners.size == 0:
+        short = _shorten(curve, theta, param, landed, machine, drive_fraction * umax,
+                         path_tolerance, tangent, feed)
         if short is not None:
             landed, y, param, w, theta, u = short
     theta[-1] = y[-1]

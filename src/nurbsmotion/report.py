@@ -67,7 +67,8 @@ _SUMMARY_UNITS = {
     "time_optimal_bound_s": "s", "cycle_time_ratio": "1 (cycle time / bound)",
     "length_unit": "name", "limited_samples": "samples", "cornered_samples": "samples",
     "success": "true or false", "message": "text", "plant": "name or file",
-    "corner_tolerance": "pulse", "feed_used": "text", "settle_time_s": "s",
+    "corner_tolerance": "pulse", "path_tolerance": "pulse", "feed_used": "text",
+    "settle_time_s": "s",
     "settled": "true or false", "settle_window": "pulse", "end_overshoot": "pulse",
     "corner_overshoot": "pulse", "move_and_settle_ratio": "1 (settle time / bound)",
 }
@@ -439,8 +440,8 @@ def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
     pulses_per_length_unit : float, optional
         Pulses per ``length_unit``; required with it.
     extra : dict, optional
-        Further keys of the run (``plant``, ``corner_tolerance``, ``feed_used``), added
-        before ``units``.
+        Further keys of the run (``plant``, ``corner_tolerance``, ``path_tolerance``,
+        ``feed_used``), added before ``units``.
     """
     data = metrics.to_dict()
     data.update(interpolator=interpolator, feed=float(feed), machine=machine, path=path,

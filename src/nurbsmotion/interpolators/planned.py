@@ -74,7 +74,7 @@ from ..control import pid_affine, pid_output
 from ..errors import InfeasibleError
 from ..feed import FeedLimit
 from ..machine import Machine
-from ..motion_plan import axis_zoh, plan_motion
+from ..motion_plan import DEFAULT_PATH_TOLERANCE, axis_zoh, plan_motion
 from ..nurbs import NurbsCurve
 from .base import Interpolator, positive_feed
 
@@ -571,6 +571,11 @@ class PlannedInterpolator(Interpolator):
         :class:`nurbsmotion.feed.FeedLimit`).
     corner_tolerance : float
         eps [pulse], >= 0: how far the motion may leave a sharp corner (0: exact stop).
+    path_tolerance : float
+        [pulse], >= 0: how far from the path a short move (a plan of at most
+        :data:`~nurbsmotion.motion_plan.SHORT_MOVE_SAMPLES` samples without a stop) may go
+        where that lets it arrive sooner; never farther than the speed profile's plan
+        (:data:`~nurbsmotion.motion_plan.DEFAULT_PATH_TOLERANCE`: one pulse).
     drive_fraction : float
         Fraction of Umax, in (0, 1], the plan's feedforward may use; the rest is left to
         the feedback on a plant that differs from the model.
@@ -595,7 +600,9 @@ class PlannedInterpolator(Interpolator):
     name = "planned"
 
     def __init__(self, curve: NurbsCurve, machine: Machine, feed, *,
-                 corner_tolerance: float = 0.0, drive_fraction: float = 1.0,
+                 corner_tolerance: float = 0.0,
+                 path_tolerance: float = DEFAULT_PATH_TOLERANCE,
+                 drive_fraction: float = 1.0,
                  tracking_pole: float = DEFAULT_TRACKING_POLE,
                  drive_headroom: float = DEFAULT_DRIVE_HEADROOM, grid_size: int = 4000,
                  max_samples: int = 10_000_000):
@@ -615,8 +622,8 @@ class PlannedInterpolator(Interpolator):
         # drive_accel hold them (u_ff = drive_speed + drive_accel), and a long move's
         # memory is mostly these per-sample arrays.
         p = plan_motion(curve, machine, feed, corner_tolerance=corner_tolerance,
-                        drive_fraction=drive_fraction, grid_size=grid_size,
-                        max_samples=max_samples)
+                        path_tolerance=path_tolerance, drive_fraction=drive_fraction,
+                        grid_size=grid_size, max_samples=max_samples)
         self.duration = p.duration
         a, b0, c, b1 = axis_zoh(machine)
         drive_speed = p.speed / machine.Kc
