@@ -13,8 +13,10 @@ at rest on the end (settled within 1 pulse), move-and-settle minus the bound aga
 max(5 % of the bound, 3 ms), whether that target is reachable at all by a sampled motion
 that stops at the corners (:func:`nurbsmotion.planning.sampled_stop_bound`: one dead
 sample, then whole samples per piece, each at least the slowest axis' rest-to-rest
-minimum; a case is unreachable when even this bound misses the target), and the max
-contour error (:func:`nurbsmotion.metrics.contour_error`).
+minimum; a case is unreachable when even this bound misses the target), the max
+contour error (:func:`nurbsmotion.metrics.contour_error`), how far the run passes the end
+and the stop corners (the run's metrics), and the planning time (the interpolator's
+construction, wall clock).
 
 Prints the counts and the distributions (median, 95th percentile, max) per condition.
 
@@ -77,7 +79,9 @@ def one_case(i: int) -> dict:
                                       time_constant_scale=rng.uniform(0.8, 1.2, n_axes),
                                       electrical_gain_scale=rng.uniform(0.8, 1.2, n_axes))
     try:
+        t0 = time.perf_counter()
         interp = PlannedInterpolator(curve, m, feed)
+        planning = time.perf_counter() - t0
         bound = time_optimal_bound(curve, m, feed)
     except NurbsmotionError as exc:
         row["status"] = "refused"
@@ -85,8 +89,10 @@ def one_case(i: int) -> dict:
         return row
     tr = simulate(interp, m, plant=plant, settle_time=HOLD)
     st = settle_time(tr, curve(1.0))
+    metrics = tr.metrics()
     row.update(
-        bound=bound, settle=st,
+        bound=bound, settle=st, planning=planning,
+        end_overshoot=metrics.end_overshoot, corner_overshoot=metrics.corner_overshoot,
         saturated=int(np.count_nonzero(np.abs(tr.drive) > m.max_drive * (1 + 1e-9))),
         nan=not (np.all(np.isfinite(tr.position_command)) and np.all(np.isfinite(tr.drive))),
         monotone=bool(np.all(np.diff(tr.u) >= 0)),
@@ -114,7 +120,9 @@ def report(rows: list) -> None:
     print("\n| condition | runs | saturated runs | NaN | parameter not monotone | not at rest "
           "| settle - bound within max(5 %, 3 ms) | unreachable (sampled bound misses it) "
           "| settle / bound median / 95 % / max "
-          "| max contour [um] median / 95 % / max |\n|---|---|---|---|---|---|---|---|---|---|")
+          "| max contour [um] median / 95 % / max | passes the end / a stop corner by > 1 um "
+          "| planning [s] median / 95 % / max |"
+          "\n|---|---|---|---|---|---|---|---|---|---|---|---|")
     for cond in CONDITIONS:
         rs = [r for r in ran if r["condition"] == cond]
         if not rs:
@@ -128,7 +136,10 @@ def report(rows: list) -> None:
               f"{sum(not r['at_rest'] for r in rs)} | "
               f"{np.mean([r['settle_ok'] for r in rs]) * 100:.1f} % | "
               f"{unreachable} ({unreachable / len(rs) * 100:.1f} %) | "
-              f"{q(ratio)} | {q(ce)} |")
+              f"{q(ratio)} | {q(ce)} | "
+              f"{sum(r['end_overshoot'] > 1 for r in rs)} / "
+              f"{sum(r['corner_overshoot'] > 1 for r in rs)} | "
+              f"{q([r['planning'] for r in rs])} |")
     nominal = [r for r in ran if r["condition"] == "nominal"]
     if nominal:
         reachable = [r for r in nominal if r["reachable"]]

@@ -63,8 +63,9 @@ is built offline in six steps:
    point within a sample is its sample's state advanced in closed form). Each program
    minimises the largest offset of the held points (the samples, the half samples and
    those a round found off the path) from the path linearised at their nearest points,
-   within a trust region set by the curvature. N runs down from the plan's arrival while
-   one is found.
+   within a trust region (as far as the feed goes in a sample; failing that, as far as
+   the linearisation stays within the tolerance). N runs down from the plan's arrival
+   while one is found.
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
@@ -649,10 +650,11 @@ SHORTEN_ROUNDS = 24
 """Most linear programs step 6 solves for one arrival sample (each re-linearises the path
 at the motion's nearest points)."""
 
-SHORT_MOVE_SAMPLES = 64
-"""Step 6 plans the moves that rest on the end within this many samples (its linear
-programs grow with the move: some 0.03-0.1 s each at 40-60 samples, and a move takes
-some tens of them; see ``benchmarks/RESULTS.md``)."""
+SHORT_MOVE_SAMPLES = 128
+"""Step 6 plans the moves that rest on the end within this many samples. Its linear
+programs grow with the move (0.05-0.5 s each at 50-120 samples, and a move takes some
+tens of them): on the 1,000 random paths of ``benchmarks/planner_sweep.py`` planning
+takes a median 0.03 s, 3.5 s at the 95th percentile and 38 s at most."""
 
 DEFAULT_PATH_TOLERANCE = 1.0
 """How far [pulse] from the path step 6 may take a short move's motion by default: one
@@ -717,7 +719,7 @@ def _fine_positions(zoh, start: np.ndarray, u: np.ndarray):
 
 
 def _shorten_at(curve: NurbsCurve, zoh, N: int, s: np.ndarray, limit: float,
-                tolerance: float, tangent: np.ndarray, feed, Ts: float):
+                tolerance: float, tangent: np.ndarray, feed, Ts: float, wide: bool):
     """One arrival sample N of step 6 (:func:`_shorten`): drives u[1] .. u[N-1]
     (|u| <= ``limit`` [V]) that keep the plant within ``tolerance`` [pulse] of the curve
     at every fine point inside the move (``zoh`` from :func:`_partial_zoh`: Q points
@@ -732,7 +734,9 @@ def _shorten_at(curve: NurbsCurve, zoh, N: int, s: np.ndarray, limit: float,
     Variables: the drives, the plant's state at every sample (the ZOH dynamics are
     equality constraints; a held point's position is its sample's state advanced by its
     part of the sample, three terms), each held point's |tangential step| and the
-    largest normal offset E, which is minimised (module docstring, step 6)."""
+    largest normal offset E, which is minimised (module docstring, step 6). The trust
+    region of the tangential steps is as wide as the linearisation stays within the
+    tolerance, or (``wide``) as the feed goes in a sample if that is wider."""
     from scipy import sparse
     from scipy.optimize import linprog
 
@@ -789,9 +793,12 @@ def _shorten_at(curve: NurbsCurve, zoh, N: int, s: np.ndarray, limit: float,
         sh = s[held]
         p = curve.parameter_at(sh)
         point, T = curve(p), curve.tangent(p)
-        # the chord C(s) + T d leaves the curve by about kappa d^2/2: within the tolerance
-        trust = np.minimum(reach * np.sqrt(2.0 * tolerance / np.maximum(
-            curve.curvature(p), 1e-300)), length)
+        F = np.asarray(feed(p) if isinstance(feed, FeedLimit) else np.full(m, feed))
+        # the trust region: as far as the chord C(s) + T d stays within the tolerance of
+        # the curve (kappa d^2/2), or as far as the feed goes in a sample (a guess
+        # compressed by a sample is off by about that much), whichever is farther
+        trust = np.minimum(reach * np.maximum(np.sqrt(2.0 * tolerance / np.maximum(
+            curve.curvature(p), 1e-300)), F * Ts * wide), length)
         normals = _normal_directions(T)                     # (m, r, n_axes)
         A_t = rows_along(T[:, None, :])                     # d = A_t x - b_t
         b_t = np.einsum("ij,ij->i", T, point)
@@ -805,7 +812,6 @@ def _shorten_at(curve: NurbsCurve, zoh, N: int, s: np.ndarray, limit: float,
         Dt = D @ A_t
         # the nearest points move forward, no faster than the feed, from the start
         # (sample 1) through every held point to the end (sample N)
-        F = np.asarray(feed(p) if isinstance(feed, FeedLimit) else np.full(m, feed))
         gap = np.diff(np.concatenate([[Q], f, [N * Q]])) * Ts / Q
         travel = np.maximum(F[1:], F[:-1]) * gap[1:-1]
         ahead = sh[1:] - sh[:-1] + b_t[:-1] - b_t[1:]      # s + d nondecreasing
@@ -906,8 +912,12 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
             t = np.arange(Q + 1, N * Q) / Q                   # fine points [samples]
             guess = np.interp(1.0 + (t - 1.0) * (times[-1] - 1.0) / (N - 1.0), times,
                               s_known)
-            found = _shorten_at(curve, zoh, N, np.maximum.accumulate(guess), limit,
-                                tolerance, tangent, feed, Ts)
+            # a trust region as wide as the feed goes in a sample, failing that as wide
+            # as the linearisation stays within the tolerance
+            found = None
+            for wide in (True, False):
+                found = found or _shorten_at(curve, zoh, N, np.maximum.accumulate(guess),
+                                             limit, tolerance, tangent, feed, Ts, wide)
             if found is None:
                 break
             best = (N, *found, zoh)
