@@ -991,7 +991,7 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         Fraction of Umax the planned drive may use, in (0, 1].
     path_tolerance : float
         [pulse], >= 0: how far from the path a short move's motion may go where that
-        lets it arrive sooner (step 6; never farther than the plan it replaces).
+        lets it arrive sooner (step 6; where the plan it replaces is farther, that far).
     grid_size : int
         Arc-length grid of the speed profile.
     max_samples : int

@@ -574,8 +574,9 @@ class PlannedInterpolator(Interpolator):
     path_tolerance : float
         [pulse], >= 0: how far from the path a short move (a plan of at most
         :data:`~nurbsmotion.motion_plan.SHORT_MOVE_SAMPLES` samples without a stop) may go
-        where that lets it arrive sooner; never farther than the speed profile's plan
-        (:data:`~nurbsmotion.motion_plan.DEFAULT_PATH_TOLERANCE`: one pulse).
+        where that lets it arrive sooner, or as far as the speed profile's plan does if
+        that is farther (:data:`~nurbsmotion.motion_plan.DEFAULT_PATH_TOLERANCE`: one
+        pulse).
     drive_fraction : float
         Fraction of Umax, in (0, 1], the plan's feedforward may use; the rest is left to
         the feedback on a plant that differs from the model.
