@@ -693,18 +693,18 @@ def _nearest_forward(curve: NurbsCurve, points: np.ndarray, s: np.ndarray) -> np
 def _partial_zoh(machine: Machine, points: int):
     """ZOH coefficients ``(a, b0, c, b1)`` over j/``points`` of a sample, j = 0 ..
     ``points``: each shape (points + 1, n_axes) (j = 0: no time, the identity)."""
-    zoh = [zoh_coefficients(machine.tau, machine.Kc, machine.Ke,
+    parts = [zoh_coefficients(machine.tau, machine.Kc, machine.Ke,
                               machine.sample_period * j / points)
              for j in range(1, points + 1)]
     ident = (np.ones(len(machine.tau)), *(np.zeros(len(machine.tau)),) * 3)
-    return tuple(np.vstack([i, *(s[q] for s in zoh)]) for q, i in enumerate(ident))
+    return tuple(np.vstack([i, *(part[q] for part in parts)]) for q, i in enumerate(ident))
 
 
 def _fine_positions(zoh, start: np.ndarray, u: np.ndarray):
     """Speed [rad/s] and position [pulse] of the model's plant at every sample, each
-    shape (N + 1, n_axes), and its position at every fine point (``points`` per sample,
-    ``zoh`` from :func:`_partial_zoh`), shape (N*points + 1, n_axes), driven from rest
-    at ``start`` by ``u`` (N, n_axes; u[k] held over sample k)."""
+    shape (N + 1, n_axes), and its position at every fine point (Q per sample, ``zoh``
+    from :func:`_partial_zoh`), shape (N*Q + 1, n_axes), driven from rest at ``start``
+    by ``u`` (N, n_axes; u[k] held over sample k)."""
     a, b0, c, b1 = zoh
     N = u.shape[0]
     w = np.zeros((N + 1, len(start)))
