@@ -91,7 +91,7 @@ from .geometry import distances_to
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .planning import SpeedProfile, speed_profile
-from .servo import zoh_coefficients
+from .servo import ServoPlant, zoh_coefficients
 
 __all__ = ["MotionPlan", "plan_motion", "axis_zoh"]
 
@@ -700,28 +700,24 @@ def _partial_zoh(machine: Machine, points: int):
     return tuple(np.vstack([i, *(part[q] for part in parts)]) for q, i in enumerate(ident))
 
 
-def _fine_positions(zoh, start: np.ndarray, u: np.ndarray):
-    """Speed [rad/s] and position [pulse] of the model's plant at every sample, each
-    shape (N + 1, n_axes), and its position at every fine point (Q per sample, ``zoh``
-    from :func:`_partial_zoh`), shape (N*Q + 1, n_axes), driven from rest at ``start``
-    by ``u`` (N, n_axes; u[k] held over sample k)."""
-    a, b0, c, b1 = zoh
-    N = u.shape[0]
-    w = np.zeros((N + 1, len(start)))
-    theta = np.empty((N + 1, len(start)))
-    theta[0] = start
-    for k in range(N):
-        w[k + 1] = a[-1] * w[k] + b0[-1] * u[k]
-        theta[k + 1] = theta[k] + c[-1] * w[k] + b1[-1] * u[k]
+def _fine_positions(plant: ServoPlant, zoh, u: np.ndarray):
+    """Speed [rad/s] and position [pulse] of the model's ``plant`` (at rest at its start)
+    at every sample, each shape (N + 1, n_axes) (:meth:`ServoPlant.response`), and its
+    position at every fine point (Q per sample, ``zoh`` from :func:`_partial_zoh`: each
+    sample's state advanced by part of a sample), shape (N*Q + 1, n_axes), under ``u``
+    (N, n_axes; u[k] held over sample k, within Umax)."""
+    w, theta = plant.response(u)
+    c, b1 = zoh[2], zoh[3]
     fine = (theta[:-1, None] + c[None, :-1] * w[:-1, None]
-            + b1[None, :-1] * u[:, None]).reshape(-1, len(start))
+            + b1[None, :-1] * u[:, None]).reshape(-1, u.shape[1])
     return w, theta, np.vstack([fine, theta[-1:]])
 
 
-def _shorten_at(curve: NurbsCurve, zoh, N: int, s: np.ndarray, limit: float,
-                tolerance: float, tangent: np.ndarray, feed, Ts: float, wide: bool):
+def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray,
+                limit: float, tolerance: float, tangent: np.ndarray, feed, Ts: float,
+                wide: bool):
     """One arrival sample N of step 6 (:func:`_shorten`): drives u[1] .. u[N-1]
-    (|u| <= ``limit`` [V]) that keep the plant within ``tolerance`` [pulse] of the curve
+    (|u| <= ``limit`` [V]) that keep the model's ``plant`` (at rest at the start) within ``tolerance`` [pulse] of the curve
     at every fine point inside the move (``zoh`` from :func:`_partial_zoh`: Q points
     per sample, fine points Q + 1 .. N*Q - 1), their nearest points moving forward no
     faster than ``feed`` and none past the end along its unit ``tangent``, and put it at
@@ -762,6 +758,7 @@ def _shorten_at(curve: NurbsCurve, zoh, N: int, s: np.ndarray, limit: float,
             rows += [r, r[1:]] + [r] * len(terms)
             cols += [out, col_u[j, 1:]] + [cc for cc, _ in terms]
             vals += [np.ones(N), np.full(N - 1, drive)] + [np.full(N, v) for _, v in terms]
+    dynamics = (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols)))
     n_fixed = col_theta[-1, -1] + 1
     fine = np.arange(Q + 1, N * Q)                          # the points inside the move
     held = fine[fine % (Q // 2) == 0] - Q - 1               # index into fine
@@ -772,9 +769,7 @@ def _shorten_at(curve: NurbsCurve, zoh, N: int, s: np.ndarray, limit: float,
         col_step = n_fixed + np.arange(m)
         col_E = n_fixed + m
         n_var = col_E + 1
-        A_eq = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
-                                                          np.concatenate(cols))),
-                                 shape=(2 * n_axes * N, n_var))
+        A_eq = sparse.csr_matrix(dynamics, shape=(2 * n_axes * N, n_var))
         f = fine[held]
         ks, js = f // Q, f % Q                              # sample, part of it
         # position of axis j at held point i: theta[ks] + c_js*w[ks] + b1_js*u[ks]
@@ -842,7 +837,7 @@ def _shorten_at(curve: NurbsCurve, zoh, N: int, s: np.ndarray, limit: float,
             return None
         u = np.zeros((N, n_axes))
         u[1:] = res.x[:n_u].reshape(n_axes, N - 1).T
-        positions = _fine_positions(zoh, start, u)[2][Q + 1:N * Q]
+        positions = _fine_positions(plant, zoh, u)[2][Q + 1:N * Q]
         guess = s.copy()
         guess[held] = np.clip(sh + np.einsum("ij,ij->i", T, positions[held] - point),
                               0.0, length)
@@ -894,6 +889,7 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     y the nearest path points of the samples."""
     length = curve.length
     Ts = machine.sample_period
+    plant = ServoPlant.of_machine(machine, curve(0.0))
     kappa = float(np.max(curve.curvature(curve.geometry.uniform_parameters(
         8 * CHECK_POINTS))))
     fastest = feed.highest if isinstance(feed, FeedLimit) else feed
@@ -916,7 +912,8 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
             # as the linearisation stays within the tolerance
             found = None
             for wide in (True, False):
-                found = found or _shorten_at(curve, zoh, N, np.maximum.accumulate(guess),
+                found = found or _shorten_at(curve, plant, zoh, N,
+                                             np.maximum.accumulate(guess),
                                              limit, tolerance, tangent, feed, Ts, wide)
             if found is None:
                 break
@@ -938,7 +935,7 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     start, end = curve(0.0), curve(1.0)
     u = np.zeros((n, curve.n_axes))
     u[:N] = u_moving
-    w, theta = (x[:-1] for x in _fine_positions(zoh, start, u)[:2])
+    w, theta = (x[:-1] for x in _fine_positions(plant, zoh, u)[:2])
     w[N:], theta[N:] = 0.0, end
     y = np.broadcast_to(end, theta.shape).copy()
     new_param = np.ones(n)
