@@ -14,8 +14,8 @@ max(5 % of the bound, 3 ms), whether that target is reachable at all by a sample
 that stops at the corners (:func:`nurbsmotion.planning.sampled_stop_bound`: one dead
 sample, then whole samples per piece, each at least the slowest axis' rest-to-rest
 minimum; a case is unreachable when even this bound misses the target), the max
-contour error (:func:`nurbsmotion.metrics.contour_error`), how far the run passes the end
-and the stop corners (the run's metrics), and the planning time (the interpolator's
+contour error, how far the run passes the end and the stop corners (the run's metrics,
+:meth:`nurbsmotion.loop.Trace.metrics`), and the planning time (the interpolator's
 construction, wall clock).
 
 Prints the counts and the distributions (median, 95th percentile, max) per condition.
@@ -35,7 +35,6 @@ from nurbsmotion.errors import InvalidCurveError, NurbsmotionError
 from nurbsmotion.interpolators import PlannedInterpolator
 from nurbsmotion.loop import simulate
 from nurbsmotion.machine import Axis, die_bonder
-from nurbsmotion.metrics import contour_error
 from nurbsmotion.paths.random_paths import FAMILIES, random_path
 from nurbsmotion.planning import sampled_stop_bound, time_optimal_bound
 from nurbsmotion.servo import ServoPlant
@@ -97,7 +96,7 @@ def one_case(i: int) -> dict:
         nan=not (np.all(np.isfinite(tr.position_command)) and np.all(np.isfinite(tr.drive))),
         monotone=bool(np.all(np.diff(tr.u) >= 0)),
         at_rest=bool(np.isfinite(st)),
-        contour=float(np.max(contour_error(curve, tr.position))),
+        contour=metrics.max_contour_error,
     )
     allowance = max(0.05 * bound, 3e-3)
     row["settle_ok"] = bool(st - bound <= allowance)
