@@ -172,19 +172,26 @@ def faster_is_never_slower(m):
 
 def planning_time(m):
     print("## Planning time (median of 3) [s]\n")
-    print("| path | feed [m/s] | planned | TOPP-RA |\n|---|---|---|---|")
+    print("TOPP-RA with 400 gridpoints a corner-free piece, and on the grid `planned` "
+          "starts from (its arc-length grid size shared among the pieces).\n")
+    print("| path | feed [m/s] | planned | TOPP-RA, 400 a piece | TOPP-RA, same grid |\n"
+          "|---|---|---|---|---|")
     try:
         import toppra  # noqa: F401  (a benchmark-only comparison)
-        from toppra_compare import toppra_plan
+        from toppra_compare import planned_grid_size, toppra_plan
     except ImportError:
         toppra_plan = None
     for path, feeds in RUNS.items():
         curve = to_pulses(builtin_path(path), m)
         for F in feeds:
             t_plan = _common.median_time(lambda: PlannedInterpolator(curve, m, F), 3)[0]
-            t_topp = (_common.median_time(lambda: toppra_plan(curve, m, F), 3)[0]
-                      if toppra_plan is not None else float("nan"))
-            print(f"| {path} | {F / 1e6:g} | {t_plan:.3f} | {t_topp:.3f} |")
+            if toppra_plan is None:
+                t_topp = [float("nan")] * 2
+            else:
+                t_topp = [_common.median_time(lambda: toppra_plan(curve, m, F, **grid), 3)[0]
+                          for grid in ({}, {"grid_size": planned_grid_size()})]
+            print(f"| {path} | {F / 1e6:g} | {t_plan:.3f} | {t_topp[0]:.3f} "
+                  f"| {t_topp[1]:.3f} |")
     print()
 
 

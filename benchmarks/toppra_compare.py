@@ -25,6 +25,8 @@ Run: python benchmarks/toppra_compare.py [--repeats 3]
 from __future__ import annotations
 
 import argparse
+import inspect
+import math
 import statistics
 import time
 
@@ -77,8 +79,17 @@ class _ArcLengthPath:
         return None
 
 
-def toppra_plan(curve, machine, feed, points_per_piece=400):
-    """Parameter sequence at Ts planned by TOPP-RA, piece by piece between corners."""
+def planned_grid_size() -> int:
+    """The arc-length grid size `planned` uses by default (PlannedInterpolator's)."""
+    return inspect.signature(PlannedInterpolator).parameters["grid_size"].default
+
+
+def toppra_plan(curve, machine, feed, points_per_piece=400, grid_size=None):
+    """Parameter sequence at Ts planned by TOPP-RA, piece by piece between corners.
+
+    Each piece gets ``points_per_piece`` gridpoints, or, with ``grid_size``, the share of
+    ``grid_size`` points its length has, at least 51: the grid `planned`'s speed profile
+    starts from (``planning._piece_grid``, before it refines sharp turns)."""
     import toppra as ta
     import toppra.algorithm as algo
     import toppra.constraint as constraint
@@ -96,7 +107,9 @@ def toppra_plan(curve, machine, feed, points_per_piece=400):
     s_all, durations = [], []
     for s0, s1 in zip(s_ends[:-1], s_ends[1:]):
         path = path_cls(curve, float(s0), float(s1))
-        grid = np.linspace(0.0, path.path_interval[1], points_per_piece)
+        points = (points_per_piece if grid_size is None else
+                  max(50, math.ceil(grid_size * (s1 - s0) / curve.length)) + 1)
+        grid = np.linspace(0.0, path.path_interval[1], points)
         cons = [constraint.JointVelocityConstraint(np.column_stack([-vlim, vlim])),
                 constraint.JointAccelerationConstraint(np.column_stack([-alim, alim]))]
         inst = algo.TOPPRA(cons, path, gridpoints=grid, parametrizer="ParametrizeConstAccel")

@@ -730,7 +730,10 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
     Variables: the drives, the plant's state at every sample (the ZOH dynamics are
     equality constraints; a held point's position is its sample's state advanced by its
     part of the sample, three terms), each held point's |tangential step| and the
-    largest normal offset E, which is minimised (module docstring, step 6). The trust
+    largest normal offset E, which is minimised (module docstring, step 6). E bounds the
+    offsets along the normal directions (:func:`_normal_directions`; from 3 axes on a
+    polygon around the path, which bounds the distance by ``spread*E`` only) and, for a
+    point a round found farther than the tolerance, along its own offset (a cut). The trust
     region of the tangential steps is as wide as the linearisation stays within the
     tolerance, or (``wide``) as the feed goes in a sample if that is wider."""
     from scipy import sparse
@@ -763,6 +766,9 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
     fine = np.arange(Q + 1, N * Q)                          # the points inside the move
     held = fine[fine % (Q // 2) == 0] - Q - 1               # index into fine
     spread = {2: 1.0, 3: 1.0 / math.cos(math.pi / 8)}.get(n_axes, math.sqrt(n_axes - 1))
+    # cuts: the unit normal offset of every point a round found farther than the
+    # tolerance (renewed every round; none with 2 axes, whose normal is exact)
+    cut = np.zeros((len(fine), n_axes))
     reach, previous = 1.0, math.inf
     for rounds in range(SHORTEN_ROUNDS):
         m = len(held)
@@ -795,13 +801,21 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
         trust = np.minimum(reach * np.maximum(np.sqrt(2.0 * tolerance / np.maximum(
             curve.curvature(p), 1e-300)), F * Ts * wide), length)
         normals = _normal_directions(T)                     # (m, r, n_axes)
+        cuts = np.flatnonzero(np.any(cut[held] != 0.0, axis=1))
+        if cuts.size:   # (m, r + 1, n_axes): the held points' cuts (none: row dropped)
+            normals = np.concatenate([normals, cut[held][:, None]], axis=1)
         A_t = rows_along(T[:, None, :])                     # d = A_t x - b_t
         b_t = np.einsum("ij,ij->i", T, point)
         A_n = rows_along(normals)
         b_n = np.einsum("iqj,ij->iq", normals, point).ravel()
-        r = normals.shape[1]
-        E = sparse.csr_matrix((np.ones(m * r), (np.arange(m * r), np.full(m * r, col_E))),
-                              shape=(m * r, n_var))
+        if cuts.size:
+            rows = np.ones(normals.shape[:2], bool)
+            rows[:, -1] = False
+            rows[cuts, -1] = True
+            A_n, b_n = A_n[rows.ravel()], b_n[rows.ravel()]
+        E = sparse.csr_matrix((np.ones(len(b_n)), (np.arange(len(b_n)),
+                                                   np.full(len(b_n), col_E))),
+                              shape=(len(b_n), n_var))
         S = sparse.csr_matrix((np.ones(m), (np.arange(m), col_step)), shape=(m, n_var))
         D = sparse.diags([np.ones(m - 1), -np.ones(m - 1)], [0, 1], shape=(m - 1, m))
         Dt = D @ A_t
@@ -842,7 +856,9 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
         guess[held] = np.clip(sh + np.einsum("ij,ij->i", T, positions[held] - point),
                               0.0, length)
         s_new = _nearest_forward(curve, positions, np.maximum.accumulate(guess))
-        off = np.linalg.norm(positions - curve(curve.parameter_at(s_new)), axis=1)
+        p_new = curve.parameter_at(s_new)
+        offset = positions - curve(p_new)
+        off = np.linalg.norm(offset, axis=1)
         at_end = s_new >= length * (1 - 1e-12)
         past = float(np.max((positions[at_end] - end) @ tangent, initial=0.0))
         if np.max(off) <= tolerance and past <= PRECOMPENSATION_TOLERANCE:
@@ -857,6 +873,12 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
         elif np.any(np.abs(guess[held] - sh) >= trust * (1 - 1e-6)):
             reach *= 2.0   # the chord was right, and the trust region held it back
         previous = min(previous, E_now)
+        if n_axes > 2:
+            T_new = curve.tangent(p_new)
+            normal = offset - np.einsum("ij,ij->i", offset, T_new)[:, None] * T_new
+            size = np.linalg.norm(normal, axis=1)
+            renew = (np.any(cut != 0.0, axis=1) | (off > tolerance)) & (size > 0.0)
+            cut[renew] = normal[renew] / size[renew, None]
         # once the held points are within the tolerance, hold the worst point of each
         # sample interval that is not
         loose = np.ones(len(fine), bool)
