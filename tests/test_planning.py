@@ -21,7 +21,7 @@ from nurbsmotion.interpolators.planned import PlannedInterpolator
 from nurbsmotion.loop import simulate, to_pulses
 from nurbsmotion.metrics import contour_error
 from nurbsmotion.motion_plan import plan_motion
-from nurbsmotion.machine import die_bonder
+from nurbsmotion.machine import Axis, die_bonder
 from nurbsmotion.nurbs import NurbsCurve
 from nurbsmotion.planning import speed_profile, time_optimal_bound
 from nurbsmotion.servo import ServoPlant, zoh_matrices
@@ -310,8 +310,17 @@ def _continuous_positions(plan, machine, start, per_sample=8):
     return np.vstack(out)
 
 
-@pytest.mark.parametrize("seed, feed", [(0, 1e6), (30, 1e6), (50, 2e5), (78, 1e6)])
-def test_short_move_rests_as_soon_as_the_drive_allows(seed, feed, monkeypatch):
+def _three_axes():
+    """The die-bonder with a third axis z, a copy of x."""
+    x = MACHINE.axes[0]
+    return MACHINE.with_options(axes=MACHINE.axes + (
+        Axis("z", x.time_constant, x.electrical_gain, x.mechanical_gain, x.position_gain,
+             x.speed_gain),))
+
+
+@pytest.mark.parametrize("seed, feed, n_axes",
+                         [(0, 1e6, 2), (30, 1e6, 2), (50, 2e5, 2), (78, 1e6, 2), (7, 1e6, 3)])
+def test_short_move_rests_as_soon_as_the_drive_allows(seed, feed, n_axes, monkeypatch):
     """Random short moves (bound 4-12 ms, mostly near the Nyquist frequency): step 6
     frees the timing along the path and solves the drives at once, so the plan rests on
     the end sooner than steps 1-5 alone, within Umax, still the model plant's response
@@ -319,21 +328,24 @@ def test_short_move_rests_as_soon_as_the_drive_allows(seed, feed, monkeypatch):
     plan it replaces) not only at the samples but all along the continuous motion
     (RK45, 8 points a sample; exact distances, metrics.contour_error), its nearest path
     point moving forward no faster than the feed; run on the nominal plant it settles
-    when its plan rests and passes the end by under 1 um."""
+    when its plan rests and passes the end by under 1 um. With 3 axes the program bounds
+    the distance by a polygon around the path, and by a cut where a point is off the
+    path between its normals."""
     from nurbsmotion import motion_plan as mp
     from nurbsmotion.metrics import nearest_parameter, settle_time
     from nurbsmotion.paths.random_paths import random_path
-    curve = random_path("short_moves", [10, seed], n_axes=2)
+    curve = random_path("short_moves", [10, seed], n_axes=n_axes)
+    machine = MACHINE if n_axes == 2 else _three_axes()
     with monkeypatch.context() as patch:
         patch.setattr(mp, "_shorten", lambda *args: None)
-        before = plan_motion(curve, MACHINE, feed)
-    plan = plan_motion(curve, MACHINE, feed)
+        before = plan_motion(curve, machine, feed)
+    plan = plan_motion(curve, machine, feed)
     assert plan.arrival < before.arrival
     end = curve(1.0)
     np.testing.assert_array_equal(plan.position[plan.arrival:],
                                   np.broadcast_to(end, plan.position[plan.arrival:].shape))
-    assert np.max(np.abs(plan.drive)) <= MACHINE.max_drive
-    speed, position = ServoPlant.of_machine(MACHINE, curve(0.0)).response(plan.drive[:-1])
+    assert np.max(np.abs(plan.drive)) <= machine.max_drive
+    speed, position = ServoPlant.of_machine(machine, curve(0.0)).response(plan.drive[:-1])
     np.testing.assert_allclose(position, plan.position, atol=1e-6)
     np.testing.assert_allclose(speed, plan.speed, atol=1e-6, rtol=1e-9)
     allowed = max(mp.DEFAULT_PATH_TOLERANCE, float(np.max(contour_error(curve,
@@ -341,14 +353,14 @@ def test_short_move_rests_as_soon_as_the_drive_allows(seed, feed, monkeypatch):
     assert np.max(contour_error(curve, plan.position)) <= allowed * (1 + 1e-6)
     # between the points it holds (at least every half sample) the motion stays within
     # a tenth of the tolerance of it
-    moving = _continuous_positions(plan, MACHINE, curve(0.0))
+    moving = _continuous_positions(plan, machine, curve(0.0))
     assert np.max(contour_error(curve, moving)) <= 1.1 * allowed
     u, _ = nearest_parameter(curve, plan.position)
     assert np.all(np.diff(plan.parameter) >= 0)
     progress = np.diff(curve.arc_length(u))
-    assert np.max(progress) <= feed * MACHINE.sample_period + 2 * allowed
-    tr = simulate(PlannedInterpolator(curve, MACHINE, feed), MACHINE, settle_time=0.02)
-    assert settle_time(tr.t, tr.position, end) <= plan.arrival * MACHINE.sample_period + 1e-12
+    assert np.max(progress) <= feed * machine.sample_period + 2 * allowed
+    tr = simulate(PlannedInterpolator(curve, machine, feed), machine, settle_time=0.02)
+    assert settle_time(tr.t, tr.position, end) <= plan.arrival * machine.sample_period + 1e-12
     assert tr.metrics().end_overshoot <= 1.0
 
 
