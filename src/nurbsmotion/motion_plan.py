@@ -62,10 +62,12 @@ is built offline in six steps:
    drives and the plant's sampled states (the ZOH dynamics as equality constraints; a
    point within a sample is its sample's state advanced in closed form). Each program
    minimises the largest offset of the held points (the samples, the half samples and
-   those a round found off the path) from the path linearised at their nearest points,
-   within a trust region (as far as the feed goes in a sample; failing that, as far as
-   the linearisation stays within the tolerance). N runs down from the plan's arrival
-   while one is found.
+   those a round found off the path) from the path linearised at their nearest points
+   (along the normals; with 3 axes and more, along directions around the path and, where
+   a round found a point outside the tolerance, along its own offset), within a trust
+   region (as far as the feed goes in a sample; failing that, as far as the
+   linearisation stays within the tolerance). N runs down from the plan's arrival while
+   one is found.
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
