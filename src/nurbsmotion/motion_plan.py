@@ -656,7 +656,7 @@ SHORT_MOVE_SAMPLES = 128
 """Step 6 plans the moves that rest on the end within this many samples. Its linear
 programs grow with the move (0.05-0.5 s each at 50-120 samples, and a move takes some
 tens of them): on the 1,000 random paths of ``benchmarks/planner_sweep.py`` planning
-takes a median 0.03 s, 3.5 s at the 95th percentile and 38 s at most."""
+takes a median 0.03 s, 3.6 s at the 95th percentile and 14 s at most."""
 
 DEFAULT_PATH_TOLERANCE = 1.0
 """How far [pulse] from the path step 6 may take a short move's motion by default: one
@@ -719,8 +719,8 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
                 limit: float, tolerance: float, tangent: np.ndarray, feed, Ts: float,
                 wide: bool):
     """One arrival sample N of step 6 (:func:`_shorten`): drives u[1] .. u[N-1]
-    (|u| <= ``limit`` [V]) that keep the model's ``plant`` (at rest at the start) within ``tolerance`` [pulse] of the curve
-    at every fine point inside the move (``zoh`` from :func:`_partial_zoh`: Q points
+    (|u| <= ``limit`` [V]) that keep the model's ``plant`` (at rest at the start) within
+    ``tolerance`` [pulse] of the curve at every fine point inside the move (``zoh`` from :func:`_partial_zoh`: Q points
     per sample, fine points Q + 1 .. N*Q - 1), their nearest points moving forward no
     faster than ``feed`` and none past the end along its unit ``tangent``, and put it at
     rest on the end at N; ``s`` (N*Q - Q - 1,) is the first guess of the nearest points'
@@ -771,6 +771,7 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
     # cuts: the unit normal offset of every point a round found farther than the
     # tolerance (renewed every round; none with 2 axes, whose normal is exact)
     cut = np.zeros((len(fine), n_axes))
+    has_cut = np.zeros(len(fine), bool)
     reach, previous = 1.0, math.inf
     for rounds in range(SHORTEN_ROUNDS):
         m = len(held)
@@ -803,7 +804,7 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
         trust = np.minimum(reach * np.maximum(np.sqrt(2.0 * tolerance / np.maximum(
             curve.curvature(p), 1e-300)), F * Ts * wide), length)
         normals = _normal_directions(T)                     # (m, r, n_axes)
-        cuts = np.flatnonzero(np.any(cut[held] != 0.0, axis=1))
+        cuts = np.flatnonzero(has_cut[held])
         if cuts.size:   # (m, r + 1, n_axes): the held points' cuts (none: row dropped)
             normals = np.concatenate([normals, cut[held][:, None]], axis=1)
         A_t = rows_along(T[:, None, :])                     # d = A_t x - b_t
@@ -879,8 +880,9 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
             T_new = curve.tangent(p_new)
             normal = offset - np.einsum("ij,ij->i", offset, T_new)[:, None] * T_new
             size = np.linalg.norm(normal, axis=1)
-            renew = (np.any(cut != 0.0, axis=1) | (off > tolerance)) & (size > 0.0)
+            renew = (has_cut | (off > tolerance)) & (size > 0.0)
             cut[renew] = normal[renew] / size[renew, None]
+            has_cut |= renew
         # once the held points are within the tolerance, hold the worst point of each
         # sample interval that is not
         loose = np.ones(len(fine), bool)
