@@ -711,3 +711,39 @@ def test_a_piece_start_does_not_stall_the_forward_pass():
     assert max(durations) < 1.01 * min(durations)
     trace = simulate(make_interpolator("planned", curve, m, 172144.72284469937), m)
     assert trace.metrics().total_saturated_samples == 0
+
+
+def _slow_machine():
+    """Two axes whose steady speed Umax*Kc*Ke is 1e6 pulse/s (1 m/s), 5 ms time constant."""
+    axis = dict(time_constant=0.005, electrical_gain=100.0, mechanical_gain=1000.0,
+                position_gain=5e-4, speed_gain=0.0)
+    return die_bonder().with_options(axes=(Axis("x", **axis), Axis("y", **axis)),
+                                     max_drive=10.0)
+
+
+@pytest.mark.parametrize("radius, feed", [(2e5, 2e6), (2e4, 0.98e6)])
+def test_a_speed_the_drive_cannot_hold_falls_along_the_path(radius, feed):
+    """A quarter circle from heading +y to heading -x. At twice the axes' steady speed M
+    (radius 0.2 m, 2 m/s), x must slow to about M/|x'| as the path turns toward it; at
+    0.98 M on a 20 mm radius, the curvature's drive at the feed is more than x can give
+    without braking. The passes once held a speed they could not keep (a falling step was
+    clamped as if on a drive-bound MVC): the profile's x drive rose above Umax, the first
+    case's bound came out 0.263 s instead of 0.290 s, and the planner eased in vain and
+    refused both paths. Every interval's acceleration is now admissible at one of its
+    ends, and the planned run neither saturates nor is refused."""
+    m = _slow_machine()
+    arc = nm.make_arc([0.0, 0.0], radius, 0.0, math.pi / 2)
+    M = m.max_drive * m.Kc * m.Ke
+    profile = speed_profile(arc, m, feed, grid_size=4000)
+    (s, u, V), = profile.pieces
+    d1, d2 = arc(u, 1), arc(u, 2)
+    speed = np.linalg.norm(d1, axis=1)[:, None]
+    q1 = d1 / speed
+    q2 = (d2 - np.sum(q1 * d2, axis=1)[:, None] * q1) / speed**2
+    a = (V[1:] ** 2 - V[:-1] ** 2) / (2 * np.diff(s))
+    drive = [np.max(np.abs(m.tau * (q2[k] * V[k, None] ** 2 + q1[k] * a[:, None])
+                           + q1[k] * V[k, None]) / M, axis=1)
+             for k in (slice(0, -1), slice(1, None))]
+    assert np.all(np.minimum(*drive) <= 1 + 1e-6)
+    trace = simulate(make_interpolator("planned", arc, m, feed), m)
+    assert trace.success and trace.metrics().total_saturated_samples == 0

@@ -233,13 +233,45 @@ def _max_speed(q1, q2, tau, M, feed):
     return out
 
 
+MVC_TOLERANCE = 1e-9
+"""A point whose b = sd^2 is within this fraction of the MVC's is on it (:func:`_passes`
+slides along the MVC from there where the drive bounds it, not the feed)."""
+
+
 @njit(cache=True)
-def _passes(q1, q2, tau, M, M_acc, ds, bmax):
+def _forced_fall(q1, q2, tau, M, j, b0, ds, forward):
+    """The largest b in [0, b0] reached from ``b0`` over ``ds`` at a constant acceleration
+    admissible at grid point ``j`` with that b: ``(b - b0)/(2 ds) <= amax(j, b)`` going
+    forward, ``(b0 - b)/(2 ds) >= amin(j, b)`` going backward (an implicit step, by
+    bisection: the forced change shrinks with the speed)."""
+    lo_b, hi_b = 0.0, b0
+    for _ in range(60):
+        mid = 0.5 * (lo_b + hi_b)
+        r = _range(q1, q2, tau, M, j, mid)
+        ok = (mid - b0 <= 2.0 * ds * r[1]) if forward else (b0 - mid >= 2.0 * ds * r[0])
+        if ok:
+            lo_b = mid
+        else:
+            hi_b = mid
+    return lo_b
+
+
+@njit(cache=True)
+def _passes(q1, q2, tau, M, M_acc, ds, bmax, bfeed):
     """Backward pass at the deceleration limit (drive bound ``M``), then forward pass at
     the acceleration limit (``M_acc``), on one piece; b = sd^2 at every point.
 
+    Where the drive bounds the MVC its admissible range shrinks to a point whose slope the
+    Euler step does not follow: the passes slide along it instead of falling below it.
+    Elsewhere (below the MVC, or on it where the feed ``bfeed`` = F^2 bounds it) a step
+    that must lower the speed stands: a speed the drive holds only while it decelerates
+    (an axis beyond its steady speed ``Umax*Kc*Ke``, or the curvature's drive at the
+    feed), implicit (:func:`_forced_fall`) where the explicit one would fall below rest.
+
     ``q1``, ``q2``, ``M``, ``M_acc`` have shape (n, n_axes); ``ds`` [pulse], shape
-    (n - 1,), is the grid spacing (uniform, or refined in short knot spans)."""
+    (n - 1,), is the grid spacing (uniform, or refined in short knot spans); ``bmax`` and
+    ``bfeed``, shape (n,), the MVC's and the feed's b."""
+    slide = bmax < bfeed * (1.0 - MVC_TOLERANCE)
     n = len(bmax)
     back = np.empty(n)
     back[-1] = 0.0
@@ -253,9 +285,12 @@ def _passes(q1, q2, tau, M, M_acc, ds, bmax):
             b = bn - 2.0 * ds[i] * a
             if bn == 0.0 and b < bn:  # at rest the correction would stall (b = 0 twice, an
                 b = min(explicit, bmax[i])  # infinite time): the earlier point's MVC caps it
-        # On the MVC the admissible range shrinks to a point whose slope the Euler step does
-        # not follow; slide along the MVC instead of falling below it.
-        back[i] = min(max(b, min(bn, bmax[i])), bmax[i])
+            b = max(b, min(bn, bmax[i]))
+        elif slide[i + 1] and bn >= bmax[i + 1] * (1.0 - MVC_TOLERANCE):
+            b = max(b, min(bn, bmax[i]))
+        elif b < 0.0:
+            b = _forced_fall(q1, q2, tau, M, i, bn, ds[i], False)
+        back[i] = min(b, bmax[i])
     out = np.empty(n)
     out[0] = 0.0
     for i in range(n - 1):
@@ -268,7 +303,12 @@ def _passes(q1, q2, tau, M, M_acc, ds, bmax):
             b = bp + 2.0 * ds[i] * a
             if bp == 0.0 and b < bp:  # at rest the correction would stall (b = 0 twice, an
                 b = min(explicit, bmax[i + 1])  # infinite time): the next point's MVC caps it
-        out[i + 1] = min(max(b, min(bp, bmax[i + 1])), back[i + 1])
+            b = max(b, min(bp, bmax[i + 1]))
+        elif slide[i] and bp >= bmax[i] * (1.0 - MVC_TOLERANCE):
+            b = max(b, min(bp, bmax[i + 1]))
+        elif b < 0.0:
+            b = _forced_fall(q1, q2, tau, M_acc, i + 1, bp, ds[i], True)
+        out[i + 1] = min(b, back[i + 1])
     return out
 
 
@@ -430,8 +470,8 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
         M_acc = M_dec if (fa == drive_fraction and acceleration_scale is None) \
             else np.ascontiguousarray(fa * scale[:, None] * M)
         F_here = feed(u) if isinstance(feed, FeedLimit) else F
-        vmax = _max_speed(q1, q2, tau, M_dec,
-                          np.ascontiguousarray(np.broadcast_to(F_here, (n,)), dtype=float))
+        F_grid = np.ascontiguousarray(np.broadcast_to(F_here, (n,)), dtype=float)
+        vmax = _max_speed(q1, q2, tau, M_dec, F_grid)
         inner = vmax[1:-1]
         if inner.size and np.min(inner / np.broadcast_to(F_here, vmax.shape)[1:-1]) < min_speed_ratio:
             i = int(np.argmin(inner)) + 1
@@ -441,7 +481,8 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
                 f"{drive_fraction:g} x Umax = {drive_fraction * machine.max_drive:g} V; "
                 "the curvature is too high for the drive"
             )
-        b = _passes(q1, q2, tau, M_dec, M_acc, np.asarray(ds, dtype=float), vmax**2)
+        b = _passes(q1, q2, tau, M_dec, M_acc, np.asarray(ds, dtype=float), vmax**2,
+                    F_grid**2)
         pieces.append((s, u, np.sqrt(b)))
     return SpeedProfile(tuple(pieces), F, float(drive_fraction))
 
