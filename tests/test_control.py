@@ -16,7 +16,8 @@ import nurbsmotion as nm
 from nurbsmotion import InvalidMachineError, PathFileError
 from nurbsmotion.control import (PidGains, loop_poles, pid_affine, pid_commit, pid_law,
                                  pid_output, pid_state)
-from nurbsmotion.loop import run
+from nurbsmotion.interpolators import make_interpolator
+from nurbsmotion.loop import run, simulate
 from nurbsmotion.machine import Axis, Machine, die_bonder, load_machine
 from nurbsmotion.servo import ServoPlant, plant_step, zoh_matrices
 
@@ -345,3 +346,26 @@ def test_the_linuxcnc_pid_example_machine_runs():
     assert m.controller == "pid" and m.axes[0].pid.Igain == 0.02
     tr = run(nm.make_die_bonder_pi(), m, 5e5, "planned")
     assert tr.success, tr.message
+
+
+def test_planned_follows_its_plan_through_a_deadband_and_the_clamps():
+    """A pid with a 0.5-pulse deadband, an integrator and its clamp (the die-bonder's PD+
+    preset otherwise), the Pi at 1 m/s on the model's plant. The law is not affine in the
+    setpoint once the deadband or a clamp acts; the affine form's setpoint gave another
+    drive, the plant left the plan and the governor slowed it (on random machines up to
+    24 um of contour error and 21 um past a stop corner). The setpoint is now solved for
+    on the law itself: the run follows the plan (the model plant's response to the
+    plan's drive) to 1e-3 pulse, where the affine form's setpoint left it by 28 pulses."""
+    m = die_bonder()
+    axes = tuple(Axis(a.name, a.time_constant, a.electrical_gain, a.mechanical_gain,
+                      pid=PidGains(Pgain=g.Pgain, Igain=2 * g.Pgain, Dgain=g.Dgain,
+                                   FF1=g.FF1, FF2=g.FF2, deadband=0.5, maxerrorI=50.0))
+                 for a, g in zip(m.axes, m.pid_gains))
+    pid = m.with_options(axes=axes, controller="pid")
+    interp = make_interpolator("planned", nm.make_die_bonder_pi(), pid, 1e6)
+    tr = simulate(interp, pid)
+    plan = interp.plan
+    n = plan.rest + 1
+    assert np.max(np.abs(tr.position[:n] - plan.position[:n])) <= 1e-3
+    assert tr.metrics().max_contour_error <= 0.1
+    assert tr.metrics().corner_overshoot <= 0.05 and tr.metrics().end_overshoot <= 0.05

@@ -44,10 +44,12 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
 4. the loop's law is affine in the setpoint between its clamps,
    ``u = slope*thd + offset`` with slope > 0 (:func:`nurbsmotion.control.pid_affine`,
    from the law's memory and the measured state), so the setpoint that produces exactly
-   that drive is ``thd = (u - offset) / slope``; where a clamp of the law (LinuxCNC
-   ``pid``'s maxerror, deadband, ...) makes the drive differ, the setpoint is moved until
-   the law's own output (:func:`nurbsmotion.control.pid_output`) is within Umax. Setpoints
-   lead the path and need not lie on it; the actual position is what must.
+   that drive is ``thd = (u - offset) / slope``; where a clamp or the deadband of the law
+   (LinuxCNC ``pid``'s maxerror, deadband, ...) makes the drive differ, the setpoint is
+   solved for on the law's own output (:func:`nurbsmotion.control.pid_output`, continuous
+   and nondecreasing in the setpoint), and where a clamp makes that drive unreachable,
+   moved until the output is within Umax (:func:`_setpoint_for`). Setpoints lead the path
+   and need not lie on it; the actual position is what must.
 
 Every sample's status says whether the governor slowed the plan or the drive was clipped
 (``LIMITED``). The move is finished (``FINISHED``: the setpoint has arrived) once the
@@ -664,6 +666,49 @@ def _law_output(law, law_state, j, command, position, velocity):
     return pid_output(law, law_state, j, command, position, velocity)[0]
 
 
+DRIVE_MATCH = 1e-6
+"""The law's output for a setpoint counts as the drive asked of it within this fraction
+of Umax: the affine form's rounding (its terms reach thousands of volts that cancel, as
+``FF2*command/Ts^2`` does) stays far below it, a deadband's or a clamp's effect far above;
+beyond it the setpoint is solved for on the law itself (:func:`_setpoint_for`)."""
+
+
+@njit(cache=True)
+def _setpoint_for(law, law_state, j, command, drive, position, velocity):
+    """The setpoint of axis ``j`` at which the law, as it computes (clamps, deadband and
+    frozen integrator included), outputs ``drive`` [V] (within +-Umax): ``command``, the
+    affine form's setpoint, where that is exact (always for PD and PD+). Otherwise the
+    law's output, continuous and nondecreasing in the setpoint (every gain >= 0, every
+    clamp and the deadband monotone), is bracketed away from ``command`` and bisected;
+    where no setpoint gives ``drive`` (a clamp flattens the output short of it), the
+    setpoint nearest ``command`` whose drive is within Umax (:func:`_within_limit`).
+    Returns ``(setpoint, found)``."""
+    umax = law[j]["maxoutput"]
+    out = _law_output(law, law_state, j, command, position, velocity)
+    if abs(out - drive) <= DRIVE_MATCH * umax:
+        if abs(out) <= umax:
+            return command, True
+        return _within_limit(law, law_state, j, command, position, velocity)
+    sign = 1.0 if out < drive else -1.0
+    step = abs(command - position) + 1.0
+    near, far = command, command + sign * step
+    tries = 0
+    while sign * (_law_output(law, law_state, j, far, position, velocity) - drive) < 0.0:
+        tries += 1
+        if tries > 60:
+            return _within_limit(law, law_state, j, command, position, velocity)
+        near = far
+        step *= 2.0
+        far = command + sign * step
+    for _ in range(60):
+        mid = 0.5 * (near + far)
+        if sign * (_law_output(law, law_state, j, mid, position, velocity) - drive) < 0.0:
+            near = mid
+        else:
+            far = mid
+    return _within_limit(law, law_state, j, near, position, velocity)
+
+
 @njit(cache=True)
 def _within_limit(law, law_state, j, command, position, velocity):
     """The setpoint of axis ``j`` nearest to ``command`` whose drive, as the law computes
@@ -727,8 +772,8 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
     state.excess[0] = excess
     status = stepping.WORKING
     for j in range(n_axes):
-        setpoint, found = _within_limit(law, law_state, j, command[j], position[j],
-                                        velocity[j])
+        setpoint, found = _setpoint_for(law, law_state, j, command[j], state.drive[j],
+                                        position[j], velocity[j])
         if not found:
             status = stepping.CORNERED
         if setpoint != command[j]:
