@@ -747,3 +747,44 @@ def test_a_speed_the_drive_cannot_hold_falls_along_the_path(radius, feed):
     assert np.all(np.minimum(*drive) <= 1 + 1e-6)
     trace = simulate(make_interpolator("planned", arc, m, feed), m)
     assert trace.success and trace.metrics().total_saturated_samples == 0
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_planned_on_random_machines(seed):
+    """Machines nobody tuned for (:mod:`nurbsmotion.random_machines`: every law, Ts
+    0.1-2 ms, tau 2-100 ms, feeds up to 3x an axis's steady speed), on the model's plant:
+    never refused, never saturated, at rest on the end, following its own plan (the
+    model plant's response to the plan's drive) within a pulse while it moves.
+    ``benchmarks/machine_sweep.py`` runs 600 such cases."""
+    from nurbsmotion.paths.random_paths import FAMILIES, random_path
+    from nurbsmotion.random_machines import random_machine
+
+    rng = np.random.default_rng([5, seed])
+    n_axes = int(rng.integers(2, 4))
+    m = random_machine([5, seed], n_axes)
+    curve = random_path(sorted(FAMILIES)[seed % len(FAMILIES)], [5, seed], n_axes=n_axes)
+    feed = float(np.exp(rng.uniform(np.log(0.02), np.log(3.0)))) * np.min(m.max_axis_speed)
+    interp = PlannedInterpolator(curve, m, feed)
+    tr = simulate(interp, m)
+    assert tr.success, tr.message
+    assert tr.metrics().total_saturated_samples == 0
+    n = min(interp.plan.rest + 1, len(tr.position))
+    assert np.max(np.abs(tr.position[:n] - interp.plan.position[:n])) <= 1.0
+
+
+def test_landing_stays_near_a_tight_curl_the_samples_step_across():
+    """A 2 mm curl at 2 m/s, Ts = 2 ms (a random machine's; 40 samples for the move):
+    consecutive samples lie far apart along the curl. The landing judged a changed
+    position by its distance to the polyline through the desired samples, which cuts
+    the curl: it accepted positions 46 um off the path (the exact distance,
+    :func:`nurbsmotion.metrics.contour_error`), and step 6, no farther from the path
+    than the plan it replaced, kept them. With the distance to the curve itself the
+    plan stays within 3 um."""
+    from nurbsmotion.paths.random_paths import random_path
+
+    axes = (Axis("x", 0.03013, 289.77, 1606.3, 4.2458e-4, 0.014266),
+            Axis("y", 0.019733, 279.38, 1430.06, 6.4964e-5, 0.0))
+    m = die_bonder().with_options(axes=axes, max_drive=11.4363, sample_period=0.002)
+    curve = random_path("curls", [77, 177], n_axes=2)
+    plan = plan_motion(curve, m, 2.0157e6)
+    assert np.max(contour_error(curve, plan.position)) <= 3.0

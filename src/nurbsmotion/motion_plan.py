@@ -526,17 +526,6 @@ def _arrival(y: np.ndarray) -> int:
     return int(moving[-1]) + 1 if moving.size else 0
 
 
-def _distance_to_polyline(points: np.ndarray, vertices: np.ndarray) -> np.ndarray:
-    """Distance [pulse] of each of ``points`` (m, n_axes) to the polyline through
-    ``vertices`` (q >= 2, n_axes), shape (m,)."""
-    a, b = vertices[None, :-1], vertices[None, 1:]
-    ab = b - a
-    rel = points[:, None] - a
-    t = np.clip(np.sum(rel * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-300),
-                0.0, 1.0)
-    return np.min(np.linalg.norm(rel - t[..., None] * ab, axis=-1), axis=1)
-
-
 def _past_end(positions: np.ndarray, off: np.ndarray, end: np.ndarray,
               tangent: np.ndarray) -> float:
     """How far [pulse] the ``positions`` (m, n_axes) whose nearest point of a path is its
@@ -586,7 +575,8 @@ def _rest_on_end(h: np.ndarray, theta: np.ndarray, w: np.ndarray, target: np.nda
 
 
 def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
-                 machine: Machine, limit: float, tangent: np.ndarray) -> int:
+                 machine: Machine, limit: float, tangent: np.ndarray, curve: NurbsCurve,
+                 param: np.ndarray) -> int:
     """Step 5: bring the plan to rest exactly on the end, at the earliest sample N the
     drive allows, no later than the sample where the desired motion arrives there (in
     place). Returns N (the arrival if the plan is left as it is).
@@ -601,9 +591,12 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     end and otherwise departs least from ``y`` (equality-constrained least squares over
     the window's positions) is applied, and the drive is 0 after N. It is kept if the
     changed drive is within ``limit`` [V] and the window's positions stay as near the
-    desired path (the polyline through ``y``) as the plan was to ``y`` there (at least
-    within :data:`PRECOMPENSATION_TOLERANCE`) and none passes the end along the path's
-    unit ``tangent`` there by more than that tolerance (:func:`_past_end`). N runs from
+    ``curve`` as the plan was to ``y`` there (at least within
+    :data:`PRECOMPENSATION_TOLERANCE`; the distance to the path point that Newton steps
+    from the desired positions' curve parameters ``param`` (n,) find, never less than the
+    true one: the polyline through ``y`` cuts a tight curl the samples step across) and
+    none passes the end along the path's unit ``tangent`` there by more than that
+    tolerance (:func:`_past_end`). N runs from
     the arrival less the samples
     the averaging and the inverse shape (``INVERSE_REACH + 1``), changing at most that
     many drives, up to the arrival itself, where m grows up to :data:`LANDING_SAMPLES`
@@ -628,8 +621,8 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
             if np.max(np.abs(drive)) > limit:
                 continue
             theta_new = theta[k0 + 1:N + 1] + moved[:, 1]
-            off = _distance_to_polyline(theta_new,
-                                        y[min(max(k0 - 1, 0), arrive - 1):arrive + 1])
+            near = _nearest_forward(curve, theta_new, curve.arc_length(param[k0 + 1:N + 1]))
+            off = np.linalg.norm(theta_new - curve(curve.parameter_at(near)), axis=1)
             if np.max(off) > tolerance \
                     or _past_end(theta_new, off, end, tangent) > PRECOMPENSATION_TOLERANCE:
                 continue
@@ -921,7 +914,12 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     fastest = feed.highest if isinstance(feed, FeedLimit) else feed
     plan_s = curve.arc_length(param[:arrival + 1])
     nearest = curve.parameter_at(_nearest_forward(curve, theta[:arrival + 1], plan_s))
-    own = float(np.max(np.linalg.norm(theta[:arrival + 1] - curve(nearest), axis=1)))
+    # the plan's distance from the path, at most that to the nearest points found or to
+    # its desired points (on a tight curl a sample may move farther than the Newton steps
+    # of _nearest_forward reach: they then find a point far from the nearest)
+    own = float(np.max(np.minimum(
+        *(np.linalg.norm(theta[:arrival + 1] - curve(q), axis=1)
+          for q in (nearest, param[:arrival + 1])))))
 
     def descend(tolerance):
         # fine points: the path's chord between two within the tolerance at the feed
@@ -1101,7 +1099,8 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     w, theta, u = plant
     tangent = curve(1.0, 1, "left")
     tangent = tangent / max(float(np.linalg.norm(tangent)), 1e-300)
-    landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax, tangent)
+    landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax, tangent, curve,
+                          param)
     y[landed:] = y[-1]       # the desired motion rests where the plan does
     param[landed:] = 1.0
     if landed <= SHORT_MOVE_SAMPLES and corners.size == 0:
