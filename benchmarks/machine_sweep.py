@@ -93,10 +93,20 @@ def report(rows: list) -> None:
           f"| {sum(r['end_overshoot'] > 1 for r in ran)} / "
           f"{sum(r['corner_overshoot'] > 1 for r in ran)} | {pct('ratio')} "
           f"| {pct('planning')} |")
-    worst = sorted(ran, key=lambda r: -r["contour"])[:5]
-    print("\nlargest contour errors:", ", ".join(
-        f"case {r['case']} ({r['family']}, {r['controller']}, Ts {r['sample_period'] * 1e3:g} ms, "
-        f"{r['feed_per_steady_speed']:.2f}x): {r['contour']:.3g} um" for r in worst))
+    def cases(selected, key, unit):
+        return ", ".join(
+            f"case {r['case']} ({r['family']}, {r['controller']}, Ts "
+            f"{r['sample_period'] * 1e3:g} ms, {r['feed_per_steady_speed']:.2f}x): "
+            f"{r[key]:.3g} {unit}" for r in selected)
+
+    print("\nlargest contour errors:",
+          cases(sorted(ran, key=lambda r: -r["contour"])[:5], "contour", "um"))
+    print("slowest planning:",
+          cases(sorted(ran, key=lambda r: -r["planning"])[:5], "planning", "s"))
+    for key in ("end_overshoot", "corner_overshoot"):
+        over = [r for r in ran if r[key] > 1]
+        if over:
+            print(f"{key} > 1 um:", cases(over, key, "um"))
 
 
 def main():

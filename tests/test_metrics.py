@@ -157,8 +157,8 @@ def test_overshoot_is_at_most_the_distance_off_the_path():
     assert overshoot(pos, np.zeros(2), up, np.full(4, np.inf)) == pytest.approx(2.5)
 
 
-def _end_overshoot_of(curve, position, u, finished):
-    """The run's end overshoot for made-up rows: actual ``position`` (n, 2) [pulse] and
+def _metrics_of(curve, position, u, finished):
+    """The running figures for made-up rows: actual ``position`` (n, 2) [pulse] and
     setpoint parameter ``u`` (n,), the setpoint at the end from sample ``finished``."""
     from nurbsmotion.closed_loop import new_rows
 
@@ -169,7 +169,28 @@ def _end_overshoot_of(curve, position, u, finished):
     rows.u[:], rows.position[:], rows.command[:] = u, position, position
     m = metrics.RunningMetrics(curve, die_bonder(), 1.0)
     m.add(0, rows, finished, True)
-    return m.end_overshoot
+    return m
+
+
+def _end_overshoot_of(curve, position, u, finished):
+    return _metrics_of(curve, position, u, finished).end_overshoot
+
+
+def test_corner_overshoot_where_the_path_bends_back_beyond_the_corner():
+    """In along +x to a sharp corner at (100, 0), out along +y, then the outgoing piece
+    (a quadratic) bends to +x: half way to the end it is 50 pulses beyond the corner's
+    plane x = 100. A machine exactly on the path has not passed the corner (its samples
+    up to 32 pulses beyond that plane were counted as passing it); one that goes 3 pulses
+    beyond the corner itself has passed it by 3."""
+    bend = NurbsCurve(2, [0, 0, 0, 0.5, 0.5, 1, 1, 1],
+                      [[0, 0], [50, 0], [100, 0], [100, 100], [300, 100]])
+    u = np.array([0.0, 0.25, 0.5, 0.6, 0.7, 0.75, 0.75])
+    on_path = bend(u)
+    assert _metrics_of(bend, on_path, u, 7).corner_overshoot == pytest.approx(0.0, abs=1e-9)
+    ahead = on_path.copy()
+    ahead[2] = [103.0, 0.0]  # the position runs ahead of its setpoint past the corner
+    u[2] = 0.45
+    assert _metrics_of(bend, ahead, u, 7).corner_overshoot == pytest.approx(3.0)
 
 
 def test_end_overshoot_before_the_setpoint_arrives():

@@ -645,23 +645,35 @@ class RunningMetrics:
             self.fluct_n += int(rel.size)
 
     def _add_corners(self, reached, position, nearest) -> None:
-        """:func:`overshoot` at each sharp corner at ``u_c``, along the incoming tangent's
-        part normal to the outgoing tangent (the incoming tangent itself at a reversal):
-        along it the path does not advance after the corner, so any positive excursion
-        passes the corner. The samples counted run from the first whose setpoint
+        """How far the samples pass each sharp corner at ``u_c``: along the incoming
+        tangent's part normal to the outgoing tangent (the incoming tangent itself at a
+        reversal), beyond where the path itself goes there. Right after the corner the
+        path does not advance along that direction, so any positive excursion passes the
+        corner; a sample whose nearest path point (``nearest``,
+        :func:`nearest_parameter`) lies further on is counted by how far it goes beyond
+        that point's own excursion (the outgoing piece may curve back along it), and one
+        whose nearest point lies before the corner not at all (it is still on the way,
+        :func:`_past`). The samples counted run from the first whose setpoint
         (``reached``: the running maximum of its parameter) is half way along the piece
         before the corner until it passes half way to the next corner (or the end): an
         actual position that runs ahead of its setpoint passes the corner before the
-        setpoint gets there; of those, the ones whose nearest path point (``nearest``,
-        :func:`nearest_parameter`) is the corner or lies after it (:func:`_past`)."""
+        setpoint gets there."""
         if self.corner_u.size == 0:
             return
         start = np.searchsorted(reached, self.corner_from, "left")
         stop = np.searchsorted(reached, self.corner_mid, "left")
         for c in np.flatnonzero(start < stop):
-            self.corner_overshoot = max(self.corner_overshoot, overshoot(
-                position[start[c]:stop[c]], self.corner_points[c], self.corner_normals[c],
-                _past(nearest[start[c]:stop[c]], (self.corner_u[c], self.corner_mid[c]))))
+            window = slice(start[c], stop[c])
+            point, normal = self.corner_points[c], self.corner_normals[c]
+            n = normal / np.linalg.norm(normal)
+            # elementwise, not BLAS (see add)
+            path_along = np.maximum(np.sum((self.curve(nearest[window]) - point) * n,
+                                           axis=1), 0.0)
+            along = np.sum((position[window] - point) * n, axis=1) - path_along
+            counted = _past(nearest[window], (self.corner_u[c], self.corner_mid[c]))
+            self.corner_overshoot = max(self.corner_overshoot,
+                                        float(np.max(np.minimum(along, counted),
+                                                     initial=0.0)))
 
     def result(self, finished_index: int, success: bool, message: str) -> Metrics:
         """The figures of the rows taken, for a run that reached the end at sample
