@@ -645,6 +645,10 @@ SHORTEN_ROUNDS = 24
 """Most linear programs step 6 solves for one arrival sample (each re-linearises the path
 at the motion's nearest points)."""
 
+SHORTEN_STALL = 8
+"""Step 6 gives up an arrival sample when this many rounds in a row bring the motion's
+farthest point from the path no nearer than the nearest it has been."""
+
 SHORT_MOVE_SAMPLES = 128
 """Step 6 plans the moves that rest on the end within this many samples. Its linear
 programs grow with the move (0.05-0.5 s each at 50-120 samples, and a move takes some
@@ -730,7 +734,11 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
     polygon around the path, which bounds the distance by ``spread*E`` only) and, for a
     point a round found farther than the tolerance, along its own offset (a cut). The trust
     region of the tangential steps is as wide as the linearisation stays within the
-    tolerance, or (``wide``) as the feed goes in a sample if that is wider."""
+    tolerance, or (``wide``) as the feed goes in a sample if that is wider. N is given up
+    when E cannot reach the tolerance at its pace in the rounds left, or when
+    :data:`SHORTEN_STALL` rounds in a row bring the farthest fine point no nearer (on a
+    random 3-axis machine, 24 rounds of E at 0.998 against held points at 1.07: 42 s
+    where this rule takes 14 s; on the sweep's 461 step-6 runs it changes no arrival)."""
     from scipy import sparse
     from scipy.optimize import linprog
 
@@ -766,6 +774,7 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
     cut = np.zeros((len(fine), n_axes))
     has_cut = np.zeros(len(fine), bool)
     reach, previous = 1.0, math.inf
+    closest, stalled = math.inf, 0  # the least of the farthest points so far; rounds since
     for rounds in range(SHORTEN_ROUNDS):
         m = len(held)
         col_step = n_fixed + np.arange(m)
@@ -859,6 +868,11 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
         past = float(np.max((positions[at_end] - end) @ tangent, initial=0.0))
         if np.max(off) <= tolerance and past <= PRECOMPENSATION_TOLERANCE:
             return u, s_new
+        farthest = float(np.max(off))
+        stalled = 0 if farthest < closest else stalled + 1
+        closest = min(closest, farthest)
+        if stalled >= SHORTEN_STALL:
+            return None
         worst = float(np.max(off[held]))
         E_now = float(res.x[col_E])
         left = SHORTEN_ROUNDS - 1 - rounds
