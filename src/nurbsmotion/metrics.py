@@ -664,16 +664,16 @@ class RunningMetrics:
         stop = np.searchsorted(reached, self.corner_mid, "left")
         for c in np.flatnonzero(start < stop):
             window = slice(start[c], stop[c])
+            counted = _past(nearest[window], (self.corner_u[c], self.corner_mid[c])) > 0
+            if not counted.any():
+                continue
             point, normal = self.corner_points[c], self.corner_normals[c]
             n = normal / np.linalg.norm(normal)
             # elementwise, not BLAS (see add)
-            path_along = np.maximum(np.sum((self.curve(nearest[window]) - point) * n,
-                                           axis=1), 0.0)
-            along = np.sum((position[window] - point) * n, axis=1) - path_along
-            counted = _past(nearest[window], (self.corner_u[c], self.corner_mid[c]))
+            path_along = np.sum((self.curve(nearest[window][counted]) - point) * n, axis=1)
+            along = np.sum((position[window][counted] - point) * n, axis=1)
             self.corner_overshoot = max(self.corner_overshoot,
-                                        float(np.max(np.minimum(along, counted),
-                                                     initial=0.0)))
+                                        float(np.max(along - np.maximum(path_along, 0.0))))
 
     def result(self, finished_index: int, success: bool, message: str) -> Metrics:
         """The figures of the rows taken, for a run that reached the end at sample

@@ -931,9 +931,9 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     # the plan's distance from the path, at most that to the nearest points found or to
     # its desired points (on a tight curl a sample may move farther than the Newton steps
     # of _nearest_forward reach: they then find a point far from the nearest)
-    own = float(np.max(np.minimum(
-        *(np.linalg.norm(theta[:arrival + 1] - curve(q), axis=1)
-          for q in (nearest, param[:arrival + 1])))))
+    to_nearest = np.linalg.norm(theta[:arrival + 1] - curve(nearest), axis=1)
+    to_desired = np.linalg.norm(theta[:arrival + 1] - curve(param[:arrival + 1]), axis=1)
+    own = float(np.max(np.minimum(to_nearest, to_desired)))
 
     def descend(tolerance):
         # fine points: the path's chord between two within the tolerance at the feed
