@@ -567,3 +567,22 @@ def test_bounding_box_is_exact_against_a_dense_sample():
                 assert sign * box[row, j] <= min(sign * pts[i, j], best.fun) + 1e-12 * size
     np.testing.assert_allclose(make_circle(3.0).bounding_box(), [[-3, -3], [3, 3]],
                                rtol=0, atol=1e-12)
+
+
+def test_a_control_point_repeated_degree_times_is_one_corner():
+    """A cubic whose control point is repeated three times stops at one knot, a corner
+    turning from the incoming leg to the outgoing one. C' has a root of high order
+    there, which a polynomial root finder places only to about eps^(1/3) (5e-9 in the
+    parameter, where the machine sweep's case 101 listed the same corner twice)."""
+    knots = [0, 0, 0, 0, 1 / 7, 2 / 7, 3 / 7, 4 / 7, 5 / 7, 6 / 7, 1, 1, 1, 1]
+    P = [[0, 0], [-5098.6, -9730.2], [-8243.2, -5466.7], [-8243.2, -5466.7],
+         [-8243.2, -5466.7], [-8111.3, -6024.7], [-10590.3, -2049.7], [-11282.3, -1157.9],
+         [-9333.0, 10269.8], [-8331.6, 9516.4]]
+    c = NurbsCurve(3, knots, P)
+    knot = c.breakpoints[2]  # the span where P2 = P3 = P4 act alone: C(2/7) = P3
+    np.testing.assert_allclose(c(knot), P[3], atol=1e-9)
+    np.testing.assert_array_equal(c.zero_speed_points, [knot])
+    np.testing.assert_array_equal(c.sharp_corners(), [knot])
+    legs = np.array([np.subtract(P[3], P[1]), np.subtract(P[5], P[3])])
+    expected = np.arccos(np.dot(legs[0], legs[1]) / np.prod(np.linalg.norm(legs, axis=1)))
+    assert c.turning_angle(knot) == pytest.approx(expected, abs=1e-6)

@@ -653,7 +653,21 @@ class NurbsCurve:
         near = np.clip(np.searchsorted(bp, u), 1, len(bp) - 1)
         near = np.where(np.abs(bp[near - 1] - u) < np.abs(bp[near] - u), near - 1, near)
         u = np.where(np.abs(bp[near] - u) <= 1e-12, bp[near], u)
-        return u[np.concatenate([[True], np.diff(u) > 1e-12])]
+        u = u[np.concatenate([[True], np.diff(u) > 1e-12])]
+        # A multiple root (a control point repeated p times) is found only to about
+        # eps^(1/m): candidates between which the curve does not move (to the same 1e-9
+        # of its size, at both ends and halfway) are one point, a breakpoint if one of
+        # them is.
+        if len(u) > 1:
+            mid = self(0.5 * (u[1:] + u[:-1]))
+            pos = self(u)
+            same = (np.linalg.norm(pos[1:] - pos[:-1], axis=-1) <= 1e-9 * scale) \
+                & (np.linalg.norm(mid - pos[:-1], axis=-1) <= 1e-9 * scale)
+            groups = np.split(u, np.flatnonzero(~same) + 1)
+            on_bp = [g[np.isin(g, bp)] for g in groups]
+            u = np.array([b[0] if b.size else 0.5 * (g[0] + g[-1])
+                          for g, b in zip(groups, on_bp)])
+        return u
 
     def _axis_turns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per span ``[a, b]``, the parameters where one axis's derivative ``C'_j``
