@@ -238,21 +238,65 @@ MVC_TOLERANCE = 1e-9
 slides along the MVC from there where the drive bounds it, not the feed)."""
 
 
+STIFF_STEP = 0.5
+"""A rising step is taken implicitly (:func:`_implicit_step`) where the far end's limit at
+the explicit step's speed is less than this fraction of the near end's: there the limit
+changes within the step more than a one-sided correction follows (elsewhere the step
+takes the smaller of the two, which errs on the slow side by O(ds) and converges as the
+grid is refined)."""
+
+
 @njit(cache=True)
-def _forced_fall(q1, q2, tau, M, j, b0, ds, forward):
-    """The largest b in [0, b0] reached from ``b0`` over ``ds`` at a constant acceleration
-    admissible at grid point ``j`` with that b: ``(b - b0)/(2 ds) <= amax(j, b)`` going
-    forward, ``(b0 - b)/(2 ds) >= amin(j, b)`` going backward (an implicit step, by
-    bisection: the forced change shrinks with the speed)."""
-    lo_b, hi_b = 0.0, b0
-    for _ in range(60):
+def _step_excess(q1, q2, tau, M, j, b0, ds, forward, b):
+    """How far ``b`` misses :func:`_implicit_step`'s condition (<= 0: met; inf where the
+    range at ``b`` is empty)."""
+    lo, hi = _range(q1, q2, tau, M, j, b)
+    if lo > hi:
+        return math.inf
+    return (b - b0 - 2.0 * ds * hi) if forward else (2.0 * ds * lo - (b0 - b))
+
+
+@njit(cache=True)
+def _implicit_step(q1, q2, tau, M, j, b0, ds, forward, lo_b, hi_b, guess):
+    """The largest b in ``[lo_b, hi_b]`` reached from ``b0`` over ``ds`` at a constant
+    acceleration admissible at grid point ``j`` with that b: ``(b - b0)/(2 ds) <=
+    amax(j, b)`` going forward, ``(b0 - b)/(2 ds) >= amin(j, b)`` going backward (an
+    implicit Euler step; ``lo_b`` meets the condition, ``guess`` in the bracket may: the
+    explicit step with the far end's limit at ``hi_b``). Used where the limit changes with
+    the speed faster than an explicit step follows: a forced fall (the change shrinks
+    with the speed), or a rise toward an axis's steady speed over a grid interval longer
+    than the distance it takes (its speed relaxes as exp(-t/tau)).
+
+    Found to 1e-13 of b by the Illinois variant of false position, halving the bracket
+    where the condition's excess is not finite."""
+    g_hi = _step_excess(q1, q2, tau, M, j, b0, ds, forward, hi_b)
+    if g_hi <= 0.0:
+        return hi_b
+    if lo_b < guess < hi_b:
+        g = _step_excess(q1, q2, tau, M, j, b0, ds, forward, guess)
+        if g <= 0.0:
+            lo_b = guess
+    g_lo = _step_excess(q1, q2, tau, M, j, b0, ds, forward, lo_b)
+    side = 0
+    for _ in range(200):
+        if hi_b - lo_b <= 1e-13 * hi_b:
+            break
         mid = 0.5 * (lo_b + hi_b)
-        r = _range(q1, q2, tau, M, j, mid)
-        ok = (mid - b0 <= 2.0 * ds * r[1]) if forward else (b0 - mid >= 2.0 * ds * r[0])
-        if ok:
-            lo_b = mid
+        if math.isfinite(g_hi):
+            guess = lo_b + (hi_b - lo_b) * (-g_lo) / (g_hi - g_lo)
+            if lo_b < guess < hi_b:
+                mid = guess
+        g = _step_excess(q1, q2, tau, M, j, b0, ds, forward, mid)
+        if g <= 0.0:
+            lo_b, g_lo = mid, g
+            if side < 0:
+                g_hi *= 0.5
+            side = -1
         else:
-            hi_b = mid
+            hi_b, g_hi = mid, g
+            if side > 0:
+                g_lo *= 0.5
+            side = 1
     return lo_b
 
 
@@ -266,7 +310,11 @@ def _passes(q1, q2, tau, M, M_acc, ds, bmax, bfeed):
     Elsewhere (below the MVC, or on it where the feed ``bfeed`` = F^2 bounds it) a step
     that must lower the speed stands: a speed the drive holds only while it decelerates
     (an axis beyond its steady speed ``Umax*Kc*Ke``, or the curvature's drive at the
-    feed), implicit (:func:`_forced_fall`) where the explicit one would fall below rest.
+    feed), implicit (:func:`_implicit_step`) where the explicit one would fall below rest.
+    A step that raises the speed uses an acceleration admissible at both ends of its
+    interval, at the speed it reaches (implicit where the far end's limit binds: toward
+    an axis's steady speed the limit falls with the speed, over a distance ``v*tau``
+    that may be much shorter than the grid interval).
 
     ``q1``, ``q2``, ``M``, ``M_acc`` have shape (n, n_axes); ``ds`` [pulse], shape
     (n - 1,), is the grid spacing (uniform, or refined in short knot spans); ``bmax`` and
@@ -279,17 +327,18 @@ def _passes(q1, q2, tau, M, M_acc, ds, bmax, bfeed):
         bn = back[i + 1]
         a = _range(q1, q2, tau, M, i + 1, bn)[0]
         b = bn - 2.0 * ds[i] * a
-        if b > bn:  # implicit correction: the deceleration limit at the earlier point too
+        if b > bn:  # the deceleration must be admissible at the earlier point too
             explicit = b
-            a = max(a, _range(q1, q2, tau, M, i, b)[0])
-            b = bn - 2.0 * ds[i] * a
-            if bn == 0.0 and b < bn:  # at rest the correction would stall (b = 0 twice, an
-                b = min(explicit, bmax[i])  # infinite time): the earlier point's MVC caps it
-            b = max(b, min(bn, bmax[i]))
+            a_far = _range(q1, q2, tau, M, i, b)[0]
+            if a_far > STIFF_STEP * a and bn <= bmax[i] and _range(q1, q2, tau, M, i, bn)[0] <= 0.0:
+                b = _implicit_step(q1, q2, tau, M, i, bn, ds[i], False, bn, explicit,
+                                   bn - 2.0 * ds[i] * a_far)
+            else:
+                b = max(bn - 2.0 * ds[i] * max(a, a_far), min(bn, bmax[i]))
         elif slide[i + 1] and bn >= bmax[i + 1] * (1.0 - MVC_TOLERANCE):
             b = max(b, min(bn, bmax[i]))
         elif b < 0.0:
-            b = _forced_fall(q1, q2, tau, M, i, bn, ds[i], False)
+            b = _implicit_step(q1, q2, tau, M, i, bn, ds[i], False, 0.0, bn, 0.0)
         back[i] = min(b, bmax[i])
     out = np.empty(n)
     out[0] = 0.0
@@ -297,17 +346,19 @@ def _passes(q1, q2, tau, M, M_acc, ds, bmax, bfeed):
         bp = out[i]
         a = _range(q1, q2, tau, M_acc, i, bp)[1]
         b = bp + 2.0 * ds[i] * a
-        if b > bp:
+        if b > bp:  # the acceleration must be admissible at the next point too
             explicit = b
-            a = min(a, _range(q1, q2, tau, M_acc, i + 1, b)[1])
-            b = bp + 2.0 * ds[i] * a
-            if bp == 0.0 and b < bp:  # at rest the correction would stall (b = 0 twice, an
-                b = min(explicit, bmax[i + 1])  # infinite time): the next point's MVC caps it
-            b = max(b, min(bp, bmax[i + 1]))
+            a_far = _range(q1, q2, tau, M_acc, i + 1, b)[1]
+            if a_far < STIFF_STEP * a and bp <= bmax[i + 1] \
+                    and _range(q1, q2, tau, M_acc, i + 1, bp)[1] >= 0.0:
+                b = _implicit_step(q1, q2, tau, M_acc, i + 1, bp, ds[i], True, bp, explicit,
+                                   bp + 2.0 * ds[i] * a_far)
+            else:
+                b = max(bp + 2.0 * ds[i] * min(a, a_far), min(bp, bmax[i + 1]))
         elif slide[i] and bp >= bmax[i] * (1.0 - MVC_TOLERANCE):
             b = max(b, min(bp, bmax[i + 1]))
         elif b < 0.0:
-            b = _forced_fall(q1, q2, tau, M_acc, i + 1, bp, ds[i], True)
+            b = _implicit_step(q1, q2, tau, M_acc, i + 1, bp, ds[i], True, 0.0, bp, 0.0)
         out[i + 1] = min(b, back[i + 1])
     return out
 
