@@ -1050,10 +1050,19 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     spacing = 2.0 * curve.length / grid_size
 
     def drive_scale(s_query):
+        # per round, the smallest factor of the intervals (centre - half, centre + half)
+        # that hold each point: written in order of falling factor, the smallest last
+        order = np.argsort(s_query, kind="stable")
+        s_sorted = s_query[order]
         scale = np.ones_like(s_query)
         for centre, half, factor in eases:
-            near = np.abs(s_query[:, None] - centre[None, :]) < half[None, :]
-            scale *= np.min(np.where(near, factor[None, :], 1.0), axis=1)
+            lo = np.searchsorted(s_sorted, centre - half, side="right")
+            hi = np.searchsorted(s_sorted, centre + half, side="left")
+            least = np.ones_like(s_query)
+            capped = np.minimum(factor, 1.0).tolist()
+            for k in np.argsort(-factor, kind="stable").tolist():
+                least[lo[k]:hi[k]] = capped[k]
+            scale[order] *= least
         return scale
 
     grids: dict = {}  # the profile's grids, reused while only its drive limit changes
