@@ -591,6 +591,23 @@ def test_corner_tolerance_rounds_within_eps_and_is_faster():
     assert settle_time(trace) < settle_time(_planned_pi(1e6)[1])
 
 
+@pytest.mark.parametrize("eps", [300.0, 1000.0])
+def test_a_blend_whose_drives_add_is_eased_on_both_pieces(eps):
+    """A V whose legs run mostly along y: at the corner the first leg brakes y at its
+    drive limit while the second accelerates y the same way, so the blend's y drive is
+    the sum of two drives at the limit. Easing only the later piece (the sample's
+    parameter) could not bring the sum down, and ran away: 1.93 x the stop-at-corner
+    bound at eps = 1 mm, and on a 0.2 m DXF polyline at Ts = 0.1 ms a profile of 2,287 s
+    after 10 minutes of planning, refused as "the feed is too low". Both pieces are now
+    eased: within eps + 5 um of the sharp path, never slower than stopping at the
+    corner, no drive beyond Umax."""
+    V = nm.make_polyline([[0.0, 0.0], [1000.0, 3000.0], [2000.0, 0.0]])
+    it, trace = _planned(V, 1e6, corner_tolerance=eps)
+    _check_run(it, trace)
+    assert np.max(contour_error(V, trace.position)) <= eps + 5.0
+    assert settle_time(trace) <= settle_time(_planned(V, 1e6)[1])
+
+
 def test_planned_is_registered():
     assert "planned" in LOOP_METHODS
     assert isinstance(make_interpolator("planned", PI, MACHINE, 1e6), PlannedInterpolator)

@@ -27,7 +27,8 @@ is built offline in six steps:
    to cover its first eps. At every instant one of the two is within eps of the corner,
    so the blended position is within eps of the sharp path (a G64-style blend); the
    overlap is then widened while the measured deviation stays within eps. The drive is
-   the sum of the two pieces' drives, checked in step 4.
+   the sum of the two pieces' drives, checked in step 4 (which eases both pieces where
+   a blend exceeds the limit).
 3. **Drive sequence.** Exact inversion of theta -> u is unstable in practice: the sampled
    plant has a zero at ``-c1/b1`` close to -1, and inverting it rings at the Nyquist
    frequency. Zero-phase-error tracking (Tomizuka 1987) inverts the speed exactly and the
@@ -343,26 +344,21 @@ BLEND_ROUNDS = 5
 """Rounds that widen a blend until its deviation from the sharp corner reaches eps."""
 
 
-BLEND_CHUNK = 256
-"""Blended points compared with the path samples at a time (bounds the temporary)."""
-
-
 def _farthest_from(points: np.ndarray, path: np.ndarray, corner: np.ndarray) -> float:
     """``max_i min_k |points[i] - path[k]|`` [pulse]: how far the points get from the
     nearest path sample (at least the distance to the path itself).
 
     ``corner`` is one of the path samples, so each point's nearest sample lies within
-    twice the points' largest distance to it: only those samples are compared, in chunks
-    of :data:`BLEND_CHUNK` points (the same distances as comparing all, without a
-    points-by-samples temporary of a long piece)."""
+    twice the points' largest distance to it: only those samples go into a k-d tree
+    (scipy's), which finds each point's nearest in O(log n). Comparing every point with
+    every sample took 36 s per corner of a 0.2 m polyline at Ts = 0.1 ms (6,000 blended
+    points, 12,000 samples near the corner, five rounds)."""
+    from scipy.spatial import cKDTree
+
     radius = float(np.max(distances_to(points, corner)))
     near = path[distances_to(path, corner) <= 2.0 * radius * (1 + 1e-9) + 1e-300]
-    worst = 0.0
-    for i in range(0, len(points), BLEND_CHUNK):
-        chunk = points[i:i + BLEND_CHUNK]
-        gap = np.min(np.linalg.norm(chunk[:, None, :] - near[None, :, :], axis=2), axis=1)
-        worst = max(worst, float(np.max(gap)))
-    return worst
+    gap, _ = cKDTree(near).query(points)
+    return float(np.max(gap))
 
 
 def _blend_overlap(prev_motion, prev_dur, prev_len, motion, dur, length, tolerance, Ts):
@@ -403,8 +399,9 @@ def _blend_overlap(prev_motion, prev_dur, prev_len, motion, dur, length, toleran
 
 def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, tolerance: float,
                     lead: int):
-    """y[k] (sum of the pieces, blended at corners), the parameter of each sample, and the
-    time of every corner [samples]. Piece 0 starts at sample ``lead``."""
+    """y[k] (sum of the pieces, blended at corners), the parameter of each sample, the
+    time of every corner [samples] and, for the samples inside a blend, the parameter of
+    the earlier piece (NaN elsewhere). Piece 0 starts at sample ``lead``."""
     pieces = _piece_motions(curve, profile, Ts)
     starts, t0 = [], 0.0
     corner_times = []
@@ -422,6 +419,8 @@ def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, toleran
     start = curve(0.0)
     y = np.broadcast_to(start, (n, curve.n_axes)).copy()
     param = np.zeros(n)
+    earlier = np.full(n, np.nan)
+    previous_end = -math.inf  # when the previous piece stops [s]
     for (dur, motion, _), t0 in zip(pieces, starts):
         local = times - t0
         first = int(np.searchsorted(local, 0.0, side="right"))  # local > 0 from here on
@@ -430,9 +429,13 @@ def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, toleran
         pts, uk = motion(np.minimum(local[first:], dur))
         base = motion(np.array([0.0]))[0][0]
         y[first:] += pts - base
-        # The parameter of a sample is that of the latest piece that has started.
+        # The parameter of a sample is that of the latest piece that has started; where
+        # the previous one still moves (a blend), that one's is kept as well.
+        blend = slice(first, max(first, int(np.searchsorted(times, previous_end))))
+        earlier[blend] = param[blend]
         param[first:] = uk
-    return y, param, np.array(corner_times)
+        previous_end = t0 + dur
+    return y, param, np.array(corner_times), earlier
 
 
 @njit(cache=True)
@@ -1069,19 +1072,23 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     last_use = math.inf
     widen = 1.0
     initial_grid = grid_size
-    fastest = math.inf  # the first profile's duration: no plan is faster [s]
     for _ in range(DRIVE_FIT_ROUNDS):
         profile = speed_profile(curve, machine, feed, drive_fraction=drive_fraction,
                                 drive_scale=drive_scale if eases else None,
                                 grid_size=grid_size, grids=grids)
-        fastest = min(fastest, profile.duration)
         if profile.duration / Ts > max_samples:
             raise InfeasibleError(
                 f"the planned motion takes {profile.duration:g} s, more than "
-                f"{max_samples} samples; the feed is too low for this path")
-        y, param, corners = _desired_motion(curve, profile, Ts, corner_tolerance, lead)
+                f"{max_samples} samples; " + ("the feed is too low for this path"
+                                              if not eases else
+                                              f"easing the drive limit (the sampled drive "
+                                              f"needed {last_use:.3g} x Umax) slowed it "
+                                              "this far"))
+        y, param, corners, earlier = _desired_motion(curve, profile, Ts, corner_tolerance,
+                                                     lead)
         y = np.vstack([y, np.repeat(y[-1:], END_REST, axis=0)])
         param = np.concatenate([param, np.ones(END_REST)])
+        earlier = np.concatenate([earlier, np.full(END_REST, np.nan)])
         # A round within the limit that is as near y as the best one, give or take what
         # the loop cannot see (PRECOMPENSATION_TOLERANCE), ends the easing.
         plant, peaks = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS,
@@ -1108,7 +1115,13 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         # The first round's excess is the profile's own (its drive scales with its limit):
         # divided by it; what is left comes from further away (module docstring, step 4).
         factor = (drive_fraction / per_sample[k]) ** (1 + len(eases))
-        eases.append((curve.arc_length(param[k]), half, factor))
+        # In a blend the drive is the sum of both pieces' (step 2): ease both, or the
+        # earlier piece's stop, never eased, keeps the sum above the limit while the
+        # later piece slows without end.
+        both = ~np.isnan(earlier[k])
+        eases.append((curve.arc_length(np.concatenate([param[k], earlier[k][both]])),
+                      np.concatenate([half, half[both]]),
+                      np.concatenate([factor, factor[both]])))
     else:
         # The excess that easing could not remove comes from the pre-compensation's last
         # rounds (motion near the Nyquist frequency): keep its last round within the limit.
