@@ -597,10 +597,10 @@ def test_a_blend_whose_drives_add_is_eased_on_both_pieces(eps):
     drive limit while the second accelerates y the same way, so the blend's y drive is
     the sum of two drives at the limit. Easing only the later piece (the sample's
     parameter) could not bring the sum down, and ran away: 1.93 x the stop-at-corner
-    bound at eps = 1 mm, and on a 0.2 m DXF polyline at Ts = 0.1 ms a profile of 2,287 s
-    after 10 minutes of planning, refused as "the feed is too low". Both pieces are now
-    eased: within eps + 5 um of the sharp path, never slower than stopping at the
-    corner, no drive beyond Umax."""
+    bound at eps = 1 mm (now 0.875 x), and on a 0.2 m DXF polyline at Ts = 0.1 ms a
+    profile of 2,287 s after 10 minutes of planning, refused as "the feed is too low".
+    Both pieces are now eased over the whole blend: within eps + 5 um of the sharp path,
+    never slower than stopping at the corner, no drive beyond Umax."""
     V = nm.make_polyline([[0.0, 0.0], [1000.0, 3000.0], [2000.0, 0.0]])
     it, trace = _planned(V, 1e6, corner_tolerance=eps)
     _check_run(it, trace)

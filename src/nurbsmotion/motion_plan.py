@@ -1115,13 +1115,28 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         # The first round's excess is the profile's own (its drive scales with its limit):
         # divided by it; what is left comes from further away (module docstring, step 4).
         factor = (drive_fraction / per_sample[k]) ** (1 + len(eases))
-        # In a blend the drive is the sum of both pieces' (step 2): ease both, or the
-        # earlier piece's stop, never eased, keeps the sum above the limit while the
-        # later piece slows without end.
-        both = ~np.isnan(earlier[k])
-        eases.append((curve.arc_length(np.concatenate([param[k], earlier[k][both]])),
-                      np.concatenate([half, half[both]]),
-                      np.concatenate([factor, factor[both]])))
+        # In a blend the drive is the sum of both pieces' (step 2): ease both over the
+        # whole blend, by its largest excess. Easing only the later piece where the
+        # excess is leaves the earlier one braking at the limit (the later one then
+        # slows without end), and easing only there moves the excess within the blend
+        # as its timing changes.
+        alone = np.isnan(earlier[k])
+        centre, half, factor = curve.arc_length(param[k[alone]]), half[alone], factor[alone]
+        windows = [centre], [half], [factor]
+        blended = ~np.isnan(earlier)
+        run_start = np.flatnonzero(blended & ~np.r_[False, blended[:-1]])
+        run_end = np.flatnonzero(blended & ~np.r_[blended[1:], False]) + 1
+        for a, b in zip(run_start, run_end):
+            inside = k[(k >= a) & (k < b)]
+            if inside.size == 0:
+                continue
+            f = (drive_fraction / float(np.max(per_sample[inside]))) ** (1 + len(eases))
+            for ends in (earlier[[a, b - 1]], param[[a, b - 1]]):
+                s0, s1 = curve.arc_length(ends)
+                windows[0].append(np.array([0.5 * (s0 + s1)]))
+                windows[1].append(np.array([0.5 * abs(s1 - s0) + spacing]))
+                windows[2].append(np.array([f]))
+        eases.append(tuple(np.concatenate(w) for w in windows))
     else:
         # The excess that easing could not remove comes from the pre-compensation's last
         # rounds (motion near the Nyquist frequency): keep its last round within the limit.

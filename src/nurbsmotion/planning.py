@@ -239,11 +239,11 @@ slides along the MVC from there where the drive bounds it, not the feed)."""
 
 
 STIFF_STEP = 0.5
-"""A rising step is taken implicitly (:func:`_implicit_step`) where the far end's limit at
-the explicit step's speed is less than this fraction of the near end's: there the limit
-changes within the step more than a one-sided correction follows (elsewhere the step
-takes the smaller of the two, which errs on the slow side by O(ds) and converges as the
-grid is refined)."""
+"""A step that raises the speed (in either pass) is taken implicitly
+(:func:`_implicit_step`) where the far end's limit at the explicit step's speed is less
+than this fraction of the near end's: there the limit changes within the step more than
+a one-sided correction follows (elsewhere the step takes the smaller of the two, which
+errs on the slow side by O(ds) and converges as the grid is refined)."""
 
 
 @njit(cache=True)
@@ -261,8 +261,8 @@ def _implicit_step(q1, q2, tau, M, j, b0, ds, forward, lo_b, hi_b, guess):
     """The largest b in ``[lo_b, hi_b]`` reached from ``b0`` over ``ds`` at a constant
     acceleration admissible at grid point ``j`` with that b: ``(b - b0)/(2 ds) <=
     amax(j, b)`` going forward, ``(b0 - b)/(2 ds) >= amin(j, b)`` going backward (an
-    implicit Euler step; ``lo_b`` meets the condition, ``guess`` in the bracket may: the
-    explicit step with the far end's limit at ``hi_b``). Used where the limit changes with
+    implicit Euler step; ``lo_b`` meets the condition; ``guess``, where it lies inside
+    the bracket and meets it too, narrows the bracket first). Used where the limit changes with
     the speed faster than an explicit step follows: a forced fall (the change shrinks
     with the speed), or a rise toward an axis's steady speed over a grid interval longer
     than the distance it takes (its speed relaxes as exp(-t/tau)).
