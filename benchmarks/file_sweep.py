@@ -1,0 +1,166 @@
+"""``planned`` on the files users have, on random machines: the G-code and DXF corpus of
+the test suite (``tests/data/corpus``: LinuxCNC's own programs, CAM output, ezdxf's and
+others' drawings; origins in its ``SOURCES.md``).
+
+Each file is read for the ``xy`` and the ``xyz`` machine (where it has a path for it), and
+each of its first two contours is run on a machine of its own
+(:func:`nurbsmotion.random_machines.random_machine`: Ts 0.1-2 ms, tau 2-100 ms, PD+, PD or
+a LinuxCNC pid with integrator, deadband and clamp) with a pulse of 0.1, 1 or 10 um, at a
+feed of 5-300 mm/s or, for half of the contours that have one, the file's own F words,
+and a corner tolerance of 0 (twice as often), 10 um, 0.1 mm or 0.5 mm. Reported: the
+runs refused (a move over the sample limit is refused before any work, by design),
+saturated samples, runs that did not settle, the contour error against the tolerance
+(issue 10, item 5: at most eps + 5 um), move-and-settle against the time-optimal bound,
+and the time to plan and run. This sweep found the speed profile's stall where an axis
+settles within a grid step, the drive easing's quadratic interval look-up, and corner
+blends whose easing ran away.
+
+Note: the bound is the continuous one of SPEC section 9; on programs of many tiny
+segments with exact stops (``flowsnake.ngc`` at Ts = 2 ms: 3,072 corners, 1.5 pulses a
+piece) no sampled motion comes near it (``nurbsmotion bound --sampled``).
+
+Run: python benchmarks/file_sweep.py
+"""
+
+from __future__ import annotations
+
+import collections
+import os
+import time
+import traceback
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+import _common  # noqa: F401  (puts src/ on the path)
+from nurbsmotion import units
+from nurbsmotion.errors import NurbsmotionError, WorkLimitError
+from nurbsmotion.loop import run, to_pulses
+from nurbsmotion.paths.files import load_contours
+from nurbsmotion.planning import time_optimal_bound
+from nurbsmotion.random_machines import random_machine
+
+CORPUS = Path(__file__).resolve().parents[1] / "tests" / "data" / "corpus"
+
+MAX_SAMPLES = 400_000
+"""Longer moves are refused before any work (a :class:`WorkLimitError`, counted apart)."""
+
+TOLERANCES_MM = (0.0, 0.0, 0.01, 0.1, 0.5)
+"""The corner tolerances drawn from [mm]."""
+
+CASE_SECONDS = 120
+"""A run still planning after this long is stopped and counted apart (``timed out``): the
+drive easing of a blended program can run away (see RESULTS.md, seventh session)."""
+
+
+class _TimedOut(Exception):
+    pass
+
+
+def _alarm(signum, frame):
+    raise _TimedOut
+
+
+def cases() -> list[tuple]:
+    files = sorted(f for f in CORPUS.iterdir() if f.suffix.lower() != ".md")
+    return [(i, f, axes) for i, f in enumerate(files) for axes in ("xy", "xyz")]
+
+
+def one_file(case: tuple) -> list[dict]:
+    """Every row of one file read for one set of axes."""
+    import signal
+
+    index, file, axes = case
+    warnings.simplefilter("ignore")  # the readers' notes on skipped words
+    signal.signal(signal.SIGALRM, _alarm)
+    try:
+        contours = load_contours(file, axes=axes)
+    except NurbsmotionError as exc:
+        return [dict(file=file.name, axes=axes, status="not read",
+                     error=f"{type(exc).__name__}: {exc}")]
+    rows = []
+    for k, contour in enumerate(contours[:2]):
+        seed = [index, k, len(axes)]
+        rng = np.random.default_rng(seed)
+        m = random_machine(seed, len(axes))
+        m = m.with_options(pulse_length_um=float(rng.choice([0.1, 1.0, 10.0])))
+        pulse = m.pulse_length_um
+        feed = float(np.exp(rng.uniform(np.log(5.0), np.log(300.0)))) * 1e3 / pulse
+        own_feed = contour.feed is not None and rng.random() < 0.5
+        if own_feed:
+            feed = units.feed_in_pulses(contour.feed, contour.curve, m)
+        eps = float(rng.choice(TOLERANCES_MM)) * 1e3 / pulse
+        row = dict(file=file.name, axes=axes, contour=k + 1, controller=m.controller,
+                   sample_period=m.sample_period, pulse_um=pulse, own_feed=own_feed,
+                   eps_um=eps * pulse, status="ran")
+        t0 = time.perf_counter()
+        signal.alarm(CASE_SECONDS)
+        try:
+            path = to_pulses(contour.curve, m)
+            bound = time_optimal_bound(path, m, feed)
+            trace = run(path, m, feed, "planned", max_samples=MAX_SAMPLES,
+                        interpolator_options={"corner_tolerance": eps} if eps else None)
+            metrics = trace.metrics()
+            row.update(
+                success=bool(trace.success), message=trace.message,
+                saturated=metrics.total_saturated_samples,
+                contour_um=metrics.max_contour_error * pulse,
+                ratio=(metrics.settle_time_s / bound if trace.success else float("nan")))
+        except _TimedOut:
+            row.update(status="timed out", error=f"still running after {CASE_SECONDS} s")
+        except WorkLimitError as exc:
+            row.update(status="over the sample limit", error=str(exc))
+        except NurbsmotionError as exc:
+            row.update(status="refused", error=f"{type(exc).__name__}: {exc}")
+        except Exception:  # noqa: BLE001 - a crash is what the sweep is for
+            row.update(status="crashed", error=traceback.format_exc(limit=3))
+        finally:
+            signal.alarm(0)
+        row["seconds"] = time.perf_counter() - t0
+        rows.append(row)
+    return rows
+
+
+def report(rows: list[dict]) -> None:
+    print("rows:", dict(collections.Counter(r["status"] for r in rows)))
+    for r in rows:
+        if r["status"] in ("refused", "crashed", "timed out"):
+            print(f"  {r['file']} {r['axes']}#{r.get('contour', '')}: {r['error']}")
+    ran = [r for r in rows if r["status"] == "ran"]
+    if not ran:
+        return
+    beyond = [r for r in ran if r["contour_um"] > r["eps_um"] + 5.0]
+
+    def pct(key):
+        v = np.array([r[key] for r in ran], dtype=float)
+        return " / ".join(f"{x:.3g}" for x in np.nanpercentile(v, [50, 95, 100]))
+
+    print("\n| runs | saturated | not settled | contour > eps + 5 um | settle / bound median "
+          "/ 95 % / max | plan and run [s] median / 95 % / max |")
+    print("|---|---|---|---|---|---|")
+    print(f"| {len(ran)} | {sum(r['saturated'] > 0 for r in ran)} | "
+          f"{sum(not r['success'] for r in ran)} | {len(beyond)} | {pct('ratio')} | "
+          f"{pct('seconds')} |")
+    for key, label in (("ratio", "slowest against the bound"), ("seconds", "longest")):
+        worst = sorted(ran, key=lambda r: -np.nan_to_num(r[key]))[:4]
+        print(f"{label}:", ", ".join(
+            f"{r['file']} {r['axes']}#{r['contour']} (Ts {r['sample_period'] * 1e3:g} ms, "
+            f"eps {r['eps_um']:g} um): {r[key]:.3g}" for r in worst))
+    for r in beyond:
+        print(f"contour beyond eps + 5 um: {r['file']} {r['axes']}#{r['contour']}: "
+              f"{r['contour_um']:.3g} um (eps {r['eps_um']:g} um)")
+
+
+def main():
+    from multiprocessing import Pool
+
+    t0 = time.perf_counter()
+    with Pool(min(os.cpu_count() or 1, 8)) as pool:
+        rows = [row for out in pool.map(one_file, cases(), chunksize=1) for row in out]
+    report(rows)
+    print(f"\n{len(rows)} rows in {time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
