@@ -123,3 +123,12 @@ def table(header: list[str], rows: list[list]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
     return "\n".join(lines)
+
+
+def spread(values) -> str:
+    """``"median / 95 % / max"`` of ``values`` (NaN ignored), three significant digits:
+    the distribution columns of the sweeps."""
+    import numpy as np
+
+    v = np.asarray(values, dtype=float)
+    return " / ".join(f"{x:.3g}" for x in np.nanpercentile(v, [50, 95, 100]))

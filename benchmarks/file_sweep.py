@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-import _common  # noqa: F401  (puts src/ on the path)
+import _common  # puts src/ on the path
 from nurbsmotion import units
 from nurbsmotion.errors import NurbsmotionError, WorkLimitError
 from nurbsmotion.loop import run, to_pulses
@@ -133,8 +133,7 @@ def report(rows: list[dict]) -> None:
     beyond = [r for r in ran if r["contour_um"] > r["eps_um"] + 5.0]
 
     def pct(key):
-        v = np.array([r[key] for r in ran], dtype=float)
-        return " / ".join(f"{x:.3g}" for x in np.nanpercentile(v, [50, 95, 100]))
+        return _common.spread([r[key] for r in ran])
 
     print("\n| runs | saturated | not settled | contour > eps + 5 um | settle / bound median "
           "/ 95 % / max | plan and run [s] median / 95 % / max |")

@@ -25,7 +25,7 @@ import traceback
 
 import numpy as np
 
-import _common  # noqa: F401  (puts src/ on the path)
+import _common  # puts src/ on the path
 from nurbsmotion.errors import InvalidCurveError, NurbsmotionError
 from nurbsmotion.interpolators import PlannedInterpolator
 from nurbsmotion.loop import simulate
@@ -107,8 +107,7 @@ def report(rows: list) -> None:
             continue
 
         def pct(key):
-            v = np.array([r[key] for r in ran], dtype=float)
-            return " / ".join(f"{x:.3g}" for x in np.nanpercentile(v, [50, 95, 100]))
+            return _common.spread([r[key] for r in ran])
 
         print(f"| {condition} | {len(ran)} | {sum(r['saturated'] > 0 for r in ran)} "
               f"| {sum(not r['success'] for r in ran)} | {pct('contour')} "

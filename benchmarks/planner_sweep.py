@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-import _common  # noqa: F401  (puts src/ on the path)
+import _common  # puts src/ on the path
 from nurbsmotion.errors import InvalidCurveError, NurbsmotionError
 from nurbsmotion.interpolators import PlannedInterpolator
 from nurbsmotion.loop import simulate
@@ -153,17 +153,16 @@ def report(rows: list) -> None:
         ce = np.array([r["contour"] for r in rs])
         unreachable = sum(not r["reachable"] for r in rs)
         beyond = sum(not r["within_estimate"] for r in rs)
-        q = lambda a: " / ".join(f"{v:.3g}" for v in np.percentile(a, [50, 95, 100]))  # noqa: E731
         print(f"| {cond} | {len(rs)} | {sum(r['saturated'] > 0 for r in rs)} | "
               f"{sum(r['nan'] for r in rs)} | {sum(not r['monotone'] for r in rs)} | "
               f"{sum(not r['at_rest'] for r in rs)} | "
               f"{np.mean([r['settle_ok'] for r in rs]) * 100:.1f} % | "
               f"{unreachable} ({unreachable / len(rs) * 100:.1f} %) | "
               f"{beyond} ({beyond / len(rs) * 100:.1f} %) | "
-              f"{q(ratio)} | {q(ce)} | "
+              f"{_common.spread(ratio)} | {_common.spread(ce)} | "
               f"{sum(r['end_overshoot'] > 1 for r in rs)} / "
               f"{sum(r['corner_overshoot'] > 1 for r in rs)} | "
-              f"{q([r['planning'] for r in rs])} |")
+              f"{_common.spread([r['planning'] for r in rs])} |")
     nominal = [r for r in ran if r["condition"] == "nominal"]
     if nominal:
         reachable = [r for r in nominal if r["reachable"]]
