@@ -114,6 +114,27 @@ def test_blend_deviation_equals_comparing_every_sample():
     assert mp._farthest_from(points, path, corner) == brute
 
 
+def test_a_thinned_path_overstates_the_deviation_by_at_most_its_step():
+    """Blends measure their deviation against path samples thinned to one per ``step`` of
+    arc: each point's distance to the nearest kept sample is at least its distance to the
+    nearest of all samples (numpy, every pair), and at most ``step`` more; the first
+    sample (the corner) is kept."""
+    rng = np.random.default_rng(8)
+    t = np.sort(rng.uniform(0.0, 1.0, 3000)) ** 3          # dense near the start
+    path = np.column_stack([np.cos(3 * t), np.sin(5 * t), t]) * 1000.0
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))]
+    points = path[0] + rng.normal(scale=200.0, size=(500, 3))
+    step = 7.0
+    kept = mp._thinned(path, arc, step)
+    assert np.array_equal(kept[0], path[0]) and len(kept) <= arc[-1] / step + 1
+
+    def nearest(samples):
+        return np.min(np.linalg.norm(points[:, None] - samples[None], axis=2), axis=1)
+
+    every, thinned = nearest(path), nearest(kept)
+    assert np.all(thinned >= every) and np.all(thinned <= every + step)
+
+
 def test_support_equals_running_maxima_by_numpy():
     """The planned step's support (running maxima back from each stop) equals numpy's
     accumulate over the reversed pieces, bit for bit."""

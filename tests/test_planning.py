@@ -608,6 +608,23 @@ def test_a_blend_whose_drives_add_is_eased_on_both_pieces(eps):
     assert settle_time(trace) <= settle_time(_planned(V, 1e6)[1])
 
 
+def test_a_piece_shorter_than_its_two_blends_stays_within_eps():
+    """A polyline whose first piece (0.53 mm) is shorter than the blends at both its ends
+    (eps = 0.5 mm): the third piece used to start before the first had stopped, three
+    motions superposed while each blend was checked against its own two pieces only (714
+    um from the sharp path, and 13 s of drive easing, one piece of three unseen). A piece
+    now starts no sooner than the one two before it stops: within eps + 5 um, never slower
+    than stopping at the corners, no drive beyond Umax (found by a random polyline
+    sweep: 1 of 150 beyond eps before, 0 of 300 after)."""
+    P = nm.make_polyline([[0, 0], [-270, -459], [1760, -2528], [715, -3240], [-241, -3237],
+                          [-410, -686]])
+    eps = 500.0
+    it, trace = _planned(P, 1e6, corner_tolerance=eps)
+    _check_run(it, trace)
+    assert np.max(contour_error(P, trace.position)) <= eps + 5.0
+    assert settle_time(trace) <= settle_time(_planned(P, 1e6)[1])
+
+
 def test_planned_is_registered():
     assert "planned" in LOOP_METHODS
     assert isinstance(make_interpolator("planned", PI, MACHINE, 1e6), PlannedInterpolator)
