@@ -612,10 +612,10 @@ def test_a_piece_shorter_than_its_two_blends_stays_within_eps():
     """A polyline whose first piece (0.53 mm) is shorter than the blends at both its ends
     (eps = 0.5 mm): the third piece used to start before the first had stopped, three
     motions superposed while each blend was checked against its own two pieces only (714
-    um from the sharp path, and 13 s of drive easing, one piece of three unseen). A piece
-    now starts no sooner than the one two before it stops: within eps + 5 um, never slower
-    than stopping at the corners, no drive beyond Umax (found by a random polyline
-    sweep: 1 of 150 beyond eps before, 0 of 300 after)."""
+    um from the sharp path, and 13 s of drive easing, one piece of three unseen). Each
+    blend now measures the superposition of every piece that moves: within eps + 5 um,
+    never slower than stopping at the corners, no drive beyond Umax (found by a random
+    polyline sweep: 1 of 150 beyond eps before, 0 of 300 after)."""
     P = nm.make_polyline([[0, 0], [-270, -459], [1760, -2528], [715, -3240], [-241, -3237],
                           [-410, -686]])
     eps = 500.0
@@ -623,6 +623,24 @@ def test_a_piece_shorter_than_its_two_blends_stays_within_eps():
     _check_run(it, trace)
     assert np.max(contour_error(P, trace.position)) <= eps + 5.0
     assert settle_time(trace) <= settle_time(_planned(P, 1e6)[1])
+
+
+def test_segments_far_shorter_than_eps_blend_like_the_arc_they_draw():
+    """A quarter circle of radius 20 mm drawn as 100 chords of 0.31 mm (as CAM writes
+    it), eps = 50 um: blends of two segments at a time cannot go faster than a fraction
+    of the feed (0.227 s, 6 x the arc's 0.038 s, and 12 s of planning), and the tree
+    before that refused the move after its drive easing ran away. Segments now start
+    while earlier ones still move, as long as the measured deviation allows: within eps
+    + 5 um of the chords, under twice the exact arc's time (0.057 s), and far sooner
+    than stopping at every corner (0.354 s)."""
+    R, eps = 20000.0, 50.0
+    angle = np.linspace(0.0, 0.5 * np.pi, 101)
+    chords = nm.make_polyline(np.column_stack([R * np.cos(angle), R * np.sin(angle)]))
+    it, trace = _planned(chords, 1e6, corner_tolerance=eps)
+    _check_run(it, trace)
+    assert np.max(contour_error(chords, trace.position)) <= eps + 5.0
+    arc = nm.make_arc([0.0, 0.0], R, 0.0, 0.5 * np.pi)
+    assert settle_time(trace) <= 2.0 * settle_time(_planned(arc, 1e6)[1])
 
 
 def test_planned_is_registered():

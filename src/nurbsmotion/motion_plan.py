@@ -21,16 +21,16 @@ is built offline in six steps:
    at rest), so theta[1] = theta[0] and the first drive that moves the plant is u[1],
    which moves theta[2]; the desired motion leaves the start at sample 1 (:data:`LEAD`)
    and its first moving sample is y[2].
-2. **Corner blends** (``corner_tolerance`` eps > 0). The plant is linear, so two motions
-   can be superposed: the next piece starts before the current one has stopped, by the
-   time it takes the current piece to cover its last eps plus the time the next one takes
-   to cover its first eps. At every instant one of the two is within eps of the corner,
-   so the blended position is within eps of the sharp path (a G64-style blend); the
-   overlap is then widened while the measured deviation stays within eps. A piece never
-   starts before the one two before it has stopped (a piece shorter than its two blends
-   would otherwise superpose three motions, which neither blend's check sees). The drive
-   is the sum of the two pieces' drives, checked in step 4 (which eases both pieces
-   where a blend exceeds the limit).
+2. **Corner blends** (``corner_tolerance`` eps > 0). The plant is linear, so motions can
+   be superposed: the next piece starts before the current one has stopped, by the time
+   it takes the current piece to cover its last eps plus the time the next one takes to
+   cover its first eps. At every instant one of the two is within eps of the corner, so
+   the blended position is within eps of the sharp path (a G64-style blend); the overlap
+   is then widened while the deviation of the superposed motion, measured against every
+   piece that moves, stays within eps. On segments far shorter than eps (CAM output) a
+   piece may so start while several earlier ones still move; each stops no sooner than
+   those before it. The drive is the sum of the pieces' drives, checked in step 4 (which
+   eases all of them where a blend exceeds the limit).
 3. **Drive sequence.** Exact inversion of theta -> u is unstable in practice: the sampled
    plant has a zero at ``-c1/b1`` close to -1, and inverting it rings at the Nyquist
    frequency. Zero-phase-error tracking (Tomizuka 1987) inverts the speed exactly and the
@@ -327,7 +327,7 @@ def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float):
 
 
 BLEND_STEPS = 16
-"""Points a sample at which a blend's two pieces are evaluated to measure its deviation."""
+"""Points a sample at which blended pieces are evaluated to measure their deviation."""
 
 BLEND_ROUNDS = 5
 """Rounds that widen a blend until its deviation from the sharp corner reaches eps."""
@@ -342,22 +342,26 @@ corners)."""
 
 
 class _Track(NamedTuple):
-    """A piece's motion every ``Ts/BLEND_STEPS`` from its start, and at its end."""
-    times: np.ndarray      # (m + 1,) [s]
+    """A motion every ``h = Ts/BLEND_STEPS`` from its start, and at its end."""
+    times: np.ndarray      # (m + 1,) [s]: k*h, the last one the end
     points: np.ndarray     # (m + 1, n_axes) [pulse]
     arc: np.ndarray        # (m + 1,) distance travelled along the points [pulse]
 
 
-def _track(motion, duration: float, Ts: float) -> _Track:
-    h = Ts / BLEND_STEPS
-    times = np.minimum(np.arange(int(math.ceil(duration / h - 1e-9)) + 1) * h, duration)
-    points = motion(times)[0]
+def _track(points: np.ndarray, duration: float, h: float) -> _Track:
+    """The track of ``points`` (shape (m + 1, n_axes), m = ceil(duration/h)) [pulse]."""
+    times = np.minimum(np.arange(len(points)) * h, duration)
     steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
     return _Track(times, points, np.concatenate([[0.0], np.cumsum(steps)]))
 
 
+def _grid_steps(duration: float, h: float) -> int:
+    """The steps of ``h`` [s] that reach ``duration`` [s] (its track has one point more)."""
+    return int(math.ceil(duration / h - 1e-9))
+
+
 def _time_to_cover(track: _Track, distance: float, from_end: bool) -> float:
-    """The time [s] a piece takes to cover its first (or last) ``distance`` [pulse]."""
+    """The time [s] a motion takes to cover its first (or last) ``distance`` [pulse]."""
     if from_end:
         i = int(np.searchsorted(track.arc, track.arc[-1] - distance, side="left"))
         return float(track.times[-1] - track.times[min(i, len(track.arc) - 1)])
@@ -388,77 +392,105 @@ def _farthest_from(points: np.ndarray, path: np.ndarray, corner: np.ndarray) -> 
     return float(np.max(gap))
 
 
-def _blend_overlap(prev: _Track, nxt: _Track, tolerance: float, longest: float) -> float:
-    """How long [s], at most ``longest`` [s], piece p+1 (``nxt``) may start before piece p
-    (``prev``) stops so that the superposed motion stays within ``tolerance`` of the sharp
-    path (module docstring, step 2).
+def _blend_start(moving: _Track, alone: int, nxt: _Track, path: np.ndarray,
+                 tolerance: float) -> int:
+    """The earliest step of ``moving`` (the superposed motion of the pieces so far, from
+    the latest one's start) at which the next piece (``nxt``, from its start) may start so
+    that the superposed motion stays within ``tolerance`` [pulse] of ``path`` (samples of
+    every piece that moves then; module docstring, step 2). From step ``alone`` on only
+    the latest piece moves.
 
-    The overlap starts as the time piece p takes over its last ``d`` plus the time piece
-    p+1 takes over its first ``d`` with d = eps (then one of the two is always within eps
-    of the corner; so for every shorter overlap); the actual deviation is measured against
-    points of both pieces and d is widened by the square root of eps over the deviation
-    (the deviation grows with d), keeping the widest overlap whose measured deviation
-    stays within eps (the first one stands on the argument above). Piece p+1 starts at
-    one of piece p's track times, so both are read off their tracks."""
-    prev_dur, dur = prev.times[-1], nxt.times[-1]
-    step = BLEND_THINNING * tolerance
-    path = np.vstack([_thinned(prev.points[::-1], prev.arc[-1] - prev.arc[::-1], step),
-                      _thinned(nxt.points, nxt.arc, step)])
-    corner = prev.points[-1]
-    best, d = 0.0, tolerance
-    for _ in range(BLEND_ROUNDS):
-        want = min(_time_to_cover(prev, min(d, prev.arc[-1] / 2), True)
-                   + _time_to_cover(nxt, min(d, nxt.arc[-1] / 2), False),
-                   prev_dur, dur, longest)
-        j = int(np.searchsorted(prev.times, prev_dur - want - 1e-12 * prev_dur))
-        overlap = float(prev_dur - prev.times[j])
-        if overlap <= 0:
-            return 0.0
-        if overlap <= best:  # capped: no wider overlap to try
+    The guaranteed start: the latest piece alone, covering its last ``d`` while the next
+    one covers its first ``d``, with d = eps (one of the two is then within eps of the
+    corner). The start is then brought forward while the measured deviation stays within
+    eps, d widened by the square root of eps over it (the deviation grows with d); it may
+    start while earlier pieces still move, as on a program of segments far shorter than
+    eps."""
+    last = len(moving.times) - 1
+    if last == 0:
+        return 0
+    corner = nxt.points[0]
+    h = moving.times[1]
+    # the next piece stops no sooner than everything before it: the latest piece is
+    # always the last to stop, so from ``alone`` on the motion is on its path
+    first = max(_grid_steps(moving.times[-1] - nxt.times[-1], h), 0)
+
+    def start_for(d):
+        want = _time_to_cover(moving, d, True) + _time_to_cover(nxt, d, False)
+        return min(max(_grid_steps(moving.times[-1] - want, h), first), last)
+
+    best = guaranteed = max(start_for(tolerance), alone)
+    d = tolerance
+    for round_ in range(BLEND_ROUNDS):
+        j = start_for(d)
+        if j >= last or (round_ and j >= best):
             break
-        n = int(np.searchsorted(nxt.times, overlap, side="right"))
-        blended = prev.points[j:j + n] + nxt.points[:n] - corner
+        n = min(last - j, len(nxt.times) - 1) + 1
+        blended = moving.points[j:j + n] + nxt.points[:n] - corner
         deviation = _farthest_from(blended, path, corner)
-        if deviation > tolerance and best > 0:
-            break
-        best = overlap
+        if deviation <= tolerance:
+            best = min(best, j)
+        elif best < guaranteed:
+            break       # beyond the widest blend within eps found
         if deviation <= 0:
             break
         d *= math.sqrt(tolerance / deviation)
     return best
 
 
+def _blend_starts(pieces, Ts: float, tolerance: float) -> list:
+    """The start [s] of every piece (``_piece_motions``), blended within ``tolerance``
+    [pulse] of the sharp path (:func:`_blend_start`; back to back where it is 0)."""
+    if tolerance <= 0 or len(pieces) < 2:
+        return list(np.concatenate([[0.0], np.cumsum([p[0] for p in pieces[:-1]])]))
+    h = Ts / BLEND_STEPS
+    step = BLEND_THINNING * tolerance
+    starts: list = []
+    moving = None   # the superposed motion from the latest piece's start on
+    for dur, motion, _ in pieces:
+        nxt = _track(motion(np.minimum(np.arange(_grid_steps(dur, h) + 1) * h, dur))[0],
+                     dur, h)
+        own = _thinned(nxt.points, nxt.arc, step)
+        if moving is not None:
+            j = _blend_start(moving, alone, nxt, np.vstack([p for _, p in paths] + [own]),
+                             tolerance)
+            stops = starts[-1] + moving.times[-1]   # when everything before it stops [s]
+        if moving is None or j >= len(moving.times) - 1:    # it moves alone
+            starts.append(stops if moving is not None else 0.0)
+            # from step ``alone`` on only the latest piece moves; samples of the path of
+            # every piece that still moves, and when each stops [s]
+            moving, alone, paths = nxt, 0, [(starts[-1] + dur, own)]
+            continue
+        t0 = starts[-1] + j * h
+        starts.append(t0)
+        m = _grid_steps(max(stops, t0 + dur) - t0, h)
+        ahead = moving.points[np.minimum(np.arange(j, j + m + 1), len(moving.times) - 1)]
+        ahead += nxt.points[np.minimum(np.arange(m + 1), len(nxt.times) - 1)] - nxt.points[0]
+        moving = _track(ahead, max(stops, t0 + dur) - t0, h)
+        alone = _grid_steps(stops - t0, h)
+        paths = [(e, p) for e, p in paths if e > t0] + [(t0 + dur, own)]
+    return starts
+
+
 def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, tolerance: float,
                     lead: int):
     """y[k] (sum of the pieces, blended at corners), the parameter of each sample, the
-    time of every corner [samples] and, for the samples inside a blend, the parameter of
-    the earlier piece (NaN elsewhere). Piece 0 starts at sample ``lead``."""
+    time of every corner [samples] and, for the samples where more than one piece moves
+    (a blend), the parameter of the earliest of them (NaN elsewhere). Piece 0 starts at
+    sample ``lead``."""
     pieces = _piece_motions(curve, profile, Ts)
-    starts, t0 = [], 0.0
-    corner_times = []
-    overlap, track = 0.0, None
-    for p, (dur, motion, _) in enumerate(pieces):
-        if p > 0:
-            prev_dur = pieces[p - 1][0]
-            if tolerance > 0:
-                prev, track = track, _track(motion, dur, Ts)
-                # Piece p+1 starts no sooner than piece p-1 stops: at most two pieces
-                # move at a time, so each blend is checked against its own two pieces
-                # (and the drive easing of step 4 sees both).
-                overlap = _blend_overlap(prev, track, tolerance, prev_dur - overlap)
-            t0 = starts[-1] + prev_dur - overlap
-            corner_times.append(lead + (t0 + 0.5 * overlap) / Ts)
-        elif tolerance > 0 and len(pieces) > 1:
-            track = _track(motion, dur, Ts)
-        starts.append(t0)
-    total = starts[-1] + pieces[-1][0]
+    starts = _blend_starts(pieces, Ts, tolerance)
+    # a corner's time: midway between the next piece's start and its own piece's end
+    corner_times = [lead + (t0 + s + dur) / (2 * Ts)
+                    for t0, s, (dur, _, _) in zip(starts[1:], starts, pieces)]
+    total = max(t0 + p[0] for t0, p in zip(starts, pieces))
     n = lead + int(math.ceil(total / Ts - 1e-9)) + 1
     times = (np.arange(n) - lead) * Ts
     start = curve(0.0)
     y = np.broadcast_to(start, (n, curve.n_axes)).copy()
     param = np.zeros(n)
-    earlier = np.full(n, np.nan)
-    previous_end = -math.inf  # when the previous piece stops [s]
+    earliest = np.full(n, np.nan)
+    moving = np.zeros(n, dtype=int)   # pieces that move at each sample
     for (dur, motion, _), t0 in zip(pieces, starts):
         local = times - t0
         first = int(np.searchsorted(local, 0.0, side="right"))  # local > 0 from here on
@@ -467,13 +499,16 @@ def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, toleran
         pts, uk = motion(np.minimum(local[first:], dur))
         base = motion(np.array([0.0]))[0][0]
         y[first:] += pts - base
-        # The parameter of a sample is that of the latest piece that has started; where
-        # the previous one still moves (a blend), that one's is kept as well.
-        blend = slice(first, max(first, int(np.searchsorted(times, previous_end))))
-        earlier[blend] = param[blend]
+        # The parameter of a sample is that of the latest piece that has started; the
+        # earliest piece that still moves there is kept as well.
+        stop = int(np.searchsorted(local, dur, side="left"))    # local < dur before it
+        inside = slice(first, max(first, stop))
+        earliest[inside] = np.where(np.isnan(earliest[inside]), uk[:max(stop - first, 0)],
+                                    earliest[inside])
+        moving[inside] += 1
         param[first:] = uk
-        previous_end = t0 + dur
-    return y, param, np.array(corner_times), earlier
+    earliest[moving < 2] = np.nan
+    return y, param, np.array(corner_times), earliest
 
 
 @njit(cache=True)
@@ -1122,11 +1157,11 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
                                               f"easing the drive limit (the sampled drive "
                                               f"needed {last_use:.3g} x Umax) slowed it "
                                               "this far"))
-        y, param, corners, earlier = _desired_motion(curve, profile, Ts, corner_tolerance,
+        y, param, corners, earliest = _desired_motion(curve, profile, Ts, corner_tolerance,
                                                      lead)
         y = np.vstack([y, np.repeat(y[-1:], END_REST, axis=0)])
         param = np.concatenate([param, np.ones(END_REST)])
-        earlier = np.concatenate([earlier, np.full(END_REST, np.nan)])
+        earliest = np.concatenate([earliest, np.full(END_REST, np.nan)])
         # A round within the limit that is as near y as the best one, give or take what
         # the loop cannot see (PRECOMPENSATION_TOLERANCE), ends the easing.
         plant, peaks = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS,
@@ -1153,15 +1188,16 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         # The first round's excess is the profile's own (its drive scales with its limit):
         # divided by it; what is left comes from further away (module docstring, step 4).
         factor = (drive_fraction / per_sample[k]) ** (1 + len(eases))
-        # In a blend the drive is the sum of both pieces' (step 2): ease both over the
-        # whole blend, by its largest excess. Easing only the later piece where the
+        # In a blend the drive is the sum of the pieces' (step 2): ease all of them over
+        # the whole blend (from where the earliest is at its start to where the latest
+        # is at its end), by its largest excess. Easing only the later piece where the
         # excess is leaves the earlier one braking at the limit (the later one then
         # slows without end), and easing only there moves the excess within the blend
         # as its timing changes.
-        alone = np.isnan(earlier[k])
+        alone = np.isnan(earliest[k])
         centre, half, factor = curve.arc_length(param[k[alone]]), half[alone], factor[alone]
         windows = [centre], [half], [factor]
-        blended = ~np.isnan(earlier)
+        blended = ~np.isnan(earliest)
         run_start = np.flatnonzero(blended & ~np.r_[False, blended[:-1]])
         run_end = np.flatnonzero(blended & ~np.r_[blended[1:], False]) + 1
         for a, b in zip(run_start, run_end):
@@ -1169,11 +1205,10 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
             if inside.size == 0:
                 continue
             f = (drive_fraction / float(np.max(per_sample[inside]))) ** (1 + len(eases))
-            for ends in (earlier[[a, b - 1]], param[[a, b - 1]]):
-                s0, s1 = curve.arc_length(ends)
-                windows[0].append(np.array([0.5 * (s0 + s1)]))
-                windows[1].append(np.array([0.5 * abs(s1 - s0) + spacing]))
-                windows[2].append(np.array([f]))
+            s0, s1 = curve.arc_length(np.array([earliest[a], param[b - 1]]))
+            windows[0].append(np.array([0.5 * (s0 + s1)]))
+            windows[1].append(np.array([0.5 * (s1 - s0) + spacing]))
+            windows[2].append(np.array([f]))
         eases.append(tuple(np.concatenate(w) for w in windows))
     else:
         # The excess that easing could not remove comes from the pre-compensation's last
