@@ -445,21 +445,25 @@ def _blend_starts(pieces, Ts: float, tolerance: float) -> list:
         return list(np.concatenate([[0.0], np.cumsum([p[0] for p in pieces[:-1]])]))
     h = Ts / BLEND_STEPS
     step = BLEND_THINNING * tolerance
-    starts: list = []
-    moving = None   # the superposed motion from the latest piece's start on
-    for dur, motion, _ in pieces:
-        nxt = _track(motion(np.minimum(np.arange(_grid_steps(dur, h) + 1) * h, dur))[0],
-                     dur, h)
-        own = _thinned(nxt.points, nxt.arc, step)
-        if moving is not None:
-            j = _blend_start(moving, alone, nxt, np.vstack([p for _, p in paths] + [own]),
-                             tolerance)
-            stops = starts[-1] + moving.times[-1]   # when everything before it stops [s]
-        if moving is None or j >= len(moving.times) - 1:    # it moves alone
-            starts.append(stops if moving is not None else 0.0)
-            # from step ``alone`` on only the latest piece moves; samples of the path of
-            # every piece that still moves, and when each stops [s]
-            moving, alone, paths = nxt, 0, [(starts[-1] + dur, own)]
+
+    def alone_from(t0, dur, motion):
+        # a piece that starts at t0 [s] with nothing else moving: the superposed motion
+        # from its start on, the step from which only it moves, and samples of the path
+        # of every piece that moves with when each stops [s]
+        times = np.minimum(np.arange(_grid_steps(dur, h) + 1) * h, dur)
+        track = _track(motion(times)[0], dur, h)
+        return track, 0, [(t0 + dur, _thinned(track.points, track.arc, step))]
+
+    starts = [0.0]
+    moving, alone, paths = alone_from(0.0, *pieces[0][:2])
+    for dur, motion, _ in pieces[1:]:
+        stops = starts[-1] + moving.times[-1]   # when everything before it stops [s]
+        nxt, _, own = alone_from(stops, dur, motion)
+        j = _blend_start(moving, alone, nxt, np.vstack([p for _, p in paths + own]),
+                         tolerance)
+        if j >= len(moving.times) - 1:          # back to back: it moves alone
+            starts.append(stops)
+            moving, alone, paths = nxt, 0, own
             continue
         t0 = starts[-1] + j * h
         starts.append(t0)
@@ -468,7 +472,7 @@ def _blend_starts(pieces, Ts: float, tolerance: float) -> list:
         ahead += nxt.points[np.minimum(np.arange(m + 1), len(nxt.times) - 1)] - nxt.points[0]
         moving = _track(ahead, max(stops, t0 + dur) - t0, h)
         alone = _grid_steps(stops - t0, h)
-        paths = [(e, p) for e, p in paths if e > t0] + [(t0 + dur, own)]
+        paths = [(e, p) for e, p in paths if e > t0] + [(t0 + dur, own[0][1])]
     return starts
 
 
