@@ -19,12 +19,14 @@ Note: the bound is the continuous one of SPEC section 9; on programs of many tin
 segments with exact stops (``flowsnake.ngc`` at Ts = 2 ms: 3,072 corners, 1.5 pulses a
 piece) no sampled motion comes near it (``nurbsmotion bound --sampled``).
 
-Run: python benchmarks/file_sweep.py
+Run: python benchmarks/file_sweep.py (``FILE_SWEEP_DRAWS=n``: each contour on n machines,
+the first one always the same)
 """
 
 from __future__ import annotations
 
 import collections
+import itertools
 import os
 import time
 import traceback
@@ -42,6 +44,9 @@ from nurbsmotion.planning import time_optimal_bound
 from nurbsmotion.random_machines import random_machine
 
 CORPUS = Path(__file__).resolve().parents[1] / "tests" / "data" / "corpus"
+
+DRAWS = int(os.environ.get("FILE_SWEEP_DRAWS", "1"))
+"""Machines (with pulse, feed and tolerance) each contour is run on."""
 
 MAX_SAMPLES = 400_000
 """Longer moves are refused before any work (a :class:`WorkLimitError`, counted apart)."""
@@ -80,8 +85,8 @@ def one_file(case: tuple) -> list[dict]:
         return [dict(file=file.name, axes=axes, status="not read",
                      error=f"{type(exc).__name__}: {exc}")]
     rows = []
-    for k, contour in enumerate(contours[:2]):
-        seed = [index, k, len(axes)]
+    for (k, contour), draw in itertools.product(enumerate(contours[:2]), range(DRAWS)):
+        seed = [index, k, len(axes)] + ([draw] if draw else [])
         rng = np.random.default_rng(seed)
         m = random_machine(seed, len(axes))
         m = m.with_options(pulse_length_um=float(rng.choice([0.1, 1.0, 10.0])))
@@ -91,7 +96,7 @@ def one_file(case: tuple) -> list[dict]:
         if own_feed:
             feed = units.feed_in_pulses(contour.feed, contour.curve, m)
         eps = float(rng.choice(TOLERANCES_MM)) * 1e3 / pulse
-        row = dict(file=file.name, axes=axes, contour=k + 1, controller=m.controller,
+        row = dict(file=file.name, axes=axes, contour=k + 1, draw=draw, controller=m.controller,
                    sample_period=m.sample_period, pulse_um=pulse, own_feed=own_feed,
                    eps_um=eps * pulse, status="ran")
         t0 = time.perf_counter()
@@ -122,11 +127,16 @@ def one_file(case: tuple) -> list[dict]:
     return rows
 
 
+def _label(row: dict) -> str:
+    draw = f" draw {row['draw']}" if row.get("draw") else ""
+    return f"{row['file']} {row['axes']}#{row.get('contour', '')}{draw}"
+
+
 def report(rows: list[dict]) -> None:
     print("rows:", dict(collections.Counter(r["status"] for r in rows)))
     for r in rows:
         if r["status"] in ("refused", "crashed", "timed out"):
-            print(f"  {r['file']} {r['axes']}#{r.get('contour', '')}: {r['error']}")
+            print(f"  {_label(r)}: {r['error']}")
     ran = [r for r in rows if r["status"] == "ran"]
     if not ran:
         return
@@ -144,10 +154,10 @@ def report(rows: list[dict]) -> None:
     for key, label in (("ratio", "slowest against the bound"), ("seconds", "longest")):
         worst = sorted(ran, key=lambda r: -np.nan_to_num(r[key]))[:4]
         print(f"{label}:", ", ".join(
-            f"{r['file']} {r['axes']}#{r['contour']} (Ts {r['sample_period'] * 1e3:g} ms, "
+            f"{_label(r)} (Ts {r['sample_period'] * 1e3:g} ms, "
             f"eps {r['eps_um']:g} um): {r[key]:.3g}" for r in worst))
     for r in beyond:
-        print(f"contour beyond eps + 5 um: {r['file']} {r['axes']}#{r['contour']}: "
+        print(f"contour beyond eps + 5 um: {_label(r)}: "
               f"{r['contour_um']:.3g} um (eps {r['eps_um']:g} um)")
 
 

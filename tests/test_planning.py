@@ -643,6 +643,28 @@ def test_segments_far_shorter_than_eps_blend_like_the_arc_they_draw():
     assert settle_time(trace) <= 2.0 * settle_time(_planned(arc, 1e6)[1])
 
 
+def test_a_profile_at_the_drive_limit_over_a_long_stretch_is_not_refused():
+    """A 0.31 m DXF spline (ezdxf's corpus) on a random 3-axis pid machine (0.1 um
+    pulses, Ts = 0.1 ms, 110 mm/s; found by the file sweep): the speed profile runs at
+    the drive limit for most of its 224,000 samples, and the sampled drive exceeded it
+    by 1e-7 to 1e-9 here and there; each round eased a window and the excess turned up in
+    another, so after 12 rounds the move was refused ("needs 1 x Umax"). Once the grid is
+    as fine as it gets, the whole path is eased by the excess as well: the plan is found,
+    no drive beyond Umax in the run (3 of 440 file-sweep runs were refused so)."""
+    from nurbsmotion.loop import run
+    from nurbsmotion.paths.files import load_contours
+    from nurbsmotion.random_machines import random_machine
+
+    corpus = __import__("pathlib").Path(__file__).resolve().parent / "data" / "corpus"
+    contour = load_contours(corpus / "bjnortier_splineA.dxf", axes="xyz")[0]
+    machine = random_machine([14, 0, 3, 3], 3).with_options(pulse_length_um=0.1)
+    path = to_pulses(contour.curve, machine)
+    trace = run(path, machine, 1097860.0, "planned",
+                interpolator_options={"corner_tolerance": 5000.0})
+    assert trace.success, trace.message
+    assert trace.metrics().total_saturated_samples == 0
+
+
 def test_planned_is_registered():
     assert "planned" in LOOP_METHODS
     assert isinstance(make_interpolator("planned", PI, MACHINE, 1e6), PlannedInterpolator)

@@ -48,7 +48,9 @@ is built offline in six steps:
    rebuilt. An excess left after that comes from further away than the easing reaches,
    so round r divides by its r-th power (squared, cubed, ...: a stubborn excess is gone
    in a few rounds, at the cost of easing a little more than it needs); where easing
-   does not lower the drive, the grid is refined.
+   does not lower the drive, the grid is refined, and once it is as fine as it gets, the
+   whole path is eased by the excess as well (a profile at the limit over a long stretch
+   can move a small excess from window to window without end).
 5. **Landing** (:func:`_land_on_end`). The last drives are changed by the least that
    puts the plant at rest exactly on the end, at the earliest sample (up to
    ``INVERSE_REACH + 1`` before the desired motion arrives there) at which the drive
@@ -1149,6 +1151,7 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     last_use = math.inf
     widen = 1.0
     initial_grid = grid_size
+    everywhere = False  # ease the whole path as well (step 4)
     for _ in range(DRIVE_FIT_ROUNDS):
         profile = speed_profile(curve, machine, feed, drive_fraction=drive_fraction,
                                 drive_scale=drive_scale if eases else None,
@@ -1187,6 +1190,7 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
                 grid_size *= 4
                 spacing /= 4
             widen *= 2.0
+            everywhere = grid_size >= MAX_GRID_REFINEMENT * initial_grid
         last_use = use
         half = np.maximum(speed * Ts * (1 + INVERSE_REACH) * widen, spacing)
         # The first round's excess is the profile's own (its drive scales with its limit):
@@ -1201,6 +1205,10 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         alone = np.isnan(earliest[k])
         centre, half, factor = curve.arc_length(param[k[alone]]), half[alone], factor[alone]
         windows = [centre], [half], [factor]
+        if everywhere:
+            windows[0].append(np.array([0.5 * curve.length]))
+            windows[1].append(np.array([0.5 * curve.length + spacing]))
+            windows[2].append(np.array([(drive_fraction / use) ** (1 + len(eases))]))
         blended = ~np.isnan(earliest)
         run_start = np.flatnonzero(blended & ~np.r_[False, blended[:-1]])
         run_end = np.flatnonzero(blended & ~np.r_[blended[1:], False]) + 1
