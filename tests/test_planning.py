@@ -665,6 +665,28 @@ def test_a_profile_at_the_drive_limit_over_a_long_stretch_is_not_refused():
     assert trace.metrics().total_saturated_samples == 0
 
 
+@pytest.mark.filterwarnings("ignore:G64 path blending")
+def test_corners_are_rounded_only_where_that_arrives_sooner():
+    """LinuxCNC's tp_arc-with-spiral.ngc (its own F words) on a random 3-axis pid machine
+    (0.1 um pulses, Ts = 0.1 ms; found by the file sweep) at eps = 0.5 mm: the blends
+    superpose up to five pieces, whose drives add to 3 x Umax, and easing that sum
+    slowed the move to 1.45 x the stop-at-corner bound. The plan now stops at the
+    corners where that arrives no later, and says so (its corner_tolerance is 0)."""
+    from nurbsmotion import units
+    from nurbsmotion.paths.files import load_contours
+    from nurbsmotion.random_machines import random_machine
+
+    corpus = __import__("pathlib").Path(__file__).resolve().parent / "data" / "corpus"
+    contour = load_contours(corpus / "tp_arc-with-spiral.ngc", axes="xyz")[0]
+    machine = random_machine([39, 0, 3, 5], 3).with_options(pulse_length_um=0.1)
+    path = to_pulses(contour.curve, machine)
+    feed = units.feed_in_pulses(contour.feed, contour.curve, machine)
+    stopping = plan_motion(path, machine, feed)
+    plan = plan_motion(path, machine, feed, corner_tolerance=5000.0)
+    assert plan.arrival <= stopping.arrival
+    assert plan.corner_tolerance == 0.0 and plan.stop_indices.size == 4
+
+
 def test_planned_is_registered():
     assert "planned" in LOOP_METHODS
     assert isinstance(make_interpolator("planned", PI, MACHINE, 1e6), PlannedInterpolator)

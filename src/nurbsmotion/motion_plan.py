@@ -30,7 +30,9 @@ is built offline in six steps:
    piece that moves, stays within eps. On segments far shorter than eps (CAM output) a
    piece may so start while several earlier ones still move; each stops no sooner than
    those before it. The drive is the sum of the pieces' drives, checked in step 4 (which
-   eases all of them where a blend exceeds the limit).
+   eases all of them where a blend exceeds the limit). Easing a sum of several drives
+   can cost more than the stops save: the plan that stops at the corners is made as well
+   and kept where it arrives no later.
 3. **Drive sequence.** Exact inversion of theta -> u is unstable in practice: the sampled
    plant has a zero at ``-c1/b1`` close to -1, and inverting it rings at the Nyquist
    frequency. Zero-phase-error tracking (Tomizuka 1987) inverts the speed exactly and the
@@ -1114,6 +1116,13 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     max_samples : int
         A plan longer than this is refused.
 
+    Returns
+    -------
+    MotionPlan
+        Its ``corner_tolerance`` is 0 where stopping at the sharp corners arrives no later
+        than rounding them (blends superpose the pieces' drives, and easing their sum can
+        cost more than the stops it saves).
+
     Raises
     ------
     InfeasibleError
@@ -1125,6 +1134,23 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
             raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
     if not (0 < drive_fraction <= 1):
         raise ValueError(f"drive_fraction must lie in (0, 1], got {drive_fraction!r}")
+    options = dict(drive_fraction=drive_fraction, path_tolerance=path_tolerance,
+                   grid_size=grid_size, max_samples=max_samples)
+    plan = _plan_motion(curve, machine, feed, corner_tolerance, **options)
+    if corner_tolerance > 0 and plan.corner_times.size:
+        try:
+            stopping = _plan_motion(curve, machine, feed, 0.0, **options)
+        except InfeasibleError:
+            return plan
+        if stopping.arrival <= plan.arrival:
+            return stopping
+    return plan
+
+
+def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: float, *,
+                 drive_fraction: float, path_tolerance: float, grid_size: int,
+                 max_samples: int) -> MotionPlan:
+    """:func:`plan_motion` for one corner tolerance (its arguments checked)."""
     Ts = machine.sample_period
     umax = machine.max_drive
     lead = LEAD
