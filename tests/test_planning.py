@@ -643,6 +643,18 @@ def test_segments_far_shorter_than_eps_blend_like_the_arc_they_draw():
     assert settle_time(trace) <= 2.0 * settle_time(_planned(arc, 1e6)[1])
 
 
+def _corpus_case(name: str, axes: str, seed: list):
+    """The first contour of a corpus file [pulse] and the file sweep's random machine of
+    that ``seed`` with 0.1 um pulses (``benchmarks/file_sweep.py``)."""
+    from nurbsmotion.paths.files import load_contours
+    from nurbsmotion.random_machines import random_machine
+
+    corpus = __import__("pathlib").Path(__file__).resolve().parent / "data" / "corpus"
+    contour = load_contours(corpus / name, axes=axes)[0]
+    machine = random_machine(seed, len(axes)).with_options(pulse_length_um=0.1)
+    return contour, to_pulses(contour.curve, machine), machine
+
+
 def test_a_profile_at_the_drive_limit_over_a_long_stretch_is_not_refused():
     """A 0.31 m DXF spline (ezdxf's corpus) on a random 3-axis pid machine (0.1 um
     pulses, Ts = 0.1 ms, 110 mm/s; found by the file sweep): the speed profile runs at
@@ -652,20 +664,15 @@ def test_a_profile_at_the_drive_limit_over_a_long_stretch_is_not_refused():
     as fine as it gets, the whole path is eased by the excess as well: the plan is found,
     no drive beyond Umax in the run (3 of 440 file-sweep runs were refused so)."""
     from nurbsmotion.loop import run
-    from nurbsmotion.paths.files import load_contours
-    from nurbsmotion.random_machines import random_machine
 
-    corpus = __import__("pathlib").Path(__file__).resolve().parent / "data" / "corpus"
-    contour = load_contours(corpus / "bjnortier_splineA.dxf", axes="xyz")[0]
-    machine = random_machine([14, 0, 3, 3], 3).with_options(pulse_length_um=0.1)
-    path = to_pulses(contour.curve, machine)
+    _, path, machine = _corpus_case("bjnortier_splineA.dxf", "xyz", [14, 0, 3, 3])
     trace = run(path, machine, 1097860.0, "planned",
                 interpolator_options={"corner_tolerance": 5000.0})
     assert trace.success, trace.message
     assert trace.metrics().total_saturated_samples == 0
 
 
-@pytest.mark.filterwarnings("ignore:G64 path blending")
+@pytest.mark.filterwarnings("ignore::nurbsmotion.paths.gcode.GcodeWarning")
 def test_corners_are_rounded_only_where_that_arrives_sooner():
     """LinuxCNC's tp_arc-with-spiral.ngc (its own F words) on a random 3-axis pid machine
     (0.1 um pulses, Ts = 0.1 ms; found by the file sweep) at eps = 0.5 mm: the blends
@@ -673,18 +680,65 @@ def test_corners_are_rounded_only_where_that_arrives_sooner():
     slowed the move to 1.45 x the stop-at-corner bound. The plan now stops at the
     corners where that arrives no later, and says so (its corner_tolerance is 0)."""
     from nurbsmotion import units
-    from nurbsmotion.paths.files import load_contours
-    from nurbsmotion.random_machines import random_machine
 
-    corpus = __import__("pathlib").Path(__file__).resolve().parent / "data" / "corpus"
-    contour = load_contours(corpus / "tp_arc-with-spiral.ngc", axes="xyz")[0]
-    machine = random_machine([39, 0, 3, 5], 3).with_options(pulse_length_um=0.1)
-    path = to_pulses(contour.curve, machine)
+    contour, path, machine = _corpus_case("tp_arc-with-spiral.ngc", "xyz", [39, 0, 3, 5])
     feed = units.feed_in_pulses(contour.feed, contour.curve, machine)
     stopping = plan_motion(path, machine, feed)
     plan = plan_motion(path, machine, feed, corner_tolerance=5000.0)
     assert plan.arrival <= stopping.arrival
     assert plan.corner_tolerance == 0.0 and plan.stop_indices.size == 4
+
+
+def test_easing_the_whole_path_costs_no_more_than_the_excess():
+    """The same spline on another random machine (Ts = 0.25 ms, 280 mm/s): on the
+    finest grid a curvature peak needed 1.06 x Umax, and easing the whole path by the
+    excess to the power of the round (as local windows are) made the move 1.47 x the
+    time-optimal bound. The whole path is eased by the excess itself, only where local
+    easing stalls on the finest grid: within 1 % of the bound."""
+    _, path, machine = _corpus_case("bjnortier_splineA.dxf", "xyz", [14, 0, 3, 1])
+    feed = 2798914.0
+    plan = plan_motion(path, machine, feed)
+    assert plan.arrival * machine.sample_period <= 1.01 * time_optimal_bound(path, machine,
+                                                                             feed)
+
+
+@pytest.mark.filterwarnings("ignore::nurbsmotion.paths.gcode.GcodeWarning")
+def test_a_stalled_excess_on_the_finest_grid_is_not_run_away_from():
+    """A gear wheel of arcs and lines (LinuxCNC's G6_Ruota_dentata_1=2.ngc, 4.5 m) on a
+    random pid machine at Ts = 0.1 ms: the easing stalled at 3.07 x Umax on the finest
+    grid, and easing the whole path by the excess to the power of the round asked for
+    a 3,408 s move (refused: more than 10,000,000 samples). Planned now, within 5 % of
+    the time-optimal bound (39.3 s; the plan 40.8 s), no drive beyond Umax."""
+    _, path, machine = _corpus_case("G6_Ruota_dentata_1=2.ngc", "xy", [8, 0, 2, 4])
+    plan = plan_motion(path, machine, 940405.0)
+    assert plan.arrival * machine.sample_period <= 1.05 * time_optimal_bound(
+        path, machine, 940405.0)
+    assert np.max(np.abs(plan.drive)) <= machine.max_drive * (1 + 1e-9)
+
+
+def test_a_refused_blend_falls_back_to_stopping_and_says_so(monkeypatch):
+    """Where the blended plan is refused, the plan that stops at the corners is made
+    (its corner_tolerance is 0); where that is refused too, the blended plan's reason
+    is raised."""
+    import nurbsmotion.motion_plan as mp
+
+    real = mp._plan_motion
+
+    def blends_refused(curve, machine, feed, corner_tolerance, **options):
+        if corner_tolerance > 0:
+            raise InfeasibleError("blends refused")
+        return real(curve, machine, feed, corner_tolerance, **options)
+
+    monkeypatch.setattr(mp, "_plan_motion", blends_refused)
+    plan = plan_motion(PI, MACHINE, 1e6, corner_tolerance=500.0)
+    assert plan.corner_tolerance == 0.0 and plan.stop_indices.size == 2
+
+    def all_refused(curve, machine, feed, corner_tolerance, **options):
+        raise InfeasibleError("blends refused" if corner_tolerance else "stops refused")
+
+    monkeypatch.setattr(mp, "_plan_motion", all_refused)
+    with pytest.raises(InfeasibleError, match="blends refused"):
+        plan_motion(PI, MACHINE, 1e6, corner_tolerance=500.0)
 
 
 def test_planned_is_registered():

@@ -50,9 +50,9 @@ is built offline in six steps:
    rebuilt. An excess left after that comes from further away than the easing reaches,
    so round r divides by its r-th power (squared, cubed, ...: a stubborn excess is gone
    in a few rounds, at the cost of easing a little more than it needs); where easing
-   does not lower the drive, the grid is refined, and once it is as fine as it gets, the
-   whole path is eased by the excess as well (a profile at the limit over a long stretch
-   can move a small excess from window to window without end).
+   does not lower the drive, the grid is refined; where it does not on the finest grid,
+   the whole path is eased by the excess as well (a profile at the limit over a long
+   stretch can move an excess of 1e-7 from window to window without end).
 5. **Landing** (:func:`_land_on_end`). The last drives are changed by the least that
    puts the plant at rest exactly on the end, at the earliest sample (up to
    ``INVERSE_REACH + 1`` before the desired motion arrives there) at which the drive
@@ -125,7 +125,7 @@ pulse at the die-bonder's full acceleration)."""
 MAX_GRID_REFINEMENT = 16
 """The speed profile's grid is refined at most to this many times its given size."""
 
-DRIVE_FIT_ROUNDS = 12
+DRIVE_FIT_ROUNDS = 16
 """At most this many rebuilds of the plan in step 4."""
 
 LEAD = 1
@@ -1139,8 +1139,16 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         raise ValueError(f"drive_fraction must lie in (0, 1], got {drive_fraction!r}")
     options = dict(drive_fraction=drive_fraction, path_tolerance=path_tolerance,
                    grid_size=grid_size, max_samples=max_samples)
-    plan = _plan_motion(curve, machine, feed, corner_tolerance, **options)
-    if corner_tolerance > 0 and plan.corner_times.size:
+    if corner_tolerance == 0:
+        return _plan_motion(curve, machine, feed, 0.0, **options)
+    try:
+        plan = _plan_motion(curve, machine, feed, corner_tolerance, **options)
+    except InfeasibleError as refused:
+        try:
+            return _plan_motion(curve, machine, feed, 0.0, **options)
+        except InfeasibleError:
+            raise refused from None
+    if plan.corner_times.size:
         try:
             stopping = _plan_motion(curve, machine, feed, 0.0, **options)
         except InfeasibleError:
@@ -1222,8 +1230,9 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
             if grid_size < MAX_GRID_REFINEMENT * initial_grid:
                 grid_size *= 4
                 spacing /= 4
+            else:
+                everywhere = True
             widen *= 2.0
-            everywhere = grid_size >= MAX_GRID_REFINEMENT * initial_grid
         last_use = use
         half = np.maximum(speed * Ts * (1 + INVERSE_REACH) * widen, spacing)
         # The first round's excess is the profile's own (its drive scales with its limit):
@@ -1241,7 +1250,7 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
         if everywhere:
             windows[0].append(np.array([0.5 * curve.length]))
             windows[1].append(np.array([0.5 * curve.length + spacing]))
-            windows[2].append(np.array([(drive_fraction / use) ** (1 + len(eases))]))
+            windows[2].append(np.array([drive_fraction / use]))
         blended = ~np.isnan(earliest)
         run_start = np.flatnonzero(blended & ~np.r_[False, blended[:-1]])
         run_end = np.flatnonzero(blended & ~np.r_[blended[1:], False]) + 1
