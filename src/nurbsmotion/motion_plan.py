@@ -300,8 +300,8 @@ def _segment_acceleration(s, V, i):
 
 
 def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float):
-    """Per corner-free piece: its duration [s], a function ``times -> (positions, u)`` and
-    its length [pulse].
+    """Per corner-free piece: its duration [s] and a function ``times -> (positions, u)``
+    (``times`` [s] nondecreasing from the piece's start).
 
     The piece's s(t) is averaged with itself one sample later (module docstring, step 1;
     at rest before and after): the piece lasts Ts longer and its sampled motion has
@@ -326,7 +326,7 @@ def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float):
                 uk[inner] = np.clip(geometry.parameter_at(sk[inner], cache=False),
                                     u[0], u[-1])
             return curve(uk), uk
-        out.append((float(duration), motion, s[-1] - s[0]))
+        out.append((float(duration), motion))
     return out
 
 
@@ -459,8 +459,8 @@ def _blend_starts(pieces, Ts: float, tolerance: float) -> list:
         return track, 0, [(t0 + dur, _thinned(track.points, track.arc, step))]
 
     starts = [0.0]
-    moving, alone, paths = alone_from(0.0, *pieces[0][:2])
-    for dur, motion, _ in pieces[1:]:
+    moving, alone, paths = alone_from(0.0, *pieces[0])
+    for dur, motion in pieces[1:]:
         stops = starts[-1] + moving.times[-1]   # when everything before it stops [s]
         nxt, _, own = alone_from(stops, dur, motion)
         j = _blend_start(moving, alone, nxt, np.vstack([p for _, p in paths + own]),
@@ -490,7 +490,7 @@ def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, toleran
     starts = _blend_starts(pieces, Ts, tolerance)
     # a corner's time: midway between the next piece's start and its own piece's end
     corner_times = [lead + (t0 + s + dur) / (2 * Ts)
-                    for t0, s, (dur, _, _) in zip(starts[1:], starts, pieces)]
+                    for t0, s, (dur, _) in zip(starts[1:], starts, pieces)]
     total = max(t0 + p[0] for t0, p in zip(starts, pieces))
     n = lead + int(math.ceil(total / Ts - 1e-9)) + 1
     times = (np.arange(n) - lead) * Ts
@@ -499,7 +499,7 @@ def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, toleran
     param = np.zeros(n)
     earliest = np.full(n, np.nan)
     moving = np.zeros(n, dtype=int)   # pieces that move at each sample
-    for (dur, motion, _), t0 in zip(pieces, starts):
+    for (dur, motion), t0 in zip(pieces, starts):
         local = times - t0
         first = int(np.searchsorted(local, 0.0, side="right"))  # local > 0 from here on
         if first >= n:
