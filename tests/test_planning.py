@@ -615,7 +615,7 @@ def test_a_piece_shorter_than_its_two_blends_stays_within_eps():
     um from the sharp path, and 13 s of drive easing, one piece of three unseen). Each
     blend now measures the superposition of every piece that moves: within eps + 5 um,
     never slower than stopping at the corners, no drive beyond Umax (found by a random
-    polyline sweep: 1 of 150 beyond eps before, 0 of 300 after)."""
+    polyline sweep: 1 of 150 beyond eps before, 0 of 560 after)."""
     P = nm.make_polyline([[0, 0], [-270, -459], [1760, -2528], [715, -3240], [-241, -3237],
                           [-410, -686]])
     eps = 500.0
@@ -660,9 +660,10 @@ def test_a_profile_at_the_drive_limit_over_a_long_stretch_is_not_refused():
     pulses, Ts = 0.1 ms, 110 mm/s; found by the file sweep): the speed profile runs at
     the drive limit for most of its 224,000 samples, and the sampled drive exceeded it
     by 1e-7 to 1e-9 here and there; each round eased a window and the excess turned up in
-    another, so after 12 rounds the move was refused ("needs 1 x Umax"). Once the grid is
-    as fine as it gets, the whole path is eased by the excess as well: the plan is found,
-    no drive beyond Umax in the run (3 of 440 file-sweep runs were refused so)."""
+    another, so after 12 rounds the move was refused ("needs 1 x Umax"). Where local
+    easing stalls on the finest grid, the whole path is eased by the excess as well: the
+    plan is found, no drive beyond Umax in the run (4 of 440 file-sweep runs were refused
+    so)."""
     from nurbsmotion.loop import run
 
     _, path, machine = _corpus_case("bjnortier_splineA.dxf", "xyz", [14, 0, 3, 3])
