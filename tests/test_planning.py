@@ -733,6 +733,11 @@ def test_a_refused_blend_falls_back_to_stopping_and_says_so(monkeypatch):
     monkeypatch.setattr(mp, "_plan_motion", blends_refused)
     plan = plan_motion(PI, MACHINE, 1e6, corner_tolerance=500.0)
     assert plan.corner_tolerance == 0.0 and plan.stop_indices.size == 2
+    # the run says so (summary.json's "message"); rounded corners say nothing
+    it, trace = _planned(PI, 1e6, corner_tolerance=500.0)
+    assert "stops at the sharp corners" in trace.message and trace.success
+    monkeypatch.setattr(mp, "_plan_motion", real)
+    assert "stops at" not in _planned(PI, 1e6, corner_tolerance=500.0)[1].message
 
     def all_refused(curve, machine, feed, corner_tolerance, **options):
         raise InfeasibleError("blends refused" if corner_tolerance else "stops refused")

@@ -511,6 +511,7 @@ def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=SETTLE_
     settled_index = loop.settled_index if settled else None
     success, message = _verdict(tally, settled, settled_index, Ts, settle_window,
                                 settle_limit)
+    message = "; ".join([message, *interpolator.notes])
     outcome = RunOutcome(int(loop.k[0]), finished, settled_index, float(settle_window),
                          success, message, curve, machine, interpolator.name)
     return outcome, rows, tally.finite

@@ -266,10 +266,14 @@ class Interpolator:
         The step computes speed bounds (eq. 3.6) worth recording in the trace.
     plan : NamedTuple
         What the step reads; never changed.
+    notes : tuple of str
+        What the interpolator chose that the user did not ask for exactly (e.g. stops
+        where a corner tolerance was given), added to a run's message.
     """
 
     name = "base"
     records_bounds = False
+    notes: tuple = ()
     plan: tuple
 
     def __init__(self, curve: NurbsCurve, sample_period: float):

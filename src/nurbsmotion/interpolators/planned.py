@@ -573,6 +573,8 @@ class PlannedInterpolator(Interpolator):
         :class:`nurbsmotion.feed.FeedLimit`).
     corner_tolerance : float
         eps [pulse], >= 0: how far the motion may leave a sharp corner (0: exact stop).
+        Where rounding the corners would not arrive sooner, the motion stops at them, and
+        :attr:`notes` (so the run's message) says so.
     path_tolerance : float
         [pulse], >= 0: how far from the path a short move (a plan of at most
         :data:`~nurbsmotion.motion_plan.SHORT_MOVE_SAMPLES` samples without a stop) may go
@@ -628,6 +630,9 @@ class PlannedInterpolator(Interpolator):
                         path_tolerance=path_tolerance, drive_fraction=drive_fraction,
                         grid_size=grid_size, max_samples=max_samples)
         self.duration = p.duration
+        if corner_tolerance > 0 and p.corner_tolerance == 0 and p.corner_times.size:
+            self.notes = ("the motion stops at the sharp corners: rounding them within the "
+                          "corner tolerance would not arrive sooner",)
         a, b0, c, b1 = axis_zoh(machine)
         drive_speed = p.speed / machine.Kc
         drive_accel = np.zeros_like(p.speed)
