@@ -646,10 +646,12 @@ def test_segments_far_shorter_than_eps_blend_like_the_arc_they_draw():
 def _corpus_case(name: str, axes: str, seed: list):
     """The first contour of a corpus file [pulse] and the file sweep's random machine of
     that ``seed`` with 0.1 um pulses (``benchmarks/file_sweep.py``)."""
+    from pathlib import Path
+
     from nurbsmotion.paths.files import load_contours
     from nurbsmotion.random_machines import random_machine
 
-    corpus = __import__("pathlib").Path(__file__).resolve().parent / "data" / "corpus"
+    corpus = Path(__file__).resolve().parent / "data" / "corpus"
     contour = load_contours(corpus / name, axes=axes)[0]
     machine = random_machine(seed, len(axes)).with_options(pulse_length_um=0.1)
     return contour, to_pulses(contour.curve, machine), machine

@@ -352,16 +352,20 @@ class _Track(NamedTuple):
     arc: np.ndarray        # (m + 1,) distance travelled along the points [pulse]
 
 
-def _track(points: np.ndarray, duration: float, h: float) -> _Track:
-    """The track of ``points`` (shape (m + 1, n_axes), m = ceil(duration/h)) [pulse]."""
-    times = np.minimum(np.arange(len(points)) * h, duration)
+def _grid_steps(duration: float, h: float) -> int:
+    """The steps of ``h`` [s] that reach ``duration`` [s]."""
+    return int(math.ceil(duration / h - 1e-9))
+
+
+def _grid_times(duration: float, h: float) -> np.ndarray:
+    """A track's times [s]: every ``h`` [s] from 0, and ``duration`` [s] last."""
+    return np.minimum(np.arange(_grid_steps(duration, h) + 1) * h, duration)
+
+
+def _track(points: np.ndarray, times: np.ndarray) -> _Track:
+    """The track of ``points`` (shape (m + 1, n_axes)) [pulse] at :func:`_grid_times`."""
     steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
     return _Track(times, points, np.concatenate([[0.0], np.cumsum(steps)]))
-
-
-def _grid_steps(duration: float, h: float) -> int:
-    """The steps of ``h`` [s] that reach ``duration`` [s] (its track has one point more)."""
-    return int(math.ceil(duration / h - 1e-9))
 
 
 def _time_to_cover(track: _Track, distance: float, from_end: bool) -> float:
@@ -450,33 +454,36 @@ def _blend_starts(pieces, Ts: float, tolerance: float) -> list:
     h = Ts / BLEND_STEPS
     step = BLEND_THINNING * tolerance
 
-    def alone_from(t0, dur, motion):
-        # a piece that starts at t0 [s] with nothing else moving: the superposed motion
-        # from its start on, the step from which only it moves, and samples of the path
-        # of every piece that moves with when each stops [s]
-        times = np.minimum(np.arange(_grid_steps(dur, h) + 1) * h, dur)
-        track = _track(motion(times)[0], dur, h)
-        return track, 0, [(t0 + dur, _thinned(track.points, track.arc, step))]
+    def track_of(dur, motion):
+        # a piece's track and samples of its path
+        times = _grid_times(dur, h)
+        track = _track(motion(times)[0], times)
+        return track, _thinned(track.points, track.arc, step)
 
+    # the superposed motion from the latest piece's start on, the step from which only
+    # that piece moves, and samples of the path of every piece that moves with when each
+    # stops [s]
+    moving, own = track_of(*pieces[0])
+    alone, paths = 0, [(pieces[0][0], own)]
     starts = [0.0]
-    moving, alone, paths = alone_from(0.0, *pieces[0])
     for dur, motion in pieces[1:]:
         stops = starts[-1] + moving.times[-1]   # when everything before it stops [s]
-        nxt, _, own = alone_from(stops, dur, motion)
-        j = _blend_start(moving, alone, nxt, np.vstack([p for _, p in paths + own]),
+        nxt, own = track_of(dur, motion)
+        j = _blend_start(moving, alone, nxt, np.vstack([p for _, p in paths] + [own]),
                          tolerance)
         if j >= len(moving.times) - 1:          # back to back: it moves alone
             starts.append(stops)
-            moving, alone, paths = nxt, 0, own
+            moving, alone, paths = nxt, 0, [(stops + dur, own)]
             continue
         t0 = starts[-1] + j * h
         starts.append(t0)
-        m = _grid_steps(max(stops, t0 + dur) - t0, h)
-        ahead = moving.points[np.minimum(np.arange(j, j + m + 1), len(moving.times) - 1)]
-        ahead += nxt.points[np.minimum(np.arange(m + 1), len(nxt.times) - 1)] - nxt.points[0]
-        moving = _track(ahead, max(stops, t0 + dur) - t0, h)
+        times = _grid_times(max(stops, t0 + dur) - t0, h)
+        k = np.arange(len(times))
+        moving = _track(moving.points[np.minimum(j + k, len(moving.times) - 1)]
+                        + nxt.points[np.minimum(k, len(nxt.times) - 1)] - nxt.points[0],
+                        times)
         alone = _grid_steps(stops - t0, h)
-        paths = [(e, p) for e, p in paths if e > t0] + [(t0 + dur, own[0][1])]
+        paths = [(e, p) for e, p in paths if e > t0] + [(t0 + dur, own)]
     return starts
 
 
@@ -1245,11 +1252,11 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
         # slows without end), and easing only there moves the excess within the blend
         # as its timing changes.
         alone = np.isnan(earliest[k])
-        centre, half, factor = curve.arc_length(param[k[alone]]), half[alone], factor[alone]
-        windows = [centre], [half], [factor]
+        centre = curve.arc_length(param[k[alone]])
+        windows = [centre - half[alone]], [centre + half[alone]], [factor[alone]]
         if everywhere:
-            windows[0].append(np.array([0.5 * curve.length]))
-            windows[1].append(np.array([0.5 * curve.length + spacing]))
+            windows[0].append(np.array([-spacing]))
+            windows[1].append(np.array([curve.length + spacing]))
             windows[2].append(np.array([drive_fraction / use]))
         blended = ~np.isnan(earliest)
         run_start = np.flatnonzero(blended & ~np.r_[False, blended[:-1]])
@@ -1260,13 +1267,12 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
                 continue
             f = (drive_fraction / float(np.max(per_sample[inside]))) ** (1 + len(eases))
             s0, s1 = curve.arc_length(np.array([earliest[a], param[b - 1]]))
-            windows[0].append(np.array([0.5 * (s0 + s1)]))
-            windows[1].append(np.array([0.5 * (s1 - s0) + spacing]))
+            windows[0].append(np.array([s0 - spacing]))
+            windows[1].append(np.array([s1 + spacing]))
             windows[2].append(np.array([f]))
-        centre, half, factor = (np.concatenate(w) for w in windows)
+        low, high, factor = (np.concatenate(w) for w in windows)
         falling = np.argsort(-factor, kind="stable")
-        eases.append(((centre - half)[falling], (centre + half)[falling],
-                      np.minimum(factor, 1.0)[falling]))
+        eases.append((low[falling], high[falling], np.minimum(factor, 1.0)[falling]))
     else:
         # The excess that easing could not remove comes from the pre-compensation's last
         # rounds (motion near the Nyquist frequency): keep its last round within the limit.
