@@ -364,6 +364,41 @@ def test_short_move_rests_as_soon_as_the_drive_allows(seed, feed, n_axes, monkey
     assert tr.metrics().end_overshoot <= 1.0
 
 
+def test_a_plan_ringing_about_the_end_is_replaced_by_one_at_rest(monkeypatch):
+    """A short 3-axis move (0.6 mm at 0.11 m/s) whose landing (step 5) fails: the plan of
+    steps 1-5 rings about the end after its arrival by more than the path tolerance (2.6
+    pulses at the Nyquist frequency; a run settled within a pulse 4 samples after it).
+    Step 6 finds no earlier arrival, so it plans one at rest exactly on the end at the
+    arrival itself: within Umax, the model plant's response to its drive, and a run on
+    the nominal plant settles when the plan rests, sooner than the ringing plan's."""
+    from nurbsmotion import motion_plan as mp
+    from nurbsmotion.metrics import settle_time
+    from nurbsmotion.paths.random_paths import random_path
+    curve = random_path("short_moves", [10, 240], n_axes=3)
+    machine, feed, end = _three_axes(), 109660.3, curve(1.0)
+    with monkeypatch.context() as patch:
+        patch.setattr(mp, "_shorten", lambda *args: None)
+        ringing = plan_motion(curve, machine, feed)
+    after = np.linalg.norm(ringing.position[ringing.arrival:] - end, axis=1)
+    assert np.max(after) > mp.DEFAULT_PATH_TOLERANCE
+    plan = plan_motion(curve, machine, feed)
+    assert plan.arrival <= ringing.arrival
+    np.testing.assert_array_equal(plan.position[plan.arrival:],
+                                  np.broadcast_to(end, plan.position[plan.arrival:].shape))
+    assert np.max(np.abs(plan.drive)) <= machine.max_drive
+    speed, position = ServoPlant.of_machine(machine, curve(0.0)).response(plan.drive[:-1])
+    np.testing.assert_allclose(position, plan.position, atol=1e-6)
+    settled = []
+    for shorten in (lambda *args: None, mp._shorten):
+        with monkeypatch.context() as patch:
+            patch.setattr(mp, "_shorten", shorten)
+            tr = simulate(PlannedInterpolator(curve, machine, feed), machine,
+                          settle_time=0.02)
+        settled.append(settle_time(tr.t, tr.position, end))
+    assert settled[1] <= plan.arrival * machine.sample_period + 1e-12
+    assert settled[1] < settled[0]
+
+
 def test_a_short_closed_move_goes_all_the_way_round(monkeypatch):
     """A short full circle (start = end, 2 mm across, 0.5 m/s): step 6 may not skip the
     path because its end point is its start. The plan's path points (its parameters)

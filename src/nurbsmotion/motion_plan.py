@@ -74,7 +74,8 @@ is built offline in six steps:
    a round found a point outside the tolerance, along its own offset), within a trust
    region (as far as the feed goes in a sample; failing that, as far as the
    linearisation stays within the tolerance). N runs down from the plan's arrival while
-   one is found.
+   one is found (from the arrival itself where the landing could not put the plan at
+   rest there and it rings about the end by more than ``path_tolerance``).
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
@@ -1007,9 +1008,11 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     ``limit`` [V] keeps the plant within ``tolerance`` [pulse] of the curve all along its
     motion (failing that, as near as ``theta`` is), its nearest path point moving forward
     no faster than ``feed`` and not past the end along its unit ``tangent``
-    (:func:`_shorten_at`); None if none before ``arrival`` does.
+    (:func:`_shorten_at`); None if none before ``arrival`` does (none at ``arrival``
+    either, where the plan leaves the end by more than ``tolerance`` after it).
 
-    N runs down from ``arrival - 1`` while one is found. The first guess of the nearest
+    N runs down from ``arrival - 1`` while one is found (where none is, and the plan so
+    leaves the end, from ``arrival``). The first guess of the nearest
     points is the plan's (its parameters ``param``, shape (n,)), compressed in time to
     arrive at N; each later N starts from the last motion found, compressed by a sample.
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
@@ -1028,15 +1031,20 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     to_nearest = np.linalg.norm(theta[:arrival + 1] - curve(nearest), axis=1)
     to_desired = np.linalg.norm(theta[:arrival + 1] - curve(param[:arrival + 1]), axis=1)
     own = float(np.max(np.minimum(to_nearest, to_desired)))
+    # Where the landing (step 5) could not put the plan at rest exactly, what the
+    # pre-compensation leaves rings about the end after the arrival: farther from it than
+    # the tolerance (a short 3-axis move: 2.6 pulses at Nyquist, settled within a pulse 4
+    # samples late), a plan at rest at the arrival itself is worth finding.
+    rings = bool(np.max(np.linalg.norm(theta[arrival:] - curve(1.0), axis=1)) > tolerance)
 
-    def descend(tolerance):
+    def descend(tolerance, top):
         # fine points: the path's chord between two within the tolerance at the feed
         Q = 2 * math.ceil(fastest * Ts * math.sqrt(kappa / (8.0 * tolerance)) / 2)
         zoh = _partial_zoh(machine, int(min(max(Q, 2), CHECK_POINTS)))
         Q = zoh[0].shape[0] - 1
         times, s_known = np.arange(arrival + 1, dtype=float), plan_s
         best = None
-        for N in range(arrival - 1, 2, -1):
+        for N in range(top, 2, -1):
             t = np.arange(Q + 1, N * Q) / Q                   # fine points [samples]
             guess = np.interp(1.0 + (t - 1.0) * (times[-1] - 1.0) / (N - 1.0), times,
                               s_known)
@@ -1054,9 +1062,12 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
             s_known = np.concatenate([[0.0], found[1], [length]])
         return best
 
-    # within the path tolerance; failing that, no farther from the path than the plan
-    for tolerance in dict.fromkeys([tolerance, max(tolerance, own)]):
-        best = descend(tolerance) if tolerance > 0 else None
+    # within the path tolerance; failing that, no farther from the path than the plan;
+    # failing both, a plan at rest at the arrival if this one rings about the end
+    tries = [(top, t) for top in [arrival - 1] + [arrival] * rings
+             for t in dict.fromkeys([tolerance, max(tolerance, own)]) if t > 0]
+    for top, tolerance in tries:
+        best = descend(tolerance, top)
         if best is not None:
             break
     else:
