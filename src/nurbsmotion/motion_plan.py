@@ -747,7 +747,7 @@ SHORT_MOVE_SAMPLES = 128
 """Step 6 plans the moves that rest on the end within this many samples. Its linear
 programs grow with the move (0.05-0.5 s each at 50-120 samples, and a move takes some
 tens of them): on the 1,000 random paths of ``benchmarks/planner_sweep.py`` planning
-takes a median 0.03 s, 3 s at the 95th percentile and 12 s at most."""
+takes a median 0.03 s, 3 s at the 95th percentile and 11 s at most."""
 
 DEFAULT_PATH_TOLERANCE = 1.0
 """How far [pulse] from the path step 6 may take a short move's motion by default: one
@@ -1012,9 +1012,9 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     either, where the plan leaves the end by more than ``tolerance`` after it).
 
     N runs down from ``arrival - 1`` while one is found (where none is, and the plan so
-    leaves the end, from ``arrival``). The first guess of the nearest
-    points is the plan's (its parameters ``param``, shape (n,)), compressed in time to
-    arrive at N; each later N starts from the last motion found, compressed by a sample.
+    leaves the end, from ``arrival``). The first guess of the nearest points is the
+    plan's (its parameters ``param``, shape (n,)), compressed in time to arrive at N;
+    each later N starts from the last motion found, compressed by a sample.
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
     length = curve.length
