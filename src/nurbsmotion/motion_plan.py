@@ -813,11 +813,11 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
     (|u| <= ``limit`` [V]) that keep the model's ``plant`` (at rest at the start) within
     ``tolerance`` [pulse] of the curve at every fine point inside the move (``zoh`` from
     :func:`_partial_zoh`: Q points per sample, fine points Q + 1 .. N*Q - 1), their
-    nearest points moving forward no
-    faster than ``feed`` and none past the end along its unit ``tangent``, and put it at
-    rest on the end at N; ``s`` (N*Q - Q - 1,) is the first guess of the nearest points'
-    arc lengths. Returns ``(u, s)`` (u shape (N, n_axes), u[0] = 0, and s at the fine
-    points), or None if the linearised programs find none.
+    nearest points moving forward no faster than ``feed`` and none past the end along
+    its unit ``tangent``, and put it at rest on the end at N; ``s`` (N*Q - Q - 1,) is
+    the first guess of the nearest points' arc lengths. Returns ``(u, s)`` (u shape
+    (N, n_axes), u[0] = 0, and s at the fine points), or None if the linearised programs
+    find none.
 
     The programs hold the samples, the half samples and every point that a round found
     off the path (the worst of each sample interval); every fine point is checked.
@@ -1064,7 +1064,8 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
 
     # within the path tolerance; failing that, no farther from the path than the plan;
     # failing both, a plan at rest at the arrival if this one rings about the end
-    tries = [(top, t) for top in [arrival - 1] + [arrival] * rings
+    tops = [arrival - 1, arrival] if rings else [arrival - 1]
+    tries = [(top, t) for top in tops
              for t in dict.fromkeys([tolerance, max(tolerance, own)]) if t > 0]
     for top, tolerance in tries:
         best = descend(tolerance, top)
@@ -1157,18 +1158,22 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         raise ValueError(f"drive_fraction must lie in (0, 1], got {drive_fraction!r}")
     options = dict(drive_fraction=drive_fraction, path_tolerance=path_tolerance,
                    grid_size=grid_size, max_samples=max_samples)
-    if corner_tolerance == 0:
+
+    def stopping_plan():
         return _plan_motion(curve, machine, feed, 0.0, **options)
+
+    if corner_tolerance == 0:
+        return stopping_plan()
     try:
         plan = _plan_motion(curve, machine, feed, corner_tolerance, **options)
     except InfeasibleError as refused:
         try:
-            return _plan_motion(curve, machine, feed, 0.0, **options)
+            return stopping_plan()
         except InfeasibleError:
             raise refused from None
     if plan.corner_times.size:
         try:
-            stopping = _plan_motion(curve, machine, feed, 0.0, **options)
+            stopping = stopping_plan()
         except InfeasibleError:
             return plan
         if stopping.arrival <= plan.arrival:
@@ -1183,7 +1188,7 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
     Ts = machine.sample_period
     umax = machine.max_drive
     lead = LEAD
-    eases: list = []  # per round: (low [pulse], high [pulse], factor) arrays, by falling factor
+    eases: list = []  # per round: (low, high [pulse], factor) arrays, by falling factor
     spacing = 2.0 * curve.length / grid_size
 
     def drive_scale(s_query):
