@@ -483,7 +483,7 @@ def test_stopping_travel_and_the_drive_that_stops_on_the_end(tau_scale, kc_scale
     end nothing stops before, and any drive that already stops short of it."""
     from scipy.integrate import solve_ivp
 
-    from nurbsmotion.interpolators.planned import _short_of_end, _stopping_travel
+    from nurbsmotion.interpolators.planned import _short_of_stop, _stopping_travel
 
     j, umax = 1, MACHINE.max_drive
     a, b0, c, b1 = _scipy_zoh(j, tau_scale, kc_scale)
@@ -505,11 +505,11 @@ def test_stopping_travel_and_the_drive_that_stops_on_the_end(tau_scale, kc_scale
         return c * w0 + b1 * u + travel(a * w0 + b0 * u)
 
     end = after(brake) + 0.6 * (after(0.0) - after(brake))
-    u = _short_of_end(0.0, 0.0, w0, end, s, a, b0, c, b1, umax)
+    u = _short_of_stop(0.0, 0.0, w0, end, s, a, b0, c, b1, umax)
     assert s * brake < s * u < 0.0
     assert after(u) == pytest.approx(end, rel=1e-6)
-    assert _short_of_end(0.0, 0.0, w0, 0.5 * after(brake), s, a, b0, c, b1, umax) == brake
-    assert _short_of_end(0.0, 0.0, w0, 2.0 * after(0.0), s, a, b0, c, b1, umax) == 0.0
+    assert _short_of_stop(0.0, 0.0, w0, 0.5 * after(brake), s, a, b0, c, b1, umax) == brake
+    assert _short_of_stop(0.0, 0.0, w0, 2.0 * after(0.0), s, a, b0, c, b1, umax) == 0.0
 
 
 @pytest.mark.parametrize("tau_scale, kc_scale", [(0.6, 1.7), (1.9, 0.55)])
@@ -597,6 +597,30 @@ def test_a_plant_unlike_the_model_stops_short_of_the_place_position(tau_scale, k
     assert passed <= 1e-6
     assert trace.metrics().end_overshoot <= 1e-6
     assert settle_time(trace) <= 1.15 * time_optimal_bound(PI, MACHINE, 1e6)
+
+
+@pytest.mark.parametrize("feed", [5e5, 2e6])
+@pytest.mark.parametrize("tau_scale, kc_scale", [(1.0, 0.8), (1.2, 0.8)])
+def test_a_plant_unlike_the_model_stops_short_of_a_stop_corner(feed, tau_scale, kc_scale):
+    """A move out along x to a stop corner, down y to a second one, and back along x:
+    weaker plants ran 3.5-5.7 pulses down through the second corner (only the end was
+    guarded). Each axis that the plan holds or turns at a stop is kept able to stop
+    before it until the plan moves it on: x never passes 20000 pulses, nor y 0, by more
+    than the plan itself (its turning points between samples, RK45) and a hundredth of a
+    pulse (the identified plant's error), and the run's corner_overshoot stays under a
+    pulse."""
+    from nurbsmotion.nurbs import make_polyline
+    curve = make_polyline([[0.0, 0.0], [20000.0, 5000.0], [20000.0, 0.0], [0.0, 0.0]])
+    it = PlannedInterpolator(curve, MACHINE, feed)
+    plant = ServoPlant.of_machine(MACHINE, curve(0.0), time_constant_scale=tau_scale,
+                                  electrical_gain_scale=kc_scale)
+    trace = simulate(it, MACHINE, plant=plant, settle_time=0.05)
+    _check_run(it, trace)
+    # the plan's own extremes, between the samples as well (RK45 on its drives)
+    plan = _continuous_positions(plan_motion(curve, MACHINE, feed), MACHINE, curve(0.0))
+    assert np.max(trace.position[:, 0]) <= max(20000.0, plan[:, 0].max()) + 0.01
+    assert np.min(trace.position[:, 1]) >= min(0.0, plan[:, 1].min()) - 0.01
+    assert trace.metrics().corner_overshoot <= 1.0
 
 
 @pytest.mark.parametrize("tau_scale, kc_scale", [(0.5, 1.0), (1.2, 0.8), (2.0, 0.5)])

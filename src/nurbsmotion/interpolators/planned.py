@@ -36,11 +36,12 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    plan's rest on the end, at 0 (deadbeat: what a plant that differs from the model has
    left of the move closes in two samples instead of decaying at the tracking pole),
    clipped to +-Umax: *every drive is within the limit by construction*, whatever the
-   true plant. Once the plan moves an axis only towards its end, the drive also leaves
-   the identified plant able to stop before that end, braking at Umax from the next
-   sample on (:func:`_short_of_end`; the plan's own braking never needs more, so on the
-   model's plant it changes nothing): a plant weaker or stronger than the model does
-   not pass the end point;
+   true plant. Once the plan moves an axis only towards a stop (a stop corner or the
+   end), the drive also leaves the identified plant able to stop before it, braking at
+   Umax from the next sample on, and keeps it so until the plan moves the axis on past
+   it or the next stop comes (:func:`_stop_guards`, :func:`_short_of_stop`; the plan's
+   own braking never needs more, so on the model's plant it changes nothing): a plant
+   weaker or stronger than the model does not pass the end point or a stop corner;
 4. the loop's law is affine in the setpoint between its clamps,
    ``u = slope*thd + offset`` with slope > 0 (:func:`nurbsmotion.control.pid_affine`,
    from the law's memory and the measured state), so the setpoint that produces exactly
@@ -76,7 +77,8 @@ from ..control import pid_affine, pid_output
 from ..errors import InfeasibleError
 from ..feed import FeedLimit
 from ..machine import Machine
-from ..motion_plan import DEFAULT_PATH_TOLERANCE, axis_zoh, plan_motion
+from ..motion_plan import (DEFAULT_PATH_TOLERANCE, PRECOMPENSATION_TOLERANCE, axis_zoh,
+                           plan_motion)
 from ..nurbs import NurbsCurve
 from .base import Interpolator, positive_feed
 
@@ -339,12 +341,12 @@ def _stopping_travel(w, a, b0, c, b1, brake):
 
 
 @njit(cache=True)
-def _short_of_end(u, x, w, end, s, a, b0, c, b1, umax):
+def _short_of_stop(u, x, w, end, s, a, b0, c, b1, umax):
     """The drive nearest ``u`` [V], within +-Umax, after which the ZOH plant ``(a, b0, c,
     b1)`` at position ``x`` [pulse] and speed ``w`` [rad/s], braking at Umax from the
     next sample on, stops before ``end`` [pulse] (moving in direction ``s``, +-1): the
     travel grows with the drive, so it is ``u`` itself if that stops in time, the full
-    brake if nothing does, and else the bisected drive that stops on the end."""
+    brake if nothing does, and else the bisected drive that stops on ``end``."""
     brake = -s * umax
 
     def beyond(v):
@@ -368,7 +370,7 @@ def _short_of_end(u, x, w, end, s, a, b0, c, b1, umax):
 @njit(cache=True)
 def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
                 plan_drive_speed, plan_drive_accel, support, gains, a, b0, c, b1, log_a,
-                umax, headroom, rate_gain, rest, approach, direction, slope, offset,
+                umax, headroom, rate_gain, rest, upper, lower, slope, offset,
                 out_setpoint, out_drive):
     """One sample of the planned interpolator (module docstring, steps 1-4).
 
@@ -414,10 +416,11 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
     rest : int
         The plan sample from which the plan rests on the end: from there on the
         feedback is deadbeat.
-    approach, direction : ndarray, shape (n_axes,)
-        Per axis, the plan sample from which the plan moves it only towards its end, and
-        that direction (+1 or -1; 0 if the axis never moves): from there on the drive
-        keeps the plant able to stop before the end (:func:`_short_of_end`).
+    upper, lower : ndarray, shape (n, n_axes)
+        Per plan sample and axis, the positions [pulse] the plant must be able to stop
+        before, moving up and down (+-inf: none; :func:`_stop_guards`): while the clock
+        lies between two samples that both guard one, the drive keeps the plant able to
+        (:func:`_short_of_stop`).
     slope, offset : ndarray, shape (n_axes,)
         The law's affine form at this sample: u[k] = slope*thd[k] + offset [V/pulse, V].
     out_setpoint, out_drive : ndarray, shape (n_axes,)
@@ -505,11 +508,16 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
         if abs(u) > umax:
             excess = max(excess, abs(u) / umax - 1.0)
             u = umax if u > 0 else -umax
-        if phi >= approach[j] and direction[j] != 0.0:
-            # 3b. never past the end: the drive leaves the plant able to stop before
-            # the axis' end, braking at Umax from the next sample on
-            u = _short_of_end(u, position[j], w_now, plan_position[n - 1, j], direction[j],
-                              ae, b0e, ce, b1e, umax)
+        # 3b. never past a stop: the drive leaves the plant able to stop before the
+        # positions the plan guards at both ends of the clock's sample, braking at Umax
+        # from the next sample on; the side the plant moves towards last
+        hi = max(upper[i0, j], upper[i1, j])
+        lo = min(lower[i0, j], lower[i1, j])
+        for side in (-1.0, 1.0) if w_now >= 0.0 else (1.0, -1.0):
+            target = hi if side > 0.0 else lo
+            if math.isfinite(target):
+                u = _short_of_stop(u, position[j], w_now, target, side, ae, b0e, ce, b1e,
+                                   umax)
         hist[1, j] = hist[0, j]
         hist[0, j] = u
         # 4. the setpoint that produces exactly this drive
@@ -536,8 +544,8 @@ class PlannedPlan(NamedTuple):
     headroom: float
     rate_gain: float
     rest: int                    # the first sample of the plan's rest on the end
-    approach: np.ndarray         # (n_axes,) from here each axis moves only to its end
-    direction: np.ndarray        # (n_axes,) that direction, +-1 (0: never moves)
+    upper: np.ndarray            # (n, n_axes) where the plant must be able to stop before,
+    lower: np.ndarray            # (n, n_axes) moving up / down [pulse] (+-inf: free)
 
 
 class PlannedState(NamedTuple):
@@ -639,7 +647,9 @@ class PlannedInterpolator(Interpolator):
         np.subtract(p.speed[1:], p.speed[:-1], out=drive_accel[:-1])
         drive_accel /= b0
         rest = p.arrival
-        approach, direction = _final_approach(p.speed, rest)
+        upper, lower = _stop_guards(
+            p.position, p.corner_times, rest, path_tolerance,
+            _sample_extremes(p.position, p.speed, p.drive, a, b0, c, b1))
         path_step = _path_steps(p.desired)
         parameter, position, stops, n = p.parameter, p.position, p.stop_indices, p.n_samples
         del p  # its speed, drive and desired positions before the support is built
@@ -650,8 +660,8 @@ class PlannedInterpolator(Interpolator):
             bounds=np.append(np.asarray(stops, dtype=np.int64), n),
             a=a, b0=b0, c=c, b1=b1, log_a=np.log(a), headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
-            rate_gain=1.0 - self.tracking_pole, rest=rest, approach=approach,
-            direction=direction)
+            rate_gain=1.0 - self.tracking_pole, rest=rest, upper=upper,
+            lower=lower)
         release_freed_memory()  # the plan's temporaries, before a long run's peak
 
     def nominal_duration(self) -> float:
@@ -770,7 +780,7 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
         phi, state.rate[0], state.excess[0], state.est, state.hist, position,
         plan.position, plan.drive_speed, plan.drive_accel, state.support, state.gains,
         plan.a, plan.b0, plan.c, plan.b1, plan.log_a, law[0]["maxoutput"], plan.headroom,
-        plan.rate_gain, plan.rest, plan.approach, plan.direction, state.slope,
+        plan.rate_gain, plan.rest, plan.upper, plan.lower, state.slope,
         state.offset, command, state.drive)
     state.phi[0] = phi_next
     state.rate[0] = rate
@@ -879,24 +889,85 @@ def _path_steps(desired: np.ndarray) -> np.ndarray:
     return np.sqrt(steps, out=steps)
 
 
-def _final_approach(speed: np.ndarray, rest: int):
-    """Per axis of the plan's speeds (n, n_axes), up to its rest on the end at sample
-    ``rest`` (what the pre-compensation leaves after that, a fraction of a pulse either
-    way when the landing could not be made exact, is not a move): the first sample from
-    which the axis moves only towards its end (after its last move the other way), and
-    that direction (the sign of its last non-zero speed; 0 for an axis that does not
-    move). Two arrays, shape (n_axes,)."""
-    n, n_axes = speed.shape
-    approach = np.full(n_axes, n, dtype=np.int64)
-    direction = np.zeros(n_axes)
-    speed = speed[:max(rest, 1)]
-    for j in range(n_axes):
-        moving = np.flatnonzero(speed[:, j] != 0.0)
-        if moving.size:
-            direction[j] = np.sign(speed[moving[-1], j])
-            away = np.flatnonzero(speed[:, j] * direction[j] < 0.0)
-            approach[j] = away[-1] + 1 if away.size else 0
-    return approach, direction
+def _sample_extremes(position: np.ndarray, speed: np.ndarray, drive: np.ndarray, a, b0, c,
+                     b1):
+    """The highest and lowest position [pulse] the plan passes through over each sample
+    (from sample k to k + 1; the last sample's own), each shape (n, n_axes): where its
+    speed (n, n_axes) [rad/s] changes sign within the sample, the ZOH plant ``(a, b0, c,
+    b1)`` (shape (n_axes,) each) turns between the samples, after the travel to rest under
+    that sample's drive (n, n_axes) [V] (:func:`_stopping_travel`; at a stop corner up to
+    ``acceleration*Ts^2/8`` beyond both samples)."""
+    hi = position.copy()
+    np.maximum(hi[:-1], position[1:], out=hi[:-1])
+    lo = position.copy()
+    np.minimum(lo[:-1], position[1:], out=lo[:-1])
+    for k, j in zip(*np.nonzero(speed[:-1] * speed[1:] < 0.0)):
+        turn = position[k, j] + _stopping_travel(speed[k, j], a[j], b0[j], c[j], b1[j],
+                                                 drive[k, j])
+        hi[k, j] = max(hi[k, j], turn)
+        lo[k, j] = min(lo[k, j], turn)
+    return hi, lo
+
+
+def _stop_guards(position: np.ndarray, corner_times, rest: int, path_tolerance: float,
+                 extremes=None):
+    """Per plan sample and axis, the positions [pulse] the plant must be able to stop
+    before, braking at Umax (:func:`_short_of_stop`): ``(upper, lower)``, each shape
+    (n, n_axes), +inf / -inf where nothing is guarded.
+
+    A stop is a stop corner (at the fractional samples ``corner_times``) or the plan's
+    rest on the end (at sample ``rest``; what the pre-compensation leaves after that, a
+    fraction of a pulse either way when the landing could not be made exact, is not a
+    move). An axis that the plan ``position`` (n, n_axes) moves into a stop and does not
+    move on past it in the next piece is guarded from the sample after the plan was last
+    beyond the stop's position (at the earliest the previous stop) up to where the plan
+    moves it past the stop after all, or up to the next stop it moves into (the plan's
+    last sample if none): the plant is kept able to stop before the plan's farthest
+    position in that direction over that stretch (``extremes``: :func:`_sample_extremes`,
+    the plan's between the samples; the samples' own if None). Held while the plan holds or turns the
+    axis, a guard keeps a plant that lags the plan from running through the corner after
+    the plan has turned. The plan's own braking never needs more than Umax and it comes to
+    rest at its stops, so on the model's plant a guard changes nothing. (An axis that goes
+    on through a stop is not guarded there: the plan passes the corner's sample moving.)
+    A move, into, past or beyond a stop, is one of more than the pre-compensation's
+    tolerance or ``path_tolerance`` [pulse], whichever is larger (the plan's position,
+    inverted through the sampled plant's zero near -1, wavers by a fraction of a pulse,
+    and a short move's plan may pass its end by the path tolerance)."""
+    n, n_axes = position.shape
+    tol = max(PRECOMPENSATION_TOLERANCE, path_tolerance)
+    hi, lo = extremes if extremes is not None else (position, position)
+    upper = np.full((n, n_axes), np.inf)
+    lower = np.full((n, n_axes), -np.inf)
+    corners = [t for t in np.asarray(corner_times, dtype=float) if 0 < t < rest]
+    arrive = [min(int(math.floor(t + 1e-9)), n - 1) for t in corners] + [max(rest, 1)]
+    stops = [min(int(math.ceil(t - 1e-9)), n - 1) for t in corners] + [max(rest, 1)]
+    sign = np.zeros((len(stops), n_axes))   # the direction each axis moves into each stop
+    for g, k_in in enumerate(arrive):
+        first = stops[g - 1] if g else 0
+        for j in range(n_axes):
+            off = position[k_in, j] - position[first:k_in, j]
+            moved = np.flatnonzero(np.abs(off) > tol)
+            if moved.size:
+                sign[g, j] = np.sign(off[moved[-1]])
+    for g, (k_in, k) in enumerate(zip(arrive, stops)):
+        first = stops[g - 1] if g else 0
+        for j in np.flatnonzero(sign[g]):
+            s = sign[g, j]
+            beyond = np.flatnonzero(s * (position[first:k_in, j] - position[k_in, j]) > tol)
+            start = first + (beyond[-1] + 1 if beyond.size else 0)
+            later = np.flatnonzero(sign[g + 1:, j])
+            hold = stops[g + 1 + later[0]] if later.size else n
+            farthest = s * np.max(s * position[start:k + 1, j])
+            past = np.flatnonzero(s * (position[k:hold, j] - farthest) > tol)
+            if past.size and g + 1 < len(stops) and k + past[0] < stops[g + 1]:
+                continue  # the axis goes on through the stop
+            end = k + past[0] if past.size else hold
+            farthest = (np.max(hi[start:end, j]) if s > 0 else np.min(lo[start:end, j]))
+            if s > 0:
+                np.minimum(upper[start:end, j], farthest, out=upper[start:end, j])
+            else:
+                np.maximum(lower[start:end, j], farthest, out=lower[start:end, j])
+    return upper, lower
 
 
 def _prior_estimate(plan: PlannedPlan) -> np.ndarray:
