@@ -623,6 +623,27 @@ def test_a_plant_unlike_the_model_stops_short_of_a_stop_corner(feed, tau_scale, 
     assert trace.metrics().corner_overshoot <= 1.0
 
 
+def test_the_guard_lookup_finds_every_guard_that_holds_a_sample():
+    """The online step looks a sample's guards up by bisection among the last two that
+    start by it (:func:`_guarded`); on a zigzag of 12 stop corners (every axis turned at
+    every other stop, guards overlapping) it finds, at every plan sample and on both
+    sides, the nearest position of all the guards that hold that sample, counted one by
+    one."""
+    from nurbsmotion.interpolators.planned import _guarded
+    from nurbsmotion.nurbs import make_polyline
+    zigzag = [[4000.0 * (k % 2) + 100.0 * k, 3000.0 * ((k // 2) % 2)] for k in range(13)]
+    it = PlannedInterpolator(make_polyline(zigzag), MACHINE, 1e6)
+    guards, offsets = it.plan.guards, it.plan.guard_offsets
+    assert len(guards) >= 12
+    for j in range(2):
+        rows = guards[offsets[j]:offsets[j + 1]]
+        for i in range(len(it.plan.position)):
+            for side in (1.0, -1.0):
+                held = [g[2] for g in rows if g[0] <= i < g[1] and g[3] == side]
+                want = (min(held) if side > 0 else max(held)) if held else side * math.inf
+                assert _guarded(guards, offsets[j], offsets[j + 1], i, side) == want
+
+
 @pytest.mark.parametrize("tau_scale, kc_scale", [(0.5, 1.0), (1.2, 0.8), (2.0, 0.5)])
 @pytest.mark.parametrize("pole", [0.7, 0.0])
 def test_feedback_gains_place_the_identified_plants_poles(tau_scale, kc_scale, pole):

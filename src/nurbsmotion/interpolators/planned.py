@@ -370,7 +370,7 @@ def _short_of_stop(u, x, w, end, s, a, b0, c, b1, umax):
 @njit(cache=True)
 def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
                 plan_drive_speed, plan_drive_accel, support, gains, a, b0, c, b1, log_a,
-                umax, headroom, rate_gain, rest, upper, lower, slope, offset,
+                umax, headroom, rate_gain, rest, guards, guard_offsets, slope, offset,
                 out_setpoint, out_drive):
     """One sample of the planned interpolator (module docstring, steps 1-4).
 
@@ -416,11 +416,10 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
     rest : int
         The plan sample from which the plan rests on the end: from there on the
         feedback is deadbeat.
-    upper, lower : ndarray, shape (n, n_axes)
-        Per plan sample and axis, the positions [pulse] the plant must be able to stop
-        before, moving up and down (+-inf: none; :func:`_stop_guards`): while the clock
-        lies between two samples that both guard one, the drive keeps the plant able to
-        (:func:`_short_of_stop`).
+    guards, guard_offsets : ndarray, shapes (n_guards, 4) and (n_axes + 1,)
+        Where the plant must be able to stop (:func:`_stop_guards`): while the clock
+        lies between two plan samples that a guard both holds, the drive keeps the plant
+        able to stop before its position (:func:`_short_of_stop`).
     slope, offset : ndarray, shape (n_axes,)
         The law's affine form at this sample: u[k] = slope*thd[k] + offset [V/pulse, V].
     out_setpoint, out_drive : ndarray, shape (n_axes,)
@@ -511,8 +510,10 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
         # 3b. never past a stop: the drive leaves the plant able to stop before the
         # positions the plan guards at both ends of the clock's sample, braking at Umax
         # from the next sample on; the side the plant moves towards last
-        hi = max(upper[i0, j], upper[i1, j])
-        lo = min(lower[i0, j], lower[i1, j])
+        lo_g, hi_g = guard_offsets[j], guard_offsets[j + 1]
+        hi = max(_guarded(guards, lo_g, hi_g, i0, 1.0), _guarded(guards, lo_g, hi_g, i1, 1.0))
+        lo = min(_guarded(guards, lo_g, hi_g, i0, -1.0),
+                 _guarded(guards, lo_g, hi_g, i1, -1.0))
         for side in (-1.0, 1.0) if w_now >= 0.0 else (1.0, -1.0):
             target = hi if side > 0.0 else lo
             if math.isfinite(target):
@@ -544,8 +545,8 @@ class PlannedPlan(NamedTuple):
     headroom: float
     rate_gain: float
     rest: int                    # the first sample of the plan's rest on the end
-    upper: np.ndarray            # (n, n_axes) where the plant must be able to stop before,
-    lower: np.ndarray            # (n, n_axes) moving up / down [pulse] (+-inf: free)
+    guards: np.ndarray           # (n_guards, 4) where the plant must be able to stop
+    guard_offsets: np.ndarray    # (n_axes + 1,) each axis' rows of guards
 
 
 class PlannedState(NamedTuple):
@@ -647,7 +648,7 @@ class PlannedInterpolator(Interpolator):
         np.subtract(p.speed[1:], p.speed[:-1], out=drive_accel[:-1])
         drive_accel /= b0
         rest = p.arrival
-        upper, lower = _stop_guards(
+        guards, guard_offsets = _stop_guards(
             p.position, p.corner_times, rest, path_tolerance,
             _sample_extremes(p.position, p.speed, p.drive, a, b0, c, b1))
         path_step = _path_steps(p.desired)
@@ -660,8 +661,8 @@ class PlannedInterpolator(Interpolator):
             bounds=np.append(np.asarray(stops, dtype=np.int64), n),
             a=a, b0=b0, c=c, b1=b1, log_a=np.log(a), headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
-            rate_gain=1.0 - self.tracking_pole, rest=rest, upper=upper,
-            lower=lower)
+            rate_gain=1.0 - self.tracking_pole, rest=rest, guards=guards,
+            guard_offsets=guard_offsets)
         release_freed_memory()  # the plan's temporaries, before a long run's peak
 
     def nominal_duration(self) -> float:
@@ -780,7 +781,7 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
         phi, state.rate[0], state.excess[0], state.est, state.hist, position,
         plan.position, plan.drive_speed, plan.drive_accel, state.support, state.gains,
         plan.a, plan.b0, plan.c, plan.b1, plan.log_a, law[0]["maxoutput"], plan.headroom,
-        plan.rate_gain, plan.rest, plan.upper, plan.lower, state.slope,
+        plan.rate_gain, plan.rest, plan.guards, plan.guard_offsets, state.slope,
         state.offset, command, state.drive)
     state.phi[0] = phi_next
     state.rate[0] = rate
@@ -911,9 +912,13 @@ def _sample_extremes(position: np.ndarray, speed: np.ndarray, drive: np.ndarray,
 
 def _stop_guards(position: np.ndarray, corner_times, rest: int, path_tolerance: float,
                  extremes=None):
-    """Per plan sample and axis, the positions [pulse] the plant must be able to stop
-    before, braking at Umax (:func:`_short_of_stop`): ``(upper, lower)``, each shape
-    (n, n_axes), +inf / -inf where nothing is guarded.
+    """Where the plant must be able to stop, braking at Umax (:func:`_short_of_stop`):
+    ``(guards, offsets)``. ``guards`` (n_guards, 4): per guard its first plan sample, the
+    sample after its last, the position [pulse] and the direction (+1: not above it, -1:
+    not below), axis by axis (axis j's rows ``offsets[j]:offsets[j + 1]``, (n_axes + 1,)),
+    in the order of their stops; at most two of an axis' guards overlap (a guard ends by
+    the stop of the axis' next one, which starts after the stop before it), and their
+    first samples do not decrease (:func:`_guarded`).
 
     A stop is a stop corner (at the fractional samples ``corner_times``) or the plan's
     rest on the end (at sample ``rest``; what the pre-compensation leaves after that, a
@@ -936,8 +941,7 @@ def _stop_guards(position: np.ndarray, corner_times, rest: int, path_tolerance: 
     n, n_axes = position.shape
     tol = max(PRECOMPENSATION_TOLERANCE, path_tolerance)
     hi, lo = extremes if extremes is not None else (position, position)
-    upper = np.full((n, n_axes), np.inf)
-    lower = np.full((n, n_axes), -np.inf)
+    rows: list = [[] for _ in range(n_axes)]
     corners = [t for t in np.asarray(corner_times, dtype=float) if 0 < t < rest]
     arrive = [min(int(math.floor(t + 1e-9)), n - 1) for t in corners] + [max(rest, 1)]
     stops = [min(int(math.ceil(t - 1e-9)), n - 1) for t in corners] + [max(rest, 1)]
@@ -963,11 +967,30 @@ def _stop_guards(position: np.ndarray, corner_times, rest: int, path_tolerance: 
                 continue  # the axis goes on through the stop
             end = k + past[0] if past.size else hold
             farthest = (np.max(hi[start:end, j]) if s > 0 else np.min(lo[start:end, j]))
-            if s > 0:
-                np.minimum(upper[start:end, j], farthest, out=upper[start:end, j])
-            else:
-                np.maximum(lower[start:end, j], farthest, out=lower[start:end, j])
-    return upper, lower
+            rows[j].append((start, end, farthest, s))
+    offsets = np.cumsum([0] + [len(r) for r in rows]).astype(np.int64)
+    guards = np.array([g for r in rows for g in r], dtype=float).reshape(-1, 4)
+    return guards, offsets
+
+
+@njit(cache=True)
+def _guarded(guards, lo, hi, i, side):
+    """The position [pulse] that the guards in rows ``lo:hi`` of ``guards``
+    (:func:`_stop_guards`, one axis') on direction ``side`` (+-1) hold at plan sample
+    ``i``: the nearest of those that hold it (+-inf: none). Only the last two that start
+    by ``i`` can (bisection on their first samples)."""
+    first, up = lo, hi
+    while lo < up:   # the first guard that starts after i
+        mid = (lo + up) // 2
+        if guards[mid, 0] > i:
+            up = mid
+        else:
+            lo = mid + 1
+    best = side * math.inf
+    for g in range(max(lo - 2, first), lo):
+        if guards[g, 3] == side and i < guards[g, 1]:
+            best = min(best, guards[g, 2]) if side > 0 else max(best, guards[g, 2])
+    return best
 
 
 def _prior_estimate(plan: PlannedPlan) -> np.ndarray:
