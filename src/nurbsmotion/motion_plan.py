@@ -74,8 +74,9 @@ is built offline in six steps:
    a round found a point outside the tolerance, along its own offset), within a trust
    region (as far as the feed goes in a sample; failing that, as far as the
    linearisation stays within the tolerance). N runs down from the plan's arrival while
-   one is found (from the arrival itself where the landing could not put the plan at
-   rest there and it rings about the end by more than ``path_tolerance``).
+   one is found (where the landing could not put the plan at rest and it rings about
+   the end by more than ``path_tolerance``, from the first of the arrival and the
+   samples after it, up to where the ringing dies down, at which one is).
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
@@ -1008,11 +1009,12 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     ``limit`` [V] keeps the plant within ``tolerance`` [pulse] of the curve all along its
     motion (failing that, as near as ``theta`` is), its nearest path point moving forward
     no faster than ``feed`` and not past the end along its unit ``tangent``
-    (:func:`_shorten_at`); None if none before ``arrival`` does (none at ``arrival``
-    either, where the plan leaves the end by more than ``tolerance`` after it).
+    (:func:`_shorten_at`); None if none before ``arrival`` does (where the plan leaves
+    the end by more than ``tolerance`` after it: none before it has settled within
+    ``tolerance`` either).
 
     N runs down from ``arrival - 1`` while one is found (where none is, and the plan so
-    leaves the end, from ``arrival``). The first guess of the nearest points is the
+    leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one is). The first guess of the nearest points is the
     plan's (its parameters ``param``, shape (n,)), compressed in time to arrive at N;
     each later N starts from the last motion found, compressed by a sample.
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
@@ -1034,8 +1036,10 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     # Where the landing (step 5) could not put the plan at rest exactly, what the
     # pre-compensation leaves rings about the end after the arrival: farther from it than
     # the tolerance (a short 3-axis move: 2.6 pulses at Nyquist, settled within a pulse 4
-    # samples late), a plan at rest at the arrival itself is worth finding.
-    rings = bool(np.max(np.linalg.norm(theta[arrival:] - curve(1.0), axis=1)) > tolerance)
+    # samples late), a plan at rest at the arrival itself, or at any sample before the
+    # ringing has died down to the tolerance, is worth finding.
+    off = np.flatnonzero(np.linalg.norm(theta[arrival:] - curve(1.0), axis=1) > tolerance)
+    settled = arrival + (int(off[-1]) + 1 if off.size else 0)
 
     def descend(tolerance, top):
         # fine points: the path's chord between two within the tolerance at the feed
@@ -1063,8 +1067,9 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
         return best
 
     # within the path tolerance; failing that, no farther from the path than the plan;
-    # failing both, a plan at rest at the arrival if this one rings about the end
-    tops = [arrival - 1, arrival] if rings else [arrival - 1]
+    # failing both, a plan at rest at the arrival or later, before this one settles, if
+    # this one rings about the end
+    tops = [arrival - 1] + list(range(arrival, settled))
     tries = [(top, t) for top in tops
              for t in dict.fromkeys([tolerance, max(tolerance, own)]) if t > 0]
     for top, tolerance in tries:
