@@ -65,7 +65,8 @@ def loop_example(interpolator: str) -> tuple | None:
     elif interpolator == "planned":
         plan = PlannedPlan(f(1), f(1), f(1, n), f(1, n), f(1, n),
                            f(1, n, SUPPORT_DIRECTIONS), np.zeros(2, np.int64),
-                           *(f(n) for _ in range(5)), 0.0, 0.0, 0, f(1, 4), np.zeros(n + 1, np.int64))
+                           *(f(n) for _ in range(5)), 0.0, 0.0, 0, f(1, 4),
+                           np.zeros(n + 1, np.int64))
         state = PlannedState(f(1), f(1), f(1), f(12, n), f(5, n), f(n), f(n), f(n),
                              f(n, SUPPORT_DIRECTIONS), f(2, n))
     else:

@@ -1014,9 +1014,10 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     ``tolerance`` either).
 
     N runs down from ``arrival - 1`` while one is found (where none is, and the plan so
-    leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one is). The first guess of the nearest points is the
-    plan's (its parameters ``param``, shape (n,)), compressed in time to arrive at N;
-    each later N starts from the last motion found, compressed by a sample.
+    leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one is).
+    The first guess of the nearest points is the plan's (its parameters ``param``, shape
+    (n,)), compressed in time to arrive at N; each later N starts from the last motion
+    found, compressed by a sample.
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
     length = curve.length

@@ -511,7 +511,8 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
         # positions the plan guards at both ends of the clock's sample, braking at Umax
         # from the next sample on; the side the plant moves towards last
         lo_g, hi_g = guard_offsets[j], guard_offsets[j + 1]
-        hi = max(_guarded(guards, lo_g, hi_g, i0, 1.0), _guarded(guards, lo_g, hi_g, i1, 1.0))
+        hi = max(_guarded(guards, lo_g, hi_g, i0, 1.0),
+                 _guarded(guards, lo_g, hi_g, i1, 1.0))
         lo = min(_guarded(guards, lo_g, hi_g, i0, -1.0),
                  _guarded(guards, lo_g, hi_g, i1, -1.0))
         for side in (-1.0, 1.0) if w_now >= 0.0 else (1.0, -1.0):
@@ -911,7 +912,7 @@ def _sample_extremes(position: np.ndarray, speed: np.ndarray, drive: np.ndarray,
 
 
 def _stop_guards(position: np.ndarray, corner_times, rest: int, path_tolerance: float,
-                 extremes=None):
+                 extremes):
     """Where the plant must be able to stop, braking at Umax (:func:`_short_of_stop`):
     ``(guards, offsets)``. ``guards`` (n_guards, 4): per guard its first plan sample, the
     sample after its last, the position [pulse] and the direction (+1: not above it, -1:
@@ -928,19 +929,19 @@ def _stop_guards(position: np.ndarray, corner_times, rest: int, path_tolerance: 
     beyond the stop's position (at the earliest the previous stop) up to where the plan
     moves it past the stop after all, or up to the next stop it moves into (the plan's
     last sample if none): the plant is kept able to stop before the plan's farthest
-    position in that direction over that stretch (``extremes``: :func:`_sample_extremes`,
-    the plan's between the samples; the samples' own if None). Held while the plan holds or turns the
-    axis, a guard keeps a plant that lags the plan from running through the corner after
-    the plan has turned. The plan's own braking never needs more than Umax and it comes to
-    rest at its stops, so on the model's plant a guard changes nothing. (An axis that goes
-    on through a stop is not guarded there: the plan passes the corner's sample moving.)
+    position in that direction over that stretch, between the samples too (``extremes``,
+    :func:`_sample_extremes`). Held while the plan holds or turns the axis, a guard keeps
+    a plant that lags the plan from running through the corner after the plan has
+    turned. The plan's own braking never needs more than Umax and it comes to rest at
+    its stops, so on the model's plant a guard changes nothing. (An axis that goes on
+    through a stop is not guarded there: the plan passes the corner's sample moving.)
     A move, into, past or beyond a stop, is one of more than the pre-compensation's
     tolerance or ``path_tolerance`` [pulse], whichever is larger (the plan's position,
     inverted through the sampled plant's zero near -1, wavers by a fraction of a pulse,
     and a short move's plan may pass its end by the path tolerance)."""
     n, n_axes = position.shape
     tol = max(PRECOMPENSATION_TOLERANCE, path_tolerance)
-    hi, lo = extremes if extremes is not None else (position, position)
+    hi, lo = extremes
     rows: list = [[] for _ in range(n_axes)]
     corners = [t for t in np.asarray(corner_times, dtype=float) if 0 < t < rest]
     arrive = [min(int(math.floor(t + 1e-9)), n - 1) for t in corners] + [max(rest, 1)]
