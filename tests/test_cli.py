@@ -254,6 +254,28 @@ def test_run_reads_a_gcode_contour(tmp_path):
         "--feed 50 mm/s = 50000 pulse/s per piece")
 
 
+@pytest.mark.parametrize("stream", [False, True])
+def test_summary_notes_say_the_motion_stopped_at_the_corners(tmp_path, stream):
+    """A hairpin (20 mm out, back 0.1 mm beside): rounding its corner within 0.5 um
+    would not arrive sooner, so ``planned`` stops there, and ``summary.json`` says so in
+    ``notes`` (beside the message), streamed or not; without a corner tolerance there is
+    nothing to note."""
+    path = tmp_path / "hairpin.ngc"
+    path.write_text("G21 G90\nG1 X20 Y0 F60000\nG1 X0 Y0.1\nM2\n")
+    notes = []
+    for eps in ("0.5um", "0"):
+        out = tmp_path / f"run{eps}"
+        assert main(["run", str(path), "--corner-tolerance", eps, "--out", str(out)]
+                    + ["--no-figures"] + ([] if stream else ["--export", "pvt"])) == 0
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["units"]["notes"] == "list of text"
+        notes.append(summary["notes"])
+    assert len(notes[0]) == 1 and "stops at the sharp corners" in notes[0][0]
+    assert notes[0][0] in json.loads((tmp_path / "run0.5um" / "summary.json").read_text())[
+        "message"]
+    assert notes[1] == []
+
+
 def test_bound_prints_the_time_optimal_bound(capsys):
     """SPEC section 9: about 0.115 s for the Pi at 1 m/s."""
     assert main(["bound", "die-bonder-pi", "--feed", "1m/s"]) == 0

@@ -252,8 +252,8 @@ def _run(args, precompiler) -> int:
                            plant=plant, settle_window=window)
         file = None if args.no_trace else out / TRACE_FILES[args.trace_format]
         if stream:  # the rows go to the metrics and the trace file as the loop runs
-            metrics = _run_streamed(args, path, machine, feed, run_options, file, unit,
-                                    per_unit, expected)
+            metrics, notes = _run_streamed(args, path, machine, feed, run_options, file,
+                                           unit, per_unit, expected)
             bar.update(3)
         else:
             with _progress(args, total=_total(expected), unit="sample", unit_scale=True,
@@ -264,7 +264,7 @@ def _run(args, precompiler) -> int:
             # The metrics before the trace file: their temporaries are gone before the
             # writer's buffers are made (the peak memory is the larger, not the sum).
             stage(stages[2])
-            metrics = trace.metrics()
+            metrics, notes = trace.metrics(), trace.notes
             bar.update()
             stage(stages[3])
             if file is not None:
@@ -282,6 +282,7 @@ def _run(args, precompiler) -> int:
                           f"path_tolerance_{unit}": path_tolerance / per_unit})
         if contour.feed is not None:  # the file gave a feed: say which one ran
             extra["feed_used"] = note
+        extra["notes"] = list(notes)
         data = summary(metrics, interpolator=args.interpolator, feed=feed_number,
                        machine=machine.name, path=args.path, time_optimal_bound=bound,
                        length_unit=unit, pulses_per_length_unit=per_unit, extra=extra)
@@ -315,7 +316,7 @@ def _total(expected: float) -> int | None:
 def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | None,
                   unit: str, per_unit: float, expected: float):
     """Run the loop with its rows streamed to the metrics and the trace file (if any);
-    return the metrics."""
+    return the metrics and the interpolator's notes."""
     from .loop import background_sink, run_streamed
     from .metrics import RunningMetrics
     from .report import TraceWriter
@@ -345,7 +346,8 @@ def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | Non
         outcome = run_streamed(path, machine, feed, sink, args.interpolator,
                                progress=lambda k: samples.update(k - samples.n),
                                **run_options)
-    return running.result(outcome.finished_index, outcome.success, outcome.message)
+    return (running.result(outcome.finished_index, outcome.success, outcome.message),
+            outcome.notes)
 
 
 def _trace_notice(args, file: Path, rows: int, size: float, bar=None) -> None:

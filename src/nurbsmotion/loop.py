@@ -78,6 +78,10 @@ class RunOutcome:
         The machine model.
     interpolator : str
         Name of the interpolator.
+    notes : tuple of str
+        What the interpolator says of how it ran the path (its ``notes``, e.g. that the
+        ``planned`` motion stops at the sharp corners because rounding them within the
+        corner tolerance would not arrive sooner); also at the end of ``message``.
     """
 
     n_samples: int
@@ -89,6 +93,7 @@ class RunOutcome:
     curve: NurbsCurve
     machine: Machine
     interpolator: str
+    notes: tuple
 
     @property
     def cycle_time(self) -> float:
@@ -101,7 +106,7 @@ class Trace(RunOutcome):
     """Everything the loop did, one row per sample k (t = k*Ts): the attributes of
     :class:`RunOutcome` (``n_samples``, ``finished_index``, ``settled_index``,
     ``settle_window``, ``success``, ``message``, ``curve``, ``machine``,
-    ``interpolator``), and the rows.
+    ``interpolator``, ``notes``), and the rows.
 
     Attributes
     ----------
@@ -513,7 +518,8 @@ def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=SETTLE_
                                 settle_limit)
     message = "; ".join([message, *interpolator.notes])
     outcome = RunOutcome(int(loop.k[0]), finished, settled_index, float(settle_window),
-                         success, message, curve, machine, interpolator.name)
+                         success, message, curve, machine, interpolator.name,
+                         tuple(interpolator.notes))
     return outcome, rows, tally.finite
 
 

@@ -71,6 +71,7 @@ _SUMMARY_UNITS = {
     "settle_time_s": "s",
     "settled": "true or false", "settle_window": "pulse", "end_overshoot": "pulse",
     "corner_overshoot": "pulse", "move_and_settle_ratio": "1 (settle time / bound)",
+    "notes": "list of text",
 }
 
 TRACE_FORMATS = ("csv", "parquet")
@@ -441,7 +442,7 @@ def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
         Pulses per ``length_unit``; required with it.
     extra : dict, optional
         Further keys of the run (``plant``, ``corner_tolerance``, ``path_tolerance``,
-        ``feed_used``), added before ``units``.
+        ``feed_used``, ``notes``), added before ``units``.
     """
     data = metrics.to_dict()
     data.update(interpolator=interpolator, feed=float(feed), machine=machine, path=path,
