@@ -36,7 +36,7 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    plan's rest on the end, at 0 (deadbeat: what a plant that differs from the model has
    left of the move closes in two samples instead of decaying at the tracking pole),
    clipped to +-Umax: *every drive is within the limit by construction*, whatever the
-   true plant. Once the plan moves an axis only towards a stop (a stop corner or the
+   true plant. Once the plan moves an axis only towards a stop (a corner or the
    end), the drive also leaves the identified plant able to stop before it, braking at
    Umax from the next sample on, and keeps it so until the plan moves the axis on past
    it or the next stop comes (:func:`_stop_guards`, :func:`_short_of_stop`; the plan's
@@ -341,17 +341,17 @@ def _stopping_travel(w, a, b0, c, b1, brake):
 
 
 @njit(cache=True)
-def _short_of_stop(u, x, w, end, s, a, b0, c, b1, umax):
+def _short_of_stop(u, x, w, stop, s, a, b0, c, b1, umax):
     """The drive nearest ``u`` [V], within +-Umax, after which the ZOH plant ``(a, b0, c,
     b1)`` at position ``x`` [pulse] and speed ``w`` [rad/s], braking at Umax from the
-    next sample on, stops before ``end`` [pulse] (moving in direction ``s``, +-1): the
+    next sample on, stops before ``stop`` [pulse] (moving in direction ``s``, +-1): the
     travel grows with the drive, so it is ``u`` itself if that stops in time, the full
-    brake if nothing does, and else the bisected drive that stops on ``end``."""
+    brake if nothing does, and else the bisected drive that stops on ``stop``."""
     brake = -s * umax
 
     def beyond(v):
         w1 = a * w + b0 * v
-        return s * (x + c * w + b1 * v + _stopping_travel(w1, a, b0, c, b1, brake) - end)
+        return s * (x + c * w + b1 * v + _stopping_travel(w1, a, b0, c, b1, brake) - stop)
 
     if beyond(u) <= 0.0:
         return u
@@ -921,8 +921,9 @@ def _stop_guards(position: np.ndarray, corner_times, rest: int, path_tolerance: 
     the stop of the axis' next one, which starts after the stop before it), and their
     first samples do not decrease (:func:`_guarded`).
 
-    A stop is a stop corner (at the fractional samples ``corner_times``) or the plan's
-    rest on the end (at sample ``rest``; what the pre-compensation leaves after that, a
+    A stop is a corner (at the fractional samples ``corner_times``: a stop corner, or the
+    middle of a blend, where an axis that turns does so at rest too) or the plan's rest
+    on the end (at sample ``rest``; what the pre-compensation leaves after that, a
     fraction of a pulse either way when the landing could not be made exact, is not a
     move). An axis that the plan ``position`` (n, n_axes) moves into a stop and does not
     move on past it in the next piece is guarded from the sample after the plan was last
@@ -946,16 +947,15 @@ def _stop_guards(position: np.ndarray, corner_times, rest: int, path_tolerance: 
     corners = [t for t in np.asarray(corner_times, dtype=float) if 0 < t < rest]
     arrive = [min(int(math.floor(t + 1e-9)), n - 1) for t in corners] + [max(rest, 1)]
     stops = [min(int(math.ceil(t - 1e-9)), n - 1) for t in corners] + [max(rest, 1)]
+    firsts = [0] + stops[:-1]               # each stop's piece starts at the stop before
     sign = np.zeros((len(stops), n_axes))   # the direction each axis moves into each stop
-    for g, k_in in enumerate(arrive):
-        first = stops[g - 1] if g else 0
+    for g, (first, k_in) in enumerate(zip(firsts, arrive)):
         for j in range(n_axes):
             off = position[k_in, j] - position[first:k_in, j]
             moved = np.flatnonzero(np.abs(off) > tol)
             if moved.size:
                 sign[g, j] = np.sign(off[moved[-1]])
-    for g, (k_in, k) in enumerate(zip(arrive, stops)):
-        first = stops[g - 1] if g else 0
+    for g, (first, k_in, k) in enumerate(zip(firsts, arrive, stops)):
         for j in np.flatnonzero(sign[g]):
             s = sign[g, j]
             beyond = np.flatnonzero(s * (position[first:k_in, j] - position[k_in, j]) > tol)
