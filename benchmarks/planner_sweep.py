@@ -11,9 +11,9 @@ doubled. Per case it records: refused (a typed error from the planner; a path th
 class itself refuses is counted apart), saturated samples, NaN, the parameter monotone,
 at rest on the end (settled within 1 pulse), move-and-settle minus the bound against
 max(5 % of the bound, 3 ms), whether that target is reachable at all by a sampled motion
-that stops at the corners (:func:`nurbsmotion.planning.sampled_stop_bound`: one dead
-sample, then whole samples per piece, each at least the slowest axis' rest-to-rest
-minimum; a case is unreachable when even this bound misses the target), the per-piece
+that stops at the corners (:func:`nurbsmotion.planning.sampled_stop_bound`: whole
+samples per piece, each at least the slowest axis' rest-to-rest minimum; a case is
+unreachable when even this bound misses the target), the per-piece
 estimate (:func:`piece_estimate`: what a motion on the path takes at least, the continuous
 optimum of every piece rounded up to whole samples; an estimate, not a bound), the max
 contour error, how far the run passes the end and the stop corners (the run's metrics,
@@ -105,7 +105,7 @@ def one_case(i: int) -> dict:
     allowance = max(0.05 * bound, 3e-3)
     row["settle_ok"] = bool(st - bound <= allowance)
     # No sampled motion that stops at the corners meets the target when even its lower
-    # bound misses it (sampled_stop_bound: the dead first sample, whole samples per piece).
+    # bound misses it (sampled_stop_bound: whole samples per piece).
     row["sampled_bound"] = sampled_stop_bound(curve, m)
     row["reachable"] = bool(row["sampled_bound"] - bound <= allowance)
     row["piece_estimate"] = piece_estimate(curve, m, feed)
@@ -114,8 +114,8 @@ def one_case(i: int) -> dict:
 
 
 def piece_estimate(curve, m, feed) -> float:
-    """The dead first sample plus every corner-free piece's continuous time-optimal
-    duration (SPEC section 9, the bound's own grid) rounded up to whole samples [s].
+    """Every corner-free piece's continuous time-optimal duration (SPEC section 9, the
+    bound's own grid) rounded up to whole samples [s]; ``planned`` moves from sample 0.
 
     A motion *on* the path that stops at the corners takes at least this: each piece is a
     rest-to-rest motion under the bound's constraints (a held drive within Umax meets
@@ -126,7 +126,7 @@ def piece_estimate(curve, m, feed) -> float:
     grid = inspect.signature(time_optimal_bound).parameters["grid_size"].default
     Ts = m.sample_period
     pieces = speed_profile(curve, m, feed, grid_size=grid).piece_times()
-    return Ts * (1 + sum(math.ceil(t[-1] * (1 - 1e-3) / Ts) for t in pieces))
+    return Ts * sum(math.ceil(t[-1] * (1 - 1e-3) / Ts) for t in pieces)
 
 
 def report(rows: list) -> None:

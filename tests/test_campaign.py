@@ -400,7 +400,7 @@ def check_case(case) -> dict:
     m = trace.machine
     Ts, Ke, Kc, tau = m.sample_period, m.Ke, m.Kc, m.tau
     thd, tha, u_drive = trace.position_command, trace.position, trace.drive
-    prev = np.vstack([thd[:1], thd[:-1]])
+    prev = np.vstack([tha[:1], thd[:-1]])  # before sample 0: at rest on the start
     wd = (thd - prev) / (Ke * Ts)
     wd_prev = np.vstack([np.zeros((1, m.n_axes)), wd[:-1]])
     wa = (tha - np.vstack([tha[:1], tha[:-1]])) / (Ke * Ts)

@@ -41,9 +41,9 @@ def replay_rows(trace, plant):
     thd = trace.position_command
     n = len(thd)
     w = np.zeros(m.n_axes)
-    th = thd[0].copy()
+    th = trace.curve(0.0).copy()     # at rest on the path's start before sample 0
     th_prev = th.copy()
-    thd_prev, wd_prev = thd[0].copy(), np.zeros(m.n_axes)
+    thd_prev, wd_prev = th.copy(), np.zeros(m.n_axes)
     drive = np.empty_like(thd)
     pos = np.empty_like(thd)
     ff = 1.0 if m.controller == "pd+" else 0.0
@@ -82,6 +82,25 @@ def test_random_curves_and_machines_follow_the_law_and_the_plant():
             np.testing.assert_array_equal(
                 tr.drive_applied, np.clip(tr.drive, -m.max_drive, m.max_drive))
             assert np.all(np.diff(tr.u) >= 0) and tr.u[-1] == 1.0
+
+
+def test_planned_moves_the_plant_from_sample_0_and_the_loop_follows_the_law():
+    """``planned`` gives sample 0's setpoint too (stepping.first_sample): it leads the
+    start, so the drive u[0] moves the plant over the first sample, and the rows are the
+    law's and the plant's, recomputed from the setpoints alone; ``paper``'s sample 0 is
+    the start and its u[0] is 0."""
+    curve = nm.make_die_bonder_pi()
+    m = die_bonder()
+    plant = ServoPlant.of_machine(m, time_constant_scale=1.2, electrical_gain_scale=0.8)
+    tr = simulate(PlannedInterpolator(curve, m, 1e6), m, plant=plant, settle_time=0.01)
+    assert np.max(np.abs(tr.drive[0])) > 0.1 * m.max_drive
+    assert np.max(np.abs(tr.position[1] - curve(0.0))) > 0
+    pos, drive = replay_rows(tr, plant)
+    np.testing.assert_allclose(tr.position, pos, rtol=1e-9, atol=1e-9 * 6e4)
+    np.testing.assert_allclose(tr.drive, drive, rtol=1e-7, atol=1e-9 * m.max_drive)
+    paper = simulate(PaperInterpolator(curve, m, 1e6), m, settle_time=0.01)
+    np.testing.assert_array_equal(paper.position_command[0], curve(0.0))
+    np.testing.assert_array_equal(paper.drive[0], 0.0)
 
 
 def test_growing_the_rows_resumes_the_run_where_it_stopped():

@@ -660,7 +660,7 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--units", choices=PATH_UNITS, help=units_help)
     b.add_argument("--sampled", action="store_true",
                    help="print instead a lower bound for any sampled motion that stops at "
-                   "every sharp corner [s]: one dead first sample, then whole samples per "
+                   "every sharp corner [s]: whole samples per "
                    "piece, each at least what the slowest axis needs from rest to rest "
                    "(ignores the feed and the path's shape; within 1 pulse of the end)")
     b.set_defaults(func=_cmd_bound)

@@ -5,8 +5,10 @@ At sample k (t = k*Ts), for every axis (SPEC sections 1, 3 and 4):
 1. the plant's position tha[k] is measured, and its velocity: encoder differencing
    ``(tha[k] - tha[k-1])/Ts`` or the true motor speed ``Ke*w[k]`` [pulse/s];
 2. the interpolator's registered step (:func:`nurbsmotion.stepping.step`) reads them and
-   the law's memory and gives the setpoint thd[k] (sample 0 is the path's start, at rest;
-   once at the end, the step holds it, or goes on steering the plant there);
+   the law's memory and gives the setpoint thd[k] (sample 0's is the path's start, where
+   the plant rests, but for an interpolator that steers the drive from sample 0 on,
+   :func:`nurbsmotion.stepping.first_sample`; once at the end, the step holds it, or goes
+   on steering the plant there);
 3. the law (:func:`nurbsmotion.control.pid_output`) gives the drive u[k]; the actuator
    applies ``clip(u[k], -Umax, Umax)`` over [k*Ts, (k+1)*Ts) and the plant advances
    exactly (:func:`nurbsmotion.servo.plant_step`).
@@ -155,7 +157,8 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
     encoder : bool
         Velocity by encoder differencing (else the true speed).
     start : ndarray, shape (n_axes,)
-        The setpoint of sample 0 [pulse].
+        The path's start [pulse]: the setpoint of sample 0 (where the step does not give
+        it, :func:`nurbsmotion.stepping.first_sample`).
     settling : Settling
     loop : LoopState
     axes : AxisState
@@ -197,7 +200,7 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
                 velocity[j] = (position[j] - axes.position_prev[j]) / Ts
             else:
                 velocity[j] = Ke[j] * axes.speed[j]
-        if k == 0:
+        if k < stepping.first_sample(plan):
             u, feed, status = 0.0, 0.0, stepping.WORKING
             for j in range(n_axes):
                 command[j] = start[j]

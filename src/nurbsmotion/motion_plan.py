@@ -17,10 +17,10 @@ is built offline in six steps:
    (:func:`_averaged_arc`): sampled, that is the filter ``(1 + 1/z)/2``, whose zero lies
    exactly at the Nyquist frequency, which step 3 cannot realise (the sampled plant's
    zero near -1); it costs one sample per piece. The result is sampled every Ts into the
-   desired positions ``y[k] = C(s((k - 1)*Ts))``: the loop's drive u[0] is 0 (it starts
-   at rest), so theta[1] = theta[0] and the first drive that moves the plant is u[1],
-   which moves theta[2]; the desired motion leaves the start at sample 1 (:data:`LEAD`)
-   and its first moving sample is y[2].
+   desired positions ``y[k] = C(s(k*Ts))``: the ``planned`` interpolator gives the
+   loop's setpoint from sample 0 on (:func:`nurbsmotion.stepping.first_sample`), so the
+   first drive u[0] moves the plant over the first sample; the desired motion leaves
+   the start at sample 0 (:data:`LEAD`) and its first moving sample is y[1].
 2. **Corner blends** (``corner_tolerance`` eps > 0). The plant is linear, so motions can
    be superposed: the next piece starts before the current one has stopped, by the time
    it takes the current piece to cover its last eps plus the time the next one takes to
@@ -130,11 +130,13 @@ MAX_GRID_REFINEMENT = 16
 DRIVE_FIT_ROUNDS = 16
 """At most this many rebuilds of the plan in step 4."""
 
-LEAD = 1
-"""Sample at which the desired motion leaves the start: the loop applies u[0] = 0, so the
-plant is at rest at sample 1 and u[1], which moves theta[2], is the first free drive; the
-averaged profile's first moving sample is y[2] (step 3 holds the commanded positions at
-the start through sample 2 and meets y[2] with the commanded position of sample 3)."""
+LEAD = 0
+"""Sample at which the desired motion leaves the start: the plan's drive u[LEAD] is the
+first that moves the plant (the loop applies it: ``planned`` registers its step from
+sample 0, :func:`nurbsmotion.stepping.first_sample`); the averaged profile's first moving
+sample is y[LEAD + 1] (step 3 holds the commanded positions at the start through sample
+LEAD + 1 and meets y[LEAD + 1] with the commanded position of sample LEAD + 2). An
+interpolator whose sample 0 is the start would lead by 1 (one dead sample)."""
 
 END_REST = 10
 """Samples at rest on the end appended to the desired motion before step 3 (a parameter of
@@ -168,7 +170,8 @@ def axis_zoh(machine: Machine):
 class MotionPlan:
     """The planned motion of every sample, and the drive that makes it (model's plant).
 
-    Sample 0 is the start, at rest; the loop's first free drive is u[1] (u[0] = 0).
+    Sample 0 is the start, at rest; the first drive that moves the plant is u[LEAD]
+    (:data:`LEAD`).
 
     Attributes
     ----------
@@ -602,9 +605,9 @@ def _precompensate(y, alpha, beta, a, b0, rounds, limit, slack, y_cmd, w0, theta
             best = cur
         if worst <= PRECOMPENSATION_TOLERANCE:
             break
-        for i in range(3 * n_axes, max(3 * n_axes, (n - 2) * n_axes)):
+        for i in range((LEAD + 2) * n_axes, max((LEAD + 2) * n_axes, (n - 2) * n_axes)):
             cf[i] += yf[i] - tf[i]
-        for k in range(min(3, n)):      # u[0] = 0 and w[1] = 0: the loop starts at rest
+        for k in range(min(LEAD + 2, n)):  # w = 0 through sample LEAD: at rest till then
             for j in range(n_axes):
                 y_cmd[k, j] = y[0, j]
         for k in range(max(0, n - 2), n):  # at rest on the end
@@ -695,17 +698,18 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     the arrival less the samples
     the averaging and the inverse shape (``INVERSE_REACH + 1``), changing at most that
     many drives, up to the arrival itself, where m grows up to :data:`LANDING_SAMPLES`
-    (and N - 1: u[0] = 0 stays); if none does, the plan is left as it is."""
+    (and N - LEAD: the drives before :data:`LEAD` stay 0); if none does, the plan is left
+    as it is."""
     end = y[-1]
     arrive = _arrival(y)
-    if arrive < 2 or arrive >= len(y):
+    if arrive < LEAD + 2 or arrive >= len(y):
         return arrive
     if float(np.max(np.abs(theta[arrive - 1:] - y[arrive - 1:]))) == 0.0:
         return arrive
     reach = INVERSE_REACH + 1
-    h = _impulse_responses(machine, min(arrive - 1, LANDING_SAMPLES))
-    for N in range(max(arrive - reach, 2), arrive + 1):
-        most = min(N - 1, h.shape[1] if N == arrive else reach)
+    h = _impulse_responses(machine, min(arrive - LEAD, LANDING_SAMPLES))
+    for N in range(max(arrive - reach, LEAD + 2), arrive + 1):
+        most = min(N - LEAD, h.shape[1] if N == arrive else reach)
         first = max(N - most - 1, 0)
         tolerance = max(PRECOMPENSATION_TOLERANCE,
                         float(np.max(np.abs(theta[first:] - y[first:]))))
@@ -813,12 +817,12 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
     """One arrival sample N of step 6 (:func:`_shorten`): drives u[1] .. u[N-1]
     (|u| <= ``limit`` [V]) that keep the model's ``plant`` (at rest at the start) within
     ``tolerance`` [pulse] of the curve at every fine point inside the move (``zoh`` from
-    :func:`_partial_zoh`: Q points per sample, fine points Q + 1 .. N*Q - 1), their
+    :func:`_partial_zoh`: Q points per sample, fine points LEAD*Q + 1 .. N*Q - 1), their
     nearest points moving forward no faster than ``feed`` and none past the end along
-    its unit ``tangent``, and put it at rest on the end at N; ``s`` (N*Q - Q - 1,) is
-    the first guess of the nearest points' arc lengths. Returns ``(u, s)`` (u shape
-    (N, n_axes), u[0] = 0, and s at the fine points), or None if the linearised programs
-    find none.
+    its unit ``tangent``, and put it at rest on the end at N; ``s`` (N*Q - LEAD*Q - 1,)
+    is the first guess of the nearest points' arc lengths. Returns ``(u, s)`` (u shape
+    (N, n_axes), 0 before :data:`LEAD`, and s at the fine points), or None if the
+    linearised programs find none.
 
     The programs hold the samples, the half samples and every point that a round found
     off the path (the worst of each sample interval); every fine point is checked.
@@ -843,11 +847,11 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
     length = curve.length
     start, end = curve(0.0), curve(1.0)
     a, b0, c, b1 = (x[-1] for x in zoh)
-    n_u = n_axes * (N - 1)
+    n_u = n_axes * (N - LEAD)
     col_w = n_u + 2 * (np.arange(n_axes)[:, None] * (N + 1) + np.arange(N + 1))
     col_theta = col_w + 1                                   # (n_axes, N + 1)
-    col_u = np.full((n_axes, N), -1)                        # u[0] = 0: no variable
-    col_u[:, 1:] = np.arange(n_u).reshape(n_axes, N - 1)
+    col_u = np.full((n_axes, N), -1)                        # before LEAD: 0, no variable
+    col_u[:, LEAD:] = np.arange(n_u).reshape(n_axes, N - LEAD)
     # the ZOH dynamics from sample to sample, two rows per axis and sample
     k = np.arange(N)
     rows, cols, vals = [], [], []
@@ -857,13 +861,14 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
                 (col_theta[j, 1:], [(col_theta[j, :-1], -1.0), (col_w[j, :-1], -c[j])],
                  -b1[j]))):
             r = (2 * j + q) * N + k
-            rows += [r, r[1:]] + [r] * len(terms)
-            cols += [out, col_u[j, 1:]] + [cc for cc, _ in terms]
-            vals += [np.ones(N), np.full(N - 1, drive)] + [np.full(N, v) for _, v in terms]
+            rows += [r, r[LEAD:]] + [r] * len(terms)
+            cols += [out, col_u[j, LEAD:]] + [cc for cc, _ in terms]
+            vals += [np.ones(N), np.full(N - LEAD, drive)] + [np.full(N, v)
+                                                              for _, v in terms]
     dynamics = (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols)))
     n_fixed = col_theta[-1, -1] + 1
-    fine = np.arange(Q + 1, N * Q)                          # the points inside the move
-    held = fine[fine % (Q // 2) == 0] - Q - 1               # index into fine
+    fine = np.arange(LEAD * Q + 1, N * Q)                   # the points inside the move
+    held = fine[fine % (Q // 2) == 0] - LEAD * Q - 1        # index into fine
     spread = {2: 1.0, 3: 1.0 / math.cos(math.pi / 8)}.get(n_axes, math.sqrt(n_axes - 1))
     # cuts: the unit normal offset of every point a round found farther than the
     # tolerance (renewed every round; none with 2 axes, whose normal is exact)
@@ -921,8 +926,8 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
         D = sparse.diags([np.ones(m - 1), -np.ones(m - 1)], [0, 1], shape=(m - 1, m))
         Dt = D @ A_t
         # the nearest points move forward, no faster than the feed, from the start
-        # (sample 1) through every held point to the end (sample N)
-        gap = np.diff(np.concatenate([[Q], f, [N * Q]])) * Ts / Q
+        # (sample LEAD) through every held point to the end (sample N)
+        gap = np.diff(np.concatenate([[LEAD * Q], f, [N * Q]])) * Ts / Q
         travel = np.maximum(F[1:], F[:-1]) * gap[1:-1]
         ahead = sh[1:] - sh[:-1] + b_t[:-1] - b_t[1:]      # s + d nondecreasing
         A_ub = sparse.vstack([A_n - E, -A_n - E, A_t - S, -A_t - S, A_t, -A_t, Dt, -Dt,
@@ -951,8 +956,8 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
         if res.status != 0:
             return None
         u = np.zeros((N, n_axes))
-        u[1:] = res.x[:n_u].reshape(n_axes, N - 1).T
-        positions = _fine_positions(plant, zoh, u)[2][Q + 1:N * Q]
+        u[LEAD:] = res.x[:n_u].reshape(n_axes, N - LEAD).T
+        positions = _fine_positions(plant, zoh, u)[2][LEAD * Q + 1:N * Q]
         guess = s.copy()
         guess[held] = np.clip(sh + np.einsum("ij,ij->i", T, positions[held] - point),
                               0.0, length)
@@ -1049,9 +1054,9 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
         Q = zoh[0].shape[0] - 1
         times, s_known = np.arange(arrival + 1, dtype=float), plan_s
         best = None
-        for N in range(top, 2, -1):
-            t = np.arange(Q + 1, N * Q) / Q                   # fine points [samples]
-            guess = np.interp(1.0 + (t - 1.0) * (times[-1] - 1.0) / (N - 1.0), times,
+        for N in range(top, LEAD + 1, -1):
+            t = np.arange(LEAD * Q + 1, N * Q) / Q            # fine points [samples]
+            guess = np.interp(LEAD + (t - LEAD) * (times[-1] - LEAD) / (N - LEAD), times,
                               s_known)
             # a trust region as wide as the feed goes in a sample, failing that as wide
             # as the linearisation stays within the tolerance
@@ -1063,7 +1068,7 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
             if found is None:
                 break
             best = (N, *found, zoh)
-            times = np.concatenate([[1.0], t, [N]])
+            times = np.concatenate([[float(LEAD)], t, [N]])
             s_known = np.concatenate([[0.0], found[1], [length]])
         return best
 
@@ -1089,9 +1094,10 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     w[N:], theta[N:] = 0.0, end
     y = np.broadcast_to(end, theta.shape).copy()
     new_param = np.ones(n)
-    y[:2], new_param[:2] = start, 0.0
-    new_param[2:N] = curve.parameter_at(s_fine[Q - 1::Q])  # samples 2 .. N - 1
-    y[2:N] = curve(new_param[2:N])
+    y[:LEAD + 1], new_param[:LEAD + 1] = start, 0.0
+    moving = slice(LEAD + 1, N)
+    new_param[moving] = curve.parameter_at(s_fine[Q - 1::Q])  # samples LEAD + 1 .. N - 1
+    y[moving] = curve(new_param[moving])
     return N, y, new_param, w, theta, u
 
 

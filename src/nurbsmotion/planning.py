@@ -603,10 +603,9 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
     ``curve`` that stops at every sharp corner.
 
     :func:`time_optimal_bound` lets the drive change at any instant; the loop's drive is
-    held for a sample (ZOH), its first drive u[0] is 0 (sample 0's setpoint is the start,
-    where the plant rests), and a plant at rest at a corner is there at a sample instant
+    held for a sample (ZOH), and a plant at rest at a corner is there at a sample instant
     (under a held drive it cannot come to rest between samples and stay). So the motion
-    takes one sample, then a whole number of samples per corner-free piece, each at least
+    takes a whole number of samples per corner-free piece, each at least
     what the slowest axis needs to move its displacement across the piece from rest to
     rest under ``|u| <= Umax`` (:func:`_rest_to_rest_reach`, exact for the ZOH plant of
     SPEC section 3). The last piece only has to end within ``settle_window`` of the end
@@ -614,8 +613,10 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
     w moves the axis by at least ``c*|w| - b1*Umax`` over a sample, so ``|w| <= (2*window
     + b1*Umax)/c``.
     The path's shape and the feed are ignored (they only lengthen a motion; a closed path
-    without corners gets the dead sample alone), so this is a bound, not a plan: no
-    interpolator beats it, however it treats the path between the corners.
+    without corners gets 0), so this is a bound, not a plan: no interpolator beats it,
+    however it treats the path between the corners. (An interpolator whose setpoint of
+    sample 0 is the start, :func:`nurbsmotion.stepping.first_sample`, takes a sample
+    more: its first drive u[0] is 0.)
 
     Parameters
     ----------
@@ -637,7 +638,7 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
     ends = np.concatenate([[0.0], curve.sharp_corners(), [1.0]])
     stops = curve(ends)
     axes = list(zip(*zoh_coefficients(machine.tau, machine.Kc, machine.Ke, Ts)))
-    samples = 1
+    samples = 0
     for k in range(len(ends) - 1):
         last = k == len(ends) - 2
         need = 0

@@ -12,7 +12,9 @@ An interpolator is, for the loop, two pieces of data and one compiled function:
       step(plan, state, law, law_state, position, velocity, command, bounds)
           -> (u, feed, status)
 
-  called once per sample k >= 1 with the measured position tha[k] [pulse] and velocity
+  called once per sample k >= 1 (k >= 0 for an interpolator registered with
+  ``first_sample=0``: sample 0's setpoint is otherwise the path's start, which the plant
+  rests on, so the drive u[0] is 0 and the plant moves from sample 1) with the measured position tha[k] [pulse] and velocity
   [pulse/s] (shape (n_axes,)), the control law (:data:`nurbsmotion.control.PID_LAW`) and
   its memory from sample k-1 (so that the step can predict the drive any candidate
   setpoint would cause: :func:`nurbsmotion.control.pid_output` and
@@ -29,6 +31,8 @@ An interpolator is, for the loop, two pieces of data and one compiled function:
 loop is compiled once per interpolator type and cached on disk; with
 ``NUMBA_DISABLE_JIT=1`` the same functions run as plain Python. Adding an interpolator
 means one module that defines its plan, state and step and calls :func:`register`.
+:func:`first_sample` (compiled: a constant per plan type) says from which sample the loop
+calls the step.
 """
 
 from __future__ import annotations
@@ -40,7 +44,7 @@ from numba import njit
 from numba.extending import overload
 
 __all__ = ["Status", "WORKING", "FINISHED", "LIMITED", "CORNERED", "FAILED", "register",
-           "step", "hold_end"]
+           "step", "first_sample", "hold_end"]
 
 WORKING, FINISHED, LIMITED, CORNERED, FAILED = 0, 1, 2, 3, 4
 """Status codes a step returns (see :class:`Status`)."""
@@ -63,6 +67,7 @@ class Status(enum.IntEnum):
 
 
 _STEPS: dict = {}
+_FIRST_SAMPLES: dict = {}
 
 
 @njit(cache=True)
@@ -75,9 +80,19 @@ def hold_end(end, command, bounds):
     return 1.0, 0.0, FINISHED
 
 
-def register(plan_type: type, step_function) -> None:
-    """Make ``step_function`` the step of plans of type ``plan_type`` (a NamedTuple)."""
+def register(plan_type: type, step_function, first_sample: int = 1) -> None:
+    """Make ``step_function`` the step of plans of type ``plan_type`` (a NamedTuple),
+    called from sample ``first_sample`` on: 1 (sample 0's setpoint is the path's start) or
+    0 (the step gives sample 0's setpoint too, as a planner of the drive does)."""
+    if first_sample not in (0, 1):
+        raise ValueError(f"first_sample must be 0 or 1, got {first_sample!r}")
     _STEPS[plan_type] = step_function
+    _FIRST_SAMPLES[plan_type] = first_sample
+
+
+def first_sample(plan) -> int:
+    """The first sample whose setpoint the registered step of ``type(plan)`` gives."""
+    return _FIRST_SAMPLES[type(plan)]
 
 
 def step(plan, state, law, law_state, position, velocity, command, bounds):
@@ -101,4 +116,19 @@ def _step_overload(plan, state, law, law_state, position, velocity, command, bou
 
     def impl(plan, state, law, law_state, position, velocity, command, bounds):
         return fn(plan, state, law, law_state, position, velocity, command, bounds)
+    return impl
+
+
+@overload(first_sample, jit_options={"cache": True})
+def _first_sample_overload(plan):
+    from numba.core import types
+
+    if not isinstance(plan, types.BaseNamedTuple):
+        return None
+    value = _FIRST_SAMPLES.get(plan.instance_class)
+    if value is None:
+        return None
+
+    def impl(plan):
+        return value
     return impl

@@ -671,7 +671,9 @@ class PlannedInterpolator(Interpolator):
 
     def new_state(self) -> PlannedState:
         n = self.machine.n_axes
-        return PlannedState(np.ones(1), np.ones(1), np.zeros(1), _prior_estimate(self.plan),
+        # the clock starts at plan sample 0 with the loop: the step gives sample 0's
+        # setpoint too (registered below with first_sample=0)
+        return PlannedState(np.zeros(1), np.ones(1), np.zeros(1), _prior_estimate(self.plan),
                             np.zeros((5, n)), np.empty(n), np.empty(n), np.empty(n),
                             np.empty((n, SUPPORT_DIRECTIONS)), np.empty((2, n)))
 
@@ -810,7 +812,8 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
     return plan.parameter[i0], feed, status
 
 
-stepping.register(PlannedPlan, planned_step)
+# from sample 0: the plan's first drive u[0] moves the plant (motion_plan.LEAD)
+stepping.register(PlannedPlan, planned_step, first_sample=0)
 
 
 _DIRECTIONS = np.linspace(0.0, 0.5 * np.pi, SUPPORT_DIRECTIONS)
