@@ -624,7 +624,8 @@ def _parser() -> argparse.ArgumentParser:
                    "stopping there, a length (0.5mm, 10um) or a number in the path's units")
     r.add_argument("--path-tolerance",
                    help="planned: how far from the path a short move (a plan of at most "
-                   f"{SHORT_MOVE_SAMPLES} samples without a stop) may go where that lets "
+                   f"{SHORT_MOVE_SAMPLES} samples; with stops, planned from stop to stop) "
+                   "may go where that lets "
                    "it arrive sooner, a length (2um) or a number of pulses (default: "
                    f"{DEFAULT_PATH_TOLERANCE:g} pulse)")
     r.add_argument("--settle-window", default="1",

@@ -59,11 +59,16 @@ is built offline in six steps:
    allows it without leaving the desired path, instead of approaching it over the
    samples after.
 6. **Short moves** (:func:`_shorten`; a plan of at most :data:`SHORT_MOVE_SAMPLES`
-   samples without a stop or a blend). Steps 1-5 fix the timing along the path (the
-   continuous profile, averaged and sampled); a short, fast move pays for that in whole
-   samples. Here the timing is free: the earliest sample N at which the plant can rest on
-   the end, its drive within the limit, while staying within ``path_tolerance`` of the
-   path (or, failing that, no farther than the plan it replaces) all along its motion
+   samples without a blend). Steps 1-5 fix the timing along the path (the continuous
+   profile, averaged and sampled); a short, fast move pays for that in whole samples,
+   and the averaging costs a sample at every stop. Here the timing is free: from stop to
+   stop (:func:`_shorten_pieces`: the pieces one after the other, each at rest at its
+   stops at sample instants; kept if together they arrive sooner, and only where every
+   axis that moves has moved before the first stop, so that the online step knows its
+   plant before a piece drives it at the limit), the earliest sample N at which the
+   plant can rest on the piece's end, its drive within the limit, while staying within
+   ``path_tolerance`` of the path (or, failing that, no farther than the plan it
+   replaces) all along its motion
    (checked at up to :data:`CHECK_POINTS` points a sample), its nearest path point moving
    forward no faster than the feed, is found by sequential linear programming over the
    drives and the plant's sampled states (the ZOH dynamics as equality constraints; a
@@ -778,13 +783,41 @@ def _normal_directions(tangent: np.ndarray) -> np.ndarray:
     return np.concatenate([basis, diagonals / math.sqrt(2.0)], axis=1)
 
 
-def _nearest_forward(curve: NurbsCurve, points: np.ndarray, s: np.ndarray) -> np.ndarray:
+class _Span(NamedTuple):
+    """A stretch of the path from one stop to the next (step 6): curve parameters
+    [u0, u1] and arc lengths [s0, s1] [pulse]."""
+
+    u0: float
+    u1: float
+    s0: float
+    s1: float
+
+    @classmethod
+    def of(cls, curve: NurbsCurve, u0: float = 0.0, u1: float = 1.0) -> "_Span":
+        s0, s1 = (float(curve.arc_length(u)) if 0.0 < u < 1.0 else u * curve.length
+                  for u in (u0, u1))
+        return cls(float(u0), float(u1), s0, s1)
+
+    def tangents(self, curve: NurbsCurve, p: np.ndarray) -> np.ndarray:
+        """Unit tangents at the parameters ``p`` (m,) of the span, from the span's side at
+        its end (a sharp corner), shape (m, n_axes)."""
+        T = curve.tangent(p)
+        at_end = p >= self.u1
+        if self.u1 < 1.0 and np.any(at_end):
+            T[at_end] = curve.tangent(p[at_end], "left")
+        return T
+
+
+def _nearest_forward(curve: NurbsCurve, points: np.ndarray, s: np.ndarray,
+                     span: _Span | None = None) -> np.ndarray:
     """Arc lengths [pulse] of the path points nearest ``points`` (m, n_axes) near the
-    guesses ``s`` (m,) (Newton on the arc length), made nondecreasing."""
-    length = curve.length
+    guesses ``s`` (m,) (Newton on the arc length), within the ``span`` (default: the
+    whole path), made nondecreasing."""
+    span = span or _Span.of(curve)
     for _ in range(3):
         p = curve.parameter_at(s)
-        s = np.clip(s + np.sum(curve.tangent(p) * (points - curve(p)), axis=1), 0.0, length)
+        s = np.clip(s + np.sum(span.tangents(curve, p) * (points - curve(p)), axis=1),
+                    span.s0, span.s1)
     return np.maximum.accumulate(s)
 
 
@@ -811,10 +844,11 @@ def _fine_positions(plant: ServoPlant, zoh, u: np.ndarray):
     return w, theta, np.vstack([fine, theta[-1:]])
 
 
-def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray,
-                limit: float, tolerance: float, tangent: np.ndarray, feed, Ts: float,
-                wide: bool):
-    """One arrival sample N of step 6 (:func:`_shorten`): drives u[1] .. u[N-1]
+def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
+                s: np.ndarray, limit: float, tolerance: float, tangent: np.ndarray, feed,
+                Ts: float, wide: bool):
+    """One arrival sample N of step 6 (:func:`_shorten`) along the ``span`` of the curve
+    from stop to stop (the plant at rest on its start at sample 0): drives u[LEAD] .. u[N-1]
     (|u| <= ``limit`` [V]) that keep the model's ``plant`` (at rest at the start) within
     ``tolerance`` [pulse] of the curve at every fine point inside the move (``zoh`` from
     :func:`_partial_zoh`: Q points per sample, fine points LEAD*Q + 1 .. N*Q - 1), their
@@ -844,8 +878,8 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
 
     n_axes = curve.n_axes
     Q = zoh[0].shape[0] - 1
-    length = curve.length
-    start, end = curve(0.0), curve(1.0)
+    s0, s1 = span.s0, span.s1
+    start, end = curve(span.u0), curve(span.u1)
     a, b0, c, b1 = (x[-1] for x in zoh)
     n_u = n_axes * (N - LEAD)
     col_w = n_u + 2 * (np.arange(n_axes)[:, None] * (N + 1) + np.arange(N + 1))
@@ -899,13 +933,14 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
 
         sh = s[held]
         p = curve.parameter_at(sh)
-        point, T = curve(p), curve.tangent(p)
+        point, T = curve(p), span.tangents(curve, p)
         F = np.asarray(feed(p) if isinstance(feed, FeedLimit) else np.full(m, feed))
         # the trust region: as far as the chord C(s) + T d stays within the tolerance of
         # the curve (kappa d^2/2), or as far as the feed goes in a sample (a guess
         # compressed by a sample is off by about that much), whichever is farther
-        trust = np.minimum(reach * np.maximum(np.sqrt(2.0 * tolerance / np.maximum(
-            curve.curvature(p), 1e-300)), F * Ts * wide), length)
+        # (fmax: a stop at a point where the curve's speed is zero has no curvature)
+        trust = np.minimum(reach * np.maximum(np.sqrt(2.0 * tolerance / np.fmax(
+            curve.curvature(p), 1e-300)), F * Ts * wide), s1 - s0)
         normals = _normal_directions(T)                     # (m, r, n_axes)
         cuts = np.flatnonzero(has_cut[held])
         if cuts.size:   # (m, r + 1, n_axes): the held points' cuts (none: row dropped)
@@ -933,11 +968,11 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
         A_ub = sparse.vstack([A_n - E, -A_n - E, A_t - S, -A_t - S, A_t, -A_t, Dt, -Dt,
                               A_t[:1], -A_t[-1:]]).tocsr()
         b_ub = np.concatenate([b_n, -b_n, b_t, -b_t,
-                               np.minimum(trust, length - sh) + b_t,
-                               np.minimum(trust, sh) - b_t,
+                               np.minimum(trust, s1 - sh) + b_t,
+                               np.minimum(trust, sh - s0) - b_t,
                                ahead, travel - ahead,
-                               [F[0] * gap[0] - sh[0] + b_t[0]],
-                               [F[-1] * gap[-1] - length + sh[-1] - b_t[-1]]])
+                               [F[0] * gap[0] + s0 - sh[0] + b_t[0]],
+                               [F[-1] * gap[-1] - s1 + sh[-1] - b_t[-1]]])
         bounds = np.empty((n_var, 2))
         bounds[:, 0], bounds[:, 1] = -np.inf, np.inf
         bounds[:n_u] = (-limit, limit)
@@ -960,12 +995,12 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
         positions = _fine_positions(plant, zoh, u)[2][LEAD * Q + 1:N * Q]
         guess = s.copy()
         guess[held] = np.clip(sh + np.einsum("ij,ij->i", T, positions[held] - point),
-                              0.0, length)
-        s_new = _nearest_forward(curve, positions, np.maximum.accumulate(guess))
+                              s0, s1)
+        s_new = _nearest_forward(curve, positions, np.maximum.accumulate(guess), span)
         p_new = curve.parameter_at(s_new)
         offset = positions - curve(p_new)
         off = np.linalg.norm(offset, axis=1)
-        at_end = s_new >= length * (1 - 1e-12)
+        at_end = s_new >= s1 - curve.length * 1e-12
         past = float(np.max((positions[at_end] - end) @ tangent, initial=0.0))
         if np.max(off) <= tolerance and past <= PRECOMPENSATION_TOLERANCE:
             return u, s_new
@@ -985,7 +1020,7 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
             reach *= 2.0   # the chord was right, and the trust region held it back
         previous = min(previous, E_now)
         if n_axes > 2:
-            T_new = curve.tangent(p_new)
+            T_new = span.tangents(curve, p_new)
             normal = offset - np.einsum("ij,ij->i", offset, T_new)[:, None] * T_new
             size = np.linalg.norm(normal, axis=1)
             renew = (has_cut | (off > tolerance)) & (size > 0.0)
@@ -1006,10 +1041,12 @@ def _shorten_at(curve: NurbsCurve, plant: ServoPlant, zoh, N: int, s: np.ndarray
     return None
 
 
-def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: int,
-             machine: Machine, limit: float, tolerance: float, tangent: np.ndarray, feed):
-    """Step 6 (module docstring): the plan ``theta`` (n, n_axes) of a move that does not
-    stop on the way, at rest on the end at ``arrival`` (<= :data:`SHORT_MOVE_SAMPLES`),
+def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarray,
+             arrival: int, machine: Machine, limit: float, tolerance: float,
+             tangent: np.ndarray, feed):
+    """Step 6 (module docstring): the plan ``theta`` (n, n_axes) of a move along the
+    ``span`` of the curve that does not stop on the way, from rest on its start at
+    sample 0 to rest on its end at ``arrival`` (<= :data:`SHORT_MOVE_SAMPLES`),
     replaced by one at rest there at the earliest sample N at which a drive within
     ``limit`` [V] keeps the plant within ``tolerance`` [pulse] of the curve all along its
     motion (failing that, as near as ``theta`` is), its nearest path point moving forward
@@ -1025,14 +1062,16 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     found, compressed by a sample.
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
-    length = curve.length
     Ts = machine.sample_period
-    plant = ServoPlant.of_machine(machine, curve(0.0))
-    kappa = float(np.max(curve.curvature(curve.geometry.uniform_parameters(
-        8 * CHECK_POINTS))))
+    start, end = curve(span.u0), curve(span.u1)
+    plant = ServoPlant.of_machine(machine, start)
+    grid = curve.geometry.uniform_parameters(8 * CHECK_POINTS)
+    inside = grid[(grid >= span.u0) & (grid <= span.u1)]
+    kappa = float(np.nanmax(curve.curvature(inside if inside.size else grid)))
     fastest = feed.highest if isinstance(feed, FeedLimit) else feed
-    plan_s = curve.arc_length(param[:arrival + 1])
-    nearest = curve.parameter_at(_nearest_forward(curve, theta[:arrival + 1], plan_s))
+    plan_s = np.clip(curve.arc_length(param[:arrival + 1]), span.s0, span.s1)
+    nearest = curve.parameter_at(_nearest_forward(curve, theta[:arrival + 1], plan_s,
+                                                  span))
     # the plan's distance from the path, at most that to the nearest points found or to
     # its desired points (on a tight curl a sample may move farther than the Newton steps
     # of _nearest_forward reach: they then find a point far from the nearest)
@@ -1044,7 +1083,7 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     # the tolerance (a short 3-axis move: 2.6 pulses at Nyquist, settled within a pulse 4
     # samples late), a plan at rest at the arrival itself, or at any sample before the
     # ringing has died down to the tolerance, is worth finding.
-    off = np.flatnonzero(np.linalg.norm(theta[arrival:] - curve(1.0), axis=1) > tolerance)
+    off = np.flatnonzero(np.linalg.norm(theta[arrival:] - end, axis=1) > tolerance)
     settled = arrival + (int(off[-1]) + 1 if off.size else 0)
 
     def descend(tolerance, top):
@@ -1062,14 +1101,14 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
             # as the linearisation stays within the tolerance
             found = None
             for wide in (True, False):
-                found = found or _shorten_at(curve, plant, zoh, N,
+                found = found or _shorten_at(curve, span, plant, zoh, N,
                                              np.maximum.accumulate(guess),
                                              limit, tolerance, tangent, feed, Ts, wide)
             if found is None:
                 break
             best = (N, *found, zoh)
             times = np.concatenate([[float(LEAD)], t, [N]])
-            s_known = np.concatenate([[0.0], found[1], [length]])
+            s_known = np.concatenate([[span.s0], found[1], [span.s1]])
         return best
 
     # within the path tolerance; failing that, no farther from the path than the plan;
@@ -1087,18 +1126,72 @@ def _shorten(curve: NurbsCurve, theta: np.ndarray, param: np.ndarray, arrival: i
     N, u_moving, s_fine, zoh = best
     Q = zoh[0].shape[0] - 1
     n = N + 1 + END_REST
-    start, end = curve(0.0), curve(1.0)
     u = np.zeros((n, curve.n_axes))
     u[:N] = u_moving
     w, theta = (x[:-1] for x in _fine_positions(plant, zoh, u)[:2])
     w[N:], theta[N:] = 0.0, end
     y = np.broadcast_to(end, theta.shape).copy()
-    new_param = np.ones(n)
-    y[:LEAD + 1], new_param[:LEAD + 1] = start, 0.0
+    new_param = np.full(n, span.u1)
+    y[:LEAD + 1], new_param[:LEAD + 1] = start, span.u0
     moving = slice(LEAD + 1, N)
     new_param[moving] = curve.parameter_at(s_fine[Q - 1::Q])  # samples LEAD + 1 .. N - 1
     y[moving] = curve(new_param[moving])
     return N, y, new_param, w, theta, u
+
+
+def _shorten_pieces(curve: NurbsCurve, stops: np.ndarray, corner_times: np.ndarray,
+                    theta: np.ndarray, param: np.ndarray, arrival: int, machine: Machine,
+                    limit: float, tolerance: float, tangent: np.ndarray, feed):
+    """Step 6 from stop to stop: every piece of the plan ``theta`` (n, n_axes; its
+    parameters ``param`` (n,), at rest on the end at ``arrival``) between the stops at
+    the curve parameters ``stops`` (n_pieces + 1,: the start, the stop corners, the end),
+    where it stops at the fractional samples ``corner_times`` (n_pieces - 1,), replaced
+    by :func:`_shorten`'s (at rest at its stops at sample instants), the pieces one after
+    the other. None unless every piece is found and together they arrive before
+    ``arrival``, or if an axis first moves after a stop (by more than ``tolerance`` or
+    :data:`PRECOMPENSATION_TOLERANCE`): a piece's plan drives every axis at the limit
+    from its first sample, and the online step knows an axis' plant only once it has
+    seen it move (on the die-bonder's Pi, whose x starts at the first corner, plants
+    with tau x0.8 and Kc x1.2 then went 71 um off the arch; the plan of the whole path
+    starts the x drive over the sample in which y still brakes). Returns
+    ``(N, y, param, w, theta, u, corner_times)``: the arrays as :func:`_shorten`'s, the
+    corner times whole samples."""
+    edges = np.concatenate([[0.0], corner_times, [float(arrival)]])
+    # the plan's samples around each piece: from the last before its first stop to the
+    # first after its next (the end: all, for the ringing after it)
+    first = np.floor(edges[:-1] + 1e-9).astype(int)
+    after = np.append(np.ceil(edges[1:-1] - 1e-9).astype(int), arrival)
+    moves = max(tolerance, PRECOMPENSATION_TOLERANCE)
+    for a, b in zip(first[1:], after[1:]):
+        before, moving = (np.ptp(theta[k:m], axis=0) > moves for k, m in ((0, a + 1),
+                                                                          (a, b + 1)))
+        if np.any(moving & ~before):
+            return None
+    parts = []
+    for i, (a, b) in enumerate(zip(first, after)):
+        last = i == len(stops) - 2
+        piece = _shorten(curve, _Span.of(curve, stops[i], stops[i + 1]),
+                         theta[a:] if last else theta[a:b + 1], param[a:b + 1], b - a,
+                         machine, limit, tolerance,
+                         tangent if last else _unit(curve(stops[i + 1], 1, "left")), feed)
+        if piece is None:
+            return None
+        parts.append(piece)
+    if len(parts) == 1:
+        return parts[0] + (corner_times,)
+    N = sum(part[0] for part in parts)
+    if N >= arrival:
+        return None
+    # piece by piece, each up to its arrival; the last with its rest on the end
+    cut = [part[0] for part in parts[:-1]] + [len(parts[-1][1])]
+    y, param, w, theta, u = (np.concatenate([part[q][:k] for part, k in zip(parts, cut)])
+                             for q in range(1, 6))
+    return (N, y, param, w, theta, u,
+            np.cumsum([part[0] for part in parts[:-1]]).astype(float))
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / max(float(np.linalg.norm(v)), 1e-300)
 
 
 def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
@@ -1312,17 +1405,17 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
                 f"the planned drive needs {use:.3g} x Umax after {DRIVE_FIT_ROUNDS} rounds "
                 "of easing the path speed's drive limit where it exceeds it")
     w, theta, u = plant
-    tangent = curve(1.0, 1, "left")
-    tangent = tangent / max(float(np.linalg.norm(tangent)), 1e-300)
+    tangent = _unit(curve(1.0, 1, "left"))
     landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax, tangent, curve,
                           param)
     y[landed:] = y[-1]       # the desired motion rests where the plan does
     param[landed:] = 1.0
-    if landed <= SHORT_MOVE_SAMPLES and corners.size == 0:
-        short = _shorten(curve, theta, param, landed, machine, drive_fraction * umax,
-                         path_tolerance, tangent, feed)
+    if landed <= SHORT_MOVE_SAMPLES and (corners.size == 0 or corner_tolerance == 0):
+        stops = np.array([piece[1][0] for piece in profile.pieces] + [1.0])
+        short = _shorten_pieces(curve, stops, corners, theta, param, landed, machine,
+                                drive_fraction * umax, path_tolerance, tangent, feed)
         if short is not None:
-            landed, y, param, w, theta, u = short
+            landed, y, param, w, theta, u, corners = short
     theta[-1] = y[-1]
     w[-1] = 0.0
     return MotionPlan(position=theta, speed=w, drive=u, parameter=param, desired=y,

@@ -587,8 +587,9 @@ class PlannedInterpolator(Interpolator):
         :attr:`notes` (so the run's message) says so.
     path_tolerance : float
         [pulse], >= 0: how far from the path a short move (a plan of at most
-        :data:`~nurbsmotion.motion_plan.SHORT_MOVE_SAMPLES` samples without a stop) may go
-        where that lets it arrive sooner, or as far as the speed profile's plan does if
+        :data:`~nurbsmotion.motion_plan.SHORT_MOVE_SAMPLES` samples; with stops, planned
+        from stop to stop) may go where that lets it arrive sooner, or as far as the
+        speed profile's plan does if
         that is farther (:data:`~nurbsmotion.motion_plan.DEFAULT_PATH_TOLERANCE`: one
         pulse).
     drive_fraction : float
