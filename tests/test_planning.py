@@ -679,6 +679,22 @@ def test_a_plant_unlike_the_model_stops_short_of_a_stop_corner(feed, tau_scale, 
     assert trace.metrics().corner_overshoot <= 1.5
 
 
+def test_a_blended_run_on_the_model_plant_follows_its_plan():
+    """A serpentine (300-pulse legs) at 2 m/s with a 0.5 mm corner tolerance: its plan
+    rounds every corner, and on the model's plant the run is the plan to a thousandth of
+    a pulse. The middles of blends are not stops: guarded like stop corners, they kept
+    the plant 2.15 pulses off its plan here (and a spiral 46 pulses beyond eps)."""
+    from nurbsmotion.nurbs import make_polyline
+    curve = make_polyline([[0.0, 0.0], [20000.0, 0.0], [20000.0, 300.0], [0.0, 300.0],
+                           [0.0, 600.0], [20000.0, 600.0]])
+    it = PlannedInterpolator(curve, MACHINE, 2e6, corner_tolerance=500.0)
+    assert it.plan.bounds.size == 1          # no stop corners: blended
+    trace = simulate(it, MACHINE, settle_time=0.01)
+    n = min(len(trace.position), len(it.plan.position))
+    np.testing.assert_allclose(trace.position[:n], it.plan.position[:n], rtol=0, atol=1e-3)
+    assert trace.metrics().max_contour_error <= 500.0 + 5.0
+
+
 def test_the_guard_lookup_finds_every_guard_that_holds_a_sample():
     """The online step looks a sample's guards up by bisection among the last two that
     start by it (:func:`_guarded`); on a zigzag of 12 stop corners (every axis turned at

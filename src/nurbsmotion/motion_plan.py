@@ -755,9 +755,9 @@ farthest point from the path no nearer than the nearest it has been."""
 
 SHORT_MOVE_SAMPLES = 128
 """Step 6 plans the moves that rest on the end within this many samples. Its linear
-programs grow with the move (0.05-0.5 s each at 50-120 samples, and a move takes some
+programs grow with the piece (0.05-0.5 s each at 50-120 samples, and a move takes some
 tens of them): on the 1,000 random paths of ``benchmarks/planner_sweep.py`` planning
-takes a median 0.03 s, 3 s at the 95th percentile and 11.5 s at most."""
+takes a median 0.13 s, 3.3 s at the 95th percentile and 13.6 s at most."""
 
 DEFAULT_PATH_TOLERANCE = 1.0
 """How far [pulse] from the path step 6 may take a short move's motion by default: one

@@ -14,8 +14,8 @@ An interpolator is, for the loop, two pieces of data and one compiled function:
 
   called once per sample k >= 1 (k >= 0 for an interpolator registered with
   ``first_sample=0``: sample 0's setpoint is otherwise the path's start, which the plant
-  rests on, so the drive u[0] is 0 and the plant moves from sample 1) with the measured position tha[k] [pulse] and velocity
-  [pulse/s] (shape (n_axes,)), the control law (:data:`nurbsmotion.control.PID_LAW`) and
+  rests on, so the drive u[0] is 0 and the plant moves from sample 1) with the measured
+  position tha[k] [pulse] and velocity [pulse/s] (shape (n_axes,)), the control law (:data:`nurbsmotion.control.PID_LAW`) and
   its memory from sample k-1 (so that the step can predict the drive any candidate
   setpoint would cause: :func:`nurbsmotion.control.pid_output` and
   :func:`~nurbsmotion.control.pid_affine`). It writes the setpoint thd[k] into
