@@ -175,3 +175,16 @@ def test_a_diverging_loop_is_a_failed_run_that_says_so():
     assert not np.all(np.isfinite(trace.position))
     assert not trace.success
     assert trace.message.startswith("the closed loop diverged")
+
+
+def test_planned_has_no_open_loop_setpoints():
+    """``interpolate`` runs an interpolator without a servo loop; ``planned``'s setpoints
+    invert the loop's law, which has no gains there: a typed error that names it and says
+    how to run it, not a division by zero inside the compiled step."""
+    from nurbsmotion.errors import InvalidArgumentError
+    from nurbsmotion.interpolators import PlannedInterpolator
+    from nurbsmotion.loop import interpolate
+    m = die_bonder()
+    it = PlannedInterpolator(nm.make_die_bonder_pi(), m, 1e6)
+    with pytest.raises(InvalidArgumentError, match="planned.*simulate"):
+        interpolate(it)

@@ -237,15 +237,22 @@ def _run_open_loop(plan, state, law, law_state, us, feeds, positions, velocity, 
 def interpolate(interpolator: Interpolator, max_samples: int = 10_000_000) -> SetpointSeries:
     """Run an interpolator open loop (no loop state) from the start to the end of its path.
 
-    An interpolator that reads the loop state (``paper``, ``planned``) sees a law with no
-    gains and an axis that follows its setpoint exactly.
+    An interpolator that reads the loop state (``paper``) sees a law with no gains and an
+    axis that follows its setpoint exactly.
 
     Raises
     ------
+    InvalidArgumentError
+        If the interpolator has no setpoint stream without a loop (``planned``: its
+        setpoints invert the loop's law; :func:`simulate` runs it).
     InfeasibleError
         If the interpolator cannot advance, or the end is not reached within
         ``max_samples`` samples.
     """
+    if not interpolator.open_loop:
+        raise InvalidArgumentError(
+            f"the {interpolator.name} interpolator has no setpoints without a servo loop "
+            "(they invert the loop's law): run it with simulate() or `nurbsmotion run`")
     curve = interpolator.curve
     Ts = interpolator.sample_period
     duration = interpolator.nominal_duration()

@@ -264,6 +264,9 @@ class Interpolator:
         Label in traces and summaries.
     records_bounds : bool
         The step computes speed bounds (eq. 3.6) worth recording in the trace.
+    open_loop : bool
+        The step gives a setpoint stream without a servo loop (an interpolator that
+        plans the drive through the loop's law has none: ``planned``).
     plan : NamedTuple
         What the step reads; never changed.
     notes : tuple of str
@@ -273,6 +276,7 @@ class Interpolator:
 
     name = "base"
     records_bounds = False
+    open_loop = True
     notes: tuple = ()
     plan: tuple
 

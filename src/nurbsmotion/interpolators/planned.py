@@ -614,6 +614,7 @@ class PlannedInterpolator(Interpolator):
     """
 
     name = "planned"
+    open_loop = False  # its setpoints invert the loop's law: none without a loop
 
     def __init__(self, curve: NurbsCurve, machine: Machine, feed, *,
                  corner_tolerance: float = 0.0,
