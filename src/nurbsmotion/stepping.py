@@ -15,16 +15,18 @@ An interpolator is, for the loop, two pieces of data and one compiled function:
   called once per sample k >= 1 (k >= 0 for an interpolator registered with
   ``first_sample=0``: sample 0's setpoint is otherwise the path's start, which the plant
   rests on, so the drive u[0] is 0 and the plant moves from sample 1) with the measured
-  position tha[k] [pulse] and velocity [pulse/s] (shape (n_axes,)), the control law (:data:`nurbsmotion.control.PID_LAW`) and
-  its memory from sample k-1 (so that the step can predict the drive any candidate
-  setpoint would cause: :func:`nurbsmotion.control.pid_output` and
-  :func:`~nurbsmotion.control.pid_affine`). It writes the setpoint thd[k] into
+  position tha[k] [pulse] and velocity [pulse/s] (shape (n_axes,)), the control law
+  (:data:`nurbsmotion.control.PID_LAW`) and its memory from sample k-1 (so that the step
+  can predict the drive any candidate setpoint would cause:
+  :func:`nurbsmotion.control.pid_output` and :func:`~nurbsmotion.control.pid_affine`).
+  It writes the setpoint thd[k] into
   ``command`` and the speed bounds it used into ``bounds`` (shape (n_axes, 2), [pulse/s];
   NaN where it has none), and returns the curve parameter, the feed it commanded
   [pulse/s] and a :class:`Status` code. It is called at every sample, also after it
   first reported ``FINISHED``: then it holds the end (:func:`hold_end`) or, if it steers
-  the plant rather than the setpoint, goes on steering it there. Open loop (:func:`nurbsmotion.interpolators.interpolate`)
-  the law is :func:`nurbsmotion.control.pid_law` of no gains and the state is the
+  the plant rather than the setpoint, goes on steering it there. Open loop
+  (:func:`nurbsmotion.loop.interpolate`; not for an interpolator whose ``open_loop`` is
+  False) the law is :func:`nurbsmotion.control.pid_law` of no gains and the state is the
   setpoint's own.
 
 :func:`step` dispatches on the plan's type at compile time (numba ``overload``), so the
