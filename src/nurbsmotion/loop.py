@@ -213,18 +213,14 @@ class SetpointSeries:
 
 
 @njit(cache=True)
-def _run_open_loop(plan, state, law, law_state, us, feeds, positions, velocity, bounds,
-                   start, first):
-    """Steps ``first``, ``first`` + 1, ... (``first`` 0 or 1) into rows ``us``, ``feeds``,
-    ``positions`` (with ``first`` = 1, row 0 is the start or the last row of the block
-    before) until the end or the rows are full; the axis is where the last setpoint put
-    it (at ``start`` before the first); returns the rows written, or ``-k`` when step k
-    (>= 1) failed."""
+def _run_open_loop(plan, state, law, law_state, us, feeds, positions, velocity, bounds):
+    """Steps 1, 2, ... into rows ``us``, ``feeds``, ``positions`` (row 0 is the start)
+    until the end or the rows are full; returns the rows written, or ``-k`` when step k
+    failed."""
     n = us.shape[0]
-    for k in range(first, n):
-        measured = positions[k - 1] if k > 0 else start
-        u, feed, status = stepping.step(plan, state, law, law_state, measured, velocity,
-                                        positions[k], bounds)
+    for k in range(1, n):
+        u, feed, status = stepping.step(plan, state, law, law_state, positions[k - 1],
+                                        velocity, positions[k], bounds)
         us[k] = u
         feeds[k] = feed
         if status == stepping.FAILED:
@@ -268,14 +264,12 @@ def interpolate(interpolator: Interpolator, max_samples: int = 10_000_000) -> Se
     us, feeds = np.zeros(capacity), np.zeros(capacity)
     positions = np.empty((capacity, n_axes))
     positions[0] = start
-    first = stepping.first_sample(interpolator.plan)  # 0: the step gives sample 0 too
     done, k0 = 0, 1
     while True:
         # one block of rows per compiled call, so that Ctrl-C is seen between blocks
         end = min(capacity, k0 - 1 + closed_loop.BLOCK_SAMPLES)
         n = _run_open_loop(interpolator.plan, state, law, law_state, us[k0 - 1:end],
-                           feeds[k0 - 1:end], positions[k0 - 1:end], velocity, bounds,
-                           start, first if k0 == 1 else 1)
+                           feeds[k0 - 1:end], positions[k0 - 1:end], velocity, bounds)
         if n < 0:
             raise InfeasibleError(f"{interpolator.name} interpolator cannot advance from "
                                   f"u = {us[k0 - 2 - n]:.9g}")

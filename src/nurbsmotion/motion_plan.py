@@ -110,7 +110,7 @@ from .nurbs import NurbsCurve
 from .planning import SpeedProfile, speed_profile
 from .servo import ServoPlant, zoh_coefficients
 
-__all__ = ["MotionPlan", "plan_motion", "axis_zoh"]
+__all__ = ["MotionPlan", "plan_motion", "axis_zoh", "move_tolerance"]
 
 PRECOMPENSATION_TOLERANCE = 0.25
 """The pre-compensation of step 3 runs until the realised position is within this many
@@ -219,11 +219,15 @@ class MotionPlan:
     corner_tolerance: float = 0.0
 
     @property
+    def stop_times(self) -> np.ndarray:
+        """The fractional samples at which the motion rests at its stop corners (none when
+        corners are blended: a blend's middle is not a stop), shape (n_stops,)."""
+        return self.corner_times if self.corner_tolerance == 0 else self.corner_times[:0]
+
+    @property
     def stop_indices(self) -> np.ndarray:
         """The first sample at or after each stop corner (none when corners are blended)."""
-        if self.corner_tolerance > 0:
-            return np.zeros(0, dtype=int)
-        return np.ceil(self.corner_times - 1e-9).astype(int)
+        return np.ceil(self.stop_times - 1e-9).astype(int)
 
     @property
     def n_samples(self) -> int:
@@ -765,6 +769,15 @@ pulse, the encoder's resolution (the plan it replaces is held within a quarter o
 :data:`PRECOMPENSATION_TOLERANCE`, where the drive allows)."""
 
 
+def move_tolerance(path_tolerance: float) -> float:
+    """The least displacement [pulse] that counts as a move of an axis in a plan: the
+    pre-compensation's tolerance or ``path_tolerance``, whichever is larger (the plan's
+    position, inverted through the sampled plant's zero near -1, wavers by a fraction of
+    a pulse, and a short move's plan may leave the path, and pass its end, by the path
+    tolerance)."""
+    return max(PRECOMPENSATION_TOLERANCE, path_tolerance)
+
+
 def _normal_directions(tangent: np.ndarray) -> np.ndarray:
     """Unit directions normal to each unit ``tangent`` (m, n_axes), shape (m, r, n_axes):
     an orthonormal basis of the normal space (the other columns of the Householder
@@ -1148,8 +1161,8 @@ def _shorten_pieces(curve: NurbsCurve, stops: np.ndarray, corner_times: np.ndarr
     where it stops at the fractional samples ``corner_times`` (n_pieces - 1,), replaced
     by :func:`_shorten`'s (at rest at its stops at sample instants), the pieces one after
     the other. None unless every piece is found and together they arrive before
-    ``arrival``, or if an axis first moves after a stop (by more than ``tolerance`` or
-    :data:`PRECOMPENSATION_TOLERANCE`): a piece's plan drives every axis at the limit
+    ``arrival``, or if an axis first moves after a stop (by more than
+    :func:`move_tolerance` of ``tolerance``): a piece's plan drives every axis at the limit
     from its first sample, and the online step knows an axis' plant only once it has
     seen it move (on the die-bonder's Pi, whose x starts at the first corner, plants
     with tau x0.8 and Kc x1.2 then went 71 um off the arch; the plan of the whole path
@@ -1161,7 +1174,7 @@ def _shorten_pieces(curve: NurbsCurve, stops: np.ndarray, corner_times: np.ndarr
     # first after its next (the end: all, for the ringing after it)
     first = np.floor(edges[:-1] + 1e-9).astype(int)
     after = np.append(np.ceil(edges[1:-1] - 1e-9).astype(int), arrival)
-    moves = max(tolerance, PRECOMPENSATION_TOLERANCE)
+    moves = move_tolerance(tolerance)
     for a, b in zip(first[1:], after[1:]):
         before, moving = (np.ptp(theta[k:m], axis=0) > moves for k, m in ((0, a + 1),
                                                                           (a, b + 1)))

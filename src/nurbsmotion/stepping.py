@@ -25,8 +25,8 @@ An interpolator is, for the loop, two pieces of data and one compiled function:
   [pulse/s] and a :class:`Status` code. It is called at every sample, also after it
   first reported ``FINISHED``: then it holds the end (:func:`hold_end`) or, if it steers
   the plant rather than the setpoint, goes on steering it there. Open loop
-  (:func:`nurbsmotion.loop.interpolate`; not for an interpolator whose ``open_loop`` is
-  False) the law is :func:`nurbsmotion.control.pid_law` of no gains and the state is the
+  (:func:`nurbsmotion.loop.interpolate`, from sample 1; not for an interpolator whose
+  ``open_loop`` is False, as one that steps from sample 0 steers the drive) the law is :func:`nurbsmotion.control.pid_law` of no gains and the state is the
   setpoint's own.
 
 :func:`step` dispatches on the plan's type at compile time (numba ``overload``), so the

@@ -77,8 +77,7 @@ from ..control import pid_affine, pid_output
 from ..errors import InfeasibleError
 from ..feed import FeedLimit
 from ..machine import Machine
-from ..motion_plan import (DEFAULT_PATH_TOLERANCE, PRECOMPENSATION_TOLERANCE, axis_zoh,
-                           plan_motion)
+from ..motion_plan import DEFAULT_PATH_TOLERANCE, axis_zoh, move_tolerance, plan_motion
 from ..nurbs import NurbsCurve
 from .base import Interpolator, positive_feed
 
@@ -642,7 +641,7 @@ class PlannedInterpolator(Interpolator):
                         path_tolerance=path_tolerance, drive_fraction=drive_fraction,
                         grid_size=grid_size, max_samples=max_samples)
         self.duration = p.duration
-        if corner_tolerance > 0 and p.corner_tolerance == 0 and p.corner_times.size:
+        if corner_tolerance > 0 and p.stop_times.size:  # asked to round, but stops
             self.notes = ("the motion stops at the sharp corners: rounding them within the "
                           "corner tolerance would not arrive sooner",)
         a, b0, c, b1 = axis_zoh(machine)
@@ -651,12 +650,11 @@ class PlannedInterpolator(Interpolator):
         np.subtract(p.speed[1:], p.speed[:-1], out=drive_accel[:-1])
         drive_accel /= b0
         rest = p.arrival
-        # the stop corners (not the middles of blends: a blend's superposed pieces do not
-        # brake into its middle, and guarding there kept the model's own plant from its
-        # plan, 88 instead of 42 pulses from a spiral's path within eps = 50)
+        # at the stop corners, not at the middles of blends: a blend's superposed pieces
+        # do not brake into its middle, and guarding there kept the model's own plant
+        # from its plan (88 instead of 42 pulses from a spiral's path within eps = 50)
         guards, guard_offsets = _stop_guards(
-            p.position, p.corner_times if p.corner_tolerance == 0 else (), rest,
-            path_tolerance,
+            p.position, p.stop_times, rest, path_tolerance,
             _sample_extremes(p.position, p.speed, p.drive, a, b0, c, b1))
         path_step = _path_steps(p.desired)
         parameter, position, stops, n = p.parameter, p.position, p.stop_indices, p.n_samples
@@ -920,7 +918,7 @@ def _sample_extremes(position: np.ndarray, speed: np.ndarray, drive: np.ndarray,
     return hi, lo
 
 
-def _stop_guards(position: np.ndarray, corner_times, rest: int, path_tolerance: float,
+def _stop_guards(position: np.ndarray, stop_times, rest: int, path_tolerance: float,
                  extremes):
     """Where the plant must be able to stop, braking at Umax (:func:`_short_of_stop`):
     ``(guards, offsets)``. ``guards`` (n_guards, 4): per guard its first plan sample, the
@@ -930,7 +928,7 @@ def _stop_guards(position: np.ndarray, corner_times, rest: int, path_tolerance: 
     the stop of the axis' next one, which starts after the stop before it), and their
     first samples do not decrease (:func:`_guarded`).
 
-    A stop is a stop corner (at the fractional samples ``corner_times``) or the plan's rest
+    A stop is a stop corner (at the fractional samples ``stop_times``) or the plan's rest
     on the end (at sample ``rest``; what the pre-compensation leaves after that, a
     fraction of a pulse either way when the landing could not be made exact, is not a
     move). An axis that the plan ``position`` (n, n_axes) moves into a stop and does not
@@ -944,15 +942,13 @@ def _stop_guards(position: np.ndarray, corner_times, rest: int, path_tolerance: 
     turned. The plan's own braking never needs more than Umax and it comes to rest at
     its stops, so on the model's plant a guard changes nothing. (An axis that goes on
     through a stop is not guarded there: the plan passes the corner's sample moving.)
-    A move, into, past or beyond a stop, is one of more than the pre-compensation's
-    tolerance or ``path_tolerance`` [pulse], whichever is larger (the plan's position,
-    inverted through the sampled plant's zero near -1, wavers by a fraction of a pulse,
-    and a short move's plan may pass its end by the path tolerance)."""
+    A move, into, past or beyond a stop, is one of more than
+    :func:`~nurbsmotion.motion_plan.move_tolerance` of ``path_tolerance`` [pulse]."""
     n, n_axes = position.shape
-    tol = max(PRECOMPENSATION_TOLERANCE, path_tolerance)
+    tol = move_tolerance(path_tolerance)
     hi, lo = extremes
     rows: list = [[] for _ in range(n_axes)]
-    corners = [t for t in np.asarray(corner_times, dtype=float) if 0 < t < rest]
+    corners = [t for t in np.asarray(stop_times, dtype=float) if 0 < t < rest]
     arrive = [min(int(math.floor(t + 1e-9)), n - 1) for t in corners] + [max(rest, 1)]
     stops = [min(int(math.ceil(t - 1e-9)), n - 1) for t in corners] + [max(rest, 1)]
     firsts = [0] + stops[:-1]               # each stop's piece starts at the stop before
