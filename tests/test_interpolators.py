@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import nurbsmotion as nm
-from nurbsmotion import InfeasibleError
+from nurbsmotion.errors import InvalidFeedError
 from nurbsmotion.interpolators import TaylorInterpolator, UniformInterpolator, make_open_loop
 from nurbsmotion.loop import interpolate
 
@@ -86,12 +86,12 @@ def test_feed_function_is_followed_with_the_acceleration_term():
 
 @pytest.mark.parametrize("feed", [0.0, -5.0, math.nan, math.inf])
 def test_bad_feed_is_a_clear_error(feed):
-    with pytest.raises(InfeasibleError, match="feed must be finite and > 0"):
+    with pytest.raises(InvalidFeedError, match="feed must be finite and > 0"):
         TaylorInterpolator(CIRCLE, 1e-3, feed)
 
 
 def test_feed_function_that_stops_is_an_error_not_a_hang():
-    with pytest.raises(InfeasibleError, match=r"feed function returned 0.0 at u = 0.5"):
+    with pytest.raises(InvalidFeedError, match=r"feed function returned 0.0 at u = 0.5"):
         TaylorInterpolator(CIRCLE, 1e-3, lambda u: 1e5 if u < 0.5 else 0.0)
 
 

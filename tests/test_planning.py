@@ -15,7 +15,7 @@ import pytest
 from scipy.optimize import brentq
 
 import nurbsmotion as nm
-from nurbsmotion.errors import InfeasibleError, InvalidCurveError
+from nurbsmotion.errors import InfeasibleError, InvalidCurveError, InvalidFeedError
 from nurbsmotion.interpolators import LOOP_METHODS, make_interpolator
 from nurbsmotion.interpolators.planned import PlannedInterpolator
 from nurbsmotion.loop import simulate, to_pulses
@@ -951,10 +951,10 @@ def test_planned_random_sweep(seed):
 
 # ------------------------------------------------------------------ infeasible requests
 @pytest.mark.parametrize("feed", [0.0, -1.0, math.nan, math.inf])
-def test_bad_feed_is_infeasible(feed):
-    with pytest.raises(InfeasibleError, match="feed"):
+def test_bad_feed_is_an_invalid_argument(feed):
+    with pytest.raises(InvalidFeedError, match="feed"):
         PlannedInterpolator(PI, MACHINE, feed)
-    with pytest.raises(InfeasibleError, match="feed"):
+    with pytest.raises(InvalidFeedError, match="feed"):
         time_optimal_bound(PI, MACHINE, feed)
 
 

@@ -22,7 +22,7 @@ from . import units
 from ._io import OutputFolder
 from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .errors import InvalidArgumentError, NurbsmotionError
-from .interpolators import LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
+from .interpolators import DEFAULT_INTERPOLATOR, LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
 from .machine import Machine, load_machine
 from .motion_plan import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
 from .planning import sampled_stop_bound, time_optimal_bound
@@ -611,7 +611,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--machine", default="die-bonder", help=machine_help)
     r.add_argument("--feed", type=parse_feed, help=feed_help)
     r.add_argument("--units", choices=PATH_UNITS, help=units_help)
-    r.add_argument("--interpolator", choices=LOOP_METHODS, default="planned",
+    r.add_argument("--interpolator", choices=LOOP_METHODS, default=DEFAULT_INTERPOLATOR,
                    help="planned: plans the actual motion within ±Umax and steers the plant "
                    "along it; paper: Yeh & Sun (2008), saturation-aware one step ahead; "
                    "taylor1/taylor2: constant feed")

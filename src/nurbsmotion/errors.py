@@ -4,6 +4,18 @@ Every error names the offending value, so that a user who gave a bad knot vector
 negative weight or an unreachable constraint can find it without a traceback from numpy.
 All derive from :class:`NurbsmotionError`; those about a bad input also derive from
 :class:`ValueError`.
+
+One rule decides which error a check raises (``tests/test_errors.py`` holds the code to it):
+
+- a bad argument — of the wrong kind, out of its range, or inconsistent with another —
+  raises :class:`InvalidArgumentError` or one of its kind: :class:`InvalidFeedError`, and
+  for a whole object :class:`InvalidCurveError`, :class:`InvalidMachineError`, or
+  :class:`PathFileError` for a file's content;
+- valid arguments whose work cannot be done raise :class:`InfeasibleError` (the drive
+  cannot move along the path, the plan or the loop never reaches the end) or
+  :class:`WorkLimitError` (more samples or memory than a documented limit).
+
+Both are :class:`ValueError`, so ``except ValueError`` catches either.
 """
 
 from __future__ import annotations
@@ -67,7 +79,8 @@ class PathFileError(NurbsmotionError, ValueError):
 
 
 class InfeasibleError(NurbsmotionError, ValueError):
-    """A requested motion cannot be executed within the machine's limits."""
+    """A requested motion cannot be executed within the machine's limits (its arguments
+    are valid: a bad argument is an :class:`InvalidArgumentError`)."""
 
 
 class OutputExistsError(NurbsmotionError, FileExistsError):

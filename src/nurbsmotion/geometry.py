@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import horner, horner1, rational_horner
+from .errors import InvalidArgumentError
 
 __all__ = ["CurveGeometry", "distances_to"]
 
@@ -268,12 +269,12 @@ class CurveGeometry:
 
         Raises
         ------
-        ValueError
+        InvalidArgumentError
             If ``s`` is not finite or lies outside ``[0, length]``.
         """
         ss = np.asarray(s, dtype=float)
         if not np.all(np.isfinite(ss)):
-            raise ValueError("arc length must be finite")
+            raise InvalidArgumentError("arc length must be finite")
         key = None
         if cache and ss.size >= _CACHE_MIN_SIZE:
             key = (ss.shape, ss.tobytes(), tol)
@@ -291,7 +292,7 @@ class CurveGeometry:
         L = self.length
         if np.any((ss < 0) | (ss > L * (1 + 1e-12))):
             bad = ss[(ss < 0) | (ss > L * (1 + 1e-12))].flat[0]
-            raise ValueError(f"arc length {float(bad)!r} lies outside [0, {L!r}]")
+            raise InvalidArgumentError(f"arc length {float(bad)!r} lies outside [0, {L!r}]")
         flat = np.ascontiguousarray(np.minimum(ss.ravel(), L))
         if self._piece_span is None:
             spans = self.curve.power_form[0]

@@ -25,7 +25,7 @@ from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .control import PidGains, pid_law, pid_state
 from .errors import InfeasibleError, InvalidArgumentError
 from .feed import FeedLimit
-from .interpolators import Interpolator, make_interpolator
+from .interpolators import DEFAULT_INTERPOLATOR, Interpolator, make_interpolator
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .servo import ServoPlant
@@ -458,27 +458,27 @@ def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=SETTLE_
     finite)``, ``rows`` None with a ``sink``, ``finite`` whether every position and drive
     was finite."""
     if not isinstance(interpolator, Interpolator):
-        raise InfeasibleError(f"interpolator must be an Interpolator, got "
-                              f"{type(interpolator).__name__}")
+        raise InvalidArgumentError(f"interpolator must be an Interpolator, got "
+                                   f"{type(interpolator).__name__}")
     if not isinstance(machine, Machine):
-        raise InfeasibleError(f"machine must be a Machine, got {type(machine).__name__}")
+        raise InvalidArgumentError(f"machine must be a Machine, got {type(machine).__name__}")
     curve = interpolator.curve
     machine.check_path(curve.n_axes)
     Ts = machine.sample_period
     if abs(interpolator.sample_period - Ts) > 1e-15 * Ts:
-        raise InfeasibleError(f"interpolator sample period {interpolator.sample_period} s "
-                              f"differs from the machine's {Ts} s")
+        raise InvalidArgumentError(f"interpolator sample period {interpolator.sample_period} s "
+                                   f"differs from the machine's {Ts} s")
     for name, value in (("settle_time", settle_time), ("settle_window", settle_window),
                         ("settle_limit", settle_limit)):
         if isinstance(value, bool) or not (isinstance(value, (int, float))
                                            and math.isfinite(value) and value >= 0):
-            raise InfeasibleError(f"{name} must be a finite number >= 0, got {value!r}")
+            raise InvalidArgumentError(f"{name} must be a finite number >= 0, got {value!r}")
     if plant is None:
         plant = machine.plant()
     elif plant.n_axes != machine.n_axes or plant.sample_period != Ts:
-        raise InfeasibleError(f"the plant has {plant.n_axes} axes and Ts = "
-                              f"{plant.sample_period} s; the machine {machine.n_axes} and "
-                              f"{Ts} s")
+        raise InvalidArgumentError(f"the plant has {plant.n_axes} axes and Ts = "
+                                   f"{plant.sample_period} s; the machine {machine.n_axes} "
+                                   f"and {Ts} s")
     start, end = curve.end_points
     duration = interpolator.nominal_duration()
     n_limit = int(round(settle_limit / Ts))
@@ -550,7 +550,7 @@ def _verdict(tally: _Tally, settled: bool, settled_index, Ts: float, window: flo
     return tally.finite and settled and over == 0, "; ".join(parts)
 
 
-def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
+def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = DEFAULT_INTERPOLATOR,
         *, max_samples: int = MAX_SAMPLES, interpolator_options: dict | None = None,
         **simulate_options) -> Trace:
     """Run a path on a machine with a named interpolator.
@@ -565,7 +565,8 @@ def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
         path in pulses), or a text with a unit such as ``"100mm/s"``
         (:func:`nurbsmotion.units.feed_in_pulses`).
     interpolator : str
-        One of :data:`nurbsmotion.interpolators.LOOP_METHODS`.
+        One of :data:`nurbsmotion.interpolators.LOOP_METHODS`; by default ``planned``
+        (:data:`~nurbsmotion.interpolators.DEFAULT_INTERPOLATOR`, as the command's).
     max_samples : int
         Refuse (:class:`~nurbsmotion.errors.WorkLimitError`) a move that would take more
         samples than this, before any work (:data:`nurbsmotion.budget.MAX_SAMPLES`).
@@ -590,7 +591,7 @@ def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = "paper",
 
 
 def run_streamed(curve: NurbsCurve, machine: Machine, feed, sink,
-                 interpolator: str = "paper", *, max_samples: int = MAX_SAMPLES,
+                 interpolator: str = DEFAULT_INTERPOLATOR, *, max_samples: int = MAX_SAMPLES,
                  interpolator_options: dict | None = None,
                  **simulate_options) -> RunOutcome:
     """:func:`run`, handing the rows to ``sink`` block by block instead of keeping them

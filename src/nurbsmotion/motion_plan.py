@@ -102,7 +102,7 @@ import numpy as np
 
 from numba import njit
 
-from .errors import InfeasibleError
+from .errors import InfeasibleError, InvalidArgumentError
 from .feed import FeedLimit
 from .geometry import distances_to
 from .machine import Machine
@@ -1265,15 +1265,17 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
 
     Raises
     ------
+    InvalidArgumentError
+        If a tolerance is not finite and >= 0, or ``drive_fraction`` not in (0, 1].
     InfeasibleError
         If the drive cannot move along the path or the plan is too long.
     """
     for name, value in (("corner_tolerance", corner_tolerance),
                         ("path_tolerance", path_tolerance)):
         if not (math.isfinite(value) and value >= 0):
-            raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+            raise InvalidArgumentError(f"{name} must be finite and >= 0, got {value!r}")
     if not (0 < drive_fraction <= 1):
-        raise ValueError(f"drive_fraction must lie in (0, 1], got {drive_fraction!r}")
+        raise InvalidArgumentError(f"drive_fraction must lie in (0, 1], got {drive_fraction!r}")
     options = dict(drive_fraction=drive_fraction, path_tolerance=path_tolerance,
                    grid_size=grid_size, max_samples=max_samples)
 

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .errors import InfeasibleError
+from .errors import InfeasibleError, InvalidArgumentError, InvalidFeedError
 from .feed import FeedLimit
 from .machine import Machine
 from .nurbs import NurbsCurve
@@ -471,17 +471,19 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
 
     Raises
     ------
+    InvalidFeedError, InvalidArgumentError
+        If the feed is not finite and > 0, or a fraction or the grid size is out of range.
     InfeasibleError
-        If the feed is not finite and > 0, or the drive cannot move along some part of the
-        path (its speed limit there is zero).
+        If the drive cannot move along some part of the path (its speed limit there is
+        zero).
     """
     F = _check_feed(feed)
     fa = drive_fraction if acceleration_fraction is None else acceleration_fraction
     for name, f in (("drive_fraction", drive_fraction), ("acceleration_fraction", fa)):
         if not (0 < f <= 1):
-            raise ValueError(f"{name} must lie in (0, 1], got {f!r}")
+            raise InvalidArgumentError(f"{name} must lie in (0, 1], got {f!r}")
     if int(grid_size) < 10:
-        raise ValueError(f"grid_size must be >= 10, got {grid_size!r}")
+        raise InvalidArgumentError(f"grid_size must be >= 10, got {grid_size!r}")
     machine.check_path(curve.n_axes)
     M = machine.max_drive * machine.Kc * machine.Ke
     tau = machine.tau
@@ -542,9 +544,12 @@ def _check_feed(feed) -> float:
     """The (highest) feed [pulse/s] of a number or a :class:`~nurbsmotion.feed.FeedLimit`."""
     if isinstance(feed, FeedLimit):
         return feed.highest
-    F = float(feed)
+    try:
+        F = float(feed)
+    except (TypeError, ValueError):
+        raise InvalidFeedError(f"feed must be a number [pulse/s], got {feed!r}") from None
     if not (math.isfinite(F) and F > 0):
-        raise InfeasibleError(f"feed must be finite and > 0, got {feed!r} pulse/s")
+        raise InvalidFeedError(f"feed must be finite and > 0, got {feed!r} pulse/s")
     return F
 
 
@@ -633,7 +638,8 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
         The bound [s], a whole number of samples.
     """
     if not (math.isfinite(settle_window) and settle_window >= 0):
-        raise ValueError(f"settle_window must be finite and >= 0, got {settle_window!r}")
+        raise InvalidArgumentError(f"settle_window must be finite and >= 0, got "
+                                   f"{settle_window!r}")
     Ts, umax = machine.sample_period, machine.max_drive
     ends = np.concatenate([[0.0], curve.sharp_corners(), [1.0]])
     stops = curve(ends)
@@ -677,10 +683,12 @@ def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,
 
     Raises
     ------
+    InvalidFeedError
+        If the feed is not finite and > 0.
     InfeasibleError
-        If the feed is not finite and > 0, the drive cannot move along the path, the
-        path needs more than :data:`MAX_GRID_POINTS` grid points, or the bound is not a
-        finite time (a feed of 1e-320).
+        If the drive cannot move along the path, the path needs more than
+        :data:`MAX_GRID_POINTS` grid points, or the bound is not a finite time (a feed of
+        1e-320).
     """
     F = _check_feed(feed)
     if machine.max_drive == math.inf or not math.isfinite(curve.length / F):

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .control import PidGains
-from .errors import InvalidMachineError
+from .errors import InvalidArgumentError, InvalidMachineError
 from .machine import Axis, Machine
 
 __all__ = ["random_machine"]
@@ -75,7 +75,7 @@ def random_machine(seed, n_axes: int = 2) -> Machine:
         For ``n_axes`` outside 1-3.
     """
     if n_axes not in (1, 2, 3):
-        raise ValueError(f"random machines have 1 to 3 axes, got {n_axes!r}")
+        raise InvalidArgumentError(f"random machines have 1 to 3 axes, got {n_axes!r}")
     rng = np.random.default_rng(seed)
     for _ in range(MAX_DRAWS):
         try:

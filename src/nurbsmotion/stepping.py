@@ -45,6 +45,8 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
+from .errors import InvalidArgumentError
+
 __all__ = ["Status", "WORKING", "FINISHED", "LIMITED", "CORNERED", "FAILED", "register",
            "step", "first_sample", "hold_end"]
 
@@ -87,7 +89,7 @@ def register(plan_type: type, step_function, first_sample: int = 1) -> None:
     called from sample ``first_sample`` on: 1 (sample 0's setpoint is the path's start) or
     0 (the step gives sample 0's setpoint too, as a planner of the drive does)."""
     if first_sample not in (0, 1):
-        raise ValueError(f"first_sample must be 0 or 1, got {first_sample!r}")
+        raise InvalidArgumentError(f"first_sample must be 0 or 1, got {first_sample!r}")
     _STEPS[plan_type] = step_function
     _FIRST_SAMPLES[plan_type] = first_sample
 

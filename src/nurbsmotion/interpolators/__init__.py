@@ -18,13 +18,21 @@ from .taylor import TaylorInterpolator, UniformInterpolator
 
 __all__ = ["Interpolator", "Status", "taylor_increment", "PaperInterpolator", "PlannedInterpolator",
            "ReplayInterpolator", "TaylorInterpolator", "UniformInterpolator",
-           "OPEN_LOOP_METHODS", "LOOP_METHODS", "make_open_loop", "make_interpolator"]
+           "OPEN_LOOP_METHODS", "LOOP_METHODS", "make_open_loop", "make_interpolator",
+           "DEFAULT_INTERPOLATOR"]
 
 OPEN_LOOP_METHODS = ("uniform", "taylor1", "taylor2")
 """Interpolators that need no loop state."""
 
 LOOP_METHODS = ("taylor1", "taylor2", "paper", "planned")
 """Interpolators offered in the servo loop (``nurbsmotion run --interpolator``)."""
+
+DEFAULT_INTERPOLATOR = "planned"
+"""The interpolator a run uses when none is named: :func:`nurbsmotion.loop.run`,
+:func:`~nurbsmotion.loop.run_streamed` and ``nurbsmotion run``. The look-ahead planner,
+the one that keeps every drive within ±Umax; ``paper`` (the library's default until
+issue 31) is one argument away. A study file names its interpolators itself (its own
+default, ``["paper"]``, is kept for the digests of existing studies)."""
 
 
 def make_open_loop(method: str, curve, sample_period: float, feed) -> Interpolator:
@@ -33,7 +41,8 @@ def make_open_loop(method: str, curve, sample_period: float, feed) -> Interpolat
         return UniformInterpolator.for_feed(curve, sample_period, feed)
     if method in ("taylor1", "taylor2"):
         return TaylorInterpolator(curve, sample_period, feed, order=int(method[-1]))
-    raise ValueError(f"unknown interpolation method {method!r}; choose from {OPEN_LOOP_METHODS}")
+    raise InvalidArgumentError(f"unknown interpolation method {method!r}; choose from "
+                               f"{OPEN_LOOP_METHODS}")
 
 
 def make_interpolator(method: str, curve, machine, feed, **options) -> Interpolator:

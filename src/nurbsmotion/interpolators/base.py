@@ -31,7 +31,7 @@ from numba import njit
 from .. import stepping
 from .._kernels import horner
 from ..control import pid_affine
-from ..errors import InfeasibleError
+from ..errors import InvalidArgumentError, InvalidFeedError
 from ..nurbs import NurbsCurve
 from ..stepping import Status
 
@@ -233,15 +233,16 @@ def speed_bounds(law, law_state, Ke, position, velocity, bounds):
 
 
 def positive_feed(feed) -> float:
-    """``feed`` as a float, or :class:`InfeasibleError` unless it is finite and > 0."""
+    """``feed`` as a float, or :class:`~nurbsmotion.errors.InvalidFeedError` unless it is
+    finite and > 0."""
     if isinstance(feed, bool):
-        raise InfeasibleError(f"feed must be a number, got {feed!r}")
+        raise InvalidFeedError(f"feed must be a number, got {feed!r}")
     try:
         V = float(feed)
     except (TypeError, ValueError):
-        raise InfeasibleError(f"feed must be a number, got {feed!r}") from None
+        raise InvalidFeedError(f"feed must be a number, got {feed!r}") from None
     if not (math.isfinite(V) and V > 0):
-        raise InfeasibleError(f"feed must be finite and > 0, got {feed!r}")
+        raise InvalidFeedError(f"feed must be finite and > 0, got {feed!r}")
     return V
 
 
@@ -282,10 +283,10 @@ class Interpolator:
 
     def __init__(self, curve: NurbsCurve, sample_period: float):
         if not isinstance(curve, NurbsCurve):
-            raise InfeasibleError(f"curve must be a NurbsCurve, got {type(curve).__name__}")
+            raise InvalidArgumentError(f"curve must be a NurbsCurve, got {type(curve).__name__}")
         Ts = float(sample_period)
         if not (math.isfinite(Ts) and Ts > 0):
-            raise InfeasibleError(f"sample_period must be finite and > 0, got {sample_period!r}")
+            raise InvalidArgumentError(f"sample_period must be finite and > 0, got {sample_period!r}")
         self.curve = curve
         self.sample_period = Ts
 

@@ -74,7 +74,7 @@ from numba import njit
 from .. import stepping
 from .._memory import release_freed_memory
 from ..control import pid_affine, pid_output
-from ..errors import InfeasibleError
+from ..errors import InfeasibleError, InvalidArgumentError
 from ..feed import FeedLimit
 from ..machine import Machine
 from ..motion_plan import DEFAULT_PATH_TOLERANCE, axis_zoh, move_tolerance, plan_motion
@@ -607,9 +607,12 @@ class PlannedInterpolator(Interpolator):
 
     Raises
     ------
+    InvalidArgumentError
+        If the feed is not finite and > 0 (:class:`~nurbsmotion.errors.InvalidFeedError`),
+        or an option is out of range.
     InfeasibleError
-        If the feed is not finite and > 0, the drive cannot move along the path, or the
-        plan would take more than ``max_samples`` samples.
+        If the drive cannot move along the path, or the plan would take more than
+        ``max_samples`` samples.
     """
 
     name = "planned"
@@ -629,7 +632,7 @@ class PlannedInterpolator(Interpolator):
                                     ("drive_headroom", drive_headroom, 0.0, 1.0)):
             if isinstance(value, bool) or not (isinstance(value, (int, float))
                                                and lo <= value < hi):
-                raise InfeasibleError(f"{name} must lie in [{lo:g}, {hi:g}), got {value!r}")
+                raise InvalidArgumentError(f"{name} must lie in [{lo:g}, {hi:g}), got {value!r}")
         self.feed = feed
         self.machine = machine
         self.tracking_pole = float(tracking_pole)

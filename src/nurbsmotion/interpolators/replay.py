@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit
 
 from .. import stepping
-from ..errors import InfeasibleError
+from ..errors import InvalidArgumentError
 from ..nurbs import NurbsCurve
 from .base import Interpolator, PathData, land, path_data
 
@@ -47,7 +47,7 @@ class ReplayInterpolator(Interpolator):
 
     Raises
     ------
-    InfeasibleError
+    InvalidArgumentError
         If the sequence does not start at 0, end at 1, or decreases.
     """
 
@@ -56,15 +56,15 @@ class ReplayInterpolator(Interpolator):
         super().__init__(curve, sample_period)
         u = np.asarray(parameters, dtype=float)
         if u.ndim != 1 or u.size < 2:
-            raise InfeasibleError(f"parameters must have shape (n_samples,), n >= 2, got {u.shape}")
+            raise InvalidArgumentError(f"parameters must have shape (n_samples,), n >= 2, got {u.shape}")
         if not np.all(np.isfinite(u)):
-            raise InfeasibleError("parameters must be finite")
+            raise InvalidArgumentError("parameters must be finite")
         if u[0] != 0.0 or u[-1] != 1.0:
-            raise InfeasibleError(f"parameters must start at 0 and end at 1, got {u[0]!r} .. "
+            raise InvalidArgumentError(f"parameters must start at 0 and end at 1, got {u[0]!r} .. "
                                   f"{u[-1]!r}")
         if np.any(np.diff(u) < 0):
             k = int(np.flatnonzero(np.diff(u) < 0)[0])
-            raise InfeasibleError(f"parameters decrease at sample {k + 1}: {u[k + 1]!r} < {u[k]!r}")
+            raise InvalidArgumentError(f"parameters decrease at sample {k + 1}: {u[k + 1]!r} < {u[k]!r}")
         self.name = name
         feeds = np.concatenate([[0.0], np.diff(curve.arc_length(u)) / self.sample_period])
         u.flags.writeable = False

@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 from .. import stepping
-from ..errors import InfeasibleError
+from ..errors import InvalidArgumentError, InvalidFeedError
 from ..feed import FeedLimit
 from ..nurbs import NurbsCurve
 from .base import (Interpolator, PathData, advance, finish_step, land, path_data,
@@ -59,7 +59,7 @@ def feed_table(feed, curve: NurbsCurve) -> tuple[np.ndarray, np.ndarray, np.ndar
 
     Raises
     ------
-    InfeasibleError
+    InvalidFeedError
         Naming the value (and for a function, the parameter) that is not finite and > 0.
     """
     if not (isinstance(feed, FeedLimit) or callable(feed)):
@@ -73,10 +73,10 @@ def feed_table(feed, curve: NurbsCurve) -> tuple[np.ndarray, np.ndarray, np.ndar
             try:
                 V[i] = float(feed(float(ui)))
             except (TypeError, ValueError) as exc:
-                raise InfeasibleError(f"the feed function failed at u = {ui:.9g}: {exc}") from None
+                raise InvalidFeedError(f"the feed function failed at u = {ui:.9g}: {exc}") from None
             if not (math.isfinite(V[i]) and V[i] > 0):
-                raise InfeasibleError(f"the feed function returned {float(V[i])!r} at "
-                                      f"u = {ui:.9g}; a feed must be finite and > 0")
+                raise InvalidFeedError(f"the feed function returned {float(V[i])!r} at "
+                                       f"u = {ui:.9g}; a feed must be finite and > 0")
     u.flags.writeable = V.flags.writeable = False  # as a FeedLimit's: one compiled loop
     return u, V[:-1], V[1:]
 
@@ -120,7 +120,7 @@ class FeedTableInterpolator(Interpolator):
     def taylor_order(order) -> int:
         """``order`` as 1 (eq. 3.2) or 2 (eq. 3.1), or :class:`InfeasibleError`."""
         if order not in (1, 2) or isinstance(order, bool):
-            raise InfeasibleError(f"Taylor order must be 1 or 2, got {order!r}")
+            raise InvalidArgumentError(f"Taylor order must be 1 or 2, got {order!r}")
         return int(order)
 
     def nominal_duration(self) -> float:
@@ -154,7 +154,7 @@ class UniformInterpolator(Interpolator):
         super().__init__(curve, sample_period)
         eps = float(parameter_step)
         if not (math.isfinite(eps) and 0 < eps <= 1):
-            raise InfeasibleError(f"parameter_step must be in (0, 1], got {parameter_step!r}")
+            raise InvalidArgumentError(f"parameter_step must be in (0, 1], got {parameter_step!r}")
         self.parameter_step = eps
         feed = (curve.length * eps / self.sample_period if nominal_feed is None
                 else positive_feed(nominal_feed))

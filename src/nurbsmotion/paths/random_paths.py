@@ -50,6 +50,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import InvalidArgumentError
 from ..nurbs import NurbsCurve, make_polyline
 
 __all__ = ["FAMILIES", "random_path"]
@@ -242,9 +243,9 @@ def random_path(family: str, seed, n_axes: int = 2, length: float = 2e4) -> Nurb
     if family not in FAMILIES:
         raise KeyError(f"no random-path family {family!r}; choose from {sorted(FAMILIES)}")
     if n_axes not in (2, 3):
-        raise ValueError(f"random paths have 2 or 3 axes, got {n_axes!r}")
+        raise InvalidArgumentError(f"random paths have 2 or 3 axes, got {n_axes!r}")
     if not (math.isfinite(length) and length > 0):
-        raise ValueError(f"random path length must be finite and > 0 pulse, got {length!r}")
+        raise InvalidArgumentError(f"random path length must be finite and > 0 pulse, got {length!r}")
     rng = np.random.default_rng(seed)
     curve = FAMILIES[family](rng, float(length), n_axes)
     return NurbsCurve(curve.degree, curve.knots, curve.control_points, curve.weights,
