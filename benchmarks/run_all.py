@@ -160,7 +160,8 @@ def main(argv=None) -> int:
         f"- command: `{command}`",
         f"- date: {started:%Y-%m-%d %H:%M} UTC, {took:.0f} s in all",
         f"- commit: {commit}",
-        f"- machine: {machine}",
+        f"- machine: {machine}; load average "
+        + ", ".join(f"{x:.2f}" for x in os.getloadavg()) + " at the end",
         "",
         "One process per measurement (numba kernels single-threaded). A shared machine "
         "depresses wall times: the load average above says by how much; CPU times, where "

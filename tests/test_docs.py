@@ -126,3 +126,16 @@ def test_respec_rewrites_the_forms_the_code_uses():
         "(docs/model.md#beyond-the-paper: the mismatch)")
     assert rewrite("(SPEC eq. 3.3)")[0] == "(eq. 3.3 (docs/model.md#controllers))"
     assert rewrite("SPEC section 99")[1] == ["'SPEC section 99' (section 99)"]
+
+
+def test_the_readme_library_example_runs(tmp_path, monkeypatch, capsys):
+    """The README's Python block runs as written and prints what its comments say."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    assert len(blocks) == 1
+    monkeypatch.chdir(tmp_path)
+    exec(compile(blocks[0], "README.md", "exec"), {})
+    printed = capsys.readouterr().out.splitlines()
+    promised = re.findall(r"print\(.*?#\s*(.+)$", blocks[0], re.M)
+    assert printed == [p.strip() for p in promised]
+    assert any((tmp_path / "out" / "figures").iterdir())
