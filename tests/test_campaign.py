@@ -550,3 +550,73 @@ def test_the_example_study_runs(tmp_path):
     assert main(["campaign", str(example), "--out", str(tmp_path), "--case", "c0000000",
                  "--no-figures"]) == 0
     assert (tmp_path / "c0000000" / "summary.json").is_file()
+
+
+# ----------------------------------------------------------------------------- as `run`
+STUDY_FILES = """
+name = "units"
+paths = ["inch.json", "mm.json", "prog.ngc", "drawing.dxf"]
+feeds = [{feed}]
+feed_unit = "{unit}"
+interpolators = ["taylor1", "paper"]
+"""
+
+
+def _unit_paths(tmp_path):
+    """A path in inches, one in mm, a G-code program with its own F words and a DXF
+    drawing (in mm), each a few mm long."""
+    import json
+
+    from nurbsmotion.nurbs import NurbsCurve
+    from nurbsmotion.paths import save_path
+
+    (tmp_path / "inch.json").write_text(json.dumps(
+        {"units": "in", "degree": 2, "knots": [0, 0, 0, 0.5, 1, 1, 1],
+         "control_points": [[0, 0], [0.2, 0], [0.4, 0.2], [0.4, 0.4]]}))
+    (tmp_path / "mm.json").write_text(json.dumps(
+        {"units": "mm", "degree": 3, "knots": [0, 0, 0, 0, 1, 1, 1, 1],
+         "control_points": [[0, 0], [4, 0], [4, 6], [9, 6]]}))
+    (tmp_path / "prog.ngc").write_text(
+        "G21 G90 G17\nG0 X0 Y0\nG1 X8 Y0 F300\nG1 X8 Y5 F120\nM2\n")
+    arc = NurbsCurve(2, [0, 0, 0, 1, 1, 1], [[0, 0], [6, 0], [6, 6]], [1, 2 ** -0.5, 1],
+                     units="mm")
+    save_path(arc, tmp_path / "drawing.dxf")
+
+
+@pytest.mark.parametrize("feed, unit, cli_feed", [
+    (20.0, "mm/s", "20mm/s"), (1.5, "m/s", "1.5m/s"), (3000.0, "mm/min", "3000mm/min"),
+])
+def test_a_study_runs_every_path_as_run_does(tmp_path, feed, unit, cli_feed):
+    """Regression: a study converted its feed to pulse/s and handed it to run() as a
+    number in the path's units, so every path drawn in mm (or inches, G-code, DXF) ran
+    1000x (25400x) too fast; and it ignored a G-code program's F words."""
+    import json
+
+    _unit_paths(tmp_path)
+    study = load_study(write_study(tmp_path, STUDY_FILES.format(feed=feed, unit=unit)))
+    result = run_study(study, tmp_path / "out", workers=1, progress=False)
+    rows = read_rows(tmp_path / "out").to_pylist()
+    assert result.failed == 0 and len(rows) == 8
+    for row in rows:
+        out = tmp_path / f"run-{row['case_id']}"
+        assert main(["run", str(tmp_path / row["path"]), "--feed", cli_feed,
+                     "--interpolator", row["interpolator"], "--no-figures", "--no-trace",
+                     "--quiet", "--out", str(out)]) == 0
+        ran = json.loads((out / "summary.json").read_text())
+        for key in ("cycle_time_s", "max_contour_error", "time_optimal_bound_s", "feed",
+                    "settle_time_s"):
+            assert row[key] == pytest.approx(ran[key], rel=1e-12), (row["path"], key)
+        # Independently of `run`: the motion takes at least the path's length at the
+        # feed (the lower of the study's and the program's where the file has F words).
+        machine = die_bonder()
+        contour = campaign._contour(row["path"], None, None, 0, 0.0, str(tmp_path), "xy")
+        per_unit = machine.pulses_per_unit(contour.curve.units)
+        speed = feed * {"mm/s": 1.0, "m/s": 1e3, "mm/min": 1 / 60}[unit] \
+            * machine.pulses_per_unit("mm")
+        if contour.feed is not None:
+            fastest = min(speed, contour.feed.highest * per_unit)
+        else:
+            fastest = speed
+        least = contour.curve.length * per_unit / fastest
+        assert row["time_optimal_bound_s"] >= least * (1 - 1e-9)
+        assert row["cycle_time_s"] >= least - 2 * machine.sample_period

@@ -41,12 +41,11 @@ def parse_feed(text: str) -> tuple[float, str | None]:
 
 def _contour(args, machine: Machine | None = None):
     """The path named on the command line with its programmed feed (a ``Contour``): read
-    with ``--units`` and, for G-code and DXF, the machine's axes (XY without a machine)."""
-    from .paths import resolve_contour
+    with ``--units`` and, for G-code and DXF, the machine's axes (XY without a machine),
+    as a study's cases read theirs (:func:`nurbsmotion.run_input.load_run_contour`)."""
+    from .run_input import load_run_contour
 
-    names = [a.lower() for a in machine.axis_names] if machine is not None else ["x", "y"]
-    axes = "".join(names) if all(len(a) == 1 and a in "xyzabcuvw" for a in names) else "xy"
-    return resolve_contour(args.path, axes=axes, units=args.units)
+    return load_run_contour(args.path, machine, units=args.units)
 
 
 def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float = 1.0,
@@ -74,17 +73,16 @@ def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float 
             return one(1.0, unit)
         return f"{one(per_shown, shown_unit)} = {one(1.0, unit)}"
 
-    programmed = contour.feed
-    if programmed is None:
-        if cap is None:
-            raise NurbsmotionError(f"--feed is required: {args.path} gives no programmed feed")
-        return cap, f"--feed {speed(cap)}"
-    limit = programmed.scaled(scale)
+    from .run_input import programmed_feed
+
+    feed = programmed_feed(cap, contour.feed, scale, args.path)  # campaigns' rule too
+    if contour.feed is None:
+        return feed, f"--feed {speed(cap)}"
+    limit = contour.feed.scaled(scale)
     span = speed(limit.lowest, limit.highest)
     if cap is None:
-        return limit, f"the file's programmed feed ({span})"
-    capped = limit.capped(cap)
-    return capped, (f"the lower of the file's programmed feed ({span}) and --feed "
+        return feed, f"the file's programmed feed ({span})"
+    return feed, (f"the lower of the file's programmed feed ({span}) and --feed "
                     f"{speed(cap)} per piece")
 
 
