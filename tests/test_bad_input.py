@@ -521,3 +521,61 @@ def test_command_lines_with_extreme_values_exit_0_or_2_in_one_line(tmp_path_fact
     _contract(capsys, code)
     if code != 0:
         assert not out.exists()
+
+
+# ---------------------------------------------------------------- issue 37, item 4: size limits
+def test_too_many_control_points_are_refused_before_they_are_converted():
+    """Regression: a path of 1e6 control points was refused by the planner after 106 s
+    and 3.4 GB ("too many knot spans"), though its size is known at once."""
+    from nurbsmotion.nurbs import MAX_CONTROL_POINTS
+
+    class Rows(list):  # counted, never converted: converting 500,001 rows would be work
+        def __array__(self, *args, **kwargs):
+            raise AssertionError("converted before the count was checked")
+
+    rows = Rows([[0.0, 0.0]] * (MAX_CONTROL_POINTS + 1))
+    with pytest.raises(InvalidCurveError, match="500,001 control points.*MAX_CONTROL_POINTS"):
+        NurbsCurve(1, [0.0] * (MAX_CONTROL_POINTS + 3), rows)
+
+
+def test_a_path_file_of_too_many_points_is_refused_when_read(tmp_path, capsys, monkeypatch):
+    from nurbsmotion.paths import files
+
+    monkeypatch.setattr(files, "MAX_CONTROL_POINTS", 10)
+    n = 11
+    path = tmp_path / "long.json"
+    path.write_text(json.dumps({"units": "mm", "degree": 1,
+                                "knots": [0] + list(range(n)) + [n - 1],
+                                "control_points": [[i, 0] for i in range(n)]}))
+    assert main(["bound", str(path), "--feed", "1mm/s"]) == 2
+    line = _one_error_line(capsys)
+    assert str(path) in line and "11 rows" in line and "MAX_CONTROL_POINTS" in line
+
+
+def test_too_many_knot_spans_are_refused_before_the_tables(monkeypatch):
+    """The planner's grid needs 2p points per knot span: a path of more spans than fit is
+    refused from its knots, before the arc-length tables are built."""
+    from nurbsmotion import planning
+
+    monkeypatch.setattr(planning, "MAX_GRID_POINTS", 1000)
+    curve = nm.make_polyline([[i, (i % 2) * 0.5] for i in range(600)])  # 599 spans, p = 1
+    machine = die_bonder()
+    for call in (lambda: run(curve, machine, 1e5, "taylor1"),
+                 lambda: time_optimal_bound(curve, machine, 1e5)):
+        with pytest.raises(WorkLimitError, match="599 knot spans of degree 1.*1,199 points"):
+            call()
+    assert curve._geometry is None  # no arc-length table was built
+
+
+@pytest.mark.parametrize("period", [1e-7, 9.9e-6])
+def test_a_sample_period_below_the_minimum_is_refused(tmp_path, capsys, period):
+    with pytest.raises(InvalidMachineError, match="sample_period .* below the minimum"):
+        die_bonder(sample_period=period)
+    file = tmp_path / "fast.json"
+    file.write_text(json.dumps({**die_bonder().to_dict(), "sample_period": period}))
+    assert main(["bound", "die-bonder-pi", "--machine", str(file), "--feed", "1m/s"]) == 2
+    assert "MIN_SAMPLE_PERIOD" in _one_error_line(capsys)
+    with pytest.raises(SystemExit) as exit_:
+        main(["interpolate", "butterfly", "--feed", "10mm/s", "--sample-period", str(period),
+              "--out", str(tmp_path / "o")])
+    assert exit_.value.code == 2 and "minimum sample period" in _one_error_line(capsys)

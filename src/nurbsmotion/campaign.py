@@ -361,6 +361,7 @@ def _path(case: Case, machine: Machine):
     (:func:`_contour`, kept per worker); a path that could not be built, or whose tables
     took more than the case's time limit, fails the worker's other cases on it at once,
     with the same error."""
+    from .planning import check_path_size
     from .run_input import path_axes
 
     key = _path_key(case) + (path_axes(machine),)
@@ -369,6 +370,7 @@ def _path(case: Case, machine: Machine):
     try:
         contour = _contour(*key)
         pulses = _pulses(key, machine.pulses_per_unit(contour.curve.units))
+        check_path_size(pulses)  # counted from the knots, before the tables
         pulses.length  # the tables every interpolator and figure reads
     except Exception as exc:
         _PATH_ERRORS[key] = exc

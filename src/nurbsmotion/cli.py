@@ -23,7 +23,7 @@ from ._io import OutputFolder
 from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .errors import InvalidArgumentError, NurbsmotionError
 from .interpolators import LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
-from .machine import Machine, load_machine
+from .machine import MIN_SAMPLE_PERIOD, Machine, load_machine
 from .motion_plan import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
 from .planning import sampled_stop_bound, time_optimal_bound
 
@@ -533,6 +533,16 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _sample_period(text: str) -> float:
+    """argparse type: a sample period [s] of at least the machines' minimum."""
+    value = _positive_float(text)
+    if value < MIN_SAMPLE_PERIOD:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} s is below the minimum sample period of {MIN_SAMPLE_PERIOD:g} s "
+            "(machine.MIN_SAMPLE_PERIOD); is it in seconds?")
+    return value
+
+
 def _positive_int(text: str) -> int:
     """argparse type: an integer >= 1."""
     try:
@@ -597,7 +607,8 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("--units", choices=PATH_UNITS, help=units_help)
     i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
                    help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
-    i.add_argument("--sample-period", type=_positive_float, default=1e-3, help="Ts [s]")
+    i.add_argument("--sample-period", type=_sample_period, default=1e-3,
+                   help=f"Ts [s], at least {MIN_SAMPLE_PERIOD:g}")
     i.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
                    help="refuse, before any work, a move estimated to take more samples "
                    "than this (about 2.8 h at 1 ms)")

@@ -28,6 +28,7 @@ from .feed import FeedLimit
 from .interpolators import Interpolator, make_interpolator
 from .machine import Machine
 from .nurbs import NurbsCurve
+from .planning import check_path_size
 from .servo import ServoPlant
 from .stepping import Status
 from .units import feed_in_pulses
@@ -655,6 +656,7 @@ def check_run_arguments(curve, machine, feed, max_samples: int = MAX_SAMPLES, *,
         raise InvalidArgumentError(f"feed must be a number [pulse/s], got {feed!r:.60}")
     if not (math.isfinite(feed) and feed > 0):
         raise InvalidArgumentError(f"feed must be finite and > 0 [pulse/s], got {feed!r}")
+    check_path_size(curve)  # counted from the knots, before the arc-length tables
     length = curve.length * machine.pulses_per_unit(curve.units)  # [pulse], cached
     check_samples(estimate_samples(length, float(feed), machine.sample_period),
                   limit=max_samples, n_axes=curve.n_axes,

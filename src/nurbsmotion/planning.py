@@ -43,13 +43,14 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .errors import InfeasibleError
+from .errors import InfeasibleError, WorkLimitError
 from .feed import FeedLimit
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .servo import zoh_coefficients
 
-__all__ = ["SpeedProfile", "speed_profile", "time_optimal_bound", "sampled_stop_bound"]
+__all__ = ["SpeedProfile", "speed_profile", "time_optimal_bound", "sampled_stop_bound",
+           "check_path_size"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,6 +125,28 @@ at a time, and estimating again, adds few points)."""
 
 MAX_GRID_POINTS = 5_000_000
 """Most grid points of a speed profile (the passes run about 10^5 points per second)."""
+
+
+def check_path_size(curve: NurbsCurve) -> None:
+    """Refuse, before any table is built, a path whose speed profile cannot fit in
+    :data:`MAX_GRID_POINTS`: every knot span gets at least ``SPAN_POINTS_PER_DEGREE * p``
+    grid intervals (:func:`speed_profile`), so a path of ``n`` spans needs at least
+    ``n * SPAN_POINTS_PER_DEGREE * p + 1`` points. Counted from the knots alone (no
+    arc length), in microseconds.
+
+    Raises
+    ------
+    WorkLimitError
+        Naming the spans, the degree and the limit.
+    """
+    spans = len(curve.breakpoints) - 1
+    least = spans * SPAN_POINTS_PER_DEGREE * curve.degree + 1
+    if least > MAX_GRID_POINTS:
+        raise WorkLimitError(
+            f"the path has {spans:,} knot spans of degree {curve.degree}: at "
+            f"{SPAN_POINTS_PER_DEGREE} x degree grid points each its speed profile needs "
+            f"{least:,} points, more than the limit of {MAX_GRID_POINTS:,} "
+            "(planning.MAX_GRID_POINTS); split the path or join its chords")
 
 
 def _span_points(curve: NurbsCurve, u0: float, u1: float, s: np.ndarray) -> np.ndarray:
@@ -476,6 +499,7 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
         path (its speed limit there is zero).
     """
     F = _check_feed(feed)
+    check_path_size(curve)
     fa = drive_fraction if acceleration_fraction is None else acceleration_fraction
     for name, f in (("drive_fraction", drive_fraction), ("acceleration_fraction", fa)):
         if not (0 < f <= 1):
@@ -683,6 +707,7 @@ def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,
         finite time (a feed of 1e-320).
     """
     F = _check_feed(feed)
+    check_path_size(curve)  # before the arc-length tables
     if machine.max_drive == math.inf or not math.isfinite(curve.length / F):
         # a lower bound; not finite: refused below, at once
         bound = feed.duration(curve) if isinstance(feed, FeedLimit) else curve.length / F
