@@ -254,7 +254,7 @@ def _path_file(tmp_path: Path, **change) -> str:
     (["run", "die-bonder-pi", "--feed", "1m/s", "--export", "pvt", "--pvt-period",
       "1e-12", "--out", "{out}"], "--pvt-period"),
     (["interpolate", "butterfly", "--feed", "1e-3", "--out", "{out}"], "--max-samples"),
-    (["interpolate", "butterfly", "--feed", "100", "--sample-period", "1e-15", "--out",
+    (["interpolate", "butterfly", "--feed", "1e-2", "--sample-period", "1e-5", "--out",
       "{out}"], "samples"),
     (["run", "die-bonder-pi", "--feed", "1m/s", "--out", "{file}"], "is a file"),
     (["run", "die-bonder-pi", "--feed", "1m/s", "--out", "{file}/sub"], "is a file"),

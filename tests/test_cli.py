@@ -464,3 +464,44 @@ def test_settle_window_takes_a_length_or_pulses(tmp_path):
         assert summary["units"]["settle_window_mm"] == "mm"
         times[pulses] = summary["settle_time_s"]
     assert times[20.0] <= times[1.0] <= times[0.5]
+
+
+# ------------------------------------------------------- issue 37, item 5: one run per folder
+def test_overwrite_replaces_the_whole_set_of_outputs(tmp_path, capsys):
+    """Regression: --overwrite into the folder of a run with more outputs left its trace,
+    figures and exports beside the new summary.json."""
+    from nurbsmotion.cli import project_outputs
+
+    out = tmp_path / "out"
+    base = ["run", "die-bonder-pi", "--feed", "1m/s", "--interpolator", "taylor1",
+            "--quiet", "--out", str(out)]
+    assert main(base + ["--export", "csv", "--export", "pvt"]) == 0
+    first = {p.name for p in out.iterdir()}
+    assert {"trace.csv", "summary.json", "setpoints.csv", "pvt.csv", "contour.png"} <= first
+    (out / "notes.txt").write_text("mine")  # a user's file: never touched
+    assert main(base + ["--no-figures", "--no-trace"]) == 2  # without --overwrite: refused
+    assert {p.name for p in out.iterdir()} == first | {"notes.txt"}
+    capsys.readouterr()
+    assert main(base + ["--no-figures", "--no-trace", "--overwrite"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "summary.json"]
+    assert first <= set(project_outputs())
+    # another command's outputs are the earlier run's too
+    assert main(["interpolate", "die-bonder-pi", "--feed", "5e5", "--out", str(out),
+                 "--overwrite"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "setpoints.csv",
+                                                     "setpoints.png"]
+
+
+@pytest.mark.parametrize("command", [
+    ["run", "die-bonder-pi", "--feed", "1m/s", "--no-figures"],
+    ["interpolate", "die-bonder-pi", "--feed", "5e5"],
+    ["reproduce", "--no-figures"],
+])
+@pytest.mark.parametrize("out", ["", "  "])
+def test_an_empty_out_is_refused(tmp_path, capsys, monkeypatch, command, out):
+    """Regression: --out "" wrote into the current folder."""
+    monkeypatch.chdir(tmp_path)
+    assert main(command + ["--out", out]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "output folder name" in err[0] and "empty" in err[0]
+    assert list(tmp_path.iterdir()) == []

@@ -24,7 +24,6 @@ from __future__ import annotations
 import math
 import os
 import pickle
-import shutil
 import sys
 import time
 import uuid
@@ -38,6 +37,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
+from ._io import write_output
 from .errors import PathFileError
 from .interpolators import LOOP_METHODS
 from .machine import Machine, load_machine
@@ -199,7 +199,14 @@ def _study_from_dict(data: dict, source: str, base_dir: str) -> Study:
     feed_unit = data.get("feed_unit", "m/s")
     if feed_unit not in FEED_UNITS:
         raise ValueError(f"feed_unit {feed_unit!r} unknown; choose from {list(FEED_UNITS)}")
+    for p in paths:
+        _check_path_file(p, base_dir)
     machines = tuple(_strings(data.get("machines", ["die-bonder"]), "machines"))
+    for m in machines:  # read now: a bad machine file is refused before any case runs
+        try:
+            _machine(m, base_dir)
+        except (ValueError, OSError) as exc:
+            raise ValueError(f"machines: {m!r}: {exc}") from None
     plants = tuple(_plant(e, i) for i, e in enumerate(data.get("plants", [{"name": "nominal"}])))
     if len({p.name for p in plants}) != len(plants):
         raise ValueError("plant names must be unique")
@@ -225,6 +232,26 @@ def _study_from_dict(data: dict, source: str, base_dir: str) -> Study:
                  interpolators=interpolators, sample=sample, settle_time=settle_time,
                  settle_window=settle_window, bound=bound, case_time_limit=limit or None,
                  source=source, base_dir=base_dir)
+
+
+def _check_path_file(spec: str, base_dir: str) -> None:
+    """A study's path: a built-in name, or a path file (relative to the study) that
+    exists and has a path file's ending; ``FILE#k`` picks a contour."""
+    from .nurbs import BUILTIN_PATHS
+    from .paths import PATH_FILE_SUFFIXES
+
+    name, _, k = spec.partition("#")
+    if name in BUILTIN_PATHS and not k:
+        return
+    file = Path(base_dir) / name
+    if Path(name).suffix.lower() not in PATH_FILE_SUFFIXES:
+        raise ValueError(f"paths: {spec!r} is neither a built-in path "
+                         f"({', '.join(BUILTIN_PATHS)}) nor a path file "
+                         f"({', '.join(PATH_FILE_SUFFIXES)})")
+    if not file.is_file():
+        raise ValueError(f"paths: {spec!r}: no such file {str(file)!r}")
+    if k and not (k.isdigit() and int(k) >= 1):
+        raise ValueError(f"paths: {spec!r}: the contour after '#' must be a number >= 1")
 
 
 def _is_number(x) -> bool:
@@ -626,7 +653,9 @@ def run_study(study: Study, out_dir: str | os.PathLike, *, workers: int | None =
     resume : bool
         Keep the finished rows in ``out_dir`` and run only the other cases.
     overwrite : bool
-        Delete an existing ``out_dir`` first.
+        First remove what an earlier campaign wrote into ``out_dir``
+        (:data:`CAMPAIGN_OUTPUTS`, the part files, the case folders' run outputs); no
+        other file there is touched.
     flush_rows, flush_seconds : int, float
         A part file is written every ``flush_rows`` finished rows or ``flush_seconds``.
     cases : list of Case, optional
@@ -656,13 +685,11 @@ def run_study(study: Study, out_dir: str | os.PathLike, *, workers: int | None =
                             "differs); choose another output folder", study.source)
     with _locked(out):
         if held and overwrite:
-            for p in out.iterdir():
-                if p.name != _LOCK:
-                    shutil.rmtree(p) if p.is_dir() else p.unlink()
+            _remove_outputs(out)
         rows_dir.mkdir(parents=True, exist_ok=True)
         for stale in rows_dir.glob(".part-*.tmp"):  # a part being written when killed
             stale.unlink()
-        study_copy.write_text(text)
+        write_output(study_copy, lambda h: h.write(text), overwrite=True)
         all_cases = study_cases(study) if cases is None else cases
         done = _finished_ids(out)
         todo = [c for c in all_cases if c.case_id not in done]
@@ -686,6 +713,37 @@ def run_study(study: Study, out_dir: str | os.PathLike, *, workers: int | None =
 
 
 _LOCK = ".lock"
+
+CAMPAIGN_OUTPUTS = ("study.toml", "digest.md", "digest.json")
+"""Files a campaign writes at the top of its folder (besides ``rows/`` and the case
+folders ``cNNNNNNN/`` of ``--case``)."""
+
+
+def _remove_outputs(out: Path) -> None:
+    """Remove what a campaign wrote into ``out`` (``--overwrite``): its files, its part
+    files and the run outputs of its case folders; a folder is removed once empty. A
+    file the campaign does not write is left where it is."""
+    from .plots import TRACE_FIGURES
+
+    for name in CAMPAIGN_OUTPUTS + (".digest.json.tmp", ".digest.md.tmp"):
+        if (out / name).is_file():
+            (out / name).unlink()
+    rows = out / "rows"
+    if rows.is_dir():
+        for p in [*rows.glob("part-*.parquet"), *rows.glob(".part-*.tmp")]:
+            p.unlink()
+    cases = [p for p in out.glob("c*") if p.is_dir() and len(p.name) == 8
+             and p.name[1:].isdigit()]
+    for folder in cases:
+        for name in ("trace.csv", "summary.json", *TRACE_FIGURES):
+            if (folder / name).is_file():
+                (folder / name).unlink()
+    for folder in [rows, *cases]:
+        try:
+            folder.rmdir()
+        except OSError:  # holds a file of the user's (or is absent)
+            pass
+
 
 
 @contextmanager

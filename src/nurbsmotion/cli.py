@@ -434,6 +434,9 @@ def _cmd_reproduce(args) -> int:
 def _cmd_campaign(args) -> int:
     from .campaign import find_case, load_study, run_study
 
+    if args.out is not None and not args.out.strip():
+        raise InvalidArgumentError(f"--out {args.out!r} is empty; name a folder ('.' for the "
+                                   "current one) or leave --out out")
     study = load_study(args.study)
     out = Path(args.out) if args.out else Path(args.study).with_suffix("").with_name(
         Path(args.study).stem + "-campaign")
@@ -462,7 +465,8 @@ def _campaign_case(case, out: Path, args) -> int:
     from .report import write_json, write_trace_csv
 
     names = ["trace.csv", "summary.json"] + ([] if args.no_figures else list(TRACE_FIGURES))
-    with OutputFolder(out, names, overwrite=args.overwrite) as staged:  # checked first
+    with OutputFolder(out, names, overwrite=args.overwrite,  # checked first
+                      replaces=["trace.csv", "summary.json", *TRACE_FIGURES]) as staged:
         trace, data, _, _ = case_trace(case)
         write_trace_csv(trace, staged.staging / "trace.csv")
         write_json(data, staged.staging / "summary.json")
@@ -516,10 +520,26 @@ def _outputs_of(args) -> list[str]:
     return []
 
 
+def project_outputs() -> list[str]:
+    """Every file name ``interpolate``, ``run`` and ``reproduce`` may write into their
+    output folder (with any option): what ``--overwrite`` removes when this run does not
+    write it, and what refuses a folder without it. docs/cli.md lists them."""
+    from .experiments import reproduce_outputs
+    from .plots import SETPOINT_FIGURES, TRACE_FIGURES
+    from .report import TRACE_FILES
+
+    names = ["setpoints.csv", *SETPOINT_FIGURES, *TRACE_FILES.values(), "summary.json",
+             *EXPORT_FILES.values(), *TRACE_FIGURES, *reproduce_outputs(figures=True)]
+    return list(dict.fromkeys(names))
+
+
 def _outputs(args) -> OutputFolder:
     """The command's output folder: its files checked now, before any work, written
-    through a staging folder and moved into place only when all are complete."""
-    return OutputFolder(args.out, _outputs_of(args), overwrite=args.overwrite)
+    through a staging folder and moved into place only when all are complete; with
+    ``--overwrite`` an earlier run's outputs that this one does not write are removed
+    (:func:`project_outputs`), and without it they refuse the folder."""
+    return OutputFolder(args.out, _outputs_of(args), overwrite=args.overwrite,
+                        replaces=project_outputs())
 
 
 def _positive_float(text: str) -> float:
