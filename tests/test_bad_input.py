@@ -579,3 +579,81 @@ def test_a_sample_period_below_the_minimum_is_refused(tmp_path, capsys, period):
         main(["interpolate", "butterfly", "--feed", "10mm/s", "--sample-period", str(period),
               "--out", str(tmp_path / "o")])
     assert exit_.value.code == 2 and "minimum sample period" in _one_error_line(capsys)
+
+
+# ---------------------------------------------------------------- issue 37, item 6: messages
+CORPUS = ROOT / "tests" / "data" / "corpus"
+
+
+def _corrupt_dxf(folder: Path) -> list[Path]:
+    """Six corrupt variants of corpus drawings: cut short (inside the header, inside the
+    entities), nothing but a header opening, garbage bytes, binary junk, NUL bytes."""
+    import random
+
+    lw = (CORPUS / "bjnortier_lwpolylines.dxf").read_bytes()
+    poly = (CORPUS / "ezdxf_POLI-ALL210_12.DXF").read_bytes()
+    rng = random.Random(37)
+    garbled = bytearray(lw)
+    for i in rng.sample(range(len(lw)), 200):
+        garbled[i] = rng.randrange(32, 127)
+    variants = {
+        "cut_in_header.dxf": poly[: len(poly) // 10],  # gave internal error: StopIteration
+        "cut_in_entities.dxf": lw[: len(lw) // 2],
+        "header_only.dxf": b"  0\nSECTION\n  2\nHEADER\n",  # StopIteration too
+        "garbled.dxf": bytes(garbled),
+        "binary.dxf": bytes(rng.randrange(256) for _ in range(4000)),
+        "nul.dxf": lw[: len(lw) // 2] + b"\0" * 100 + lw[len(lw) // 2:],
+    }
+    for name, data in variants.items():
+        (folder / name).write_bytes(data)
+    return [folder / name for name in variants]
+
+
+def test_corrupt_dxf_files_are_one_typed_line_naming_the_file(tmp_path, capsys):
+    for file in _corrupt_dxf(tmp_path):
+        with pytest.raises(PathFileError, match=file.name):
+            load_path(file)
+        assert main(["bound", str(file), "--feed", "1mm/s"]) == 2, file.name
+        line = _one_error_line(capsys)
+        assert str(file) in line and "internal error" not in line, line
+        assert "StopIteration" not in line
+
+
+@pytest.mark.parametrize("command", [["bound"], ["run", "--no-figures", "--out", "{out}"]])
+@pytest.mark.parametrize("feed", ["1e12mm/s", "1e300"])
+def test_a_feed_beyond_any_motion_is_refused_as_such(tmp_path, capsys, command, feed):
+    """Regression: 1e12 mm/s was refused as "the curvature is too high for the drive",
+    and 1e300 mm/s gave a bound (0.3203 s) other than the drive-limited one (0.3193 s)."""
+    argv = [command[0], "butterfly", "--feed", feed] + command[1:]
+    assert main([a.format(out=tmp_path / "o") for a in argv]) == 2
+    line = _one_error_line(capsys)
+    assert "times the fastest" in line and "MAX_FEED_RATIO" in line
+    assert "curvature" not in line
+
+
+def test_the_bound_at_a_feed_above_the_top_speed_is_the_drive_limited_one():
+    """No motion within the drive limits is faster than planning.top_speed: at any feed
+    above it the bound is the same (the profile's F^2 and feed ratio overflowed)."""
+    from nurbsmotion.planning import top_speed
+
+    machine = die_bonder()
+    curve = to_pulses(nm.builtin_path("butterfly"), machine)
+    top = top_speed(machine)
+    M = machine.max_drive * machine.Kc * machine.Ke
+    assert top == pytest.approx(math.hypot(*M), rel=1e-15)
+    reference = time_optimal_bound(curve, machine, 2 * top)
+    for feed in (3 * top, 1e11, 1e15, 1e300):
+        assert time_optimal_bound(curve, machine, feed) == reference
+
+
+def test_bound_refuses_what_run_refuses(tmp_path, capsys):
+    """Regression: `bound` printed 1e12-1e15 s for moves `run` refuses (too many samples)."""
+    long_line = _path_file(tmp_path, units="m", control_points=[[0, 0], [1e3, 0], [2e3, 0],
+                                                                [3e3, 0]])
+    for argv in (["bound", long_line, "--feed", "1um/s"],
+                 ["run", long_line, "--feed", "1um/s", "--no-figures", "--out",
+                  str(tmp_path / "o")]):
+        assert main(argv) == 2
+        assert "--max-samples" in _one_error_line(capsys)
+    assert main(["bound", long_line, "--feed", "1m/s"]) == 0
+    capsys.readouterr()

@@ -145,8 +145,16 @@ def _axis_names(n: int) -> list[str]:
     return list("xyzabc"[:n]) if n <= 6 else [f"axis{i}" for i in range(n)]
 
 
+def _check_bound(bound: float, machine: Machine, curve, max_samples: int) -> None:
+    """Refuse a time-optimal bound longer than ``max_samples`` samples: no run of the path
+    could finish within them (``run`` and ``bound`` alike)."""
+    check_samples(bound / machine.sample_period, limit=max_samples, n_axes=curve.n_axes,
+                  what=f"the time-optimal bound ({bound:.4g} s at Ts = "
+                       f"{machine.sample_period:g} s): a run", option="--max-samples")
+
+
 def _cmd_bound(args) -> int:
-    from .loop import to_pulses
+    from .loop import check_run_arguments, to_pulses
 
     machine = load_machine(args.machine)
     contour = _contour(args, machine)
@@ -159,7 +167,12 @@ def _cmd_bound(args) -> int:
     feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s",
                             per_shown=units.pulses_per_report_unit(curve.units, machine),
                             shown_unit=f"{units.report_unit(curve.units)}/s")
-    bound = time_optimal_bound(to_pulses(curve, machine), machine, feed)
+    path = to_pulses(curve, machine)
+    # What `run` refuses, `bound` refuses: the same checks, and a bound no run could
+    # reach within its samples.
+    check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
+    bound = time_optimal_bound(path, machine, feed)
+    _check_bound(bound, machine, curve, args.max_samples)
     print(f"{bound:.6g}")
     if contour.feed is not None:
         print(f"feed: {note}", file=sys.stderr)
@@ -242,6 +255,7 @@ def _run(args, precompiler) -> int:
 
         # The bound first: a path it cannot be computed for is refused before the run.
         bound = time_optimal_bound(path, machine, feed)
+        _check_bound(bound, machine, curve, args.max_samples)
         bar.update()
         stage(stages[1])
         expected = estimate_samples(path.length, lowest, machine.sample_period)
@@ -693,6 +707,9 @@ def _parser() -> argparse.ArgumentParser:
                    "every sharp corner [s]: whole samples per "
                    "piece, each at least what the slowest axis needs from rest to rest "
                    "(ignores the feed and the path's shape; within 1 pulse of the end)")
+    b.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
+                   help="refuse, as run does, a move estimated (or bounded) to take more "
+                   "samples than this")
     b.set_defaults(func=_cmd_bound)
 
     c = command("contours", "list the contours of a path file: index, pieces, length, "

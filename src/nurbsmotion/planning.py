@@ -43,14 +43,14 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .errors import InfeasibleError, WorkLimitError
+from .errors import InfeasibleError, InvalidFeedError, WorkLimitError
 from .feed import FeedLimit
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .servo import zoh_coefficients
 
 __all__ = ["SpeedProfile", "speed_profile", "time_optimal_bound", "sampled_stop_bound",
-           "check_path_size"]
+           "check_path_size", "top_speed", "check_feed_reachable", "MAX_FEED_RATIO"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,6 +125,50 @@ at a time, and estimating again, adds few points)."""
 
 MAX_GRID_POINTS = 5_000_000
 """Most grid points of a speed profile (the passes run about 10^5 points per second)."""
+
+
+def top_speed(machine: Machine) -> float:
+    """The fastest any motion within the drive limits moves along a path [pulse/s]:
+    ``sqrt(sum_j (Umax*Kc_j*Ke_j)^2)``. Each axis's speed obeys ``tau_j*xdd_j + xd_j =
+    Kc_j*Ke_j*u_j`` (SPEC section 3), a first-order filter of a drive ``|u_j| <= Umax``,
+    so from rest ``|xd_j|`` never exceeds ``Umax*Kc_j*Ke_j``. ``inf`` for an ideal drive."""
+    if machine.max_drive == math.inf:
+        return math.inf
+    return float(np.sqrt(np.sum((machine.max_drive * machine.Kc * machine.Ke) ** 2)))
+
+
+MAX_FEED_RATIO = 1000.0
+"""A feed more than this many times :func:`top_speed` is refused by ``run``, ``bound`` and
+campaigns (:func:`check_feed_reachable`): no motion comes near it, and such a number is a
+slip of its unit (1e12 mm/s is faster than light)."""
+
+
+def check_feed_reachable(feed, machine: Machine, shown: str | None = None) -> None:
+    """Refuse a feed [pulse/s] (its highest piece for a :class:`FeedLimit`) above
+    :data:`MAX_FEED_RATIO` times the machine's :func:`top_speed`.
+
+    Parameters
+    ----------
+    feed : float or FeedLimit
+        [pulse/s].
+    machine : Machine
+    shown : str, optional
+        The feed as the user gave it, for the message (e.g. ``"1e12mm/s"``).
+
+    Raises
+    ------
+    InvalidFeedError
+        Naming the feed, the top speed and the ratio.
+    """
+    F = feed.highest if isinstance(feed, FeedLimit) else float(feed)
+    top = top_speed(machine)
+    if F > MAX_FEED_RATIO * top:
+        given = f"{shown} = " if shown else ""
+        raise InvalidFeedError(
+            f"feed {given}{F:.3g} pulse/s is {F / top:.3g} times the fastest any motion of "
+            f"{machine.name} moves ({top:.3g} pulse/s, sqrt(sum (Umax*Kc*Ke)^2)), more than "
+            f"the {MAX_FEED_RATIO:g} x a run accepts (planning.MAX_FEED_RATIO); is its unit "
+            "right?")
 
 
 def check_path_size(curve: NurbsCurve) -> None:
@@ -500,6 +544,13 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
     """
     F = _check_feed(feed)
     check_path_size(curve)
+    # No motion within the drive limits is faster than top_speed: a higher feed never
+    # binds, and the profile is computed below twice that (the MVC's feed ratio and F^2
+    # stay meaningful for any feed, 1e300 included).
+    ceiling = 2.0 * top_speed(machine)
+    if F > ceiling:
+        feed = feed.capped(ceiling) if isinstance(feed, FeedLimit) else ceiling
+        F = ceiling
     fa = drive_fraction if acceleration_fraction is None else acceleration_fraction
     for name, f in (("drive_fraction", drive_fraction), ("acceleration_fraction", fa)):
         if not (0 < f <= 1):
