@@ -505,3 +505,54 @@ def test_an_empty_out_is_refused(tmp_path, capsys, monkeypatch, command, out):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "output folder name" in err[0] and "empty" in err[0]
     assert list(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------- issue 37, item 7: docs true to the tool
+DOCS = __import__("pathlib").Path(__file__).resolve().parents[1] / "docs"
+
+
+def test_the_cli_doc_opens_with_the_parsers_synopsis():
+    """Regression: docs/cli.md's synopsis lacked `contours` and `campaign`."""
+    import argparse
+
+    from nurbsmotion.cli import _parser, synopsis
+
+    doc = (DOCS / "cli.md").read_text()
+    block = doc.split("```\n", 2)[1]
+    assert block.strip() == synopsis().strip()
+    sub = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction))
+    for name, command in sub.choices.items():  # every command has its section ...
+        assert f"## `nurbsmotion {name}" in doc, name
+        for action in command._actions:  # ... and every option is described
+            for option in action.option_strings:
+                if option.startswith("--") and option != "--help":
+                    assert f"`{option}" in doc, (name, option)
+
+
+def test_a_path_file_without_units_is_read_in_mm_as_formats_md_says(tmp_path):
+    """Regression: docs/formats.md said such a file is read in pulses."""
+    from nurbsmotion.paths import PathWarning, load_path
+
+    file = tmp_path / "p.json"
+    file.write_text(json.dumps({"degree": 1, "knots": [0, 0, 1, 1],
+                                "control_points": [[0, 0], [10, 0]]}))
+    with pytest.warns(PathWarning, match="no 'units'.*millimetres"):
+        assert load_path(file).units == "mm"
+    row = next(line for line in (DOCS / "formats.md").read_text().splitlines()
+               if line.startswith("| `units` |"))
+    assert "read in mm" in row and "(the default)" not in row
+
+
+def test_the_docs_need_no_package_that_is_not_installed():
+    """Regression: docs/campaign.md suggested pandas, which nurbsmotion does not install."""
+    import importlib.util
+    import tomllib
+
+    project = tomllib.loads((DOCS.parent / "pyproject.toml").read_text())["project"]
+    needed = " ".join(project["dependencies"]).lower()
+    for page in ("campaign.md", "formats.md", "cli.md"):
+        for paragraph in (DOCS / page).read_text().split("\n\n"):
+            if "pandas" in paragraph and "pandas" not in needed:
+                assert ("if you have it" in paragraph or "pandas installed" in paragraph
+                        or "pandas is not a dependency" in paragraph), paragraph
+    assert importlib.util.find_spec("pyarrow") is not None and "pyarrow" in needed

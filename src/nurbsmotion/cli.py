@@ -27,7 +27,7 @@ from .machine import MIN_SAMPLE_PERIOD, Machine, load_machine
 from .motion_plan import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
 from .planning import sampled_stop_bound, time_optimal_bound
 
-__all__ = ["main", "parse_feed"]
+__all__ = ["main", "parse_feed", "synopsis", "project_outputs"]
 
 
 def parse_feed(text: str) -> tuple[float, str | None]:
@@ -744,6 +744,21 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
     c.set_defaults(func=_cmd_campaign)
     return p
+
+
+def synopsis(width: int = 88) -> str:
+    """The command's synopsis, from the parser itself: the top-level usage, then each
+    command's, wrapped at ``width`` columns (docs/cli.md opens with it; a test checks
+    that it is this text)."""
+    parser = _parser()
+
+    def usage(p: argparse.ArgumentParser) -> str:
+        formatter = argparse.HelpFormatter(p.prog, width=width)
+        formatter.add_usage(p.usage, p._actions, p._mutually_exclusive_groups, prefix="")
+        return formatter.format_help().strip()
+
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return "\n".join([usage(parser)] + [usage(c) for c in sub.choices.values()])
 
 
 def _one_line(text) -> str:
