@@ -556,3 +556,46 @@ def test_the_docs_need_no_package_that_is_not_installed():
                 assert ("if you have it" in paragraph or "pandas installed" in paragraph
                         or "pandas is not a dependency" in paragraph), paragraph
     assert importlib.util.find_spec("pyarrow") is not None and "pyarrow" in needed
+
+
+# ------------------------------------------------------- no run beats `bound --sampled`
+def _sampled_bound_cases():
+    from nurbsmotion.paths.random_paths import random_path
+
+    pi = nm.make_die_bonder_pi()
+    corners = nm.make_polyline([[0, 0], [3000, 0], [3000, 2000], [6000, 2500]])
+    short = random_path("short_moves", [37, 1], n_axes=2)
+    curl = random_path("sharp_corners", [37, 2], n_axes=2, length=5000.0)
+    # at 5e4 pulse/s every interpolator stays within Umax on the first three; at the
+    # higher feeds only planned does (the others saturate, which the bound does not cover)
+    return [("die-bonder-pi", pi, 5e4), ("corners", corners, 5e4), ("sharp_corners", curl, 5e4),
+            ("corners", corners, 5e5), ("short_moves", short, 1e6),
+            ("sharp_corners", curl, 3e5)]
+
+
+@pytest.mark.parametrize("interpolator", ["taylor1", "taylor2", "paper", "planned"])
+def test_no_run_within_the_drive_limit_settles_below_the_sampled_bound(interpolator, capsys):
+    """`bound --sampled` is a lower bound on the move-and-settle time of any motion of the
+    sampled loop that stops at every sharp corner: no run that keeps its drive within
+    Umax settles sooner (a run that saturates may: it is not a motion the bound covers)."""
+    from nurbsmotion.loop import run, to_pulses
+    from nurbsmotion.machine import die_bonder
+    from nurbsmotion.planning import sampled_stop_bound
+
+    machine = die_bonder()
+    checked = 0
+    for name, curve, feed in _sampled_bound_cases():
+        path = to_pulses(curve, machine)
+        bound = sampled_stop_bound(path, machine)
+        if name == "die-bonder-pi":
+            assert main(["bound", name, "--sampled"]) == 0  # the command prints the same
+            assert float(capsys.readouterr().out) == pytest.approx(bound, abs=1e-12)
+        trace = run(curve, machine, feed, interpolator)
+        metrics = trace.metrics()
+        if metrics.total_saturated_samples or not metrics.settled:
+            continue
+        checked += 1
+        assert metrics.settle_time_s >= bound - 1e-9, (
+            f"{interpolator} on {name} at {feed}: settled at {metrics.settle_time_s} s, "
+            f"below the sampled bound {bound} s")
+    assert checked >= 3  # most of the cases stay within the drive limit
