@@ -83,11 +83,12 @@ def timed(study, cases, client=None, workers=None) -> dict:
     """One run into a fresh folder, with this process's per-path caches emptied (forked
     workers would inherit them): wall time, the cases' summed wall and CPU time, and the
     CPU time of every process of the run [s]."""
-    for cached in (campaign._curve, campaign._bound_of):
+    campaign._BOUNDS.clear()
+    for cached in (campaign._contour, campaign._pulses):
         cached.cache_clear()
     campaign._PATH_ERRORS.clear()
     if client is not None:
-        client.run(lambda: [c.cache_clear() for c in (campaign._curve, campaign._bound_of)])
+        client.run(lambda: [c.cache_clear() for c in (campaign._contour, campaign._pulses)])
         remote0 = _cluster_cpu(client)
     load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:

@@ -254,7 +254,7 @@ def _path_file(tmp_path: Path, **change) -> str:
     (["run", "die-bonder-pi", "--feed", "1m/s", "--export", "pvt", "--pvt-period",
       "1e-12", "--out", "{out}"], "--pvt-period"),
     (["interpolate", "butterfly", "--feed", "1e-3", "--out", "{out}"], "--max-samples"),
-    (["interpolate", "butterfly", "--feed", "100", "--sample-period", "1e-15", "--out",
+    (["interpolate", "butterfly", "--feed", "1e-2", "--sample-period", "1e-5", "--out",
       "{out}"], "samples"),
     (["run", "die-bonder-pi", "--feed", "1m/s", "--out", "{file}"], "is a file"),
     (["run", "die-bonder-pi", "--feed", "1m/s", "--out", "{file}/sub"], "is a file"),
@@ -521,3 +521,139 @@ def test_command_lines_with_extreme_values_exit_0_or_2_in_one_line(tmp_path_fact
     _contract(capsys, code)
     if code != 0:
         assert not out.exists()
+
+
+# ---------------------------------------------------------------- issue 37, item 4: size limits
+def test_too_many_control_points_are_refused_before_they_are_converted():
+    """Regression: a path of 1e6 control points was refused by the planner after 106 s
+    and 3.4 GB ("too many knot spans"), though its size is known at once."""
+    from nurbsmotion.nurbs import MAX_CONTROL_POINTS
+
+    class Rows(list):  # counted, never converted: converting 500,001 rows would be work
+        def __array__(self, *args, **kwargs):
+            raise AssertionError("converted before the count was checked")
+
+    rows = Rows([[0.0, 0.0]] * (MAX_CONTROL_POINTS + 1))
+    with pytest.raises(InvalidCurveError, match="500,001 control points.*MAX_CONTROL_POINTS"):
+        NurbsCurve(1, [0.0] * (MAX_CONTROL_POINTS + 3), rows)
+
+
+def test_a_path_file_of_too_many_points_is_refused_when_read(tmp_path, capsys, monkeypatch):
+    from nurbsmotion.paths import files
+
+    monkeypatch.setattr(files, "MAX_CONTROL_POINTS", 10)
+    n = 11
+    path = tmp_path / "long.json"
+    path.write_text(json.dumps({"units": "mm", "degree": 1,
+                                "knots": [0] + list(range(n)) + [n - 1],
+                                "control_points": [[i, 0] for i in range(n)]}))
+    assert main(["bound", str(path), "--feed", "1mm/s"]) == 2
+    line = _one_error_line(capsys)
+    assert str(path) in line and "11 rows" in line and "MAX_CONTROL_POINTS" in line
+
+
+def test_too_many_knot_spans_are_refused_before_the_tables(monkeypatch):
+    """The planner's grid needs 2p points per knot span: a path of more spans than fit is
+    refused from its knots, before the arc-length tables are built."""
+    from nurbsmotion import planning
+
+    monkeypatch.setattr(planning, "MAX_GRID_POINTS", 1000)
+    curve = nm.make_polyline([[i, (i % 2) * 0.5] for i in range(600)])  # 599 spans, p = 1
+    machine = die_bonder()
+    for call in (lambda: run(curve, machine, 1e5, "taylor1"),
+                 lambda: time_optimal_bound(curve, machine, 1e5)):
+        with pytest.raises(WorkLimitError, match="599 knot spans of degree 1.*1,199 points"):
+            call()
+    assert curve._geometry is None  # no arc-length table was built
+
+
+@pytest.mark.parametrize("period", [1e-7, 9.9e-6])
+def test_a_sample_period_below_the_minimum_is_refused(tmp_path, capsys, period):
+    with pytest.raises(InvalidMachineError, match="sample_period .* below the minimum"):
+        die_bonder(sample_period=period)
+    file = tmp_path / "fast.json"
+    file.write_text(json.dumps({**die_bonder().to_dict(), "sample_period": period}))
+    assert main(["bound", "die-bonder-pi", "--machine", str(file), "--feed", "1m/s"]) == 2
+    assert "MIN_SAMPLE_PERIOD" in _one_error_line(capsys)
+    with pytest.raises(SystemExit) as exit_:
+        main(["interpolate", "butterfly", "--feed", "10mm/s", "--sample-period", str(period),
+              "--out", str(tmp_path / "o")])
+    assert exit_.value.code == 2 and "minimum sample period" in _one_error_line(capsys)
+
+
+# ---------------------------------------------------------------- issue 37, item 6: messages
+CORPUS = ROOT / "tests" / "data" / "corpus"
+
+
+def _corrupt_dxf(folder: Path) -> list[Path]:
+    """Six corrupt variants of corpus drawings: cut short (inside the header, inside the
+    entities), nothing but a header opening, garbage bytes, binary junk, NUL bytes."""
+    import random
+
+    lw = (CORPUS / "bjnortier_lwpolylines.dxf").read_bytes()
+    poly = (CORPUS / "ezdxf_POLI-ALL210_12.DXF").read_bytes()
+    rng = random.Random(37)
+    garbled = bytearray(lw)
+    for i in rng.sample(range(len(lw)), 200):
+        garbled[i] = rng.randrange(32, 127)
+    variants = {
+        "cut_in_header.dxf": poly[: len(poly) // 10],  # gave internal error: StopIteration
+        "cut_in_entities.dxf": lw[: len(lw) // 2],
+        "header_only.dxf": b"  0\nSECTION\n  2\nHEADER\n",  # StopIteration too
+        "garbled.dxf": bytes(garbled),
+        "binary.dxf": bytes(rng.randrange(256) for _ in range(4000)),
+        "nul.dxf": lw[: len(lw) // 2] + b"\0" * 100 + lw[len(lw) // 2:],
+    }
+    for name, data in variants.items():
+        (folder / name).write_bytes(data)
+    return [folder / name for name in variants]
+
+
+def test_corrupt_dxf_files_are_one_typed_line_naming_the_file(tmp_path, capsys):
+    for file in _corrupt_dxf(tmp_path):
+        with pytest.raises(PathFileError, match=file.name):
+            load_path(file)
+        assert main(["bound", str(file), "--feed", "1mm/s"]) == 2, file.name
+        line = _one_error_line(capsys)
+        assert str(file) in line and "internal error" not in line, line
+        assert "StopIteration" not in line
+
+
+@pytest.mark.parametrize("command", [["bound"], ["run", "--no-figures", "--out", "{out}"]])
+@pytest.mark.parametrize("feed", ["1e12mm/s", "1e300"])
+def test_a_feed_beyond_any_motion_is_refused_as_such(tmp_path, capsys, command, feed):
+    """Regression: 1e12 mm/s was refused as "the curvature is too high for the drive",
+    and 1e300 mm/s gave a bound (0.3203 s) other than the drive-limited one (0.3193 s)."""
+    argv = [command[0], "butterfly", "--feed", feed] + command[1:]
+    assert main([a.format(out=tmp_path / "o") for a in argv]) == 2
+    line = _one_error_line(capsys)
+    assert "times the fastest" in line and "MAX_FEED_RATIO" in line
+    assert "curvature" not in line
+
+
+def test_the_bound_at_a_feed_above_the_top_speed_is_the_drive_limited_one():
+    """No motion within the drive limits is faster than planning.top_speed: at any feed
+    above it the bound is the same (the profile's F^2 and feed ratio overflowed)."""
+    from nurbsmotion.planning import top_speed
+
+    machine = die_bonder()
+    curve = to_pulses(nm.builtin_path("butterfly"), machine)
+    top = top_speed(machine)
+    M = machine.max_drive * machine.Kc * machine.Ke
+    assert top == pytest.approx(math.hypot(*M), rel=1e-15)
+    reference = time_optimal_bound(curve, machine, 2 * top)
+    for feed in (3 * top, 1e11, 1e15, 1e300):
+        assert time_optimal_bound(curve, machine, feed) == reference
+
+
+def test_bound_refuses_what_run_refuses(tmp_path, capsys):
+    """Regression: `bound` printed 1e12-1e15 s for moves `run` refuses (too many samples)."""
+    long_line = _path_file(tmp_path, units="m", control_points=[[0, 0], [1e3, 0], [2e3, 0],
+                                                                [3e3, 0]])
+    for argv in (["bound", long_line, "--feed", "1um/s"],
+                 ["run", long_line, "--feed", "1um/s", "--no-figures", "--out",
+                  str(tmp_path / "o")]):
+        assert main(argv) == 2
+        assert "--max-samples" in _one_error_line(capsys)
+    assert main(["bound", long_line, "--feed", "1m/s"]) == 0
+    capsys.readouterr()

@@ -25,7 +25,7 @@ N_SWEEP = int(os.environ.get("NURBSMOTION_CAMPAIGN_CASES", "200"))
 SMALL = """
 name = "small"
 seed = 11
-paths = ["die-bonder-pi", "missing.json"]
+paths = ["die-bonder-pi", "broken.json"]
 feeds = [1.0]
 interpolators = ["taylor1", "paper"]
 time_optimal_bound = false
@@ -42,6 +42,8 @@ spread = 0.2
 
 
 def write_study(tmp_path, text=SMALL, name="study.toml"):
+    # a path file that exists but cannot be read: its cases are recorded errors
+    (tmp_path / "broken.json").write_text('{"degree": 3, "knots": [0, 1]}')
     f = tmp_path / name
     f.write_text(text)
     return f
@@ -73,6 +75,10 @@ def test_study_expands_to_the_product_and_a_seeded_sample(tmp_path):
     ("feeds = [-1.0]", "feeds"), ("interpolators = ['fast']", "interpolator"),
     ("bogus = 1", "bogus"), ("sample = 0", "sample"),
     ("case_time_limit = -1", "case_time_limit"),
+    # issue 37: a study naming a missing file ran and exited 0
+    ("paths = ['die-bonder-pi', 'missing.json']", "missing.json"),
+    ("paths = ['part.ngc#0']", "part.ngc#0"), ("paths = ['heart']", "heart"),
+    ("machines = ['absent.toml']", "absent.toml"),
 ])
 def test_bad_study_names_the_field(tmp_path, line, field):
     key = line.split("=")[0].strip()
@@ -98,9 +104,9 @@ def test_rows_errors_resume_and_no_rewrite(tmp_path):
     table = read_rows(out)
     assert table.column("case_id").to_pylist() == [c.case_id for c in cases]
     rows = table.to_pylist()
-    missing = [r for r in rows if r["path"] == "missing.json"]
-    assert missing and all(r["status"] == STATUS_ERROR and r["error_type"] == "PathFileError"
-                           and "missing.json" in r["error_message"] for r in missing)
+    broken = [r for r in rows if r["path"] == "broken.json"]
+    assert broken and all(r["status"] == STATUS_ERROR and r["error_type"] == "PathFileError"
+                          and "broken.json" in r["error_message"] for r in broken)
     # A repeated control point thrice: C'(u) = 0, refused today (recorded, typed).
     for r in rows:
         if r["path_family"] == "duplicated_points" and r["status"] == STATUS_ERROR:
@@ -550,3 +556,114 @@ def test_the_example_study_runs(tmp_path):
     assert main(["campaign", str(example), "--out", str(tmp_path), "--case", "c0000000",
                  "--no-figures"]) == 0
     assert (tmp_path / "c0000000" / "summary.json").is_file()
+
+
+# ----------------------------------------------------------------------------- as `run`
+STUDY_FILES = """
+name = "units"
+paths = ["inch.json", "mm.json", "prog.ngc", "drawing.dxf"]
+feeds = [{feed}]
+feed_unit = "{unit}"
+interpolators = ["taylor1", "paper"]
+"""
+
+
+def _unit_paths(tmp_path):
+    """A path in inches, one in mm, a G-code program with its own F words and a DXF
+    drawing (in mm), each a few mm long."""
+    import json
+
+    from nurbsmotion.nurbs import NurbsCurve
+    from nurbsmotion.paths import save_path
+
+    (tmp_path / "inch.json").write_text(json.dumps(
+        {"units": "in", "degree": 2, "knots": [0, 0, 0, 0.5, 1, 1, 1],
+         "control_points": [[0, 0], [0.2, 0], [0.4, 0.2], [0.4, 0.4]]}))
+    (tmp_path / "mm.json").write_text(json.dumps(
+        {"units": "mm", "degree": 3, "knots": [0, 0, 0, 0, 1, 1, 1, 1],
+         "control_points": [[0, 0], [4, 0], [4, 6], [9, 6]]}))
+    (tmp_path / "prog.ngc").write_text(
+        "G21 G90 G17\nG0 X0 Y0\nG1 X8 Y0 F300\nG1 X8 Y5 F120\nM2\n")
+    arc = NurbsCurve(2, [0, 0, 0, 1, 1, 1], [[0, 0], [6, 0], [6, 6]], [1, 2 ** -0.5, 1],
+                     units="mm")
+    save_path(arc, tmp_path / "drawing.dxf")
+
+
+@pytest.mark.parametrize("feed, unit, cli_feed", [
+    (20.0, "mm/s", "20mm/s"), (1.5, "m/s", "1.5m/s"), (3000.0, "mm/min", "3000mm/min"),
+])
+def test_a_study_runs_every_path_as_run_does(tmp_path, feed, unit, cli_feed):
+    """Regression: a study converted its feed to pulse/s and handed it to run() as a
+    number in the path's units, so every path drawn in mm (or inches, G-code, DXF) ran
+    1000x (25400x) too fast; and it ignored a G-code program's F words."""
+    import json
+
+    _unit_paths(tmp_path)
+    study = load_study(write_study(tmp_path, STUDY_FILES.format(feed=feed, unit=unit)))
+    result = run_study(study, tmp_path / "out", workers=1, progress=False)
+    rows = read_rows(tmp_path / "out").to_pylist()
+    assert result.failed == 0 and len(rows) == 8
+    for row in rows:
+        out = tmp_path / f"run-{row['case_id']}"
+        assert main(["run", str(tmp_path / row["path"]), "--feed", cli_feed,
+                     "--interpolator", row["interpolator"], "--no-figures", "--no-trace",
+                     "--quiet", "--out", str(out)]) == 0
+        ran = json.loads((out / "summary.json").read_text())
+        for key in ("cycle_time_s", "max_contour_error", "time_optimal_bound_s", "feed",
+                    "settle_time_s"):
+            assert row[key] == pytest.approx(ran[key], rel=1e-12), (row["path"], key)
+        # Independently of `run`: the motion takes at least the path's length at the
+        # feed (the lower of the study's and the program's where the file has F words).
+        machine = die_bonder()
+        contour = campaign._contour(row["path"], None, None, 0, 0.0, str(tmp_path), "xy")
+        per_unit = machine.pulses_per_unit(contour.curve.units)
+        speed = feed * {"mm/s": 1.0, "m/s": 1e3, "mm/min": 1 / 60}[unit] \
+            * machine.pulses_per_unit("mm")
+        if contour.feed is not None:
+            fastest = min(speed, contour.feed.highest * per_unit)
+        else:
+            fastest = speed
+        least = contour.curve.length * per_unit / fastest
+        assert row["time_optimal_bound_s"] >= least * (1 - 1e-9)
+        assert row["cycle_time_s"] >= least - 2 * machine.sample_period
+
+
+def test_a_bad_study_is_refused_before_any_case_runs(tmp_path, capsys, monkeypatch):
+    """Issue 37: a study naming a missing path file exited 0 (its cases were errors)."""
+    def never(case):
+        raise AssertionError("a case ran")
+
+    monkeypatch.setattr(campaign, "case_trace", never)
+    (tmp_path / "part.ngc").write_text("G21\nG1 X1 F60\nM2\n")
+    f = write_study(tmp_path, SMALL.replace('"broken.json"', '"part.ngc", "gone.ngc"'))
+    assert main(["campaign", str(f), "--out", str(tmp_path / "out"), "--workers", "1",
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "gone.ngc" in err[0] and str(f) in err[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_campaign_out_must_name_a_folder(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    f = write_study(tmp_path)
+    for out in ("", " "):
+        assert main(["campaign", str(f), "--out", out]) == 2
+        assert "--out" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["broken.json", "study.toml"]
+
+
+def test_overwrite_removes_the_earlier_campaign_and_nothing_else(tmp_path):
+    study = load_study(write_study(tmp_path))
+    out = tmp_path / "out"
+    run_study(study, out, workers=1, progress=False, cases=study_cases(study)[:2])
+    (out / "c0000000").mkdir()
+    (out / "c0000000" / "summary.json").write_text("{}")
+    (out / "notes.txt").write_text("mine")
+    (out / "rows" / "mine.csv").write_text("mine")
+    before = set(p.name for p in (out / "rows").glob("part-*"))
+    run_study(study, out, workers=1, progress=False, overwrite=True,
+              cases=study_cases(study)[2:3])
+    assert (out / "notes.txt").read_text() == "mine" and (out / "rows" / "mine.csv").exists()
+    assert not (out / "c0000000").exists()
+    assert not before & set(p.name for p in (out / "rows").glob("part-*"))
+    assert read_rows(out).column("case_id").to_pylist() == ["c0000002"]

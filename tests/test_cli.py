@@ -464,3 +464,138 @@ def test_settle_window_takes_a_length_or_pulses(tmp_path):
         assert summary["units"]["settle_window_mm"] == "mm"
         times[pulses] = summary["settle_time_s"]
     assert times[20.0] <= times[1.0] <= times[0.5]
+
+
+# ------------------------------------------------------- issue 37, item 5: one run per folder
+def test_overwrite_replaces_the_whole_set_of_outputs(tmp_path, capsys):
+    """Regression: --overwrite into the folder of a run with more outputs left its trace,
+    figures and exports beside the new summary.json."""
+    from nurbsmotion.cli import project_outputs
+
+    out = tmp_path / "out"
+    base = ["run", "die-bonder-pi", "--feed", "1m/s", "--interpolator", "taylor1",
+            "--quiet", "--out", str(out)]
+    assert main(base + ["--export", "csv", "--export", "pvt"]) == 0
+    first = {p.name for p in out.iterdir()}
+    assert {"trace.csv", "summary.json", "setpoints.csv", "pvt.csv", "contour.png"} <= first
+    (out / "notes.txt").write_text("mine")  # a user's file: never touched
+    assert main(base + ["--no-figures", "--no-trace"]) == 2  # without --overwrite: refused
+    assert {p.name for p in out.iterdir()} == first | {"notes.txt"}
+    capsys.readouterr()
+    assert main(base + ["--no-figures", "--no-trace", "--overwrite"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "summary.json"]
+    assert first <= set(project_outputs())
+    # another command's outputs are the earlier run's too
+    assert main(["interpolate", "die-bonder-pi", "--feed", "5e5", "--out", str(out),
+                 "--overwrite"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "setpoints.csv",
+                                                     "setpoints.png"]
+
+
+@pytest.mark.parametrize("command", [
+    ["run", "die-bonder-pi", "--feed", "1m/s", "--no-figures"],
+    ["interpolate", "die-bonder-pi", "--feed", "5e5"],
+    ["reproduce", "--no-figures"],
+])
+@pytest.mark.parametrize("out", ["", "  "])
+def test_an_empty_out_is_refused(tmp_path, capsys, monkeypatch, command, out):
+    """Regression: --out "" wrote into the current folder."""
+    monkeypatch.chdir(tmp_path)
+    assert main(command + ["--out", out]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "output folder name" in err[0] and "empty" in err[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------- issue 37, item 7: docs true to the tool
+DOCS = __import__("pathlib").Path(__file__).resolve().parents[1] / "docs"
+
+
+def test_the_cli_doc_opens_with_the_parsers_synopsis():
+    """Regression: docs/cli.md's synopsis lacked `contours` and `campaign`."""
+    import argparse
+
+    from nurbsmotion.cli import _parser, synopsis
+
+    doc = (DOCS / "cli.md").read_text()
+    block = doc.split("```\n", 2)[1]
+    assert block.strip() == synopsis().strip()
+    sub = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction))
+    for name, command in sub.choices.items():  # every command has its section ...
+        assert f"## `nurbsmotion {name}" in doc, name
+        for action in command._actions:  # ... and every option is described
+            for option in action.option_strings:
+                if option.startswith("--") and option != "--help":
+                    assert f"`{option}" in doc, (name, option)
+
+
+def test_a_path_file_without_units_is_read_in_mm_as_formats_md_says(tmp_path):
+    """Regression: docs/formats.md said such a file is read in pulses."""
+    from nurbsmotion.paths import PathWarning, load_path
+
+    file = tmp_path / "p.json"
+    file.write_text(json.dumps({"degree": 1, "knots": [0, 0, 1, 1],
+                                "control_points": [[0, 0], [10, 0]]}))
+    with pytest.warns(PathWarning, match="no 'units'.*millimetres"):
+        assert load_path(file).units == "mm"
+    row = next(line for line in (DOCS / "formats.md").read_text().splitlines()
+               if line.startswith("| `units` |"))
+    assert "read in mm" in row and "(the default)" not in row
+
+
+def test_the_docs_need_no_package_that_is_not_installed():
+    """Regression: docs/campaign.md suggested pandas, which nurbsmotion does not install."""
+    import importlib.util
+    import tomllib
+
+    project = tomllib.loads((DOCS.parent / "pyproject.toml").read_text())["project"]
+    needed = " ".join(project["dependencies"]).lower()
+    for page in ("campaign.md", "formats.md", "cli.md"):
+        for paragraph in (DOCS / page).read_text().split("\n\n"):
+            if "pandas" in paragraph and "pandas" not in needed:
+                assert ("if you have it" in paragraph or "pandas installed" in paragraph
+                        or "pandas is not a dependency" in paragraph), paragraph
+    assert importlib.util.find_spec("pyarrow") is not None and "pyarrow" in needed
+
+
+# ------------------------------------------------------- no run beats `bound --sampled`
+def _sampled_bound_cases():
+    from nurbsmotion.paths.random_paths import random_path
+
+    pi = nm.make_die_bonder_pi()
+    corners = nm.make_polyline([[0, 0], [3000, 0], [3000, 2000], [6000, 2500]])
+    short = random_path("short_moves", [37, 1], n_axes=2)
+    curl = random_path("sharp_corners", [37, 2], n_axes=2, length=5000.0)
+    # at 5e4 pulse/s every interpolator stays within Umax on the first three; at the
+    # higher feeds only planned does (the others saturate, which the bound does not cover)
+    return [("die-bonder-pi", pi, 5e4), ("corners", corners, 5e4), ("sharp_corners", curl, 5e4),
+            ("corners", corners, 5e5), ("short_moves", short, 1e6),
+            ("sharp_corners", curl, 3e5)]
+
+
+@pytest.mark.parametrize("interpolator", ["taylor1", "taylor2", "paper", "planned"])
+def test_no_run_within_the_drive_limit_settles_below_the_sampled_bound(interpolator, capsys):
+    """`bound --sampled` is a lower bound on the move-and-settle time of any motion of the
+    sampled loop that stops at every sharp corner: no run that keeps its drive within
+    Umax settles sooner (a run that saturates may: it is not a motion the bound covers)."""
+    from nurbsmotion.loop import run, to_pulses
+    from nurbsmotion.machine import die_bonder
+    from nurbsmotion.planning import sampled_stop_bound
+
+    machine = die_bonder()
+    checked = 0
+    for name, curve, feed in _sampled_bound_cases():
+        path = to_pulses(curve, machine)
+        bound = sampled_stop_bound(path, machine)
+        if name == "die-bonder-pi":
+            assert main(["bound", name, "--sampled"]) == 0  # the command prints the same
+            assert float(capsys.readouterr().out) == pytest.approx(bound, abs=1e-12)
+        trace = run(curve, machine, feed, interpolator)
+        metrics = trace.metrics()
+        if metrics.total_saturated_samples or not metrics.settled:
+            continue
+        checked += 1
+        assert metrics.settle_time_s >= bound - 1e-9, (
+            f"{interpolator} on {name} at {feed}: settled at {metrics.settle_time_s} s, "
+            f"below the sampled bound {bound} s")
+    assert checked >= 3  # most of the cases stay within the drive limit

@@ -19,7 +19,7 @@ from pathlib import Path
 from contextlib import contextmanager
 from typing import IO, Callable, Iterator
 
-from .errors import OutputExistsError, PathFileError
+from .errors import InvalidArgumentError, OutputExistsError, PathFileError
 
 __all__ = ["check_input_file", "read_text_file", "parse_json_or_toml", "write_output",
            "atomic_output", "OutputFolder"]
@@ -208,31 +208,46 @@ class OutputFolder:
     or is interrupted, the staging folder is removed and no file appears under a final
     name (and a folder the command created is removed again if it is empty).
 
+    A folder holds one run's outputs, never two runs' mixed: ``replaces`` names every file
+    an earlier command may have written there (the project's outputs). Without
+    ``overwrite`` any of them that exists refuses the command; with it, those the
+    command did not write this time are removed once its own files are in place. No
+    other file of the folder is ever touched.
+
     Parameters
     ----------
     folder : path-like
-        The output folder (created, with its parents, on entering the block).
+        The output folder (created, with its parents, on entering the block); not empty.
     names : iterable of str
         Every file name the command may write there.
     overwrite : bool
-        Replace existing files of those names.
+        Replace existing files of those names, and remove the ``replaces`` it does not
+        write.
+    replaces : iterable of str
+        The file names an earlier run may have left there (``names`` are added).
 
     Raises
     ------
     OutputExistsError
-        If a declared file exists and ``overwrite`` is false.
+        If a declared (or ``replaces``) file exists and ``overwrite`` is false.
     PathFileError
         If the folder is a file, lies under a file, or cannot be written.
+    InvalidArgumentError
+        If the folder's name is empty.
     """
 
-    def __init__(self, folder, names, *, overwrite: bool = False):
+    def __init__(self, folder, names, *, overwrite: bool = False, replaces=()):
+        if not str(folder).strip():
+            raise InvalidArgumentError(f"the output folder name {str(folder)!r} is empty; name "
+                                       "a folder ('.' for the current one)")
         self.folder = Path(folder)
         self.names = tuple(names)
+        self.replaces = tuple(dict.fromkeys((*self.names, *replaces)))
         self.overwrite = overwrite
         self.staging: Path | None = None
         self._created: list[Path] = []
         self._check_folder()
-        self.check(self.names)
+        self.check(self.replaces)
 
     def _check_folder(self) -> None:
         folder = self.folder
@@ -299,3 +314,8 @@ class OutputFolder:
                 for name in moved:
                     os.unlink(self.folder / name)
             raise
+        if self.overwrite:  # an earlier run's outputs this one did not write
+            for name in self.replaces:
+                stale = self.folder / name
+                if name not in moved and (stale.is_file() or stale.is_symlink()):
+                    stale.unlink()

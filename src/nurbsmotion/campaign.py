@@ -24,7 +24,6 @@ from __future__ import annotations
 import math
 import os
 import pickle
-import shutil
 import sys
 import time
 import uuid
@@ -38,6 +37,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
+from ._io import write_output
 from .errors import PathFileError
 from .interpolators import LOOP_METHODS
 from .machine import Machine, load_machine
@@ -56,10 +56,10 @@ STATUS_OK, STATUS_ERROR = "ok", "error"
 WORKER_DIED = "WorkerDied"
 """``error_type`` of a case whose worker process died twice while running it."""
 
-FEED_UNITS = {"pulse/s": None, "path/s": None, "um/s": 1.0, "mm/s": 1e3, "m/s": 1e6,
-              "mm/min": 1e3 / 60}
-"""Units of a study's ``feeds``: micrometres per second per unit (``None``: pulse/s, or
-the path's own units per second)."""
+FEED_UNITS = ("pulse/s", "path/s", "um/s", "mm/s", "m/s", "mm/min")
+"""Units of a study's ``feeds``: a case's feed is ``run --feed`` with the value and this
+unit (``50mm/s``), converted by :func:`nurbsmotion.run_input.run_feed`; ``path/s`` is a
+bare number, in the path's own units per second."""
 
 CASE_TIME_LIMIT = 300.0
 """Default CPU time a case may use [s] (a study's ``case_time_limit``): about thirty times
@@ -199,7 +199,14 @@ def _study_from_dict(data: dict, source: str, base_dir: str) -> Study:
     feed_unit = data.get("feed_unit", "m/s")
     if feed_unit not in FEED_UNITS:
         raise ValueError(f"feed_unit {feed_unit!r} unknown; choose from {list(FEED_UNITS)}")
+    for p in paths:
+        _check_path_file(p, base_dir)
     machines = tuple(_strings(data.get("machines", ["die-bonder"]), "machines"))
+    for m in machines:  # read now: a bad machine file is refused before any case runs
+        try:
+            _machine(m, base_dir)
+        except (ValueError, OSError) as exc:
+            raise ValueError(f"machines: {m!r}: {exc}") from None
     plants = tuple(_plant(e, i) for i, e in enumerate(data.get("plants", [{"name": "nominal"}])))
     if len({p.name for p in plants}) != len(plants):
         raise ValueError("plant names must be unique")
@@ -225,6 +232,26 @@ def _study_from_dict(data: dict, source: str, base_dir: str) -> Study:
                  interpolators=interpolators, sample=sample, settle_time=settle_time,
                  settle_window=settle_window, bound=bound, case_time_limit=limit or None,
                  source=source, base_dir=base_dir)
+
+
+def _check_path_file(spec: str, base_dir: str) -> None:
+    """A study's path: a built-in name, or a path file (relative to the study) that
+    exists and has a path file's ending; ``FILE#k`` picks a contour."""
+    from .nurbs import BUILTIN_PATHS
+    from .paths import PATH_FILE_SUFFIXES
+
+    name, _, k = spec.partition("#")
+    if name in BUILTIN_PATHS and not k:
+        return
+    file = Path(base_dir) / name
+    if Path(name).suffix.lower() not in PATH_FILE_SUFFIXES:
+        raise ValueError(f"paths: {spec!r} is neither a built-in path "
+                         f"({', '.join(BUILTIN_PATHS)}) nor a path file "
+                         f"({', '.join(PATH_FILE_SUFFIXES)})")
+    if not file.is_file():
+        raise ValueError(f"paths: {spec!r}: no such file {str(file)!r}")
+    if k and not (k.isdigit() and int(k) >= 1):
+        raise ValueError(f"paths: {spec!r}: the contour after '#' must be a number >= 1")
 
 
 def _is_number(x) -> bool:
@@ -335,46 +362,64 @@ def _machine(spec: str, base_dir: str) -> Machine:
 
 
 @lru_cache(maxsize=64)
-def _curve(path: str, family: str | None, path_seed: int | None, n_axes: int, length: float,
-           base_dir: str):
-    """The case's path (kept per worker: its arc-length table serves every case on it)."""
+def _contour(path: str, family: str | None, path_seed: int | None, n_axes: int,
+             length: float, base_dir: str, axes: str):
+    """The case's path and its programmed feed (a ``Contour``; kept per worker: its
+    arc-length table serves every case on it), read as ``nurbsmotion run`` reads it
+    (:func:`nurbsmotion.run_input.load_run_contour`; G-code and DXF on ``axes``)."""
     if family is not None:
+        from .paths import Contour
         from .paths.random_paths import random_path
 
-        return random_path(family, path_seed, n_axes, length)
+        return Contour(random_path(family, path_seed, n_axes, length), None, path)
     from .nurbs import BUILTIN_PATHS
-    from .paths import resolve_path
+    from .paths import resolve_contour
 
     spec = path if path.split("#")[0] in BUILTIN_PATHS else str(Path(base_dir) / path)
-    return resolve_path(spec)
+    return resolve_contour(spec, axes=axes)
 
 
 _PATH_ERRORS: dict = {}
 """Per worker: why a path could not be built (it fails the same way for all its cases)."""
 
 
-def _path(case: Case):
-    """The case's path with its arc-length tables (:func:`_curve`, kept per worker); a
-    path that could not be built, or whose tables took more than the case's time limit,
-    fails the worker's other cases on it at once, with the same error."""
-    key = _path_key(case)
+def _path(case: Case, machine: Machine):
+    """The case's path with its programmed feed and its arc-length tables
+    (:func:`_contour`, kept per worker); a path that could not be built, or whose tables
+    took more than the case's time limit, fails the worker's other cases on it at once,
+    with the same error."""
+    from .planning import check_path_size
+    from .run_input import path_axes
+
+    key = _path_key(case) + (path_axes(machine),)
     if key in _PATH_ERRORS:
         raise _PATH_ERRORS[key]
     try:
-        curve = _curve(*key)
-        curve.length  # the tables every interpolator and figure reads
+        contour = _contour(*key)
+        pulses = _pulses(key, machine.pulses_per_unit(contour.curve.units))
+        check_path_size(pulses)  # counted from the knots, before the tables
+        pulses.length  # the tables every interpolator and figure reads
     except Exception as exc:
         _PATH_ERRORS[key] = exc
         raise
-    return curve
+    return contour, pulses
 
 
-def _feed_in_pulses(case: Case, curve, machine: Machine) -> float:
-    per_unit = FEED_UNITS[case.feed_unit]
-    if per_unit is None:
-        scale = 1.0 if case.feed_unit == "pulse/s" else machine.pulses_per_unit(curve.units)
-        return case.feed_value * scale
-    return case.feed_value * per_unit * machine.pulses_per_unit("um")
+@lru_cache(maxsize=64)
+def _pulses(key: tuple, per_unit: float):
+    """The path of ``_contour(*key)`` in pulses (``per_unit`` pulses per path unit), kept
+    per worker with its arc-length tables."""
+    contour = _contour(*key)
+    return contour.curve if per_unit == 1.0 else contour.curve.scaled(per_unit,
+                                                                       units="pulse")
+
+
+def _feed_text(case: Case):
+    """The case's feed as ``run --feed`` takes it: a text with the study's unit
+    (``"50mm/s"``), or a bare number in the path's units per second (``path/s``)."""
+    if case.feed_unit == "path/s":
+        return case.feed_value
+    return f"{case.feed_value!r}{case.feed_unit}"
 
 
 def _plant_scales(case: Case, n_axes: int) -> tuple[np.ndarray, np.ndarray]:
@@ -398,44 +443,48 @@ def case_trace(case: Case):
     The one function that builds and runs a case's loop (adapt it when the loop's API
     changes).
     """
-    from .loop import run, to_pulses
+    from .loop import run
     from .metrics import trace_metrics
     from .report import summary
     from .servo import ServoPlant
 
+    from .run_input import run_feed
+
     machine = _machine(case.machine, case.base_dir)
-    curve = _path(case)
-    machine.check_path(curve.n_axes)
-    feed = _feed_in_pulses(case, curve, machine)
+    contour, pulses = _path(case, machine)
+    machine.check_path(contour.curve.n_axes)
+    # What `nurbsmotion run PATH --feed F` runs: the path in pulses, the feed in pulse/s
+    # (per piece where the file programs one, capped by the study's feed).
+    feed = run_feed(_feed_text(case), contour, machine)
     tau_s, kc_s = _plant_scales(case, machine.n_axes)
-    pulses = to_pulses(curve, machine)
     plant = ServoPlant.of_machine(machine, pulses(0.0), time_constant_scale=tau_s,
                                   electrical_gain_scale=kc_s)
-    trace = run(curve, machine, feed, case.interpolator, plant=plant,
+    trace = run(pulses, machine, feed, case.interpolator, plant=plant,
                 settle_time=case.settle_time, settle_window=case.settle_window)
     metrics = trace_metrics(trace, settle_window=case.settle_window)
-    bound = _bound(case, feed) if case.bound else math.nan
-    data = summary(metrics, interpolator=case.interpolator, feed=feed, machine=machine.name,
-                   path=case.path, time_optimal_bound=bound)
+    bound = _bound(case, pulses, machine, feed) if case.bound else math.nan
+    data = summary(metrics, interpolator=case.interpolator,
+                   feed=feed if isinstance(feed, (int, float)) else feed.highest,
+                   machine=machine.name, path=case.path, time_optimal_bound=bound)
     return trace, data, tau_s, kc_s
 
 
-@lru_cache(maxsize=64)
-def _bound_of(path: str, family, path_seed, n_axes, length, base_dir, machine: str,
-              feed: float) -> float:
-    from .loop import to_pulses
+_BOUNDS: dict = {}
+"""Per worker: the time-optimal bound of (path, machine, feed) [s]."""
+
+
+def _bound(case: Case, path, machine: Machine, feed) -> float:
+    """The time-optimal bound [s] of ``path`` [pulse] at ``feed`` [pulse/s]; it depends on
+    the path, the model and the feed only, so a worker keeps it for the case's other
+    plants and interpolators."""
     from .planning import time_optimal_bound
 
-    m = _machine(machine, base_dir)
-    curve = to_pulses(_curve(path, family, path_seed, n_axes, length, base_dir), m)
-    return time_optimal_bound(curve, m, feed)
-
-
-def _bound(case: Case, feed: float) -> float:
-    """The time-optimal bound [s]; it depends on the path, the model and the feed only, so
-    a worker keeps it for the case's other plants and interpolators."""
-    return _bound_of(case.path, case.path_family, case.path_seed, case.n_axes, case.length,
-                     case.base_dir, case.machine, feed)
+    key = _path_key(case) + (case.machine, case.feed_value, case.feed_unit)
+    if key not in _BOUNDS:
+        if len(_BOUNDS) >= 256:
+            _BOUNDS.clear()
+        _BOUNDS[key] = time_optimal_bound(path, machine, feed)
+    return _BOUNDS[key]
 
 
 def run_case(case: Case) -> dict:
@@ -604,7 +653,9 @@ def run_study(study: Study, out_dir: str | os.PathLike, *, workers: int | None =
     resume : bool
         Keep the finished rows in ``out_dir`` and run only the other cases.
     overwrite : bool
-        Delete an existing ``out_dir`` first.
+        First remove what an earlier campaign wrote into ``out_dir``
+        (:data:`CAMPAIGN_OUTPUTS`, the part files, the case folders' run outputs); no
+        other file there is touched.
     flush_rows, flush_seconds : int, float
         A part file is written every ``flush_rows`` finished rows or ``flush_seconds``.
     cases : list of Case, optional
@@ -634,13 +685,11 @@ def run_study(study: Study, out_dir: str | os.PathLike, *, workers: int | None =
                             "differs); choose another output folder", study.source)
     with _locked(out):
         if held and overwrite:
-            for p in out.iterdir():
-                if p.name != _LOCK:
-                    shutil.rmtree(p) if p.is_dir() else p.unlink()
+            _remove_outputs(out)
         rows_dir.mkdir(parents=True, exist_ok=True)
         for stale in rows_dir.glob(".part-*.tmp"):  # a part being written when killed
             stale.unlink()
-        study_copy.write_text(text)
+        write_output(study_copy, lambda h: h.write(text), overwrite=True)
         all_cases = study_cases(study) if cases is None else cases
         done = _finished_ids(out)
         todo = [c for c in all_cases if c.case_id not in done]
@@ -664,6 +713,37 @@ def run_study(study: Study, out_dir: str | os.PathLike, *, workers: int | None =
 
 
 _LOCK = ".lock"
+
+CAMPAIGN_OUTPUTS = ("study.toml", "digest.md", "digest.json")
+"""Files a campaign writes at the top of its folder (besides ``rows/`` and the case
+folders ``cNNNNNNN/`` of ``--case``)."""
+
+
+def _remove_outputs(out: Path) -> None:
+    """Remove what a campaign wrote into ``out`` (``--overwrite``): its files, its part
+    files and the run outputs of its case folders; a folder is removed once empty. A
+    file the campaign does not write is left where it is."""
+    from .plots import TRACE_FIGURES
+
+    for name in CAMPAIGN_OUTPUTS + (".digest.json.tmp", ".digest.md.tmp"):
+        if (out / name).is_file():
+            (out / name).unlink()
+    rows = out / "rows"
+    if rows.is_dir():
+        for p in [*rows.glob("part-*.parquet"), *rows.glob(".part-*.tmp")]:
+            p.unlink()
+    cases = [p for p in out.glob("c*") if p.is_dir() and len(p.name) == 8
+             and p.name[1:].isdigit()]
+    for folder in cases:
+        for name in ("trace.csv", "summary.json", *TRACE_FIGURES):
+            if (folder / name).is_file():
+                (folder / name).unlink()
+    for folder in [rows, *cases]:
+        try:
+            folder.rmdir()
+        except OSError:  # holds a file of the user's (or is absent)
+            pass
+
 
 
 @contextmanager

@@ -23,11 +23,11 @@ from ._io import OutputFolder
 from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .errors import InvalidArgumentError, NurbsmotionError
 from .interpolators import DEFAULT_INTERPOLATOR, LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
-from .machine import Machine, load_machine
+from .machine import MIN_SAMPLE_PERIOD, Machine, load_machine
 from .motion_plan import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
 from .planning import sampled_stop_bound, time_optimal_bound
 
-__all__ = ["main", "parse_feed"]
+__all__ = ["main", "parse_feed", "synopsis", "project_outputs"]
 
 
 def parse_feed(text: str) -> tuple[float, str | None]:
@@ -41,12 +41,11 @@ def parse_feed(text: str) -> tuple[float, str | None]:
 
 def _contour(args, machine: Machine | None = None):
     """The path named on the command line with its programmed feed (a ``Contour``): read
-    with ``--units`` and, for G-code and DXF, the machine's axes (XY without a machine)."""
-    from .paths import resolve_contour
+    with ``--units`` and, for G-code and DXF, the machine's axes (XY without a machine),
+    as a study's cases read theirs (:func:`nurbsmotion.run_input.load_run_contour`)."""
+    from .run_input import load_run_contour
 
-    names = [a.lower() for a in machine.axis_names] if machine is not None else ["x", "y"]
-    axes = "".join(names) if all(len(a) == 1 and a in "xyzabcuvw" for a in names) else "xy"
-    return resolve_contour(args.path, axes=axes, units=args.units)
+    return load_run_contour(args.path, machine, units=args.units)
 
 
 def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float = 1.0,
@@ -74,17 +73,16 @@ def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float 
             return one(1.0, unit)
         return f"{one(per_shown, shown_unit)} = {one(1.0, unit)}"
 
-    programmed = contour.feed
-    if programmed is None:
-        if cap is None:
-            raise NurbsmotionError(f"--feed is required: {args.path} gives no programmed feed")
-        return cap, f"--feed {speed(cap)}"
-    limit = programmed.scaled(scale)
+    from .run_input import programmed_feed
+
+    feed = programmed_feed(cap, contour.feed, scale, args.path)  # campaigns' rule too
+    if contour.feed is None:
+        return feed, f"--feed {speed(cap)}"
+    limit = contour.feed.scaled(scale)
     span = speed(limit.lowest, limit.highest)
     if cap is None:
-        return limit, f"the file's programmed feed ({span})"
-    capped = limit.capped(cap)
-    return capped, (f"the lower of the file's programmed feed ({span}) and --feed "
+        return feed, f"the file's programmed feed ({span})"
+    return feed, (f"the lower of the file's programmed feed ({span}) and --feed "
                     f"{speed(cap)} per piece")
 
 
@@ -147,8 +145,16 @@ def _axis_names(n: int) -> list[str]:
     return list("xyzabc"[:n]) if n <= 6 else [f"axis{i}" for i in range(n)]
 
 
+def _check_bound(bound: float, machine: Machine, curve, max_samples: int) -> None:
+    """Refuse a time-optimal bound longer than ``max_samples`` samples: no run of the path
+    could finish within them (``run`` and ``bound`` alike)."""
+    check_samples(bound / machine.sample_period, limit=max_samples, n_axes=curve.n_axes,
+                  what=f"the time-optimal bound ({bound:.4g} s at Ts = "
+                       f"{machine.sample_period:g} s): a run", option="--max-samples")
+
+
 def _cmd_bound(args) -> int:
-    from .loop import to_pulses
+    from .loop import check_run_arguments, to_pulses
 
     machine = load_machine(args.machine)
     contour = _contour(args, machine)
@@ -161,7 +167,12 @@ def _cmd_bound(args) -> int:
     feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s",
                             per_shown=units.pulses_per_report_unit(curve.units, machine),
                             shown_unit=f"{units.report_unit(curve.units)}/s")
-    bound = time_optimal_bound(to_pulses(curve, machine), machine, feed)
+    path = to_pulses(curve, machine)
+    # What `run` refuses, `bound` refuses: the same checks, and a bound no run could
+    # reach within its samples.
+    check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
+    bound = time_optimal_bound(path, machine, feed)
+    _check_bound(bound, machine, curve, args.max_samples)
     print(f"{bound:.6g}")
     if contour.feed is not None:
         print(f"feed: {note}", file=sys.stderr)
@@ -244,6 +255,7 @@ def _run(args, precompiler) -> int:
 
         # The bound first: a path it cannot be computed for is refused before the run.
         bound = time_optimal_bound(path, machine, feed)
+        _check_bound(bound, machine, curve, args.max_samples)
         bar.update()
         stage(stages[1])
         expected = estimate_samples(path.length, lowest, machine.sample_period)
@@ -436,6 +448,9 @@ def _cmd_reproduce(args) -> int:
 def _cmd_campaign(args) -> int:
     from .campaign import find_case, load_study, run_study
 
+    if args.out is not None and not args.out.strip():
+        raise InvalidArgumentError(f"--out {args.out!r} is empty; name a folder ('.' for the "
+                                   "current one) or leave --out out")
     study = load_study(args.study)
     out = Path(args.out) if args.out else Path(args.study).with_suffix("").with_name(
         Path(args.study).stem + "-campaign")
@@ -464,7 +479,8 @@ def _campaign_case(case, out: Path, args) -> int:
     from .report import write_json, write_trace_csv
 
     names = ["trace.csv", "summary.json"] + ([] if args.no_figures else list(TRACE_FIGURES))
-    with OutputFolder(out, names, overwrite=args.overwrite) as staged:  # checked first
+    with OutputFolder(out, names, overwrite=args.overwrite,  # checked first
+                      replaces=["trace.csv", "summary.json", *TRACE_FIGURES]) as staged:
         trace, data, _, _ = case_trace(case)
         write_trace_csv(trace, staged.staging / "trace.csv")
         write_json(data, staged.staging / "summary.json")
@@ -518,10 +534,26 @@ def _outputs_of(args) -> list[str]:
     return []
 
 
+def project_outputs() -> list[str]:
+    """Every file name ``interpolate``, ``run`` and ``reproduce`` may write into their
+    output folder (with any option): what ``--overwrite`` removes when this run does not
+    write it, and what refuses a folder without it. docs/cli.md lists them."""
+    from .experiments import reproduce_outputs
+    from .plots import SETPOINT_FIGURES, TRACE_FIGURES
+    from .report import TRACE_FILES
+
+    names = ["setpoints.csv", *SETPOINT_FIGURES, *TRACE_FILES.values(), "summary.json",
+             *EXPORT_FILES.values(), *TRACE_FIGURES, *reproduce_outputs(figures=True)]
+    return list(dict.fromkeys(names))
+
+
 def _outputs(args) -> OutputFolder:
     """The command's output folder: its files checked now, before any work, written
-    through a staging folder and moved into place only when all are complete."""
-    return OutputFolder(args.out, _outputs_of(args), overwrite=args.overwrite)
+    through a staging folder and moved into place only when all are complete; with
+    ``--overwrite`` an earlier run's outputs that this one does not write are removed
+    (:func:`project_outputs`), and without it they refuse the folder."""
+    return OutputFolder(args.out, _outputs_of(args), overwrite=args.overwrite,
+                        replaces=project_outputs())
 
 
 def _positive_float(text: str) -> float:
@@ -532,6 +564,16 @@ def _positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
+    return value
+
+
+def _sample_period(text: str) -> float:
+    """argparse type: a sample period [s] of at least the machines' minimum."""
+    value = _positive_float(text)
+    if value < MIN_SAMPLE_PERIOD:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} s is below the minimum sample period of {MIN_SAMPLE_PERIOD:g} s "
+            "(machine.MIN_SAMPLE_PERIOD); is it in seconds?")
     return value
 
 
@@ -599,7 +641,8 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("--units", choices=PATH_UNITS, help=units_help)
     i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
                    help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
-    i.add_argument("--sample-period", type=_positive_float, default=1e-3, help="Ts [s]")
+    i.add_argument("--sample-period", type=_sample_period, default=1e-3,
+                   help=f"Ts [s], at least {MIN_SAMPLE_PERIOD:g}")
     i.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
                    help="refuse, before any work, a move estimated to take more samples "
                    "than this (about 2.8 h at 1 ms)")
@@ -664,6 +707,9 @@ def _parser() -> argparse.ArgumentParser:
                    "every sharp corner [s]: whole samples per "
                    "piece, each at least what the slowest axis needs from rest to rest "
                    "(ignores the feed and the path's shape; within 1 pulse of the end)")
+    b.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
+                   help="refuse, as run does, a move estimated (or bounded) to take more "
+                   "samples than this")
     b.set_defaults(func=_cmd_bound)
 
     c = command("contours", "list the contours of a path file: index, pieces, length, "
@@ -698,6 +744,21 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
     c.set_defaults(func=_cmd_campaign)
     return p
+
+
+def synopsis(width: int = 88) -> str:
+    """The command's synopsis, from the parser itself: the top-level usage, then each
+    command's, wrapped at ``width`` columns (docs/cli.md opens with it; a test checks
+    that it is this text)."""
+    parser = _parser()
+
+    def usage(p: argparse.ArgumentParser) -> str:
+        formatter = argparse.HelpFormatter(p.prog, width=width)
+        formatter.add_usage(p.usage, p._actions, p._mutually_exclusive_groups, prefix="")
+        return formatter.format_help().strip()
+
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return "\n".join([usage(parser)] + [usage(c) for c in sub.choices.values()])
 
 
 def _one_line(text) -> str:

@@ -28,6 +28,7 @@ from .feed import FeedLimit
 from .interpolators import DEFAULT_INTERPOLATOR, Interpolator, make_interpolator
 from .machine import Machine
 from .nurbs import NurbsCurve
+from .planning import check_feed_reachable, check_path_size
 from .servo import ServoPlant
 from .stepping import Status
 from .units import feed_in_pulses
@@ -642,13 +643,17 @@ def check_run_arguments(curve, machine, feed, max_samples: int = MAX_SAMPLES, *,
     ``curve`` must be a :class:`NurbsCurve` and ``machine`` a :class:`Machine` (whose
     closed loop is stable: it was checked when the machine was made); ``feed`` a finite
     number > 0 [pulse/s] or a :class:`~nurbsmotion.feed.FeedLimit` (its lowest feed sizes
-    the estimate); and the move at most ``max_samples`` samples long
+    the estimate), at most :data:`~nurbsmotion.planning.MAX_FEED_RATIO` times the
+    machine's top speed (:func:`~nurbsmotion.planning.check_feed_reachable`); the path
+    within the planner's size (:func:`~nurbsmotion.planning.check_path_size`); and the
+    move at most ``max_samples`` samples long
     (:func:`nurbsmotion.budget.check_samples`; ``option`` names the way to raise it).
     """
     if not isinstance(curve, NurbsCurve):
         raise InvalidArgumentError(f"curve must be a NurbsCurve, got {curve!r:.60}")
     if not isinstance(machine, Machine):
         raise InvalidArgumentError(f"machine must be a Machine, got {machine!r:.60}")
+    highest = feed
     if isinstance(feed, FeedLimit):
         feed = feed.lowest
     if isinstance(feed, (bool, np.bool_)) or not isinstance(feed, (int, float, np.integer,
@@ -656,6 +661,8 @@ def check_run_arguments(curve, machine, feed, max_samples: int = MAX_SAMPLES, *,
         raise InvalidArgumentError(f"feed must be a number [pulse/s], got {feed!r:.60}")
     if not (math.isfinite(feed) and feed > 0):
         raise InvalidArgumentError(f"feed must be finite and > 0 [pulse/s], got {feed!r}")
+    check_feed_reachable(highest, machine)
+    check_path_size(curve)  # counted from the knots, before the arc-length tables
     length = curve.length * machine.pulses_per_unit(curve.units)  # [pulse], cached
     check_samples(estimate_samples(length, float(feed), machine.sample_period),
                   limit=max_samples, n_axes=curve.n_axes,

@@ -118,6 +118,12 @@ class Axis:
             raise InvalidMachineError(f"{where}pid must be a PidGains, got {self.pid!r}")
 
 
+MIN_SAMPLE_PERIOD = 1e-5
+"""Shortest sample period Ts a machine may have [s] (100 kHz). Position loops of servo
+drives and motion controllers run at 1-32 kHz (LinuxCNC's servo thread at 1 kHz); a
+shorter period is most likely a unit slip (microseconds written as seconds), and it
+multiplies the samples of every move."""
+
 @dataclass(frozen=True)
 class Machine:
     """A multi-axis motion system with a saturating drive.
@@ -169,6 +175,11 @@ class Machine:
         if self.max_drive != math.inf:  # an ideal drive (no saturation) is allowed
             object.__setattr__(self, "max_drive", _positive(self.max_drive, "max_drive"))
         object.__setattr__(self, "sample_period", _positive(self.sample_period, "sample_period"))
+        if self.sample_period < MIN_SAMPLE_PERIOD:
+            raise InvalidMachineError(
+                f"sample_period {self.sample_period:g} s is below the minimum of "
+                f"{MIN_SAMPLE_PERIOD:g} s (machine.MIN_SAMPLE_PERIOD, a 100 kHz loop): "
+                "is it in seconds?")
         object.__setattr__(
             self, "pulse_length_um", _positive(self.pulse_length_um, "pulse_length_um")
         )

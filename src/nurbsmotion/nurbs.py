@@ -58,6 +58,7 @@ __all__ = [
     "make_butterfly",
     "builtin_path",
     "BUILTIN_PATHS",
+    "MAX_CONTROL_POINTS",
 ]
 
 MAX_ORDER = 3
@@ -84,6 +85,13 @@ MAX_MAGNITUDE = 1e50
 """Largest magnitude of a coordinate [path units] or weight (and smallest weight is its
 inverse): keeps w*P, |C'|^3 (curvature) and the servo's squares finite in double
 precision, whatever the knot spacing."""
+
+MAX_CONTROL_POINTS = 500_000
+"""Most control points a curve may have (so at most that many knot spans). A curve is
+refused beyond it when it is built, and a path file when it is read, before its points
+are converted or checked: the arc-length tables and the zero-speed check grow with the
+spans (a million control points took 106 s and 3.4 GB before the planner refused them).
+Half a million 0.01 mm chords are a 5 m toolpath."""
 
 PATH_UNITS = ("pulse", "um", "mm", "cm", "m", "in", "inch")
 """Length units a curve may be drawn in (``units``); ``None`` means unspecified (pulses
@@ -158,6 +166,18 @@ def _first_bad(mask: np.ndarray) -> int:
     return int(np.flatnonzero(mask)[0])
 
 
+def _check_count(control_points) -> None:
+    """Refuse more than :data:`MAX_CONTROL_POINTS` control points before converting them."""
+    try:
+        n = len(control_points)
+    except TypeError:  # not a sequence: _as_float_array says what it is
+        return
+    if n > MAX_CONTROL_POINTS:
+        raise InvalidCurveError(
+            f"the curve has {n:,} control points, more than the {MAX_CONTROL_POINTS:,} a "
+            "path may have (nurbs.MAX_CONTROL_POINTS); split the path or join its chords")
+
+
 class NurbsCurve:
     """A clamped non-uniform rational B-spline curve in any number of axes.
 
@@ -215,6 +235,7 @@ class NurbsCurve:
         if name is not None and not isinstance(name, str):
             raise InvalidCurveError(f"name must be a string, got {name!r:.80}")
 
+        _check_count(control_points)
         P = _as_float_array(control_points, "control_points", 2)
         n, n_axes = P.shape
         if n_axes < 1:

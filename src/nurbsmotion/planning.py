@@ -43,13 +43,14 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .errors import InfeasibleError, InvalidArgumentError, InvalidFeedError
+from .errors import InfeasibleError, InvalidArgumentError, InvalidFeedError, WorkLimitError
 from .feed import FeedLimit
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .servo import zoh_coefficients
 
-__all__ = ["SpeedProfile", "speed_profile", "time_optimal_bound", "sampled_stop_bound"]
+__all__ = ["SpeedProfile", "speed_profile", "time_optimal_bound", "sampled_stop_bound",
+           "check_path_size", "top_speed", "check_feed_reachable", "MAX_FEED_RATIO"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,6 +125,72 @@ at a time, and estimating again, adds few points)."""
 
 MAX_GRID_POINTS = 5_000_000
 """Most grid points of a speed profile (the passes run about 10^5 points per second)."""
+
+
+def top_speed(machine: Machine) -> float:
+    """The fastest any motion within the drive limits moves along a path [pulse/s]:
+    ``sqrt(sum_j (Umax*Kc_j*Ke_j)^2)``. Each axis's speed obeys ``tau_j*xdd_j + xd_j =
+    Kc_j*Ke_j*u_j`` (SPEC section 3), a first-order filter of a drive ``|u_j| <= Umax``,
+    so from rest ``|xd_j|`` never exceeds ``Umax*Kc_j*Ke_j``. ``inf`` for an ideal drive."""
+    if machine.max_drive == math.inf:
+        return math.inf
+    return float(np.sqrt(np.sum((machine.max_drive * machine.Kc * machine.Ke) ** 2)))
+
+
+MAX_FEED_RATIO = 1000.0
+"""A feed more than this many times :func:`top_speed` is refused by ``run``, ``bound`` and
+campaigns (:func:`check_feed_reachable`): no motion comes near it, and such a number is a
+slip of its unit (1e12 mm/s is faster than light)."""
+
+
+def check_feed_reachable(feed, machine: Machine, shown: str | None = None) -> None:
+    """Refuse a feed [pulse/s] (its highest piece for a :class:`FeedLimit`) above
+    :data:`MAX_FEED_RATIO` times the machine's :func:`top_speed`.
+
+    Parameters
+    ----------
+    feed : float or FeedLimit
+        [pulse/s].
+    machine : Machine
+    shown : str, optional
+        The feed as the user gave it, for the message (e.g. ``"1e12mm/s"``).
+
+    Raises
+    ------
+    InvalidFeedError
+        Naming the feed, the top speed and the ratio.
+    """
+    F = feed.highest if isinstance(feed, FeedLimit) else float(feed)
+    top = top_speed(machine)
+    if F > MAX_FEED_RATIO * top:
+        given = f"{shown} = " if shown else ""
+        raise InvalidFeedError(
+            f"feed {given}{F:.3g} pulse/s is {F / top:.3g} times the fastest any motion of "
+            f"{machine.name} moves ({top:.3g} pulse/s, sqrt(sum (Umax*Kc*Ke)^2)), more than "
+            f"the {MAX_FEED_RATIO:g} x a run accepts (planning.MAX_FEED_RATIO); is its unit "
+            "right?")
+
+
+def check_path_size(curve: NurbsCurve) -> None:
+    """Refuse, before any table is built, a path whose speed profile cannot fit in
+    :data:`MAX_GRID_POINTS`: every knot span gets at least ``SPAN_POINTS_PER_DEGREE * p``
+    grid intervals (:func:`speed_profile`), so a path of ``n`` spans needs at least
+    ``n * SPAN_POINTS_PER_DEGREE * p + 1`` points. Counted from the knots alone (no
+    arc length), in microseconds.
+
+    Raises
+    ------
+    WorkLimitError
+        Naming the spans, the degree and the limit.
+    """
+    spans = len(curve.breakpoints) - 1
+    least = spans * SPAN_POINTS_PER_DEGREE * curve.degree + 1
+    if least > MAX_GRID_POINTS:
+        raise WorkLimitError(
+            f"the path has {spans:,} knot spans of degree {curve.degree}: at "
+            f"{SPAN_POINTS_PER_DEGREE} x degree grid points each its speed profile needs "
+            f"{least:,} points, more than the limit of {MAX_GRID_POINTS:,} "
+            "(planning.MAX_GRID_POINTS); split the path or join its chords")
 
 
 def _span_points(curve: NurbsCurve, u0: float, u1: float, s: np.ndarray) -> np.ndarray:
@@ -478,6 +545,14 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
         zero).
     """
     F = _check_feed(feed)
+    check_path_size(curve)
+    # No motion within the drive limits is faster than top_speed: a higher feed never
+    # binds, and the profile is computed below twice that (the MVC's feed ratio and F^2
+    # stay meaningful for any feed, 1e300 included).
+    ceiling = 2.0 * top_speed(machine)
+    if F > ceiling:
+        feed = feed.capped(ceiling) if isinstance(feed, FeedLimit) else ceiling
+        F = ceiling
     fa = drive_fraction if acceleration_fraction is None else acceleration_fraction
     for name, f in (("drive_fraction", drive_fraction), ("acceleration_fraction", fa)):
         if not (0 < f <= 1):
@@ -691,6 +766,7 @@ def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,
         1e-320).
     """
     F = _check_feed(feed)
+    check_path_size(curve)  # before the arc-length tables
     if machine.max_drive == math.inf or not math.isfinite(curve.length / F):
         # a lower bound; not finite: refused below, at once
         bound = feed.duration(curve) if isinstance(feed, FeedLimit) else curve.length / F

@@ -80,8 +80,11 @@ def _read(path: Path):
     _sniff(path)
     try:
         return ezdxf.readfile(path)
+    except StopIteration:  # ezdxf's tag reader ran out inside a section
+        raise PathFileError("cannot read DXF: the file ends inside a section (cut short?)",
+                            source=str(path)) from None
     except (ezdxf.DXFError, OSError, UnicodeError, ValueError, TypeError, KeyError, IndexError,
-            AttributeError, EOFError) as exc:
+            AttributeError, EOFError, ArithmeticError, RuntimeError) as exc:
         raise PathFileError(f"cannot read DXF: {_one_line(exc)}", source=str(path)) from None
 
 

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 from .._io import parse_json_or_toml, read_text_file, write_output
 from ..feed import FeedLimit
 from ..errors import InvalidCurveError, PathFileError
-from ..nurbs import BUILTIN_PATHS, NurbsCurve, builtin_path
+from ..nurbs import BUILTIN_PATHS, MAX_CONTROL_POINTS, NurbsCurve, builtin_path
 
 __all__ = [
     "Contour",
@@ -154,6 +154,9 @@ def _check_fields(data: Any) -> dict:
     points = data["control_points"]
     if not isinstance(points, list) or not points:
         raise _FieldError("control_points", "must be a non-empty list of [x, y, ...] rows")
+    if len(points) > MAX_CONTROL_POINTS:  # refused before its rows are checked one by one
+        raise _FieldError("control_points", f"has {len(points):,} rows, more than the "
+                          f"{MAX_CONTROL_POINTS:,} a path may have (nurbs.MAX_CONTROL_POINTS)")
     rows = [_numbers(row, f"control_points[{i}]") for i, row in enumerate(points)]
     if len({len(r) for r in rows}) != 1:
         lengths = [len(r) for r in rows]
