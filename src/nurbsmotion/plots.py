@@ -73,8 +73,7 @@ _ZOOM_MARGIN = 1.3  # the zoom holds the largest nearby contour error with this 
 _CORNER_REACH = 0.05  # samples within this fraction of the length size a corner's zoom
 _CLOSE_ZOOM_RATIO = 3.0  # add a closer zoom when the runs' errors differ by this factor
 _MAX_ERROR_ZOOMS = 4  # zooms on the largest contour errors of a path without corners
-_SETTLE_WINDOW_PULSES = 1.0  # the end point's settle band: ±1 pulse
-_SETTLE_ZOOM = 5.0  # the settle zoom spans ±5 pulses: the band and what enters it
+_SETTLE_ZOOM = 5.0  # the settle zoom spans ±5 settle windows: the band and what enters it
 
 
 @dataclass(frozen=True)
@@ -810,8 +809,9 @@ def _speed_figure(rows: list, events, settle: float, title: str, path: Path, uni
 def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float,
                    settle: float, overwrite: bool) -> Path:
     """Actual position minus the end point per axis [L] from shortly before the setpoint
-    reaches the end to the last sample: the whole approach (left) and a zoom on the
-    ±1 pulse band (right, ±:data:`_SETTLE_ZOOM` pulses)."""
+    reaches the end to the last sample: the whole approach (left) and a zoom (right,
+    ±:data:`_SETTLE_ZOOM` windows) on the run's settle band, ±``trace.settle_window``
+    [pulse] (the window its settle time was measured with)."""
     tr = run.trace
     names = tr.machine.axis_names
     # the path's end point (a planned setpoint leads the path: the command at the
@@ -820,21 +820,23 @@ def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float
     t0 = tr.cycle_time
     sel = tr.t >= t0 - 0.5 * settle
     t = tr.t[sel] - t0
-    band = _SETTLE_WINDOW_PULSES / per_unit
+    window = float(tr.settle_window)  # [pulse]
+    band = window / per_unit
+    within = f"±{window:g} pulse"
     fig = _figure(11.0, 2.3 * len(names) + 1.0)
     axes = fig.subplots(len(names), 2, sharex=True, squeeze=False)
     for j, (ax_all, ax_zoom) in enumerate(axes):
         dev = run.position[sel, j] - end[j]
         after = np.nonzero((t >= 0) & (np.abs(dev) > band))[0]
         if after.size == 0:
-            when = "within ±1 pulse when the setpoint reaches the end"
+            when = f"within {within} when the setpoint reaches the end"
         elif after[-1] + 1 < len(t):
-            when = f"within ±1 pulse from t_end + {t[after[-1] + 1]:.4g} s on"
+            when = f"within {within} from t_end + {t[after[-1] + 1]:.4g} s on"
         else:
-            when = "not within ±1 pulse by the last sample"
+            when = f"not within {within} by the last sample"
         for ax in (ax_all, ax_zoom):
             ax.axhspan(-band, band, color="C2", alpha=0.25,
-                       label=f"±1 pulse (±{band:.3g} {unit})")
+                       label=f"settle window {within} (±{band:.3g} {unit})")
             ax.plot(t, dev, color=run.color, marker=".", markersize=3, linewidth=1,
                     label=f"actual − end point, {run.label}")
             ax.axvline(0.0, color="0.6", linestyle=":", linewidth=0.8,
@@ -843,8 +845,8 @@ def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float
         ax_zoom.set_ylim(-_SETTLE_ZOOM * band, _SETTLE_ZOOM * band)
         ax_all.set_ylabel(f"{names[j]} − end [{unit}]")
         _title(ax_all, f"{names[j]}: {when}", fontsize="medium", loc="left")
-        _title(ax_zoom, f"{names[j]}, zoom ±{_SETTLE_ZOOM:g} pulse", fontsize="medium",
-                          loc="left")
+        _title(ax_zoom, f"{names[j]}, zoom ±{_SETTLE_ZOOM * window:g} pulse",
+               fontsize="medium", loc="left")
     for ax in axes[-1]:
         ax.set_xlabel("t − t_end [s] (t_end: the setpoint reaches the end point)")
     _legend_below(fig, axes, ncol=3)
@@ -883,7 +885,7 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
         clipping per axis [V], framed on ±Umax, with event windows), ``speed.png``
         (commanded axis speed [L/s] and the eq. 3.6 bounds where computed, with event
         windows) and ``settle.png`` (actual position minus the end point per axis [L]
-        with the ±1 pulse band).
+        with the run's settle band, ±``trace.settle_window``).
     """
     out = _output_dir(out_dir)
     unit, per_unit = _units_of(trace, length_unit)
