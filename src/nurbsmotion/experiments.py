@@ -19,6 +19,7 @@ from .loop import Trace, run, to_pulses
 from .machine import Machine, die_bonder
 from .nurbs import builtin_path
 from .planning import time_optimal_bound
+from .plots import _figure_reuse
 from .report import check_writable, markdown_table, summary, write_json
 from .units import pulses_per_report_unit, report_unit
 
@@ -63,6 +64,7 @@ def _figure_prefix(name: str, feed_m_s: float) -> str:
     return f"{name}_{feed_m_s:g}ms"
 
 
+@_figure_reuse()  # the figures' layouts recur from feed to feed: drawn on the same figures
 def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
               interpolators=PAPER_INTERPOLATORS, overwrite: bool = False,
               figures: bool = True,

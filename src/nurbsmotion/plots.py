@@ -30,6 +30,8 @@ Ts : sample period [s]; k : pulses per report unit [pulse/L].
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -155,11 +157,11 @@ def _text_size(text, renderer) -> tuple[float, float]:
     return box.width / _DPI, box.height / _DPI
 
 
-def _tick_labels(axis, renderer) -> tuple[float, float, float]:
+def _tick_labels(axis) -> tuple[float, float, float]:
     """Widest and tallest major tick label [inch] of ``axis`` as it will be drawn (0 when
     its labels are hidden) and the height of its offset text ("1e-5", "+1000") [inch],
     from its locator and formatter: no tick artists are made."""
-    from matplotlib.cbook import is_math_text
+    import matplotlib as mpl
     from matplotlib.font_manager import FontProperties
 
     if not axis._major_tick_kw.get("label1On", True):
@@ -167,25 +169,31 @@ def _tick_labels(axis, renderer) -> tuple[float, float, float]:
     lo, hi = sorted(axis.get_view_interval())
     locs = [x for x in axis.get_major_locator()() if lo - 1e-9 * (hi - lo) <= x
             <= hi + 1e-9 * (hi - lo)]
+    if not locs:
+        return 0.0, 0.0, 0.0
     formatter = axis.get_major_formatter()
-    labels = formatter.format_ticks(locs) if locs else []
-    import matplotlib as mpl
-
+    labels = formatter.format_ticks(locs)
     name = "xtick" if axis.axis_name == "x" else "ytick"
-    prop = FontProperties(size=mpl.rcParams[f"{name}.labelsize"])
-    width = 0.0
-    for label in labels:
-        if label:
-            w, _, _ = renderer.get_text_width_height_descent(label, prop,
-                                                             ismath=is_math_text(label))
-            width = max(width, w)
+    size = FontProperties(size=mpl.rcParams[f"{name}.labelsize"]).get_size_in_points()
+    width = max((_label_extent(label, size)[0] for label in labels if label), default=0.0)
     # a line of text is as tall as "lp" (ascent and descent) whatever it holds
-    height = renderer.get_text_width_height_descent("lp", prop, ismath=False)[1] + 2.0
+    height = _label_extent("lp", size)[1] + 2.0 / 72
     offset = formatter.get_offset() if hasattr(formatter, "get_offset") else ""
-    to_inch = 1.0 / _DPI
-    if not labels:
-        height = 0.0
-    return width * to_inch, height * to_inch, (height * to_inch if offset else 0.0)
+    return width, height, (height if offset else 0.0)
+
+
+@functools.lru_cache(maxsize=4096)
+def _label_extent(label: str, size: float) -> tuple[float, float]:
+    """Width and height [inch] of one line of text (a tick label) of ``size`` [pt]; the
+    same labels recur on every panel, so each is measured once."""
+    from matplotlib.backends.backend_agg import RendererAgg
+    from matplotlib.cbook import is_math_text
+    from matplotlib.font_manager import FontProperties
+
+    renderer = RendererAgg(1, 1, _DPI)  # draws nothing: measures with the same fonts
+    w, h, _ = renderer.get_text_width_height_descent(label, FontProperties(size=size),
+                                                     ismath=is_math_text(label))
+    return w / _DPI, h / _DPI
 
 
 def _decorations(ax, renderer) -> tuple[float, float, float, float, float]:
@@ -197,8 +205,8 @@ def _decorations(ax, renderer) -> tuple[float, float, float, float, float]:
         top = max(_text_size(t, renderer)[1] for t in (ax.title, ax._left_title))
         return 0.2, 0.2, 0.2, top + 6 / 72, 0.0
     pad = (mpl.rcParams["xtick.major.size"] + mpl.rcParams["xtick.major.pad"]) / 72
-    xw, xh, xoff = _tick_labels(ax.xaxis, renderer)
-    yw, yh, yoff = _tick_labels(ax.yaxis, renderer)
+    xw, xh, xoff = _tick_labels(ax.xaxis)
+    yw, yh, yoff = _tick_labels(ax.yaxis)
     labelpad = mpl.rcParams["axes.labelpad"] / 72
     ylabel = _text_size(ax.yaxis.label, renderer)[0]
     xlabel = _text_size(ax.xaxis.label, renderer)[1]
@@ -255,11 +263,9 @@ def _arrange(fig) -> None:
         for ax in axes:  # GridSpec.update moves the panels of pyplot's figures only
             ax.set_position(ax.get_subplotspec().get_position(fig))
     for ax in axes:  # titles above an offset text ("1e-5") at the top of the y axis
-        lift = deco[ax][4]
-        if lift:
-            box_h = ax.get_position().height * height
-            for t in (ax.title, ax._left_title, ax._right_title):
-                t.set_y(1.0 + lift / box_h)
+        lift = deco[ax][4] / (ax.get_position().height * height)
+        for t in (ax.title, ax._left_title, ax._right_title):
+            t.set_y(1.0 + lift)
 
 
 def _text_size_box(artist, renderer) -> float:
@@ -390,6 +396,58 @@ def _window_columns(fig, n_rows: int, events: list[_Event]):
             share = axes[r, 0] if c > 1 else None
             axes[r, c] = fig.add_subplot(grid[r, c], sharey=share)
     return axes
+
+
+_reused: dict | None = None
+"""Figures kept for reuse by layout while a :func:`_figure_reuse` block runs."""
+
+
+@contextlib.contextmanager
+def _figure_reuse():
+    """Within this block the windowed figures of one layout (rows, events, size) are drawn
+    on one Figure, its panels emptied between files (:func:`_windowed_figure`): making the
+    panels and their ticks was about a third of the time of such a figure. Nested blocks
+    share the outermost one's figures; they are dropped when it ends."""
+    global _reused
+    outer = _reused
+    if outer is None:
+        _reused = {}
+    try:
+        yield
+    finally:
+        if outer is None:
+            _reused = None
+
+
+def _windowed_figure(n_rows: int, events: list[_Event]):
+    """A figure and its :func:`_window_columns` grid, shape (n_rows, 1 + len(events)): a
+    new one, or inside :func:`_figure_reuse` the one of this layout, emptied."""
+    key = (n_rows, len(events))
+    if _reused is not None and key in _reused:
+        fig, axes = _reused[key]
+        _empty(fig, axes.ravel())
+        return fig, axes
+    fig = _figure(4.0 + 2.3 * len(events), 2.7 * n_rows + 1.0)
+    axes = _window_columns(fig, n_rows, events)
+    if _reused is not None:
+        _reused[key] = (fig, axes)
+    return fig, axes
+
+
+def _empty(fig, axes) -> None:
+    """Remove what was drawn on ``fig`` and its ``axes`` (keeping the panels, their
+    shared scales, tick settings and ticks), and let the scales follow the data again."""
+    for legend in list(fig.legends):
+        legend.remove()
+    for ax in axes:
+        for artist in [*ax.lines, *ax.patches, *ax.collections, *ax.texts]:
+            artist.remove()
+        for text in (ax.title, ax._left_title, ax._right_title):
+            text.set_text("")
+        ax.set_xlabel("")
+        ax.set_ylabel("")
+        ax.relim()
+        ax.autoscale(True)
 
 
 def _plot_windowed(axes_row, runs: list[_Run], events: list[_Event], settle: float,
@@ -766,8 +824,7 @@ def _drive_figure(runs: list[_Run], events, settle: float, title: str, path: Pat
     """u before clipping [V] per axis (rows): whole run and event windows (columns)."""
     machine = runs[0].trace.machine
     names, umax = machine.axis_names, machine.max_drive
-    fig = _figure(4.0 + 2.3 * len(events), 2.7 * len(axes_shown) + 1.0)
-    grid = _window_columns(fig, len(axes_shown), events)
+    fig, grid = _windowed_figure(len(axes_shown), events)
     finite = math.isfinite(umax)
     for row, j in zip(grid, axes_shown):
         _plot_windowed(row, runs, events, settle, lambda r, j=j: r.trace.drive[:, j],
@@ -792,8 +849,7 @@ def _speed_figure(rows: list, events, settle: float, title: str, path: Path, uni
                   overwrite: bool) -> Path:
     """Commanded axis speed [L/s] and its eq. 3.6 bounds where computed; one panel row per
     ``(run, axis index, label)`` in ``rows``."""
-    fig = _figure(4.0 + 2.3 * len(events), 2.7 * len(rows) + 1.0)
-    grid = _window_columns(fig, len(rows), events)
+    fig, grid = _windowed_figure(len(rows), events)
     for panels, (run, j, label) in zip(grid, rows):
         _plot_windowed(panels, [run], events, settle, lambda r, j=j: r.speed_command[:, j],
                        bounds=(lambda r, j=j: None if r.speed_bounds is None
@@ -854,6 +910,7 @@ def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float
     return _save(fig, path, overwrite)
 
 
+@_figure_reuse()
 def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
                length_unit: str | None = None, overwrite: bool = True) -> list[Path]:
     """Write the figures of one closed-loop run.
@@ -1000,6 +1057,7 @@ def plot_setpoints(series, out_dir, axis_names=None, *, units: str | None = None
     return [_save(fig, out / f"{prefix}setpoints.png", overwrite)]
 
 
+@_figure_reuse()
 def plot_comparison(traces: dict, out_dir, name: str, *, feed: float | None = None,
                     axis: int | None = None, length_unit: str | None = None,
                     overwrite: bool = True) -> list[Path]:
