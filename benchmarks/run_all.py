@@ -16,6 +16,7 @@ from pathlib import Path
 
 import _common
 import compile_cost
+import figure_time
 import long_run
 import loop_throughput
 import memory
@@ -52,6 +53,7 @@ def main(argv=None) -> int:
         nurbs_eval.main(repeats=3 if q else 7, geomdl_repeats=1 if q else 3),
         compile_cost.main(repeats=1 if q else 3),
         reproduce_time.main(repeats=1 if q else 2),
+        figure_time.main(repeats=1 if q else 3),
         _toppra_section(repeats=1 if q else 3),
     ]
     took = time.perf_counter() - t0

@@ -66,7 +66,7 @@ MAX_EVENT_WINDOWS = 3
 """Corner windows shown at most (the corners with the largest drive), besides start and stop."""
 
 _DPI = 110
-_PNG_COMPRESSION = 3  # zlib level: level 6 (the default) took twice as long for 10 % less
+_PNG_COMPRESSION = 1  # zlib level: level 6 (matplotlib's) took 1.5 x as long for 5 % less
 _STYLES = (("C0", "-"), ("C3", "--"), ("C2", "-."), ("C1", ":"), ("C4", "-"), ("C5", "--"))
 """(colour, line style) per run, in order: solid first, as the paper draws its proposed
 algorithm solid and the uncompensated one dashed (Figs. 5 and 7)."""
@@ -133,9 +133,15 @@ def _figure(width: float, height: float):
 
 
 def _save(fig, path: Path, overwrite: bool = True) -> Path:
+    """Place the panels (:func:`_arrange`), draw ``fig`` and write it as an RGB PNG (the
+    figures are opaque: no alpha channel to encode)."""
+    from PIL import Image  # matplotlib's own dependency
+
     _arrange(fig)
-    write_output(path, lambda h: fig.savefig(h, format="png", dpi=_DPI,
-                                             pil_kwargs={"compress_level": _PNG_COMPRESSION}),
+    fig.canvas.draw()
+    image = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())).convert("RGB")
+    write_output(path, lambda h: image.save(h, format="png", dpi=(_DPI, _DPI),
+                                            compress_level=_PNG_COMPRESSION),
                  overwrite=overwrite, binary=True)
     return path  # the figure is in no registry: it is freed with its last reference
 
