@@ -208,3 +208,29 @@ def test_settle_figure_draws_the_runs_settle_window(machine, tmp_path, monkeypat
     assert seen["zoom"] == [pytest.approx((-5 * band, 5 * band), rel=1e-12)] * 2
     assert all(f"±{window:g} pulse" in t for t in seen["titles"][::2])
     assert all(f"zoom ±{5 * window:g} pulse" in t for t in seen["titles"][1::2])
+
+
+def test_plot_comparisons_forked_draw_what_one_process_draws(pi_runs, machine, tmp_path):
+    """plot_comparisons draws each comparison as plot_comparison does, in forked workers
+    or here: the same files, pixel for pixel (here the second job is drawn on the emptied
+    figures of the first, in the workers each on its own: nothing of one is left on the
+    next)."""
+    from nurbsmotion.plots import comparison_figures, plot_comparisons
+
+    slow = {"taylor2": simulate(make_interpolator("taylor2", nm.make_die_bonder_pi(), machine,
+                                                  5e5), machine)}
+    jobs = [(pi_runs, None, "fast", {"feed": 1e6}), (slow, None, "slow", {"feed": 5e5})]
+    written = {}
+    for processes in (1, 2):
+        out = tmp_path / str(processes)
+        done = []
+        files = plot_comparisons([(t, out, name, o) for t, _, name, o in jobs],
+                                 processes=processes, done=done.append)
+        assert done == [0, 1]
+        expected = comparison_figures("fast", machine.axis_names) + comparison_figures(
+            "slow", machine.axis_names)
+        assert sorted(p.name for p in files) == sorted(expected)
+        written[processes] = {p.name: p.read_bytes() for p in files}
+    assert written[1].keys() == written[2].keys()
+    differ = [name for name in written[1] if written[1][name] != written[2][name]]
+    assert not differ

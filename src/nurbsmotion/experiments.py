@@ -19,7 +19,6 @@ from .loop import Trace, run, to_pulses
 from .machine import Machine, die_bonder
 from .nurbs import builtin_path
 from .planning import time_optimal_bound
-from .plots import _figure_reuse
 from .report import check_writable, markdown_table, summary, write_json
 from .units import pulses_per_report_unit, report_unit
 
@@ -64,7 +63,6 @@ def _figure_prefix(name: str, feed_m_s: float) -> str:
     return f"{name}_{feed_m_s:g}ms"
 
 
-@_figure_reuse()  # the figures' layouts recur from feed to feed: drawn on the same figures
 def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
               interpolators=PAPER_INTERPOLATORS, overwrite: bool = False,
               figures: bool = True,
@@ -106,6 +104,7 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
             progress(done, total, label)
 
     rows, traces, files = [], {}, []
+    jobs, labels = [], []  # the figures of each path and feed
     for name, feeds in experiment.items():
         given = builtin_path(name)
         unit = report_unit(given.units)
@@ -123,12 +122,14 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
                               length_unit=unit, pulses_per_length_unit=per_unit)
                 rows.append({"path": name, "feed_m_s": feed_m_s, **row})
                 step(f"{name} {feed_m_s:g} m/s {method}")
-            if figures:
-                from .plots import plot_comparison
+            if figures:  # drawn once every run is done, in worker processes
+                jobs.append((group, out, _figure_prefix(name, feed_m_s),
+                             {"feed": feed, "length_unit": unit}))
+                labels.append(f"{name} {feed_m_s:g} m/s figures")
+    if jobs:
+        from .plots import plot_comparisons
 
-                files += plot_comparison(group, out, _figure_prefix(name, feed_m_s),
-                                         feed=feed, length_unit=unit)
-                step(f"{name} {feed_m_s:g} m/s figures")
+        files += plot_comparisons(jobs, done=lambda index: step(labels[index]))
     files.append(write_json(rows, out / "table.json", overwrite=overwrite))
     table = markdown_table(rows)
     files.append(write_output(out / "table.md", lambda h: h.write(table), overwrite=overwrite))

@@ -35,6 +35,7 @@ import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -42,7 +43,8 @@ from ._io import write_output
 from .metrics import nearest_parameter
 from .units import report_unit
 
-__all__ = ["plot_trace", "plot_setpoints", "plot_comparison", "settling_time",
+__all__ = ["plot_trace", "plot_setpoints", "plot_comparison", "plot_comparisons",
+           "settling_time",
            "TRACE_FIGURES", "SETPOINT_FIGURES", "DRIVE_FRAME", "MAX_EVENT_WINDOWS",
            "comparison_figures"]
 
@@ -1126,4 +1128,71 @@ def plot_comparison(traces: dict, out_dir, name: str, *, feed: float | None = No
                                      out / f"{name}_speed_{names[j]}.png", unit, overwrite))
         written.append(_drive_figure(runs, events, settle, f"{names[j]}, {title}",
                                      out / f"{name}_drive_{names[j]}.png", [j], overwrite))
+    return written
+
+
+_jobs: list = []
+"""The comparisons :func:`plot_comparisons` hands to its forked workers (by index: the
+traces are inherited, not pickled)."""
+
+
+def _start_worker() -> None:
+    global _reused
+    _reused = {}  # each worker draws its comparisons on figures of its own
+
+
+def _draw_job(index: int) -> list[Path]:
+    traces, out_dir, name, options = _jobs[index]
+    return plot_comparison(traces, out_dir, name, **options)
+
+
+def plot_comparisons(jobs: list, *, processes: int | None = None,
+                     done: Callable[[int], None] | None = None) -> list[Path]:
+    """Write the figures of several comparisons (:func:`plot_comparison`), in worker
+    processes forked from this one where the platform forks.
+
+    Parameters
+    ----------
+    jobs : list of (dict, path-like, str, dict)
+        ``(traces, out_dir, name, options)`` per comparison: the arguments of
+        :func:`plot_comparison`, ``options`` its keyword arguments.
+    processes : int, optional
+        Worker processes; by default one per CPU this process may run on (at most one per
+        job). 1 draws here, one comparison after the other.
+    done : callable, optional
+        ``done(index)`` after the figures of ``jobs[index]`` are written, in job order.
+
+    Returns
+    -------
+    list of Path
+        Every file written, job after job, each job's in :func:`plot_comparison`'s order.
+    """
+    import multiprocessing
+    import os
+
+    if processes is None:
+        processes = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                     else os.cpu_count() or 1)
+    processes = min(processes, len(jobs))
+    written: list[Path] = []
+    if processes <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+        with _figure_reuse():
+            for index, (traces, out_dir, name, options) in enumerate(jobs):
+                written += plot_comparison(traces, out_dir, name, **options)
+                if done is not None:
+                    done(index)
+        return written
+    global _jobs
+    import matplotlib.backends.backend_agg  # noqa: F401  (imported once, before forking)
+
+    _jobs = list(jobs)
+    try:
+        context = multiprocessing.get_context("fork")
+        with context.Pool(processes, initializer=_start_worker) as pool:
+            for index, files in enumerate(pool.imap(_draw_job, range(len(_jobs)))):
+                written += files
+                if done is not None:
+                    done(index)
+    finally:
+        _jobs = []
     return written
