@@ -46,6 +46,7 @@ def measure(argv: list[str], cache: str) -> tuple[float, float]:
 
 
 def main(repeats: int = 3) -> str:
+    machine = machine_description()  # with the load average at the start
     rows = []
     with tempfile.TemporaryDirectory() as cache:
         for label, argv in COMMANDS.items():
@@ -66,7 +67,8 @@ def main(repeats: int = 3) -> str:
         ["command", "wall [s]", "CPU [s]", "wall, --no-figures [s]", "CPU, --no-figures [s]",
          "figures, wall [s]", "figures, CPU [s]", "target, wall [s]"], rows,
         f"Medians of {repeats} runs each on a warm numba cache; CPU = user + system time "
-        f"of the child. Load average at the end: {load}. {machine_description()}.")
+        f"of the child and of the figure workers it forks (reproduce), which it waits for. "
+        f"Load average at the end: {load}. {machine}.")
 
 
 if __name__ == "__main__":
