@@ -214,7 +214,7 @@ def _decorations(ax, renderer) -> tuple[float, float, float, float, float]:
         return 0.2, 0.2, 0.2, top + 6 / 72, 0.0
     pad = (mpl.rcParams["xtick.major.size"] + mpl.rcParams["xtick.major.pad"]) / 72
     xw, xh, xoff = _tick_labels(ax.xaxis)
-    yw, yh, yoff = _tick_labels(ax.yaxis)
+    yw, _, yoff = _tick_labels(ax.yaxis)
     labelpad = mpl.rcParams["axes.labelpad"] / 72
     ylabel = _text_size(ax.yaxis.label, renderer)[0]
     xlabel = _text_size(ax.xaxis.label, renderer)[1]
