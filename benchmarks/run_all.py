@@ -59,6 +59,7 @@ BENCHMARKS = (
     Benchmark("nurbs_eval", "Batch NURBS evaluation", in_process=True),
     Benchmark("compile_cost", "Compile cost (cold and warm numba cache)", in_process=True),
     Benchmark("reproduce_time", "`nurbsmotion reproduce` wall time", in_process=True),
+    Benchmark("figure_time", "A run with its figures, and `reproduce`, warm", in_process=True),
     Benchmark("gcode_load", "Loading a 1,000,000-line G-code program"),
     Benchmark("bad_input", "Bad and huge inputs"),
     Benchmark("toppra_compare", "`planned` against TOPP-RA", in_process=True),
@@ -78,6 +79,7 @@ _REPEATS = {  # name -> (keyword arguments of main(), full run, --quick)
     "nurbs_eval": ({"repeats": 7, "geomdl_repeats": 3}, {"repeats": 3, "geomdl_repeats": 1}),
     "compile_cost": ({"repeats": 3}, {"repeats": 1}),
     "reproduce_time": ({"repeats": 2}, {"repeats": 1}),
+    "figure_time": ({"repeats": 3}, {"repeats": 1}),
     "toppra_compare": ({"repeats": 3}, {"repeats": 1}),
 }
 

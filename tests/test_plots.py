@@ -171,3 +171,66 @@ def test_settle_figure_measures_from_the_path_end_for_planned(machine, tmp_path,
     assert seen["last"] == pytest.approx(list((trace.position[-1] - end) / per_mm),
                                          rel=1e-9, abs=1e-15)
     assert all("not within" not in t for t in seen["titles"][::2])
+
+
+@pytest.mark.parametrize("window", [1.0, 5.0])
+def test_settle_figure_draws_the_runs_settle_window(machine, tmp_path, monkeypatch, window):
+    """Regression: settle.png drew a ±1 pulse band whatever window the run's settle time
+    was measured with; the band, the zoom (±5 windows) and the titles follow
+    ``trace.settle_window`` [pulse]."""
+    import numpy as np
+
+    from nurbsmotion import plots
+
+    seen = {}
+    save = plots._save
+
+    def spy(fig, path, overwrite=True):
+        if path.name == "settle.png":
+            seen["bands"] = []
+            for ax in fig.axes:
+                patch = ax.patches[0]
+                y = patch.get_patch_transform().transform(patch.get_path().vertices)[:, 1]
+                seen["bands"].append((float(np.min(y)), float(np.max(y))))
+            seen["zoom"] = [ax.get_ylim() for ax in fig.axes[1::2]]
+            seen["titles"] = [ax.get_title(loc="left") for ax in fig.axes]
+        return save(fig, path, overwrite)
+
+    monkeypatch.setattr(plots, "_save", spy)
+    path = nm.make_die_bonder_pi()
+    trace = simulate(make_interpolator("planned", path, machine, 1e6), machine,
+                     settle_window=window)
+    assert trace.settle_window == window
+    plot_trace(trace, tmp_path)
+    per_mm = pulses_per_report_unit(path.units, machine)
+    band = window / per_mm
+    assert seen["bands"] == [pytest.approx((-band, band), rel=1e-12)] * 4
+    assert seen["zoom"] == [pytest.approx((-5 * band, 5 * band), rel=1e-12)] * 2
+    assert all(f"±{window:g} pulse" in t for t in seen["titles"][::2])
+    assert all(f"zoom ±{5 * window:g} pulse" in t for t in seen["titles"][1::2])
+
+
+def test_plot_comparisons_forked_draw_what_one_process_draws(pi_runs, machine, tmp_path):
+    """plot_comparisons draws each comparison as plot_comparison does, in forked workers
+    or here: the same files, pixel for pixel (here the second job is drawn on the emptied
+    figures of the first, in the workers each on its own: nothing of one is left on the
+    next)."""
+    from nurbsmotion.plots import comparison_figures, plot_comparisons
+
+    slow = {"taylor2": simulate(make_interpolator("taylor2", nm.make_die_bonder_pi(), machine,
+                                                  5e5), machine)}
+    jobs = [(pi_runs, None, "fast", {"feed": 1e6}), (slow, None, "slow", {"feed": 5e5})]
+    written = {}
+    for processes in (1, 2):
+        out = tmp_path / str(processes)
+        done = []
+        files = plot_comparisons([(t, out, name, o) for t, _, name, o in jobs],
+                                 processes=processes, done=done.append)
+        assert done == [0, 1]
+        expected = comparison_figures("fast", machine.axis_names) + comparison_figures(
+            "slow", machine.axis_names)
+        assert sorted(p.name for p in files) == sorted(expected)
+        written[processes] = {p.name: p.read_bytes() for p in files}
+    assert written[1].keys() == written[2].keys()
+    differ = [name for name in written[1] if written[1][name] != written[2][name]]
+    assert not differ

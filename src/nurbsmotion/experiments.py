@@ -104,6 +104,7 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
             progress(done, total, label)
 
     rows, traces, files = [], {}, []
+    jobs, labels = [], []  # the figures of each path and feed
     for name, feeds in experiment.items():
         given = builtin_path(name)
         unit = report_unit(given.units)
@@ -121,12 +122,14 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
                               length_unit=unit, pulses_per_length_unit=per_unit)
                 rows.append({"path": name, "feed_m_s": feed_m_s, **row})
                 step(f"{name} {feed_m_s:g} m/s {method}")
-            if figures:
-                from .plots import plot_comparison
+            if figures:  # drawn once every run is done, in worker processes
+                jobs.append((group, out, _figure_prefix(name, feed_m_s),
+                             {"feed": feed, "length_unit": unit}))
+                labels.append(f"{name} {feed_m_s:g} m/s figures")
+    if jobs:
+        from .plots import plot_comparisons
 
-                files += plot_comparison(group, out, _figure_prefix(name, feed_m_s),
-                                         feed=feed, length_unit=unit)
-                step(f"{name} {feed_m_s:g} m/s figures")
+        files += plot_comparisons(jobs, done=lambda index: step(labels[index]))
     files.append(write_json(rows, out / "table.json", overwrite=overwrite))
     table = markdown_table(rows)
     files.append(write_output(out / "table.md", lambda h: h.write(table), overwrite=overwrite))

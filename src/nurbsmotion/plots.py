@@ -30,9 +30,12 @@ Ts : sample period [s]; k : pulses per report unit [pulse/L].
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -40,7 +43,8 @@ from ._io import write_output
 from .metrics import nearest_parameter
 from .units import report_unit
 
-__all__ = ["plot_trace", "plot_setpoints", "plot_comparison", "settling_time",
+__all__ = ["plot_trace", "plot_setpoints", "plot_comparison", "plot_comparisons",
+           "settling_time",
            "TRACE_FIGURES", "SETPOINT_FIGURES", "DRIVE_FRAME", "MAX_EVENT_WINDOWS",
            "comparison_figures"]
 
@@ -64,6 +68,7 @@ MAX_EVENT_WINDOWS = 3
 """Corner windows shown at most (the corners with the largest drive), besides start and stop."""
 
 _DPI = 110
+_PNG_COMPRESSION = 1  # zlib level: level 6 (matplotlib's) took 1.5 x as long for 5 % less
 _STYLES = (("C0", "-"), ("C3", "--"), ("C2", "-."), ("C1", ":"), ("C4", "-"), ("C5", "--"))
 """(colour, line style) per run, in order: solid first, as the paper draws its proposed
 algorithm solid and the uncompensated one dashed (Figs. 5 and 7)."""
@@ -72,8 +77,7 @@ _ZOOM_MARGIN = 1.3  # the zoom holds the largest nearby contour error with this 
 _CORNER_REACH = 0.05  # samples within this fraction of the length size a corner's zoom
 _CLOSE_ZOOM_RATIO = 3.0  # add a closer zoom when the runs' errors differ by this factor
 _MAX_ERROR_ZOOMS = 4  # zooms on the largest contour errors of a path without corners
-_SETTLE_WINDOW_PULSES = 1.0  # the end point's settle band: ±1 pulse
-_SETTLE_ZOOM = 5.0  # the settle zoom spans ±5 pulses: the band and what enters it
+_SETTLE_ZOOM = 5.0  # the settle zoom spans ±5 settle windows: the band and what enters it
 
 
 @dataclass(frozen=True)
@@ -120,20 +124,161 @@ def _output_dir(out_dir) -> Path:
 
 
 def _figure(width: float, height: float):
-    """A Figure on its own Agg canvas (no pyplot state) [inch]."""
+    """A Figure on its own Agg canvas (no pyplot state) [inch]; no layout engine: the
+    panels are placed once, by :func:`_arrange`, when the figure is saved."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width, height), dpi=_DPI, layout="constrained")
+    fig = Figure(figsize=(width, height), dpi=_DPI)
     FigureCanvasAgg(fig)
     return fig
 
 
 def _save(fig, path: Path, overwrite: bool = True) -> Path:
-    write_output(path, lambda h: fig.savefig(h, format="png", dpi=_DPI), overwrite=overwrite,
-                 binary=True)
-    fig.clear()  # the figure is not registered anywhere; this frees its artists now
-    return path
+    """Place the panels (:func:`_arrange`), draw ``fig`` and write it as an RGB PNG (the
+    figures are opaque: no alpha channel to encode)."""
+    from PIL import Image  # matplotlib's own dependency
+
+    _arrange(fig)
+    fig.canvas.draw()
+    image = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())).convert("RGB")
+    write_output(path, lambda h: image.save(h, format="png", dpi=(_DPI, _DPI),
+                                            compress_level=_PNG_COMPRESSION),
+                 overwrite=overwrite, binary=True)
+    return path  # the figure is in no registry: it is freed with its last reference
+
+
+def _title(ax, text: str, **kwargs) -> None:
+    """``ax.set_title`` at a fixed height: :func:`_arrange` makes room for it and lifts it
+    above an offset text, so matplotlib need not measure the axis at every draw."""
+    ax.set_title(text, y=1.0, **kwargs)
+
+
+_PAD = 0.08  # [inch] between a block of text and the figure's edge or the next block
+
+
+def _text_size(text, renderer) -> tuple[float, float]:
+    """Width and height [inch] of a Text artist as drawn (0, 0 when empty or hidden)."""
+    if not text.get_visible() or not text.get_text():
+        return 0.0, 0.0
+    box = text.get_window_extent(renderer)
+    return box.width / _DPI, box.height / _DPI
+
+
+def _tick_labels(axis) -> tuple[float, float, float]:
+    """Widest and tallest major tick label [inch] of ``axis`` as it will be drawn (0 when
+    its labels are hidden) and the height of its offset text ("1e-5", "+1000") [inch],
+    from its locator and formatter: no tick artists are made."""
+    import matplotlib as mpl
+    from matplotlib.font_manager import FontProperties
+
+    if not axis._major_tick_kw.get("label1On", True):
+        return 0.0, 0.0, 0.0
+    lo, hi = sorted(axis.get_view_interval())
+    locs = [x for x in axis.get_major_locator()() if lo - 1e-9 * (hi - lo) <= x
+            <= hi + 1e-9 * (hi - lo)]
+    if not locs:
+        return 0.0, 0.0, 0.0
+    formatter = axis.get_major_formatter()
+    labels = formatter.format_ticks(locs)
+    name = "xtick" if axis.axis_name == "x" else "ytick"
+    size = FontProperties(size=mpl.rcParams[f"{name}.labelsize"]).get_size_in_points()
+    width = max((_label_extent(label, size)[0] for label in labels if label), default=0.0)
+    # a line of text is as tall as "lp" (ascent and descent) whatever it holds
+    height = _label_extent("lp", size)[1] + 2.0 / 72
+    offset = formatter.get_offset() if hasattr(formatter, "get_offset") else ""
+    return width, height, (height if offset else 0.0)
+
+
+@functools.lru_cache(maxsize=4096)
+def _label_extent(label: str, size: float) -> tuple[float, float]:
+    """Width and height [inch] of one line of text (a tick label) of ``size`` [pt]; the
+    same labels recur on every panel, so each is measured once."""
+    from matplotlib.backends.backend_agg import RendererAgg
+    from matplotlib.cbook import is_math_text
+    from matplotlib.font_manager import FontProperties
+
+    renderer = RendererAgg(1, 1, _DPI)  # draws nothing: measures with the same fonts
+    w, h, _ = renderer.get_text_width_height_descent(label, FontProperties(size=size),
+                                                     ismath=is_math_text(label))
+    return w / _DPI, h / _DPI
+
+
+def _decorations(ax, renderer) -> tuple[float, float, float, float, float]:
+    """Room [inch] the text of a panel takes outside its frame: left, right, bottom, top,
+    and the height of the y offset text above it (which the titles must clear)."""
+    import matplotlib as mpl
+
+    if ax.name == "3d":  # its labels lie inside its square box
+        top = max(_text_size(t, renderer)[1] for t in (ax.title, ax._left_title))
+        return 0.2, 0.2, 0.2, top + 6 / 72, 0.0
+    pad = (mpl.rcParams["xtick.major.size"] + mpl.rcParams["xtick.major.pad"]) / 72
+    xw, xh, xoff = _tick_labels(ax.xaxis)
+    yw, _, yoff = _tick_labels(ax.yaxis)
+    labelpad = mpl.rcParams["axes.labelpad"] / 72
+    ylabel = _text_size(ax.yaxis.label, renderer)[0]
+    xlabel = _text_size(ax.xaxis.label, renderer)[1]
+    left = (yw + pad if yw else 0.0) + (ylabel + labelpad if ylabel else 0.0)
+    bottom = (xh + pad if xh else 0.0) + (xlabel + labelpad if xlabel else 0.0) + xoff
+    titles = max(_text_size(t, renderer)[1] for t in (ax.title, ax._left_title,
+                                                       ax._right_title))
+    top = max(titles + mpl.rcParams["axes.titlepad"] / 72 if titles else 0.0, yoff)
+    if titles and yoff:
+        top += yoff
+    right = 0.5 * xw  # the last x tick label reaches past the frame by half its width
+    return left, right, bottom, top, yoff
+
+
+def _arrange(fig) -> None:
+    """Place the panels of ``fig`` (one grid of subplots) so that their labels, titles,
+    the suptitle and the figure's legend fit, from the size of each text.
+
+    A fixed layout computed once: matplotlib's constrained layout measures every panel
+    with all its ticks at every draw, which was most of the time of a figure.
+    """
+    renderer = fig.canvas.get_renderer()
+    width, height = fig.get_size_inches()
+    axes = [ax for ax in fig.axes if ax.get_subplotspec() is not None]
+    if not axes:
+        return
+    grid = axes[0].get_subplotspec().get_gridspec()
+    n_rows, n_cols = grid.get_geometry()
+    top_text = 0.0
+    for t in fig.texts:  # the suptitle
+        t.set_y(1.0 - _PAD / height)
+        top_text = max(top_text, _text_size(t, renderer)[1] + _PAD)
+    legend = sum(_text_size_box(lg, renderer) + _PAD for lg in fig.legends)
+    for _ in range(2):  # the tick labels depend on the panel sizes: once more
+        deco = {ax: _decorations(ax, renderer) for ax in axes}
+
+        def most(index, keep):
+            return max([deco[ax][index] for ax in axes if keep(ax.get_subplotspec())],
+                       default=0.0)
+
+        left = most(0, lambda s: s.colspan.start == 0) + _PAD
+        right = most(1, lambda s: s.colspan.stop == n_cols) + _PAD
+        bottom = most(2, lambda s: s.rowspan.stop == n_rows) + _PAD + legend
+        top = most(3, lambda s: s.rowspan.start == 0) + _PAD + top_text
+        w_gap = (most(0, lambda s: s.colspan.start > 0)
+                 + most(1, lambda s: s.colspan.stop < n_cols) + _PAD)
+        h_gap = (most(2, lambda s: s.rowspan.stop < n_rows)
+                 + most(3, lambda s: s.rowspan.start > 0) + _PAD)
+        panel_w = max((width - left - right - (n_cols - 1) * w_gap) / n_cols, 0.3)
+        panel_h = max((height - top - bottom - (n_rows - 1) * h_gap) / n_rows, 0.3)
+        grid.update(left=min(left / width, 0.45), right=max(1 - right / width, 0.55),
+                    bottom=min(bottom / height, 0.45), top=max(1 - top / height, 0.55),
+                    wspace=w_gap / panel_w, hspace=h_gap / panel_h)
+        for ax in axes:  # GridSpec.update moves the panels of pyplot's figures only
+            ax.set_position(ax.get_subplotspec().get_position(fig))
+    for ax in axes:  # titles above an offset text ("1e-5") at the top of the y axis
+        lift = deco[ax][4] / (ax.get_position().height * height)
+        for t in (ax.title, ax._left_title, ax._right_title):
+            t.set_y(1.0 + lift)
+
+
+def _text_size_box(artist, renderer) -> float:
+    """Height [inch] of an artist's extent (a legend)."""
+    return artist.get_window_extent(renderer).height / _DPI
 
 
 def _axis_labels(n_axes: int, axis_names=None) -> tuple[str, ...]:
@@ -160,7 +305,8 @@ def _legend_below(fig, axes, ncol: int | None = None) -> None:
                 handles.append(h)
                 labels.append(lab)
     if handles:
-        fig.legend(handles, labels, loc="outside lower center", fontsize="small",
+        fig.legend(handles, labels, loc="lower center", fontsize="small",
+                   bbox_to_anchor=(0.5, _PAD / fig.get_figheight()),
                    ncol=ncol or min(len(labels), 4))
 
 
@@ -258,6 +404,58 @@ def _window_columns(fig, n_rows: int, events: list[_Event]):
             share = axes[r, 0] if c > 1 else None
             axes[r, c] = fig.add_subplot(grid[r, c], sharey=share)
     return axes
+
+
+_reused: dict | None = None
+"""Figures kept for reuse by layout while a :func:`_figure_reuse` block runs."""
+
+
+@contextlib.contextmanager
+def _figure_reuse():
+    """Within this block the windowed figures of one layout (rows, events, size) are drawn
+    on one Figure, its panels emptied between files (:func:`_windowed_figure`): making the
+    panels and their ticks was about a third of the time of such a figure. Nested blocks
+    share the outermost one's figures; they are dropped when it ends."""
+    global _reused
+    outer = _reused
+    if outer is None:
+        _reused = {}
+    try:
+        yield
+    finally:
+        if outer is None:
+            _reused = None
+
+
+def _windowed_figure(n_rows: int, events: list[_Event]):
+    """A figure and its :func:`_window_columns` grid, shape (n_rows, 1 + len(events)): a
+    new one, or inside :func:`_figure_reuse` the one of this layout, emptied."""
+    key = (n_rows, len(events))
+    if _reused is not None and key in _reused:
+        fig, axes = _reused[key]
+        _empty(fig, axes.ravel())
+        return fig, axes
+    fig = _figure(4.0 + 2.3 * len(events), 2.7 * n_rows + 1.0)
+    axes = _window_columns(fig, n_rows, events)
+    if _reused is not None:
+        _reused[key] = (fig, axes)
+    return fig, axes
+
+
+def _empty(fig, axes) -> None:
+    """Remove what was drawn on ``fig`` and its ``axes`` (keeping the panels, their
+    shared scales, tick settings and ticks), and let the scales follow the data again."""
+    for legend in list(fig.legends):
+        legend.remove()
+    for ax in axes:
+        for artist in [*ax.lines, *ax.patches, *ax.collections, *ax.texts]:
+            artist.remove()
+        for text in (ax.title, ax._left_title, ax._right_title):
+            text.set_text("")
+        ax.set_xlabel("")
+        ax.set_ylabel("")
+        ax.relim()
+        ax.autoscale(True)
 
 
 def _plot_windowed(axes_row, runs: list[_Run], events: list[_Event], settle: float,
@@ -452,9 +650,10 @@ def _zoom_windows(curve, runs: list[_Run], nearest: list[tuple],
     return zooms
 
 
-def _label_corners(ax, curve, zooms: list[_Zoom]) -> None:
+def _label_corners(ax, curve, zooms: list[_Zoom]) -> list:
     """Zoom boxes, and one label per place beside (not on) the path with a leader line:
-    "corner n (A, B)" at a sharp corner, the zoom letters elsewhere."""
+    "corner n (A, B)" at a sharp corner, the zoom letters elsewhere; returns the labels
+    (for :func:`_fit_in_view` once the panels are placed)."""
     from matplotlib.patches import Rectangle
 
     pts = _desired_points(curve, 500)[:, :2]
@@ -487,7 +686,7 @@ def _label_corners(ax, curve, zooms: list[_Zoom]) -> None:
             f"corner {n} ({text})" if kind == "corner" else text, p, xytext=text_at,
             fontsize="medium", ha=ha, va=va, bbox=box,
             arrowprops=dict(arrowstyle="-", color="0.4", linewidth=0.8)))
-    _fit_in_view(ax, labels)
+    return labels
 
 
 def _fit_in_view(ax, artists) -> None:
@@ -495,10 +694,9 @@ def _fit_in_view(ax, artists) -> None:
     not over a neighbouring panel or its labels."""
     if not artists:
         return
-    fig = ax.figure
+    renderer = ax.figure.canvas.get_renderer()
     for _ in range(2):  # the limits change the scale: once more on the new scale
-        fig.canvas.draw()
-        renderer = fig.canvas.get_renderer()
+        ax.apply_aspect()  # what a draw would do first (equal scales adjust the limits)
         inverse = ax.transData.inverted()
         for a in artists:
             corners = inverse.transform(a.get_window_extent(renderer).get_points())
@@ -554,16 +752,16 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
                                     ax_path.set_zlabel)):
             setter(f"{names[k]} [{unit}]")
         ax_path.set_box_aspect(np.maximum(np.ptp(desired[:, :3], axis=0), 1e-9))
-        ax_path.set_title("contour (3-D view)" + ("" if n_axes == 3 else ", first 3 axes"))
+        _title(ax_path, "contour (3-D view)" + ("" if n_axes == 3 else ", first 3 axes"))
         for c, (i, j) in enumerate(((0, 1), (0, 2), (1, 2))):
             ax = fig.add_subplot(grid[1, 2 * c:2 * c + 2])
             _path_panel(ax, desired, runs, i, j, names, unit)
-            ax.set_title(f"projection on {names[i]}{names[j]}", fontsize="medium")
+            _title(ax, f"projection on {names[i]}{names[j]}", fontsize="medium")
     elif planar:
         ax_path = fig.add_subplot(grid[0, :half])
         _path_panel(ax_path, desired, runs, 0, 1, names, unit)
-        ax_path.set_title("contour")
-        _label_corners(ax_path, curve, zooms)
+        _title(ax_path, "contour")
+        labels = _label_corners(ax_path, curve, zooms)
     else:
         ax_path = fig.add_subplot(grid[0, :half])
         for r in runs:
@@ -571,7 +769,7 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
                          label=f"actual, {r.label}")
         ax_path.set_xlabel("time [s]")
         ax_path.set_ylabel(f"{names[0]} [{unit}]")
-        ax_path.set_title("position")
+        _title(ax_path, "position")
 
     ax_err = fig.add_subplot(err_slot)
     for r, (_, dist) in zip(runs, nearest):
@@ -579,7 +777,7 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
                     label=f"contour error, {r.label} (max {np.max(dist):.3g} {unit})")
     ax_err.set_xlabel("time [s]")
     ax_err.set_ylabel(f"contour error [{unit}]")
-    ax_err.set_title("contour error (distance to the curve)")
+    _title(ax_err, "contour error (distance to the curve)")
     peaks = [float(np.max(d)) for _, d in nearest if np.max(d) > 0]
     if len(peaks) > 1 and max(peaks) > 20 * min(peaks):
         # Runs orders of magnitude apart: on a linear axis the smaller ones are a flat line.
@@ -603,13 +801,16 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
         ax.set_xlim(cx - h, cx + h)
         ax.set_ylim(cy - h, cy + h)
         ax.set_aspect("equal", adjustable="box")
-        ax.set_title(f"{chr(65 + j)}: {z.label}, ±{h:.2g} {unit}", fontsize="small")
+        _title(ax, f"{chr(65 + j)}: {z.label}, ±{h:.2g} {unit}", fontsize="small")
         ax.set_xlabel(f"{names[0]} [{unit}]")
         ax.set_ylabel(f"{names[1]} [{unit}]")
         ax.ticklabel_format(useOffset=False, style="plain")
         ax.xaxis.set_major_locator(MaxNLocator(4))
     _legend_below(fig, [ax_path, ax_err], ncol=2)
     fig.suptitle(title)
+    if planar:
+        _arrange(fig)  # the labels are fitted on the panel's final size
+        _fit_in_view(ax_path, labels)
     return _save(fig, path, overwrite)
 
 
@@ -631,8 +832,7 @@ def _drive_figure(runs: list[_Run], events, settle: float, title: str, path: Pat
     """u before clipping [V] per axis (rows): whole run and event windows (columns)."""
     machine = runs[0].trace.machine
     names, umax = machine.axis_names, machine.max_drive
-    fig = _figure(4.0 + 2.3 * len(events), 2.7 * len(axes_shown) + 1.0)
-    grid = _window_columns(fig, len(axes_shown), events)
+    fig, grid = _windowed_figure(len(axes_shown), events)
     finite = math.isfinite(umax)
     for row, j in zip(grid, axes_shown):
         _plot_windowed(row, runs, events, settle, lambda r, j=j: r.trace.drive[:, j],
@@ -644,10 +844,10 @@ def _drive_figure(runs: list[_Run], events, settle: float, title: str, path: Pat
                                label="±Umax" if sign > 0 else None)
         row[0].set_ylabel(f"{names[j]}: u [V]")
         if finite:
-            row[0].set_title(_drive_title(runs, j, umax, fig, row[0]), fontsize="small",
+            _title(row[0], _drive_title(runs, j, umax, fig, row[0]), fontsize="small",
                              loc="left")
     for c, event in enumerate(events, start=1):
-        grid[0, c].set_title(event.label, fontsize="medium")
+        _title(grid[0, c], event.label, fontsize="medium")
     _legend_below(fig, grid)
     fig.suptitle(f"drive before clipping (Fig. 7), {title}")
     return _save(fig, path, overwrite)
@@ -657,15 +857,14 @@ def _speed_figure(rows: list, events, settle: float, title: str, path: Path, uni
                   overwrite: bool) -> Path:
     """Commanded axis speed [L/s] and its eq. 3.6 bounds where computed; one panel row per
     ``(run, axis index, label)`` in ``rows``."""
-    fig = _figure(4.0 + 2.3 * len(events), 2.7 * len(rows) + 1.0)
-    grid = _window_columns(fig, len(rows), events)
+    fig, grid = _windowed_figure(len(rows), events)
     for panels, (run, j, label) in zip(grid, rows):
         _plot_windowed(panels, [run], events, settle, lambda r, j=j: r.speed_command[:, j],
                        bounds=(lambda r, j=j: None if r.speed_bounds is None
                                else r.speed_bounds[:, j, :]))
         panels[0].set_ylabel(f"{label} speed [{unit}/s]")
     for col, event in enumerate(events, start=1):
-        grid[0, col].set_title(event.label, fontsize="medium")
+        _title(grid[0, col], event.label, fontsize="medium")
     _legend_below(fig, grid)
     fig.suptitle(title)
     return _save(fig, path, overwrite)
@@ -674,8 +873,9 @@ def _speed_figure(rows: list, events, settle: float, title: str, path: Path, uni
 def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float,
                    settle: float, overwrite: bool) -> Path:
     """Actual position minus the end point per axis [L] from shortly before the setpoint
-    reaches the end to the last sample: the whole approach (left) and a zoom on the
-    ±1 pulse band (right, ±:data:`_SETTLE_ZOOM` pulses)."""
+    reaches the end to the last sample: the whole approach (left) and a zoom (right,
+    ±:data:`_SETTLE_ZOOM` windows) on the run's settle band, ±``trace.settle_window``
+    [pulse] (the window its settle time was measured with)."""
     tr = run.trace
     names = tr.machine.axis_names
     # the path's end point (a planned setpoint leads the path: the command at the
@@ -684,21 +884,23 @@ def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float
     t0 = tr.cycle_time
     sel = tr.t >= t0 - 0.5 * settle
     t = tr.t[sel] - t0
-    band = _SETTLE_WINDOW_PULSES / per_unit
+    window = float(tr.settle_window)  # [pulse]
+    band = window / per_unit
+    within = f"±{window:g} pulse"
     fig = _figure(11.0, 2.3 * len(names) + 1.0)
     axes = fig.subplots(len(names), 2, sharex=True, squeeze=False)
     for j, (ax_all, ax_zoom) in enumerate(axes):
         dev = run.position[sel, j] - end[j]
         after = np.nonzero((t >= 0) & (np.abs(dev) > band))[0]
         if after.size == 0:
-            when = "within ±1 pulse when the setpoint reaches the end"
+            when = f"within {within} when the setpoint reaches the end"
         elif after[-1] + 1 < len(t):
-            when = f"within ±1 pulse from t_end + {t[after[-1] + 1]:.4g} s on"
+            when = f"within {within} from t_end + {t[after[-1] + 1]:.4g} s on"
         else:
-            when = "not within ±1 pulse by the last sample"
+            when = f"not within {within} by the last sample"
         for ax in (ax_all, ax_zoom):
             ax.axhspan(-band, band, color="C2", alpha=0.25,
-                       label=f"±1 pulse (±{band:.3g} {unit})")
+                       label=f"settle window {within} (±{band:.3g} {unit})")
             ax.plot(t, dev, color=run.color, marker=".", markersize=3, linewidth=1,
                     label=f"actual − end point, {run.label}")
             ax.axvline(0.0, color="0.6", linestyle=":", linewidth=0.8,
@@ -706,9 +908,9 @@ def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float
             ax.grid(True, linewidth=0.3, color="0.85")
         ax_zoom.set_ylim(-_SETTLE_ZOOM * band, _SETTLE_ZOOM * band)
         ax_all.set_ylabel(f"{names[j]} − end [{unit}]")
-        ax_all.set_title(f"{names[j]}: {when}", fontsize="medium", loc="left")
-        ax_zoom.set_title(f"{names[j]}, zoom ±{_SETTLE_ZOOM:g} pulse", fontsize="medium",
-                          loc="left")
+        _title(ax_all, f"{names[j]}: {when}", fontsize="medium", loc="left")
+        _title(ax_zoom, f"{names[j]}, zoom ±{_SETTLE_ZOOM * window:g} pulse",
+               fontsize="medium", loc="left")
     for ax in axes[-1]:
         ax.set_xlabel("t − t_end [s] (t_end: the setpoint reaches the end point)")
     _legend_below(fig, axes, ncol=3)
@@ -716,6 +918,7 @@ def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float
     return _save(fig, path, overwrite)
 
 
+@_figure_reuse()
 def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
                length_unit: str | None = None, overwrite: bool = True) -> list[Path]:
     """Write the figures of one closed-loop run.
@@ -747,7 +950,7 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
         clipping per axis [V], framed on ±Umax, with event windows), ``speed.png``
         (commanded axis speed [L/s] and the eq. 3.6 bounds where computed, with event
         windows) and ``settle.png`` (actual position minus the end point per axis [L]
-        with the ±1 pulse band).
+        with the run's settle band, ±``trace.settle_window``).
     """
     out = _output_dir(out_dir)
     unit, per_unit = _units_of(trace, length_unit)
@@ -768,7 +971,7 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
         ax.axvline(trace.cycle_time, color="0.6", linestyle=":", linewidth=0.8,
                    label="setpoint reaches the end")
         ax.set_ylabel(f"{names[j]}: θd − θa [{unit}]")
-        ax.set_title(f"{names[j]}: max |e| = {np.max(np.abs(error[:, j])):.4g} {unit}",
+        _title(ax, f"{names[j]}: max |e| = {np.max(np.abs(error[:, j])):.4g} {unit}",
                      fontsize="medium", loc="left")
         ax.grid(True, linewidth=0.3, color="0.85")
     axes[-1].set_xlabel("time [s]")
@@ -843,7 +1046,7 @@ def plot_setpoints(series, out_dir, axis_names=None, *, units: str | None = None
         ax_path.plot(series.t, pos[:, 0], color="C0", label="setpoints")
         ax_path.set_xlabel("time [s]")
         ax_path.set_ylabel(f"{names[0]} [{unit}]")
-    ax_path.set_title("setpoints")
+    _title(ax_path, "setpoints")
 
     chord = np.linalg.norm(np.diff(pos, axis=0), axis=1) / series.sample_period
     ax_feed.plot(series.t[1:], series.feed[1:], color="k", linewidth=1, label="commanded feed")
@@ -855,13 +1058,14 @@ def plot_setpoints(series, out_dir, axis_names=None, *, units: str | None = None
     ax_feed.set_ylabel(f"feed [{unit}/s]")
     ax_feed.set_ylim(bottom=0)
     fl_max, fl_rms = series.feed_fluctuation()
-    ax_feed.set_title(f"feed fluctuation max {100 * fl_max:.3g} %, RMS {100 * fl_rms:.3g} %",
+    _title(ax_feed, f"feed fluctuation max {100 * fl_max:.3g} %, RMS {100 * fl_rms:.3g} %",
                       fontsize="medium")
     _legend_below(fig, [ax_path, ax_feed], ncol=3)
     fig.suptitle(f"{series.finished_index} steps, cycle time {series.cycle_time:.4g} s")
     return [_save(fig, out / f"{prefix}setpoints.png", overwrite)]
 
 
+@_figure_reuse()
 def plot_comparison(traces: dict, out_dir, name: str, *, feed: float | None = None,
                     axis: int | None = None, length_unit: str | None = None,
                     overwrite: bool = True) -> list[Path]:
@@ -924,4 +1128,71 @@ def plot_comparison(traces: dict, out_dir, name: str, *, feed: float | None = No
                                      out / f"{name}_speed_{names[j]}.png", unit, overwrite))
         written.append(_drive_figure(runs, events, settle, f"{names[j]}, {title}",
                                      out / f"{name}_drive_{names[j]}.png", [j], overwrite))
+    return written
+
+
+_jobs: list = []
+"""The comparisons :func:`plot_comparisons` hands to its forked workers (by index: the
+traces are inherited, not pickled)."""
+
+
+def _start_worker() -> None:
+    global _reused
+    _reused = {}  # each worker draws its comparisons on figures of its own
+
+
+def _draw_job(index: int) -> list[Path]:
+    traces, out_dir, name, options = _jobs[index]
+    return plot_comparison(traces, out_dir, name, **options)
+
+
+def plot_comparisons(jobs: list, *, processes: int | None = None,
+                     done: Callable[[int], None] | None = None) -> list[Path]:
+    """Write the figures of several comparisons (:func:`plot_comparison`), in worker
+    processes forked from this one where the platform forks.
+
+    Parameters
+    ----------
+    jobs : list of (dict, path-like, str, dict)
+        ``(traces, out_dir, name, options)`` per comparison: the arguments of
+        :func:`plot_comparison`, ``options`` its keyword arguments.
+    processes : int, optional
+        Worker processes; by default one per CPU this process may run on (at most one per
+        job). 1 draws here, one comparison after the other.
+    done : callable, optional
+        ``done(index)`` after the figures of ``jobs[index]`` are written, in job order.
+
+    Returns
+    -------
+    list of Path
+        Every file written, job after job, each job's in :func:`plot_comparison`'s order.
+    """
+    import multiprocessing
+    import os
+
+    if processes is None:
+        processes = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                     else os.cpu_count() or 1)
+    processes = min(processes, len(jobs))
+    written: list[Path] = []
+    if processes <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+        with _figure_reuse():
+            for index, (traces, out_dir, name, options) in enumerate(jobs):
+                written += plot_comparison(traces, out_dir, name, **options)
+                if done is not None:
+                    done(index)
+        return written
+    global _jobs
+    import matplotlib.backends.backend_agg  # noqa: F401  (imported once, before forking)
+
+    _jobs = list(jobs)
+    try:
+        context = multiprocessing.get_context("fork")
+        with context.Pool(processes, initializer=_start_worker) as pool:
+            for index, files in enumerate(pool.imap(_draw_job, range(len(_jobs)))):
+                written += files
+                if done is not None:
+                    done(index)
+    finally:
+        _jobs = []
     return written
