@@ -32,11 +32,15 @@ What is read
     ``G94`` (units per minute) or ``G93`` (inverse time); ``G20``/``G21``; ``G90``/``G91``;
     ``G53``; ``G54``-``G59.3``; ``G10 L2/L20``; ``G92``, ``G92.1``/``.2``/``.3``;
     ``G28``/``G30`` (a rapid through the given point to the stored home: a new contour);
-    polar ``@``/``^``. Words that do not change the path are skipped, each kind reported
-    once as a :class:`GcodeWarning` (one line). ``M2``/``M30`` end the program; ``G4``
-    (dwell) ends the contour. What would change the path but is not read (cutter
-    compensation, canned cycles, spindle-synchronised motion, probing, UVW planes) is a
-    :class:`PathFileError` naming the line.
+    polar ``@``/``^``; the canned cycles ``G73``, ``G74``, ``G81``-``G89`` with ``G98``/``G99``,
+    ``L`` repeats, incremental and polar positions, in the three planes, expanded into G0
+    and G1 moves as LinuxCNC's ``interp_cycles.cc`` does (:meth:`_Reader.canned_cycle`:
+    each feed move along the depth axis a piece of a contour, every rapid, reversal or
+    dwell the end of one), ``G80``. Words that do not change the path are skipped, each
+    kind reported once as a :class:`GcodeWarning` (one line). ``M2``/``M30`` end the
+    program; ``G4`` (dwell) ends the contour. What would change the path but is not read
+    (cutter compensation, the G76 threading cycle, spindle-synchronised motion, probing, UVW
+    planes) is a :class:`PathFileError` naming the line.
 
 Contours
     The machine's axes decide which coordinates form the path (``axes``, default
@@ -202,14 +206,21 @@ _PLANES = {17.0: (0, 1, 2, "I", "J"), 18.0: (2, 0, 1, "K", "I"), 19.0: (1, 2, 0,
 """G17/G18/G19: (first axis, second axis, linear axis, first offset word, second offset
 word), as LinuxCNC's convert_arc passes them (XZ is (Z, X): G2 is clockwise seen from +Y)."""
 _MOTION = {0.0: "G0", 1.0: "G1", 2.0: "G2", 3.0: "G3", 5.0: "G5", 5.1: "G5.1",
-           5.2: "G5.2", 5.3: "G5.3", 6.2: "G6.2"}  # fmt: skip
+           5.2: "G5.2", 5.3: "G5.3", 6.2: "G6.2", 80.0: "G80",
+           **{float(g): f"G{g}" for g in (73, 74, 81, 82, 83, 84, 85, 86, 87, 88, 89)}}  # fmt: skip
+_CYCLES = frozenset(f"G{g}" for g in (73, 74, 81, 82, 83, 84, 85, 86, 87, 88, 89))
+"""The canned cycles read (LinuxCNC's ``convert_cycle``)."""
+PECK_CLEARANCE_INCH = 0.010
+"""How far G73 and G83 back off above the depth reached before the next peck [inch]
+(LinuxCNC 2.9's ``G83_RAPID_DELTA``, the interpreter the tests compare with; later
+versions default to 0.050 inch or 1 mm, set in the INI file or by a ``D`` word)."""
 _COORD_SYSTEMS = {54.0: 1, 55.0: 2, 56.0: 3, 57.0: 4, 58.0: 5, 59.0: 6, 59.1: 7, 59.2: 8, 59.3: 9}
 _SKIPPED_G = {
     4.0: "G4 dwell", 40.0: None, 43.0: "G43 tool length offset (not applied)",
     43.1: "G43.1 tool length offset (not applied)", 43.2: "G43.2 tool length offset (not applied)",
     49.0: None, 61.0: None, 61.1: None, 64.0: "G64 path blending tolerance",
-    80.0: None, 94.0: None, 96.0: "G96 constant surface speed", 97.0: "G97 spindle RPM mode",
-    98.0: None, 99.0: None, 7.0: "G7 lathe diameter mode", 8.0: "G8 lathe radius mode",
+    94.0: None, 96.0: "G96 constant surface speed", 97.0: "G97 spindle RPM mode",
+    7.0: "G7 lathe diameter mode", 8.0: "G8 lathe radius mode",
     17.0: None, 18.0: None, 19.0: None,
 }  # fmt: skip
 _REFUSED_G = {
@@ -218,9 +229,9 @@ _REFUSED_G = {
     95.0: "feed per revolution is not read; use G94 (units per minute)",
     17.1: "the UVW planes are not read", 18.1: "the UVW planes are not read", 19.1: "the UVW planes are not read",
     33.0: "spindle-synchronised motion is not read", 33.1: "rigid tapping is not read",
-    76.0: "canned cycles are not read", 38.2: "probing is not read", 38.3: "probing is not read",
+    76.0: "the G76 threading cycle is not read (its passes follow the spindle, which the "
+          "path cannot; write the passes as G33 or G1 moves)", 38.2: "probing is not read", 38.3: "probing is not read",
     38.4: "probing is not read", 38.5: "probing is not read",
-    **{float(g): "canned cycles are not read" for g in (73, 74, 81, 82, 83, 84, 85, 86, 87, 88, 89)},
 }  # fmt: skip
 _END_M = {2.0, 30.0}
 _PLAIN_G = {(0.0,): "G0", (1.0,): "G1"}
@@ -235,7 +246,8 @@ _SKIPPED_M_RANGES = ((48, 53, "M48-M53 override switches"), (62, 68, "M62-M68 di
                      (70, 73, "M70-M73 modal state save/restore"), (100, 199, "M100-M199 user commands"))
 _MOTION_WORDS = {kind: frozenset(_AXES + words) for kind, words in (
     ("G0", "@^"), ("G1", "@^"), ("G2", "IJKRP"), ("G3", "IJKRP"), ("G5", "IJPQ"), ("G5.1", "IJ"),
-    ("G5.2", "PL"), ("G6.2", "PQKRL"))}
+    ("G5.2", "PL"), ("G6.2", "PQKRL"), ("G80", ""),
+    *((cycle, "RLPQIJK@^") for cycle in _CYCLES))}
 """The words each motion mode reads: the axes X..W and its own (polar @ ^ for G0/G1)."""
 MAX_COORDINATE = 1e9
 """Largest coordinate, centre offset or radius read [program units]: beyond it a path of
@@ -317,6 +329,9 @@ class _Reader:
         self.path_of = _picker(self.axes)  # X..W -> tuple of the path coordinates
         self.others_of = _picker(others)
         self._k = None  # lengths(), until G20/G21 changes the input units
+        self.retract_old_level = False  # G98 (True) or G99, LinuxCNC's default
+        self.cycle_words: dict = {}  # R, depth, P, Q, I/J/K kept from the last cycle [input units]
+        self.cycle_level: float | None = None  # the initial level of a series of cycles [output units]
 
     @property
     def position(self) -> np.ndarray:
@@ -574,6 +589,9 @@ class _Reader:
             if g not in _MOTION:  # G1, G01 and G1.0 are read as 1.0 exactly; others may be computed
                 g = round(g, 4)
             if g in _MOTION:
+                if motion == "G80" or (g == 80.0 and motion is not None):  # LinuxCNC reads G80 G0
+                    motion = motion if g == 80.0 else _MOTION[g]
+                    continue
                 if motion is not None:
                     raise self.error(f"two motion codes on one line: {motion} and {_g_name(g)}")
                 motion = _MOTION[g]
@@ -590,6 +608,8 @@ class _Reader:
                 self.inverse_time = g == 93.0
             elif g in (17.0, 18.0, 19.0):
                 self.plane = g
+            elif g in (98.0, 99.0):
+                self.retract_old_level = g == 98.0
             elif g in _COORD_SYSTEMS:
                 self.program.numbered[5220] = float(_COORD_SYSTEMS[g])
                 self.frame_changes += 1
@@ -638,6 +658,7 @@ class _Reader:
                              f"with G5.3 before this {motion}")
         if self.block is not None and self.block["kind"] == "G6.2" and motion not in (None, "G6.2"):
             self.close_g6()
+        previous = self.motion
         if motion is not None:
             self.motion = motion
         if special is not None:
@@ -651,6 +672,11 @@ class _Reader:
             self.g5_point(rest, opening=self.block is None)
         elif self.motion == "G6.2" and (motion == "G6.2" or rest):
             self.g6_point(rest, opening=self.block is None)
+        elif self.motion in _CYCLES and (motion is not None or rest):
+            self.canned_cycle(rest, previous)
+        elif self.motion == "G80" and rest:
+            raise self.error(f"axis words {sorted(rest)} after G80 (canned cycles off) need a "
+                             "motion code (G0, G1, ...)")
         elif rest or motion in ("G2", "G3"):
             self.move(rest)
         return not (block.m and any(m in _END_M for m in block.m))
@@ -815,6 +841,162 @@ class _Reader:
         if kind != "G5":
             self._g5_pq = None
         self.pos = end
+
+    # -- canned cycles G73, G74, G81-G89
+    def canned_cycle(self, w: dict, previous: str | None) -> None:
+        """One block of a canned cycle, expanded into G0 and G1 moves as LinuxCNC's
+        ``convert_cycle_xy`` / ``_yz`` / ``_zx`` (``interp_cycles.cc``) do: in the selected
+        plane's axes (a, b) and the axis across it (c, the depth), every repeat (``L``)
+        rapids to the hole at the clearance level, down to ``R``, runs the cycle's feed
+        moves along c, and retracts to ``R`` (G99) or to the level the series of cycles
+        started at (G98) if that is higher. Each feed move along c is a piece of a contour
+        (a path with c), a rapid ends the contour; a dwell, a spindle stop or orientation
+        does not change the path and is not kept. G88's manual retract is a jump to the
+        clearance level (a new contour), as the interpreter assumes it."""
+        kind = self.motion
+        again = previous == kind  # LinuxCNC: motion_mode == motion, the words may be left out
+        if not w.keys() <= _MOTION_WORDS[kind]:
+            extra = sorted(set(w) - _MOTION_WORDS[kind])
+            raise self.error(f"word(s) {', '.join(extra)} not read with {kind}")
+        if self.inverse_time:
+            raise self.error(f"{kind}: canned cycles cannot use inverse-time feed (G93)")
+        if self.feed <= 0:
+            raise self.error(f"{kind}: a canned cycle needs a feed rate (F)")
+        ia, ib, ic, oa, ob = _PLANES[self.plane]
+        la, lb, lc = _AXES[ia], _AXES[ib], _AXES[ic]
+        if set(w) & set("UVW"):
+            raise self.error(f"{kind}: U, V or W in a canned cycle in the {_g_name(self.plane)} plane")
+        if ("@" in w or "^" in w) and self.plane != 17.0:
+            raise self.error(f"{kind}: polar coordinates @ ^ are read in the XY plane (G17) only")
+        if ("@" in w or "^" in w) and ("X" in w or "Y" in w):
+            raise self.error("polar coordinates @ ^ cannot be given with X or Y")
+        kept = self.cycle_words
+        if "R" not in w and not again:
+            raise self.error(f"{kind} needs the retract level R the first time")
+        if lc not in w and not again:
+            raise self.error(f"{kind} needs the depth {lc} the first time (in the "
+                             f"{_g_name(self.plane)} plane)")
+        needs = {"G82": "P", "G86": "P", "G88": "P", "G89": "P", "G73": "Q", "G83": "Q"}.get(kind)
+        if needs and needs not in w and not again:
+            raise self.error(f"{kind} needs {needs} the first time")
+        offsets = {17.0: "IJK", 19.0: "JKI", 18.0: "KIJ"}[self.plane]  # a, b offsets; c middle
+        if kind == "G87" and not again:
+            missing = [x for x in offsets if x not in w]
+            if missing:
+                raise self.error(f"G87 needs {', '.join(missing)} the first time")
+        repeats = w.get("L", 1.0)
+        if repeats != int(repeats) or not 1 <= repeats <= 100_000:
+            raise self.error(f"{kind}: repeats L{repeats:g} must be a whole number from 1 to 100000")
+        for letter in "RPQIJK" + lc:
+            if letter in w:
+                kept[letter if letter != lc else "depth"] = self.value(letter, w[letter])
+        k = self.lengths()[ic]
+        cur = self.to_program(self.pos)
+        level = cur[ic]
+        if previous not in _CYCLES or self.cycle_level is None:
+            self.cycle_level = level  # LinuxCNC's cycle_il: where the series of cycles began
+        initial = self.cycle_level
+        pa, pb = cur[ia], cur[ib]
+        step_a = step_b = step_radius = step_angle = 0.0
+        if self.absolute:
+            r, bottom = k * kept["R"], k * kept["depth"]
+            if "@" in w or "^" in w:
+                radius = k * self.value("@", w["@"]) if "@" in w else math.hypot(pa, pb)
+                theta = math.radians(self.value("^", w["^"])) if "^" in w else math.atan2(pb, pa)
+                pa, pb = radius * math.cos(theta), radius * math.sin(theta)
+            else:
+                pa = k * w[la] if la in w else pa
+                pb = k * w[lb] if lb in w else pb
+        else:
+            step_a, step_b = k * w.get(la, 0.0), k * w.get(lb, 0.0)
+            step_radius = k * self.value("@", w["@"]) if "@" in w else 0.0
+            step_angle = math.radians(self.value("^", w["^"])) if "^" in w else 0.0
+            r = k * kept["R"] + initial
+            bottom = r + k * kept["depth"]
+        if r < bottom:
+            raise self.error(f"{kind}: the retract level R ({r:g}) is below the depth "
+                             f"{lc} ({bottom:g})")
+
+        def go(kind_: str, a: float, b: float, c: float) -> None:  # the other axes stay
+            q = list(cur)
+            q[ia], q[ib], q[ic] = a, b, c
+            self.travel(kind_, {}, self.to_absolute_point(q))
+
+        a, b = cur[ia], cur[ib]
+        if initial < r:  # below the R level: straight up to it first
+            go("G0", a, b, r)
+            initial = level = r
+        clear = initial if self.retract_old_level else r
+        peck = PECK_CLEARANCE_INCH * _INCH / (_INCH if self.units == "inch" else 1.0)
+        for n in range(int(repeats)):
+            pa, pb = (pa + step_a, pb + step_b) if not self.absolute else (pa, pb)
+            if step_radius or step_angle:
+                if pa == 0.0 and pb == 0.0:
+                    raise self.error("incremental polar motion is indeterminate at the origin")
+                radius, theta = math.hypot(pa, pb) + step_radius, math.atan2(pb, pa) + step_angle
+                pa, pb = radius * math.cos(theta), radius * math.sin(theta)
+            if n == 0 and level > r:
+                go("G0", pa, pb, level)
+                go("G0", pa, pb, r)
+            else:
+                go("G0", pa, pb, clear)
+                if clear > r:
+                    go("G0", pa, pb, r)
+            self.cycle_moves(kind, go, pa, pb, r, clear, bottom, kept, offsets, k, peck)
+        if kind == "G88":  # the operator retracts by hand; the interpreter continues at clear
+            self.end_contour()
+            q = list(cur)
+            q[ia], q[ib], q[ic] = pa, pb, clear
+            self.pos = self.to_absolute_point(q)
+        self.cycle_words = kept
+
+    def cycle_moves(self, kind, go, a, b, r, clear, bottom, kept, offsets, k, peck) -> None:
+        """The moves of one repeat of a cycle at (a, b) from the R level
+        (``convert_cycle_g81`` .. ``_g89``)."""
+        if kind in ("G73", "G83"):
+            delta = k * kept["Q"]
+            if delta <= 0:
+                raise self.error(f"{kind}: peck depth Q{kept['Q']:g} must be > 0")
+            if (r - bottom) / delta > 100_000:
+                raise self.error(f"{kind}: peck depth Q{kept['Q']:g} makes more than 100000 pecks")
+            depth = r - delta
+            while depth > bottom:
+                go("G1", a, b, depth)
+                if kind == "G83":
+                    go("G0", a, b, r)
+                go("G0", a, b, depth + peck)
+                depth -= delta
+            go("G1", a, b, bottom)
+            go("G0", a, b, clear)
+        elif kind in ("G81", "G82", "G86"):
+            go("G1", a, b, bottom)
+            self.end_contour()  # a dwell, or the spindle stopping, at the bottom
+            go("G0", a, b, clear)
+        elif kind in ("G74", "G84", "G89"):
+            go("G1", a, b, bottom)
+            self.end_contour()  # the spindle reverses or the tool dwells at the bottom
+            go("G1", a, b, clear)
+            self.end_contour()
+        elif kind == "G85":
+            go("G1", a, b, bottom)
+            self.end_contour()  # the feed reverses at the bottom: a stop
+            go("G1", a, b, r)
+            self.end_contour()
+            go("G0", a, b, clear)
+        elif kind == "G87":
+            oa, ob = a + k * kept[offsets[0]], b + k * kept[offsets[1]]
+            middle = k * kept[offsets[2]] + (0.0 if self.absolute else bottom)
+            go("G0", oa, ob, r)
+            go("G0", oa, ob, bottom)
+            go("G0", a, b, bottom)
+            go("G1", a, b, middle)
+            go("G1", a, b, bottom)
+            go("G0", oa, ob, bottom)
+            go("G0", oa, ob, clear)
+            go("G0", a, b, clear)
+        else:  # G88
+            go("G1", a, b, bottom)
+            self.end_contour()
 
     def arc(self, w: dict, start: list, end: list) -> None:
         """G2/G3 in the selected plane, computed in program coordinates as LinuxCNC does:
