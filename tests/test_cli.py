@@ -393,12 +393,18 @@ def test_contours_lists_index_pieces_length_box_units_and_feed(capsys):
     from pathlib import Path
 
     ngc = Path(__file__).resolve().parents[1] / "examples" / "butterfly.ngc"
-    assert main(["contours", str(ngc)]) == 0
+    assert main(["contours", str(ngc), "--axes", "xy"]) == 0  # as a 2-axis machine reads it
     out = capsys.readouterr().out.splitlines()
     assert out[0].endswith("5 contours (choose one with " + str(ngc) + "#k)")
     rows = [line for line in out if line.startswith("| ") and line[2].isdigit()]
     assert [r.split(" | ")[0] for r in rows] == ["| 1", "| 2", "| 3", "| 4", "| 5"]
     assert all(r.endswith("| mm | F600 mm/min |") for r in rows)
+    # without --axes: on every axis the file moves, the plunge (F100) part of each contour
+    assert main(["contours", str(ngc)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[1] == "axes: XYZ (every axis the file moves; --axes to choose)"
+    rows = [line for line in out if line.startswith("| ") and line[2].isdigit()]
+    assert len(rows) == 5 and all(r.endswith("| mm | F100 to F600 mm/min |") for r in rows)
 
 
 def test_gcode_feed_is_optional_and_capped_and_units_override(capsys):

@@ -46,7 +46,11 @@ def _contour(args, machine: Machine | None = None):
 
     names = [a.lower() for a in machine.axis_names] if machine is not None else ["x", "y"]
     axes = "".join(names) if all(len(a) == 1 and a in "xyzabcuvw" for a in names) else "xy"
-    return resolve_contour(args.path, axes=axes, units=args.units)
+    project = getattr(args, "project", None)
+    if project is not None and project.lower() != axes:
+        raise NurbsmotionError(f"--project {project} must name the machine's axes ({axes}): the "
+                               "path is read as its projection on them")
+    return resolve_contour(args.path, axes=axes, units=args.units, project=project is not None)
 
 
 def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float = 1.0,
@@ -94,12 +98,18 @@ def _cmd_contours(args) -> int:
     contours = load_contours(args.path, axes=args.axes, units=args.units)
     print(f"{args.path}: {len(contours)} contour{'s' if len(contours) != 1 else ''} "
           f"(choose one with {args.path}#k)")
+    named = contours[0].axes if contours and contours[0].axes else None
+    if named:
+        how = "as --axes gives them" if args.axes else "every axis the file moves; --axes to choose"
+        rotary = " (A, B, C in degrees)" if set(named) & set("ABC") else ""
+        print(f"axes: {named}{rotary} ({how})")
     print("| # | pieces | length | bounding box | units | programmed feed |")
     print("|---|---|---|---|---|---|")
     for k, c in enumerate(contours, start=1):
         curve = c.curve
-        box = " ".join(f"{n}[{lo:.6g}, {hi:.6g}]" for n, lo, hi in
-                       zip(_axis_names(curve.n_axes), *curve.bounding_box()))
+        box = " ".join(f"{n}[{lo:.6g}, {hi:.6g}]{' deg' if n in 'abc' and c.axes else ''}" for n, lo, hi in
+                       zip(list(c.axes.lower()) if c.axes else _axis_names(curve.n_axes),
+                           *curve.bounding_box()))
         pieces = len(c.feed.speeds) if c.feed is not None else len(curve.sharp_corners()) + 1
         if c.feed is None:
             feed = "none"
@@ -597,6 +607,10 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("path", help=path_help)
     i.add_argument("--feed", type=parse_feed, help=feed_help)
     i.add_argument("--units", choices=PATH_UNITS, help=units_help)
+    i.add_argument("--project", metavar="AXES",
+                   help="read a G-code file's moves as their projection on the machine's axes "
+                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
+                   "refusing moves that change other axes with them")
     i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
                    help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
     i.add_argument("--sample-period", type=_positive_float, default=1e-3, help="Ts [s]")
@@ -611,6 +625,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--machine", default="die-bonder", help=machine_help)
     r.add_argument("--feed", type=parse_feed, help=feed_help)
     r.add_argument("--units", choices=PATH_UNITS, help=units_help)
+    r.add_argument("--project", metavar="AXES",
+                   help="read a G-code file's moves as their projection on the machine's axes "
+                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
+                   "refusing moves that change other axes with them")
     r.add_argument("--interpolator", choices=LOOP_METHODS, default="planned",
                    help="planned: plans the actual motion within ±Umax and steers the plant "
                    "along it; paper: Yeh & Sun (2008), saturation-aware one step ahead; "
@@ -659,6 +677,10 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--machine", default="die-bonder", help=machine_help)
     b.add_argument("--feed", type=parse_feed, help=feed_help)
     b.add_argument("--units", choices=PATH_UNITS, help=units_help)
+    b.add_argument("--project", metavar="AXES",
+                   help="read a G-code file's moves as their projection on the machine's axes "
+                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
+                   "refusing moves that change other axes with them")
     b.add_argument("--sampled", action="store_true",
                    help="print instead a lower bound for any sampled motion that stops at "
                    "every sharp corner [s]: whole samples per "
@@ -669,8 +691,8 @@ def _parser() -> argparse.ArgumentParser:
     c = command("contours", "list the contours of a path file: index, pieces, length, "
                 "bounding box, units, programmed feed (pick one with FILE#k)")
     c.add_argument("path", help="path file (.ngc, .dxf, .json, ...)")
-    c.add_argument("--axes", default="xy", help="the machine's path axes for G-code and DXF, "
-                   "e.g. xy or xyz")
+    c.add_argument("--axes", help="read G-code and DXF on these path axes, e.g. xy or xyz, as a "
+                   "machine with them would (default: every axis the file moves)")
     c.add_argument("--units", choices=PATH_UNITS, help=units_help)
     c.set_defaults(func=_cmd_contours)
 

@@ -271,7 +271,7 @@ def _chain(pieces: list[NurbsCurve], tol: float) -> list[list[NurbsCurve]]:
 
 
 def load_dxf(
-    file: str | os.PathLike, *, tolerance: float = DEFAULT_JOIN_TOLERANCE, axes: str = "xy"
+    file: str | os.PathLike, *, tolerance: float = DEFAULT_JOIN_TOLERANCE, axes: str | None = "xy"
 ) -> list[NurbsCurve]:
     """Read the contours of a DXF drawing's model space (see the module docstring).
 
@@ -284,7 +284,8 @@ def load_dxf(
         size (the largest extent of all control points).
     axes : {"xy", "xyz"}
         The machine's axes: ``"xy"`` reads flat entities (each at a constant Z) as 2-axis
-        paths; ``"xyz"`` reads 3-D paths.
+        paths; ``"xyz"`` reads 3-D paths; None: ``"xy"`` where every entity is flat, else
+        ``"xyz"`` (what ``nurbsmotion contours`` lists).
 
     Returns
     -------
@@ -301,7 +302,8 @@ def load_dxf(
     import ezdxf
 
     path = check_input_file(file)
-    axes = str(axes).lower()
+    auto = axes is None
+    axes = "xyz" if auto else str(axes).lower()
     if axes not in ("xy", "xyz"):
         raise PathFileError(f"DXF paths have the axes xy or xyz, not {axes!r}", str(path))
     doc = _read(path)
@@ -317,6 +319,7 @@ def load_dxf(
                             f"({', '.join(f'{k} = {v}' for k, v in sorted(_UNITS.items()))}); give "
                             "--units to read its numbers in another unit", str(path))
     pieces: list[NurbsCurve] = []
+    flat = True  # every piece at a constant Z
     skipped: Counter = Counter()
     degenerate: Counter = Counter()
     for entity in doc.modelspace():
@@ -329,7 +332,8 @@ def load_dxf(
                 degenerate[entity.dxftype()] += 1
             for piece in found:
                 z = piece.control_points[:, 2]
-                if axes == "xy" and np.ptp(z) > 1e-12 * max(1.0, np.max(np.abs(z))):
+                flat = flat and not np.ptp(z) > 1e-12 * max(1.0, np.max(np.abs(z)))
+                if axes == "xy" and not flat:
                     raise InvalidCurveError(
                         f"{_label(entity)} is not flat: Z runs from {z.min():g} to {z.max():g}; a "
                         "machine with a Z axis (xyz) can read it")
@@ -350,6 +354,9 @@ def load_dxf(
         raise PathFileError(
             "no path entity in the model space (LINE, ARC, CIRCLE, ELLIPSE, SPLINE, LWPOLYLINE, "
             "POLYLINE)", source=str(path))
+    if auto and flat:
+        pieces = [NurbsCurve(c.degree, c.knots, c.control_points[:, :2], c.weights, name=c.name)
+                  for c in pieces]
     size = float(np.max(np.ptp(np.vstack([c.control_points for c in pieces]), axis=0)))
     contours = []
     for k, chain in enumerate(_chain(pieces, tolerance * size)):

@@ -87,11 +87,15 @@ class Contour:
         file gives none.
     source : str
         The file (or built-in name) and contour, e.g. ``"part.ngc#2"``.
+    axes : str or None
+        The file's name of each column of the curve (``"XYZ"``, ``"XYC"``) where the file
+        names its axes (G-code, DXF), else None.
     """
 
     curve: NurbsCurve
     feed: FeedLimit | None
     source: str
+    axes: str | None = None
 
 
 _REQUIRED = ("degree", "knots", "control_points")
@@ -327,20 +331,26 @@ def load_path(file: str | os.PathLike, *, axes: str = "xy", units: str | None = 
     return load_contour(file, axes=axes, units=units).curve
 
 
-def load_contour(file: str | os.PathLike, *, axes: str = "xy", units: str | None = None) -> Contour:
+def load_contour(file: str | os.PathLike, *, axes: str = "xy", units: str | None = None,
+                 project: bool = False) -> Contour:
     """:func:`load_path`, also returning the file's programmed feed (a :class:`Contour`)."""
     spec = os.fspath(file)
     index = None
     match = _CONTOUR_SELECTOR.match(spec)
     if match and not Path(spec).exists():
         spec, index = match.group("file"), int(match.group("index"))
-    contours = load_contours(spec, axes=axes, units=units)
+    contours = load_contours(spec, axes=axes, units=units, project=project)
     chosen = _choose_contour([c.curve for c in contours], index, spec)
     return next(c for c in contours if c.curve is chosen)
 
 
-def load_contours(file: str | os.PathLike, *, axes: str = "xy", units: str | None = None) -> list[Contour]:
-    """Every contour of a path file, with its programmed feed (see :func:`load_path`)."""
+def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: str | None = None,
+                  project: bool = False) -> list[Contour]:
+    """Every contour of a path file, with its programmed feed (see :func:`load_path`).
+
+    ``axes=None`` reads a G-code or DXF file on every axis it moves (G-code: by a feed or
+    a rapid; DXF: XY where every entity is flat, else XYZ); ``project``: a G-code feed
+    move of other axes together with ``axes`` is read as its projection on them."""
     path = Path(file)
     if units is not None and units not in PATH_UNITS:
         raise PathFileError(f"unit {units!r} is not one of {', '.join(PATH_UNITS)}", str(path))
@@ -357,8 +367,8 @@ def load_contours(file: str | os.PathLike, *, axes: str = "xy", units: str | Non
         with warnings.catch_warnings():
             if units is not None:
                 warnings.filterwarnings("ignore", "no G20/G21", GcodeWarning)
-            program = load_gcode(path, axes=axes)
-        found = [Contour(c.curve, c.feed_limit, f"{path}#{k + 1}")
+            program = load_gcode(path, axes=axes, project=project)
+        found = [Contour(c.curve, c.feed_limit, f"{path}#{k + 1}", program.axes)
                  for k, c in enumerate(program.contours)]
     elif suffix == ".dxf":
         from .dxf import DxfWarning, load_dxf
@@ -366,7 +376,8 @@ def load_contours(file: str | os.PathLike, *, axes: str = "xy", units: str | Non
         with warnings.catch_warnings():
             if units is not None:
                 warnings.filterwarnings("ignore", ".*declares no unit", DxfWarning)
-            found = [Contour(c, None, f"{path}#{k + 1}") for k, c in enumerate(load_dxf(path, axes=axes))]
+            found = [Contour(c, None, f"{path}#{k + 1}", "XY" if c.n_axes == 2 else "XYZ")
+                     for k, c in enumerate(load_dxf(path, axes=axes))]
     else:
         raise PathFileError(
             f"unknown path file ending {suffix!r}; expected one of "
@@ -374,7 +385,7 @@ def load_contours(file: str | os.PathLike, *, axes: str = "xy", units: str | Non
             source=str(path),
         )
     if units is not None:
-        found = [Contour(_relabel(c.curve, units), c.feed, c.source) for c in found]
+        found = [Contour(_relabel(c.curve, units), c.feed, c.source, c.axes) for c in found]
     return found
 
 
@@ -422,7 +433,8 @@ def resolve_path(spec: str, *, axes: str = "xy", units: str | None = None) -> Nu
     return resolve_contour(spec, axes=axes, units=units).curve
 
 
-def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None) -> Contour:
+def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None,
+                    project: bool = False) -> Contour:
     """:func:`resolve_path`, also returning the file's programmed feed (a :class:`Contour`)."""
     if spec in BUILTIN_PATHS and not Path(spec).exists():
         curve = builtin_path(spec)
@@ -436,4 +448,4 @@ def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None) ->
             f"{spec!r} is neither a built-in path ({', '.join(BUILTIN_PATHS)}) nor a file "
             f"name with an ending ({', '.join(PATH_FILE_SUFFIXES)})"
         )
-    return load_contour(spec, axes=axes, units=units)
+    return load_contour(spec, axes=axes, units=units, project=project)

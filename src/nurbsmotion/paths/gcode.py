@@ -181,12 +181,15 @@ class GcodeProgram:
         The file name.
     warnings : tuple of str
         The :class:`GcodeWarning` messages issued while reading.
+    axes : str
+        The path axes the contours have, in their column order (e.g. ``"XYZ"``).
     """
 
     contours: tuple
     units: str
     source: str
     warnings: tuple = field(default=())
+    axes: str = "XY"
 
 
 def linuxcnc_knots(n_points: int, order: int) -> np.ndarray:
@@ -329,6 +332,10 @@ class _Reader:
         self.path_of = _picker(self.axes)  # X..W -> tuple of the path coordinates
         self.others_of = _picker(others)
         self._k = None  # lengths(), until G20/G21 changes the input units
+        self.project = False  # feed moves of other axes with the path axes: keep their projection
+        self.auto = False  # no axes given: a feed move of other axes with the path axes is _NeedAxes
+        self.moved = [False] * 9  # axes X..W that any move changed
+        self.fed_outside: dict = {}  # axis outside the path -> first line a feed move changed it
         self.retract_old_level = False  # G98 (True) or G99, LinuxCNC's default
         self.cycle_words: dict = {}  # R, depth, P, Q, I/J/K kept from the last cycle [input units]
         self.cycle_level: float | None = None  # the initial level of a series of cycles [output units]
@@ -733,7 +740,15 @@ class _Reader:
                 self.chain.add_lines(ends)
                 self.piece_feeds.frombytes(state.feed[ends_at].tobytes())
                 self.piece_lines.frombytes(run.line[part].tobytes())
-        j = t - state.s
+        j0, j = s - state.s, t - state.s
+        for i, col in state._columns.items():
+            if not self.moved[i] or (i not in self.axes and i not in self.fed_outside):
+                changed = col[j0 + 1: j + 1] != col[j0: j]
+                if changed.any():
+                    self.moved[i] = True
+                    fed = changed & (state.motion[j0 + 1: j + 1] == 1.0)
+                    if i not in self.axes and fed.any():
+                        self.fed_outside.setdefault(i, int(run.line[s + int(np.argmax(fed))]))
         self.pos = state.position(j)
         self.feed = float(state.feed[j])
         if state.motion[j] >= 0:
@@ -820,16 +835,21 @@ class _Reader:
         path_end = self.path_of(end)
         moves_path = path_end != self.path_of(start)
         moves_other = self.others_of(end) != self.others_of(start)
+        if moves_other or moves_path:
+            self.note_moved(kind, start, end)
         if kind == "G0":
             if moves_path or moves_other:
                 self.end_contour()
-        elif moves_other and (moves_path or kind in ("G2", "G3")):
+        elif moves_other and (moves_path or kind in ("G2", "G3")) and not self.project:
             others = "".join(_AXES[i] for i in range(9) if end[i] != start[i] and i not in self.axes)
+            path = "".join(_AXES[i] for i in self.axes)
+            if self.auto:
+                raise _NeedAxes(set(others))
             raise self.error(
-                f"{kind} moves {others} together with the path axes {''.join(_AXES[i] for i in self.axes)}; "
-                f"a machine with the axes {''.join(sorted(set(_AXES[i] for i in self.axes) | set(others), key=_AXES.index))} "
-                "can follow it")
-        elif moves_other:
+                f"{kind} moves {others} together with the path axes {path}; "
+                f"a machine with the axes {''.join(sorted(set(path) | set(others), key=_AXES.index))} "
+                f"can follow it (or read the path's projection on {path}: --project {path.lower()})")
+        elif moves_other and not moves_path and kind not in ("G2", "G3"):
             self.end_contour()  # a plunge or lift of an axis outside the path ends the contour
         elif kind == "G1":
             if moves_path:
@@ -998,6 +1018,15 @@ class _Reader:
             go("G1", a, b, bottom)
             self.end_contour()
 
+    def note_moved(self, kind: str, start: list, end: list) -> None:
+        """Record the axes a move changes, and the first line where a feed move changes
+        an axis outside the path (:attr:`moved`, :attr:`fed_outside`)."""
+        for i in range(9):
+            if end[i] != start[i]:
+                self.moved[i] = True
+                if kind != "G0" and i not in self.axes and i not in self.fed_outside:
+                    self.fed_outside[i] = self.line
+
     def arc(self, w: dict, start: list, end: list) -> None:
         """G2/G3 in the selected plane, computed in program coordinates as LinuxCNC does:
         an exact arc when only the plane's axes move, else a helix; a spiral when the
@@ -1048,10 +1077,13 @@ class _Reader:
                 f"radius to end of arc differs from radius to start: start {[sx, sy]} "
                 f"centre {[cx, cy]} end {[ex, ey]} r1 {r1:.6g} r2 {r2:.6g}")
         if i1 not in self.axes or i2 not in self.axes:
+            if self.auto:
+                raise _NeedAxes({_AXES[i1], _AXES[i2]})
             raise self.error(f"an arc in the {_g_name(self.plane)} plane needs the axes "
                              f"{_AXES[i1]}{_AXES[i2]} in the path (the path has "
                              f"{''.join(_AXES[i] for i in self.axes)})")
-        linear = any(pe[i] != ps[i] for i in range(9) if i != i1 and i != i2)
+        linear = any(pe[i] != ps[i] for i in range(9) if i != i1 and i != i2
+                     and (i in self.axes or not self.project))  # projected: the path's own axes
         # Within HELIX_TOLERANCE the exact arc ending on the programmed point (its last
         # control point moved by at most the radius difference) is as close to LinuxCNC's
         # spiral as the spiral's own cubic pieces are.
@@ -1175,6 +1207,8 @@ class _Reader:
         control point repeating the start (LinuxCNC's own examples) gives C'(0) = 0, which
         the path keeps (see NurbsCurve)."""
         if not set(plane) <= set(self.axes):
+            if self.auto:
+                raise _NeedAxes({_AXES[i] for i in plane})
             raise self.error(f"the curve lies in the {''.join(_AXES[i] for i in plane)} plane but "
                              f"the path has the axes {''.join(_AXES[i] for i in self.axes)}")
         curve = self.make(build, line)
@@ -1403,34 +1437,18 @@ def _forward_fill(values: np.ndarray, first: float) -> np.ndarray:
     return full[index]
 
 
-def load_gcode(file: str | os.PathLike, axes: str = "xy") -> GcodeProgram:
-    """Read the contours of a G-code program (see the module docstring).
+class _NeedAxes(Exception):
+    """A feed move changes these axes (letters) together with the path axes: read again
+    with them (:func:`load_gcode` without ``axes``)."""
 
-    Parameters
-    ----------
-    file : str or path-like
-        The program.
-    axes : str
-        The machine's axes that form the path, in order, from ``XYZABCUVW`` (e.g. ``"xy"``
-        for a 2-axis machine, ``"xyz"`` for a 3-axis one). A move of any other axis ends
-        the contour; a feed move of another axis together with path axes is refused.
+    def __init__(self, letters: set):
+        super().__init__("".join(sorted(letters)))
+        self.letters = letters
 
-    Returns
-    -------
-    GcodeProgram
-        Its contours (each a joined NurbsCurve with per-piece feeds) and units.
 
-    Raises
-    ------
-    PathFileError
-        At the first malformed line or the first thing that changes the path but is not
-        read, naming the file, the line and the value.
-    """
-    path = check_input_file(file)
-    axes = str(axes).upper()
-    if not axes or len(set(axes)) != len(axes) or not set(axes) <= set(_AXES):
-        raise PathFileError(f"path axes {axes!r} must be distinct letters of {_AXES}", str(path))
+def _read_program(path: Path, axes: str, project: bool, auto: bool) -> _Reader:
     reader = _Reader(str(path), axes)
+    reader.project, reader.auto = project, auto
     lines = split_lines(path.read_bytes(), str(path), upper=True)
     program = Program(lines, str(path), reader.system_parameter)  # upper-cased: plain lines in bulk
     del lines  # the program keeps what it needs
@@ -1439,10 +1457,83 @@ def load_gcode(file: str | os.PathLike, axes: str = "xy") -> GcodeProgram:
         if not (reader.read_rows(item) if isinstance(item, Rows) else reader.read(item)):
             break
     reader.finish()
-    if not reader.contours:
+    return reader
+
+
+def _project(contour: GcodeContour, cols: list) -> GcodeContour:
+    c = contour.curve
+    curve = NurbsCurve(c.degree, c.knots, c.control_points[:, cols], c.weights, name=c.name, units=c.units)
+    return GcodeContour(curve, contour.piece_edges, contour.programmed_feed, contour.lines)
+
+
+def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: bool = False) -> GcodeProgram:
+    """Read the contours of a G-code program (see the module docstring).
+
+    Parameters
+    ----------
+    file : str or path-like
+        The program.
+    axes : str or None
+        The machine's axes that form the path, in order, from ``XYZABCUVW`` (e.g. ``"xy"``
+        for a 2-axis machine, ``"xyz"`` for a 3-axis one). A move of any other axis ends
+        the contour; a feed move of another axis together with path axes is refused (or
+        projected, with ``project``). None: every axis the program moves (by a feed or a
+        rapid), in the order X Y Z A B C U V W (what ``nurbsmotion contours`` lists).
+    project : bool
+        Read a feed move of other axes together with path axes as its projection on the
+        path axes (``--project xy``: a helix becomes its circle) instead of refusing it.
+
+    Returns
+    -------
+    GcodeProgram
+        Its contours (each a joined NurbsCurve with per-piece feeds), units and axes. A
+        program whose feed moves change axes outside the path (a plunge in Z on an XY
+        machine) gets one :class:`GcodeWarning` naming them and the machine that would
+        follow them.
+
+    Raises
+    ------
+    PathFileError
+        At the first malformed line or the first thing that changes the path but is not
+        read, naming the file, the line and the value.
+    """
+    path = check_input_file(file)
+    auto = axes is None
+    axes = "XYZ" if auto else str(axes).upper()
+    if not axes or len(set(axes)) != len(axes) or not set(axes) <= set(_AXES):
+        raise PathFileError(f"path axes {axes!r} must be distinct letters of {_AXES}", str(path))
+    for _ in range(len(_AXES)):
+        with warnings.catch_warnings(record=True) as caught:  # shown once, from the last pass
+            warnings.simplefilter("always")
+            try:
+                reader = _read_program(path, axes, project, auto)
+            except _NeedAxes as exc:
+                axes = "".join(a for a in _AXES if a in set(axes) | exc.letters)
+                continue
+        for c in reader.contours:  # an arc or a spline moves its plane's axes between its ends
+            for col, i in enumerate(reader.axes):
+                reader.moved[i] = reader.moved[i] or bool(np.ptp(c.curve.control_points[:, col]) > 0)
+        moved = "".join(a for i, a in enumerate(_AXES) if reader.moved[i])
+        if not auto or set(moved) <= set(axes):
+            break
+        axes = "".join(a for a in _AXES if a in set(axes) | set(moved))
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    contours = reader.contours
+    if auto and moved and moved != axes:  # an axis of the first guess (XYZ) that never moves
+        contours = [_project(c, [axes.index(a) for a in moved]) for c in contours]
+        axes = moved
+    if reader.fed_outside:
+        outside = "".join(_AXES[i] for i in sorted(reader.fed_outside))
+        first = min(reader.fed_outside.values())
+        every = "".join(a for a in _AXES if a in set(axes) | set(outside))
+        reader.line = first
+        reader.warn(f"feed moves of {outside} (the first here) are not part of the contours on "
+                    f"the axes {axes}; a machine with the axes {every} would follow them")
+    if not contours:
         raise PathFileError(f"the program has no feed move of the path axes {axes} to make a path from",
                             str(path))
-    return GcodeProgram(tuple(reader.contours), reader.units or "mm", str(path), tuple(reader.warnings))
+    return GcodeProgram(tuple(contours), reader.units or "mm", str(path), tuple(reader.warnings), axes)
 
 # ---------------------------------------------------------------------- writer
 def format_number(x: float, decimals: int) -> str:
