@@ -588,7 +588,8 @@ class _Reader:
                 return True
         rest = dict(words)
         if "$$" in rest:
-            self.warn("GRBL '$' settings lines skipped", "$$")
+            self.warn("controller console commands ($..., ?, !, ~: GRBL's settings, status, "
+                      "jog, feed hold, cycle start) skipped: they are not part of the program", "$$")
             return True
         motion = None
         special = None  # a non-modal G code of group 0 that uses the axis words
