@@ -4,10 +4,12 @@ Reading
 -------
 :func:`load_dxf` reads the model space and returns its contours:
 
-- ``SPLINE``: degree, knots, weights and control points as stored. A spline defined by
-  fit points only is refused (its curve depends on the CAD system's fitting; re-export it
-  with control points). Unclamped (periodic) splines are refused by
-  :class:`NurbsCurve`'s validation, wrapped with the entity.
+- ``SPLINE``: degree, knots, weights and control points as stored; a spline defined by
+  fit points only as ezdxf constructs it. Repaired as CAD readers do, each repair one
+  :class:`DxfWarning` naming the entity: an unclamped (closed, periodic) knot vector is
+  rewritten clamped on its domain (the same curve); a knot vector one or two entries
+  short of ``n + p + 1`` gets its missing end knots; missing weights are 1
+  (:func:`_repaired`).
 - ``LINE``; ``ARC`` and ``CIRCLE`` as exact rational arcs; ``LWPOLYLINE`` with bulges as
   exact arcs (closing segment included when the polyline is closed).
 - Entities must lie in the XY plane (extrusion +Z or -Z; a -Z extrusion mirrors the
@@ -161,6 +163,50 @@ def _unclamped_to_clamped(degree: int, knots, points: np.ndarray, weights) -> tu
     return new, fit.c[:, :-1] / fit.c[:, -1:], fit.c[:, -1]
 
 
+def _multiplicity(values: np.ndarray) -> int:
+    """How many entries at the start of ``values`` equal the first."""
+    return int(np.argmax(values != values[0])) if np.any(values != values[0]) else len(values)
+
+
+def _repaired(label: str, degree: int, knots: np.ndarray, n: int, weights) -> tuple:
+    """A SPLINE's knots and weights as CAD readers take them where the file is short of
+    them, one :class:`DxfWarning` naming the entity per repair:
+
+    - ``n + p - 1`` knots (OpenNURBS's convention, which leaves out the two end knots that
+      no basis function of the curve's domain uses): the first and last knot repeated;
+    - ``n + p`` knots: the end knot that the other end shows is missing (an end with ``p``
+      equal knots where the other has ``p + 1``, or the end of a uniform vector) added;
+      the end knots do not change the curve on its domain ``[t_p, t_n]``;
+    - fewer weights than control points: the others 1 (ezdxf's weight of a spline that
+      gives none).
+    """
+    p, k = degree, np.asarray(knots, dtype=float)
+    expected = n + p + 1
+    if n > p and len(k) in (expected - 1, expected - 2) and len(k) >= 2 and np.all(np.diff(k) >= 0):
+        head, tail = _multiplicity(k), _multiplicity(k[::-1])
+        steps = np.diff(k)
+        uniform = bool(np.allclose(steps, steps[0], rtol=1e-12, atol=0.0)) and steps[0] > 0
+        if len(k) == expected - 2:
+            k, where = np.concatenate([k[:1], k, k[-1:]]), "the first and last knot repeated"
+        elif head == p and tail != p:
+            k, where = np.concatenate([k[:1], k]), "the first knot repeated"
+        elif tail == p and head != p:
+            k, where = np.concatenate([k, k[-1:]]), "the last knot repeated"
+        elif uniform:
+            k, where = np.concatenate([k, [k[-1] + steps[0]]]), "a last knot added at the same spacing"
+        else:
+            raise InvalidCurveError(f"{label}: knot vector has {len(knots)} entries, expected {expected} "
+                                    f"= n + p + 1 ({n} control points, degree {p}), and which end "
+                                    "lacks one cannot be told")
+        _warn(f"{label}: knot vector has {len(knots)} entries, expected {expected} = n + p + 1 "
+              f"({n} control points, degree {p}); {where}, as CAD readers do")
+    if weights is not None and 0 < len(weights) < n:
+        _warn(f"{label}: {len(weights)} weights for {n} control points; the other "
+              f"{n - len(weights)} read as 1")
+        weights = np.concatenate([weights, np.ones(n - len(weights))])
+    return k, weights
+
+
 def _pieces(entity) -> list[NurbsCurve]:
     """Path pieces of one entity in world coordinates (3 columns), named by type and
     handle; an empty list for a degenerate entity of zero length."""
@@ -185,9 +231,12 @@ def _pieces(entity) -> list[NurbsCurve]:
             raise InvalidCurveError(f"{label}: weights must be finite and > 0")
         if not np.all(np.isfinite(knots)):
             raise InvalidCurveError(f"{label}: knots must be finite")
+        knots, weights = _repaired(label, degree, knots, len(points), weights)
         if len(points) > degree and np.all(np.diff(knots) >= 0) and len(knots) == len(points) + degree + 1 \
                 and not (np.all(knots[:degree + 1] == knots[0]) and np.all(knots[-degree - 1:] == knots[-1])):
             knots, points, weights = _unclamped_to_clamped(degree, knots, points, weights)
+            _warn(f"{label}: unclamped knot vector (a closed or periodic spline); read on its "
+                  f"domain [{knots[0]:.6g}, {knots[-1]:.6g}] as the same curve with clamped knots")
         if np.ptp(points, axis=0).max(initial=0.0) == 0.0:
             return []
         return [NurbsCurve(degree, knots, points, weights, name=label)]
