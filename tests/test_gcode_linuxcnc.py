@@ -252,7 +252,7 @@ def test_r_word_arcs_in_inches_agree_with_linuxcnc_to_rounding_only(tmp_path):
     program = load_quiet(path)
     assert program.units == "inch"
     arcs = [args for name, args in rs274_canon(path, tmp_path) if name == "ARC_FEED"]
-    assert len(arcs) == 61
+    assert len(arcs) == 60
     (contour,) = [c for c in program.contours if len(c.lines) > 1]
     ends = contour.curve(contour.piece_edges[1:])[:, :2]  # [inch]
     printed = np.array([a[:2] for a in arcs])
