@@ -293,6 +293,9 @@ def _run(args, precompiler) -> int:
         if contour.feed is not None:  # the file gave a feed: say which one ran
             extra["feed_used"] = note
         extra["notes"] = list(notes)
+        extra["path_unit"] = curve.units
+        if contour.units_source:
+            extra["path_unit_source"] = contour.units_source
         data = summary(metrics, interpolator=args.interpolator, feed=feed_number,
                        machine=machine.name, path=args.path, time_optimal_bound=bound,
                        length_unit=unit, pulses_per_length_unit=per_unit, extra=extra)
@@ -309,13 +312,24 @@ def _run(args, precompiler) -> int:
     settled = (f"settled at {metrics.settle_time_s:.4g} s "
                f"({metrics.settle_time_s / bound:.3f} x)" if metrics.settled
                else "not settled by the end of the run")
-    print(f"{args.interpolator} on {machine.name} at {at}: cycle time {metrics.cycle_time_s:.4g} s "
+    source = f", {contour.units_source}" if contour.units_source else ""
+    print(f"{args.interpolator} on {_machine_label(args.machine, machine)} at {at} (path in "
+          f"{curve.units}{source}): cycle time {metrics.cycle_time_s:.4g} s "
           f"({metrics.cycle_time_s / bound:.3f} x the time-optimal bound), {settled}, "
           "max contour error "
           f"{metrics.max_contour_error / per_unit:.4g} {unit} "
           f"({metrics.max_contour_error:.4g} pulse), {sat} saturated "
           f"sample{'s' if sat != 1 else ''} -> {out}")
     return 0
+
+
+def _machine_label(spec: str, machine: Machine) -> str:
+    """The machine's name, and the file it came from where that is named otherwise
+    (a copied machine file keeps the name inside it)."""
+    path = Path(spec)
+    if path.suffix.lower() in (".toml", ".json") and path.stem != machine.name:
+        return f"{machine.name} (from {spec})"
+    return machine.name
 
 
 def _total(expected: float) -> int | None:
@@ -389,24 +403,39 @@ def _write_trace(args, trace, file: Path, unit: str, per_unit: float) -> None:
         write_trace(trace, file, overwrite=args.overwrite, progress=bar.update, **options)
 
 
+EXPORT_PULSE_FRACTION = 1e-3
+"""Exported positions are written to this fraction of a pulse (CSV, PVT, halstreamer, ROS)."""
 EXPORT_FILES = {"csv": "setpoints.csv", "npz": "setpoints.npz", "pvt": "pvt.csv",
+                "halstreamer": "halstreamer.txt", "ros": "trajectory.yaml",
                 "gcode": "motion.ngc"}
 """``run --export`` formats and the files they write."""
 
 
 def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None:
     """The commanded setpoints of a run, in the path's own units (G-code: in mm)."""
-    from .export import SetpointArrays, pvt_table, save_motion_gcode, save_pvt, save_setpoints
+    from .export import (SetpointArrays, pvt_table, save_halstreamer, save_motion_gcode, save_pvt,
+                         save_ros_trajectory, save_setpoints)
 
     scale = machine.pulses_per_unit(curve.units)
     end = trace.finished_index + 1
     sp = SetpointArrays(trace.t[:end], trace.u[:end], trace.position_command[:end] / scale,
                         trace.feed[:end] / scale, machine.axis_names)
+    # Values to a thousandth of a pulse: finer digits are below what the encoder resolves.
+    per_mm = machine.pulses_per_unit("mm")
+    resolution = EXPORT_PULSE_FRACTION / scale  # [path units]
     for fmt, file in files.items():
         if fmt in ("csv", "npz"):
-            save_setpoints(sp, file, overwrite=args.overwrite)
+            save_setpoints(sp, file, resolution=resolution, overwrite=args.overwrite)
         elif fmt == "pvt":
-            save_pvt(pvt_table(sp, args.pvt_period), file, overwrite=args.overwrite)
+            save_pvt(pvt_table(sp, args.pvt_period), file, resolution=resolution,
+                     overwrite=args.overwrite)
+        elif fmt == "halstreamer":  # LinuxCNC's machine unit: mm
+            save_halstreamer(sp, file, units="mm", scale=scale / per_mm,
+                             resolution=EXPORT_PULSE_FRACTION / per_mm, overwrite=args.overwrite)
+        elif fmt == "ros":  # ROS joint values are SI: m
+            save_ros_trajectory(sp, file, period=args.pvt_period, scale=scale / per_mm * 1e-3,
+                                resolution=EXPORT_PULSE_FRACTION / per_mm * 1e-3,
+                                overwrite=args.overwrite)
         else:  # G-code is in mm whatever the path's units
             save_motion_gcode(sp, file, units="mm", overwrite=args.overwrite,
                               scale=scale / machine.pulses_per_unit("mm"))
@@ -662,8 +691,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="trace.csv or trace.parquet (smaller, faster to read)")
     r.add_argument("--export", action="append", choices=sorted(EXPORT_FILES),
                    help="also write the commanded setpoints (up to the end point, in the "
-                   "path's units): csv, npz, pvt (position-velocity-time table), gcode "
-                   "(LinuxCNC G1 per sample, in mm); repeat for several")
+                   "path's units, to a thousandth of a pulse): csv, npz, pvt "
+                   "(position-velocity-time table), gcode (LinuxCNC G1 per sample, in mm), "
+                   "halstreamer (one line per servo period for LinuxCNC's halstreamer, in mm), "
+                   "ros (ROS 2 JointTrajectory YAML at --pvt-period, in m); repeat for several")
     r.add_argument("--pvt-period", type=_positive_float, default=0.01,
                    help="period of the PVT table [s]")
     r.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,

@@ -90,12 +90,16 @@ class Contour:
     axes : str or None
         The file's name of each column of the curve (``"XYZ"``, ``"XYC"``) where the file
         names its axes (G-code, DXF), else None.
+    units_source : str or None
+        Where ``curve.units`` came from: ``"G21 on line 3"``, ``"the DXF header
+        ($INSUNITS)"``, ``"the file's units field"``, ``"--units"``, ``"assumed: ..."``.
     """
 
     curve: NurbsCurve
     feed: FeedLimit | None
     source: str
     axes: str | None = None
+    units_source: str | None = None
 
 
 _REQUIRED = ("degree", "knots", "control_points")
@@ -356,11 +360,15 @@ def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: st
         raise PathFileError(f"unit {units!r} is not one of {', '.join(PATH_UNITS)}", str(path))
     suffix = path.suffix.lower()
     if suffix in (".json", ".toml"):
-        with warnings.catch_warnings():
-            if units is not None:  # the override makes the assumption moot
-                warnings.simplefilter("ignore", PathWarning)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
             curve = _read_json(path) if suffix == ".json" else _read_toml(path)
-        found = [Contour(curve, None, str(path))]
+        assumed = any(issubclass(w.category, PathWarning) for w in caught)
+        for w in caught:  # the override makes the assumption moot
+            if units is None or not issubclass(w.category, PathWarning):
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        found = [Contour(curve, None, str(path), None,
+                         "assumed: the file has no units field" if assumed else "the file's units field")]
     elif suffix in _GCODE_SUFFIXES:
         from .gcode import GcodeWarning, load_gcode
 
@@ -368,16 +376,21 @@ def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: st
             if units is not None:
                 warnings.filterwarnings("ignore", "no G20/G21", GcodeWarning)
             program = load_gcode(path, axes=axes, project=project)
-        found = [Contour(c.curve, c.feed_limit, f"{path}#{k + 1}", program.axes)
+        found = [Contour(c.curve, c.feed_limit, f"{path}#{k + 1}", program.axes, program.units_source)
                  for k, c in enumerate(program.contours)]
     elif suffix == ".dxf":
         from .dxf import DxfWarning, load_dxf
 
-        with warnings.catch_warnings():
-            if units is not None:
-                warnings.filterwarnings("ignore", ".*declares no unit", DxfWarning)
-            found = [Contour(c, None, f"{path}#{k + 1}", "XY" if c.n_axes == 2 else "XYZ")
-                     for k, c in enumerate(load_dxf(path, axes=axes))]
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            curves = load_dxf(path, axes=axes)
+        assumed = any("declares no unit" in str(w.message) for w in caught)
+        for w in caught:
+            if units is None or "declares no unit" not in str(w.message):
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        source = "assumed: the drawing declares no unit" if assumed else "the DXF header ($INSUNITS)"
+        found = [Contour(c, None, f"{path}#{k + 1}", "XY" if c.n_axes == 2 else "XYZ", source)
+                 for k, c in enumerate(curves)]
     else:
         raise PathFileError(
             f"unknown path file ending {suffix!r}; expected one of "
@@ -385,7 +398,7 @@ def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: st
             source=str(path),
         )
     if units is not None:
-        found = [Contour(_relabel(c.curve, units), c.feed, c.source, c.axes) for c in found]
+        found = [Contour(_relabel(c.curve, units), c.feed, c.source, c.axes, "--units") for c in found]
     return found
 
 
@@ -442,7 +455,7 @@ def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None,
             if units not in PATH_UNITS:
                 raise PathFileError(f"unit {units!r} is not one of {', '.join(PATH_UNITS)}")
             curve = _relabel(curve, units)
-        return Contour(curve, None, spec)
+        return Contour(curve, None, spec, None, "--units" if units is not None else "the built-in path")
     if not Path(spec).suffix and not _CONTOUR_SELECTOR.match(spec):
         raise PathFileError(
             f"{spec!r} is neither a built-in path ({', '.join(BUILTIN_PATHS)}) nor a file "

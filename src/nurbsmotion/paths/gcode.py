@@ -183,6 +183,8 @@ class GcodeProgram:
         The :class:`GcodeWarning` messages issued while reading.
     axes : str
         The path axes the contours have, in their column order (e.g. ``"XYZ"``).
+    units_source : str
+        Where ``units`` came from (``"G21 on line 3"``, or that it was assumed).
     """
 
     contours: tuple
@@ -190,6 +192,7 @@ class GcodeProgram:
     source: str
     warnings: tuple = field(default=())
     axes: str = "XY"
+    units_source: str = ""
 
 
 def linuxcnc_knots(n_points: int, order: int) -> np.ndarray:
@@ -305,6 +308,7 @@ class _Reader:
         self.source = source
         self.axes = [_AXES.index(a.upper()) for a in axes]
         self.units: str | None = None  # output units
+        self.units_source = "assumed: no G20/G21"  # where self.units came from
         self.input_inch: bool | None = None
         self.absolute = True
         self.arc_absolute = False
@@ -365,6 +369,7 @@ class _Reader:
     def scale(self) -> float:
         if self.units is None:
             self.units = "mm"
+            self.units_source = "assumed: no G20/G21 before the first move"
             self.input_inch = False
             self.warn("no G20/G21 before the first move; reading millimetres (G21)")
         if self.input_inch == (self.units == "inch"):
@@ -608,6 +613,7 @@ class _Reader:
                 self._k = None
                 if self.units is None:
                     self.units = "inch" if self.input_inch else "mm"
+                    self.units_source = f"{_g_name(g)} on line {self.line}"
             elif g in (90.0, 91.0):
                 self.absolute = g == 90.0
             elif g in (90.1, 91.1):
@@ -1534,7 +1540,8 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
     if not contours:
         raise PathFileError(f"the program has no feed move of the path axes {axes} to make a path from",
                             str(path))
-    return GcodeProgram(tuple(contours), reader.units or "mm", str(path), tuple(reader.warnings), axes)
+    return GcodeProgram(tuple(contours), reader.units or "mm", str(path), tuple(reader.warnings), axes,
+                        reader.units_source)
 
 # ---------------------------------------------------------------------- writer
 def format_number(x: float, decimals: int) -> str:
