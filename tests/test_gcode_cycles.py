@@ -1,4 +1,5 @@
-"""Canned cycles (G73, G74, G81-G89, G98/G99, L repeats) against LinuxCNC's interpreter.
+"""Canned cycles (G73, G74, G81-G89, G98/G99, L repeats), spindle-synchronised moves
+(G33, G33.1, G95) and programs of rapids only, against LinuxCNC's interpreter.
 
 Every feed move LinuxCNC's own interpreter (``linuxcnc-uspace``'s ``gcode`` module, the
 one AXIS previews with) makes for a program must be one line piece of a contour nurbsmotion
@@ -34,6 +35,9 @@ CYCLES = {
     "g84_g74_tapping": "G21 G90 F120 S500 M3\nG0 X0 Y0 Z10\nG84 X2 Y2 Z-5 R3\nX4\nG80\nM5\nM4\nG74 X6 Y6 Z-5 R3\nG80\nM2\n",
     "planes_yz_xz": "G21 G90 F100\nG0 X10 Y0 Z0\nG19 G81 Y3 Z2 X-1 R5\nZ4\nG80\nG0 Y10 X10\nG18 G83 Z1 X2 Y-4 R4 Q1.5\nG80\nM2\n",
     "offsets_and_rotation": "G21 G90 F100\nG10 L2 P2 X5 Y3 Z1 R30\nG55\nG0 X0 Y0 Z6\nG81 X4 Y1 Z-2 R2\nX8 Y-1\nG80\nM2\n",
+    "g33_threading": "G20 G90 G18\nG0 X1 Z0.1\nS100 M3\nG33 Z-2 K0.025\nG0 X1.25\nZ0.1\nM5\nM2\n",
+    "g95_per_revolution": "G21 G90 G94\nM3 S1000\nG0 X0 Z0\nG95 F0.1\nG1 X5\nG1 X10 Z-1\nG94 F300\nG1 Z-3\n"
+                          "G95 F0.1\nS500\nG1 X12\nM2\n",
     "polar_repeats": "G21 G90 F100\nG0 X10 Y0 Z0\nG91 G81 ^45 R2 Z-3 L8\nG90 G80\nG0 X0 Y0\nG81 @15 ^10 R1 Z-1\n^70\nG80\nM2\n",
 }
 
@@ -141,3 +145,44 @@ def test_cycle_refusals_name_the_line(tmp_path, text, match):
     with pytest.raises(PathFileError, match=match) as info:
         load(path)
     assert "\n" not in str(info.value)
+
+
+def test_spindle_paced_moves_take_their_feed_from_s(tmp_path):
+    """G95: F per revolution x S; G33: pitch K x S; G33.1 in and out at that pace."""
+    (tmp_path / "g95.ngc").write_text(CYCLES["g95_per_revolution"])
+    program = load(tmp_path / "g95.ngc")
+    feeds = np.concatenate([c.programmed_feed for c in program.contours])
+    # F0.1 mm/rev at 1000 rpm = 100 mm/min; G94 F300; F0.1 at 500 rpm = 50 mm/min
+    np.testing.assert_allclose(feeds, [100, 100, 300, 50])
+    path = tmp_path / "tap.ngc"
+    path.write_text("G20 G90\nM3 S200\nG0 X1 Y1 Z0.1\nG33.1 Z-0.75 K0.05\nG0 X2\nM2\n")
+    tap = load(path)
+    assert len(tap.contours) == 2  # in, and out after the spindle reverses
+    np.testing.assert_allclose(tap.contours[0].curve.control_points, [[1, 1, 0.1], [1, 1, -0.75]])
+    np.testing.assert_allclose(tap.contours[1].curve.control_points, [[1, 1, -0.75], [1, 1, 0.1]])
+    np.testing.assert_allclose([c.programmed_feed[0] for c in tap.contours], [10.0, 10.0])  # 0.05 in x 200
+
+
+@pytest.mark.parametrize("text, match", [
+    ("G21 G90\nG0 X0 Z0\nG33 Z-2 K1\nM2\n", r"line 3: G33 moves with the spindle: it needs an S word and M3/M4"),
+    ("G21 G90\nS100 M3\nG0 X0 Z0\nG33 Z-2\nM2\n", r"line 4: G33 needs the pitch K"),
+    ("G21 G90 G95 F0.1\nG0 X0\nG1 X5\nM2\n", r"line 3: feed per revolution \(G95\) needs a turning spindle"),
+])
+def test_spindle_paced_moves_need_a_turning_spindle(tmp_path, text, match):
+    path = tmp_path / "bad.ngc"
+    path.write_text(text)
+    with pytest.raises(PathFileError, match=match):
+        load(path)
+
+
+def test_a_program_of_rapids_only_is_its_rapids_with_no_feed(tmp_path):
+    """LinuxCNC's trajectory-planner tests of rapids (quick-tests/long-kink.ngc)."""
+    path = tmp_path / "rapids.ngc"
+    path.write_text("G20 G90 G64 G17\nG0 x0 y0 z0\nG0 X1.0\nG0 X1.01 y.001\nG0 X2.0\nM2\n")
+    with pytest.warns(GcodeWarning, match=r"no feed move: its rapids \(G0\) are read as the path, with no "
+                      r"programmed feed \(give one\)"):
+        program = load_gcode(path, axes=None)
+    assert program.rapids_only and program.axes == "XY"
+    (c,) = program.contours
+    np.testing.assert_array_equal(c.curve.control_points, [[0, 0], [1, 0], [1.01, 0.001], [2, 0.001]])
+    assert np.all(np.isnan(c.programmed_feed))

@@ -376,7 +376,8 @@ def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: st
             if units is not None:
                 warnings.filterwarnings("ignore", "no G20/G21", GcodeWarning)
             program = load_gcode(path, axes=axes, project=project)
-        found = [Contour(c.curve, c.feed_limit, f"{path}#{k + 1}", program.axes, program.units_source)
+        found = [Contour(c.curve, None if program.rapids_only else c.feed_limit, f"{path}#{k + 1}",
+                         program.axes, program.units_source)
                  for k, c in enumerate(program.contours)]
     elif suffix == ".dxf":
         from .dxf import DxfWarning, load_dxf

@@ -185,6 +185,10 @@ class GcodeProgram:
         The path axes the contours have, in their column order (e.g. ``"XYZ"``).
     units_source : str
         Where ``units`` came from (``"G21 on line 3"``, or that it was assumed).
+    rapids_only : bool
+        The program has no feed move: its rapids are the contours, with no programmed
+        feed (``programmed_feed`` NaN), as LinuxCNC's trajectory-planner tests of rapids
+        are run.
     """
 
     contours: tuple
@@ -193,6 +197,7 @@ class GcodeProgram:
     warnings: tuple = field(default=())
     axes: str = "XY"
     units_source: str = ""
+    rapids_only: bool = False
 
 
 def linuxcnc_knots(n_points: int, order: int) -> np.ndarray:
@@ -212,7 +217,7 @@ _PLANES = {17.0: (0, 1, 2, "I", "J"), 18.0: (2, 0, 1, "K", "I"), 19.0: (1, 2, 0,
 """G17/G18/G19: (first axis, second axis, linear axis, first offset word, second offset
 word), as LinuxCNC's convert_arc passes them (XZ is (Z, X): G2 is clockwise seen from +Y)."""
 _MOTION = {0.0: "G0", 1.0: "G1", 2.0: "G2", 3.0: "G3", 5.0: "G5", 5.1: "G5.1",
-           5.2: "G5.2", 5.3: "G5.3", 6.2: "G6.2", 80.0: "G80",
+           5.2: "G5.2", 5.3: "G5.3", 6.2: "G6.2", 80.0: "G80", 33.0: "G33", 33.1: "G33.1",
            **{float(g): f"G{g}" for g in (73, 74, 81, 82, 83, 84, 85, 86, 87, 88, 89)}}  # fmt: skip
 _CYCLES = frozenset(f"G{g}" for g in (73, 74, 81, 82, 83, 84, 85, 86, 87, 88, 89))
 """The canned cycles read (LinuxCNC's ``convert_cycle``)."""
@@ -232,9 +237,7 @@ _SKIPPED_G = {
 _REFUSED_G = {
     41.0: "cutter radius compensation changes the path", 42.0: "cutter radius compensation changes the path",
     41.1: "cutter radius compensation changes the path", 42.1: "cutter radius compensation changes the path",
-    95.0: "feed per revolution is not read; use G94 (units per minute)",
     17.1: "the UVW planes are not read", 18.1: "the UVW planes are not read", 19.1: "the UVW planes are not read",
-    33.0: "spindle-synchronised motion is not read", 33.1: "rigid tapping is not read",
     76.0: "the G76 threading cycle is not read (its passes follow the spindle, which the "
           "path cannot; write the passes as G33 or G1 moves)", 38.2: "probing is not read", 38.3: "probing is not read",
     38.4: "probing is not read", 38.5: "probing is not read",
@@ -252,7 +255,7 @@ _SKIPPED_M_RANGES = ((48, 53, "M48-M53 override switches"), (62, 68, "M62-M68 di
                      (70, 73, "M70-M73 modal state save/restore"), (100, 199, "M100-M199 user commands"))
 _MOTION_WORDS = {kind: frozenset(_AXES + words) for kind, words in (
     ("G0", "@^"), ("G1", "@^"), ("G2", "IJKRP"), ("G3", "IJKRP"), ("G5", "IJPQ"), ("G5.1", "IJ"),
-    ("G5.2", "PL"), ("G6.2", "PQKRL"), ("G80", ""),
+    ("G5.2", "PL"), ("G6.2", "PQKRL"), ("G80", ""), ("G33", "K"), ("G33.1", "KI"),
     *((cycle, "RLPQIJK@^") for cycle in _CYCLES))}
 """The words each motion mode reads: the axes X..W and its own (polar @ ^ for G0/G1)."""
 MAX_COORDINATE = 1e9
@@ -340,6 +343,13 @@ class _Reader:
         self.auto = False  # no axes given: a feed move of other axes with the path axes is _NeedAxes
         self.moved = [False] * 9  # axes X..W that any move changed
         self.fed_outside: dict = {}  # axis outside the path -> first line a feed move changed it
+        self.spindle_on = False  # M3/M4 (True) or M5
+        self.per_rev = False  # G95: F is a length per spindle revolution
+        self.feed_per_rev = 0.0  # [output units / rev]
+        self.spindle_rpm = 0.0  # the last S word [rev/min]
+        self.pitch = 0.0  # G33 / G33.1 K [output units / rev]
+        self.rapids_as_path = False  # a program without feed moves: its rapids are the path
+        self.rapid = False  # the move being read is a rapid read as the path
         self.retract_old_level = False  # G98 (True) or G99, LinuxCNC's default
         self.cycle_words: dict = {}  # R, depth, P, Q, I/J/K kept from the last cycle [input units]
         self.cycle_level: float | None = None  # the initial level of a series of cycles [output units]
@@ -513,6 +523,9 @@ class _Reader:
             if not self.f_on_line:
                 raise self.error("inverse-time feed (G93) needs an F word on every feed move")
             feed = self.feed_word * length
+        if feed <= 0 and self.per_rev:
+            raise self.error("feed per revolution (G95) needs a turning spindle: an S word and "
+                             "M3/M4 before the move", line)
         if feed <= 0:
             raise self.error("feed move without a feed rate: no F word (or F0) before it", line)
         return feed
@@ -530,7 +543,11 @@ class _Reader:
         """A G1 move from the current position to ``path_end`` (the path coordinates)."""
         length = (self.chain if self.chain is not None else self.open_chain()).add_line(path_end)
         feed = self.feed
-        self.piece_feeds.append(feed if feed > 0 and not self.inverse_time else self.piece_feed(length, self.line))
+        if self.rapid:  # a rapid read as the path: no programmed feed
+            feed = math.nan
+        elif not (feed > 0 and not self.inverse_time):
+            feed = self.piece_feed(length, self.line)
+        self.piece_feeds.append(feed)
         self.piece_lines.append(self.line)
 
     def add_length(self, length: float, line: int) -> None:
@@ -571,6 +588,9 @@ class _Reader:
             raise self.error(f"feed F{f:g} must be >= 0 and at most {MAX_COORDINATE:g}")
         if self.inverse_time:
             self.feed_word = f
+        elif self.per_rev:
+            self.feed_per_rev = f * (1.0 if self.units is None else self.scale())
+            self.feed = self.feed_per_rev * self.spindle_rpm
         else:
             self.feed = f * (1.0 if self.units is None else self.scale())
 
@@ -618,8 +638,10 @@ class _Reader:
                 self.absolute = g == 90.0
             elif g in (90.1, 91.1):
                 self.arc_absolute = g == 90.1
-            elif g in (93.0, 94.0):
-                self.inverse_time = g == 93.0
+            elif g in (93.0, 94.0, 95.0):
+                if (g == 95.0) != self.per_rev or (g == 93.0) != self.inverse_time:
+                    self.feed = self.feed_per_rev = 0.0  # LinuxCNC's convert_feed_mode: F anew
+                self.inverse_time, self.per_rev = g == 93.0, g == 95.0
             elif g in (17.0, 18.0, 19.0):
                 self.plane = g
             elif g in (98.0, 99.0):
@@ -651,6 +673,8 @@ class _Reader:
         for m in block.m:
             if m in _END_M:
                 continue
+            if m in (3.0, 4.0, 5.0):
+                self.spindle_on = m != 5.0
             name = _skipped_m(m)
             if name is None:
                 raise self.error(f"M{m:g} is not an M code this reader knows")
@@ -658,6 +682,12 @@ class _Reader:
             if m >= 48:  # the words of M48-M53, M61-M68 (P, Q, E, L, R) go with them
                 for letter in "PEQLR":
                     rest.pop(letter, None)
+        if "S" in rest:
+            if not 0 <= rest["S"] <= MAX_COORDINATE:
+                raise self.error(f"spindle speed S{rest['S']:g} must be >= 0")
+            self.spindle_rpm = rest["S"]
+            if self.per_rev:
+                self.feed = self.feed_per_rev * self.spindle_rpm
         if not rest.keys().isdisjoint(_SKIPPED_WORDS):
             for letter, what in _SKIPPED_WORDS.items():
                 if letter in rest:
@@ -703,6 +733,8 @@ class _Reader:
         (:class:`_RunState`); every other row goes through :meth:`read`, after which the
         bulk state is checked against the reader's and recomputed where they differ."""
         table = rows.table
+        if self.rapids_as_path:  # rare (a program of rapids only) and small: line by line
+            return all(self.read(table.block(r)) for r in range(rows.start, rows.stop))
         run = _RunColumns(table, rows.start, rows.stop)
         state = None
         s = 0
@@ -724,7 +756,7 @@ class _Reader:
     def lean(self) -> bool:
         """Whether :meth:`read`'s lean path (and so :meth:`read_rows`'s bulk) applies."""
         return (self.block is None and self.units is not None and self.absolute
-                and not self.inverse_time and self.identity_frame())
+                and not self.inverse_time and not self.per_rev and self.identity_frame())
 
     def apply_rows(self, run: "_RunColumns", state: "_RunState", s: int, t: int) -> None:
         """Apply rows ``s .. t - 1`` of a run as :meth:`read` would, one by one."""
@@ -833,11 +865,42 @@ class _Reader:
             raise self.error(f"word(s) {', '.join(extra)} not read with {kind}")
         if kind in ("G5", "G5.1") and self.plane != 17.0:
             raise self.error(f"{kind} is only allowed in the XY plane (G17), as in LinuxCNC")
+        if kind in ("G33", "G33.1"):
+            self.synchronised(kind, w, machine)
+            return
         self.travel(kind, w, self.target(w, machine=machine))
+
+    def synchronised(self, kind: str, w: dict, machine: bool) -> None:
+        """G33 (a line at the spindle's pace: feed = pitch K x S) and G33.1 (rigid tapping:
+        in to the end point and back to the start at that pace, the spindle reversing at
+        the bottom), read with the last S word as the spindle's speed, as LinuxCNC moves
+        them with the spindle at that speed (``convert_straight``)."""
+        if "K" in w:
+            self.pitch = self.lengths()[0] * self.value("K", w.pop("K"))
+        w.pop("I", None)  # G33.1 I: the spindle's speed scale on the way out, not the path
+        if self.pitch <= 0:
+            raise self.error(f"{kind} needs the pitch K (a length per revolution, > 0)")
+        if not (self.spindle_on and self.spindle_rpm > 0):
+            raise self.error(f"{kind} moves with the spindle: it needs an S word and M3/M4 before it")
+        feed, self.feed = self.feed, self.pitch * self.spindle_rpm  # [output units / min]
+        per_rev, inverse, self.per_rev, self.inverse_time = self.per_rev, self.inverse_time, False, False
+        try:
+            start = list(self.pos)
+            end = self.target(w, machine=machine)
+            self.travel("G1", {}, end)
+            if kind == "G33.1":  # the spindle reverses at the bottom: a stop, then out again
+                self.end_contour()
+                self.travel("G1", {}, start)
+                self.end_contour()
+        finally:
+            self.feed, self.per_rev, self.inverse_time = feed, per_rev, inverse
 
     def travel(self, kind: str, w: dict, end: list) -> None:
         """Move to ``end`` (absolute X..W) with motion ``kind``: a piece of the open
         contour, or the end of it (rapid, move of an axis outside the path)."""
+        self.rapid = kind == "G0" and self.rapids_as_path
+        if self.rapid:
+            kind = "G1"
         start = self.pos
         path_end = self.path_of(end)
         moves_path = path_end != self.path_of(start)
@@ -1453,9 +1516,9 @@ class _NeedAxes(Exception):
         self.letters = letters
 
 
-def _read_program(path: Path, axes: str, project: bool, auto: bool) -> _Reader:
+def _read_program(path: Path, axes: str, project: bool, auto: bool, rapids: bool = False) -> _Reader:
     reader = _Reader(str(path), axes)
-    reader.project, reader.auto = project, auto
+    reader.project, reader.auto, reader.rapids_as_path = project, auto, rapids
     lines = split_lines(path.read_bytes(), str(path), upper=True)
     program = Program(lines, str(path), reader.system_parameter)  # upper-cased: plain lines in bulk
     del lines  # the program keeps what it needs
@@ -1509,14 +1572,18 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
     axes = "XYZ" if auto else str(axes).upper()
     if not axes or len(set(axes)) != len(axes) or not set(axes) <= set(_AXES):
         raise PathFileError(f"path axes {axes!r} must be distinct letters of {_AXES}", str(path))
-    for _ in range(len(_AXES)):
+    rapids = False
+    for _ in range(2 * len(_AXES)):
         with warnings.catch_warnings(record=True) as caught:  # shown once, from the last pass
             warnings.simplefilter("always")
             try:
-                reader = _read_program(path, axes, project, auto)
+                reader = _read_program(path, axes, project, auto, rapids)
             except _NeedAxes as exc:
                 axes = "".join(a for a in _AXES if a in set(axes) | exc.letters)
                 continue
+        if not reader.contours and not reader.fed_outside and not rapids and any(reader.moved):
+            rapids = True  # no feed move at all: LinuxCNC's planner tests of rapids
+            continue
         for c in reader.contours:  # an arc or a spline moves its plane's axes between its ends
             for col, i in enumerate(reader.axes):
                 reader.moved[i] = reader.moved[i] or bool(np.ptp(c.curve.control_points[:, col]) > 0)
@@ -1537,11 +1604,16 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
         reader.line = first
         reader.warn(f"feed moves of {outside} (the first here) are not part of the contours on "
                     f"the axes {axes}; a machine with the axes {every} would follow them")
+    if rapids and contours:
+        text = (f"{path}: the program has no feed move: its rapids (G0) are read as the path, "
+                "with no programmed feed (give one)")
+        reader.warnings.append(text)
+        warnings.warn(text, GcodeWarning, stacklevel=2)
     if not contours:
         raise PathFileError(f"the program has no feed move of the path axes {axes} to make a path from",
                             str(path))
     return GcodeProgram(tuple(contours), reader.units or "mm", str(path), tuple(reader.warnings), axes,
-                        reader.units_source)
+                        reader.units_source, rapids)
 
 # ---------------------------------------------------------------------- writer
 def format_number(x: float, decimals: int) -> str:
