@@ -213,7 +213,11 @@ def _run(args, precompiler) -> int:
                             per_shown=per_unit, shown_unit=f"{unit}/s")
     feed_number = feed if isinstance(feed, (int, float)) else feed.highest
     path = to_pulses(curve, machine)
-    check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
+    try:
+        check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
+    except NurbsmotionError:
+        _ask_for_feed_unit(args, curve, machine, path.length, feed)
+        raise
     plant = None if args.plant is None else _true_plant(load_machine(args.plant), machine)
     eps = units.length_in_pulses(args.corner_tolerance, curve, machine, "--corner-tolerance")
     if eps and args.interpolator != "planned":
@@ -321,6 +325,21 @@ def _run(args, precompiler) -> int:
           f"({metrics.max_contour_error:.4g} pulse), {sat} saturated "
           f"sample{'s' if sat != 1 else ''} -> {out}")
     return 0
+
+
+def _ask_for_feed_unit(args, curve, machine: Machine, length: float, feed) -> None:
+    """A bare ``--feed`` number (no unit) that makes the move too long to run is most
+    likely in another unit than the path's: raise asking for it, instead of pointing at
+    ``--max-samples``."""
+    given = getattr(args, "feed", None)
+    if given is None or given[1] is not None or not isinstance(feed, (int, float)) or feed <= 0:
+        return
+    value, unit = given[0], curve.units or "pulse"
+    hours = length / feed / 3600.0
+    raise InvalidArgumentError(
+        f"--feed {value:g} is a bare number, read in the path's unit per second ({value:g} "
+        f"{unit}/s): the move would take {hours:.3g} h. {value:g} m/s? give the unit (e.g. "
+        f"--feed {value:g}m/s, {value:g}mm/s or {value:g}mm/min)")
 
 
 def _machine_label(spec: str, machine: Machine) -> str:
@@ -520,8 +539,8 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
     def _get_help_string(self, action):
         if action.required or action.default in (None, False) or isinstance(
-                action, argparse._StoreTrueAction):
-            return action.help
+                action, argparse._StoreTrueAction) or "(default:" in (action.help or ""):
+            return action.help  # (the help that states its default itself says it once)
         return super()._get_help_string(action)
 
 
@@ -589,7 +608,22 @@ class _Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (no usage block)."""
 
     def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)\n")
+        self.exit(2, f"{self.prog}: error: {_one_line(message)}{_did_you_mean(message)} "
+                     f"(see {self.prog} --help)\n")
+
+
+def _did_you_mean(message: str) -> str:
+    """``; did you mean 'run'?`` for argparse's invalid choice of a command or an option
+    value that is close to one of the choices (difflib's ratio), else ``""``."""
+    import difflib
+    import re
+
+    found = re.search(r"invalid choice: '([^']*)' \(choose from ([^)]*)\)", message)
+    if not found:
+        return ""
+    choices = re.findall(r"'([^']*)'", found.group(2))
+    close = difflib.get_close_matches(found.group(1), choices, n=1, cutoff=0.6)
+    return f"; did you mean '{close[0]}'?" if close else ""
 
 
 def _parser() -> argparse.ArgumentParser:
