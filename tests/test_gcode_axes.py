@@ -111,3 +111,22 @@ NOT_LISTED = {
 def test_corpus_files_list_without_flags(path, capsys):
     code = main(["contours", str(path)])
     assert (code == 0) == (path.name not in NOT_LISTED), capsys.readouterr().err
+
+
+def test_a_rotary_path_is_refused_on_a_machine_that_has_the_axis(tmp_path, capsys):
+    """Degrees would be scaled by the pulse length as if they were lengths: refused,
+    naming the axis, until machines have pulses per degree."""
+    import json
+
+    from nurbsmotion.machine import die_bonder
+
+    d = die_bonder().to_dict()
+    x = d["axes"][0]
+    d["axes"] = [dict(x, name=n) for n in "xyc"]
+    machine = tmp_path / "xyc.json"
+    machine.write_text(json.dumps(d))
+    path = tmp_path / "rot.ngc"
+    path.write_text(ROTARY)
+    assert main(["bound", str(path), "--machine", str(machine), "--feed", "10mm/s"]) != 0
+    assert "the path moves the rotary axis C [deg]; running rotary axes is not supported yet" in \
+        capsys.readouterr().err

@@ -50,7 +50,14 @@ def _contour(args, machine: Machine | None = None):
     if project is not None and project.lower() != axes:
         raise NurbsmotionError(f"--project {project} must name the machine's axes ({axes}): the "
                                "path is read as its projection on them")
-    return resolve_contour(args.path, axes=axes, units=args.units, project=project is not None)
+    contour = resolve_contour(args.path, axes=axes, units=args.units, project=project is not None)
+    rotary = sorted(set(contour.axes or "") & set("ABC"))
+    if rotary:  # degrees would be scaled by the pulse length as if they were lengths
+        raise InvalidArgumentError(
+            f"the path moves the rotary axis {', '.join(rotary)} [deg]; running rotary axes is not "
+            "supported yet (a machine has one pulse length, no pulses per degree): list the "
+            f"contours with 'nurbsmotion contours {args.path}'")
+    return contour
 
 
 def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float = 1.0,
