@@ -346,7 +346,8 @@ def _ask_for_feed_unit(args, curve, machine: Machine, length: float, feed) -> No
     raise InvalidArgumentError(
         f"--feed {value:g} is a bare number, read in the path's unit per second ({value:g} "
         f"{unit}/s): the move would take {hours:.3g} h. {value:g} m/s? give the unit (e.g. "
-        f"--feed {value:g}m/s, {value:g}mm/s or {value:g}mm/min)")
+        f"--feed {value:g}m/s, {value:g}mm/s or {value:g}mm/min), or raise --max-samples if "
+        f"{value:g} {unit}/s is meant")
 
 
 def _machine_label(spec: str, machine: Machine) -> str:
