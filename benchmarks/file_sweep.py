@@ -23,7 +23,8 @@ segments with exact stops (``flowsnake.ngc`` at Ts = 2 ms: 3,072 corners, 1.5 pu
 piece) no sampled motion comes near it (``nurbsmotion bound --sampled``).
 
 Run: python benchmarks/file_sweep.py (``FILE_SWEEP_DRAWS=n``: each contour on n machines,
-the first one always the same)
+the first one always the same; ``FILE_SWEEP_FILES=corpus|linuxcnc_tp|all``: which files,
+LinuxCNC's trajectory-planner test programs being ``corpus/linuxcnc_tp``)
 """
 
 from __future__ import annotations
@@ -70,9 +71,21 @@ def _alarm(signum, frame):
     raise _TimedOut
 
 
+AXES = tuple(os.environ.get("FILE_SWEEP_AXES", "xy,xyz").split(","))
+"""The machines' axes each file is read for; ``file``: every axis the file moves, with no
+flag (as ``nurbsmotion contours FILE`` lists it), on a machine with that many axes."""
+
+FILES = os.environ.get("FILE_SWEEP_FILES", "all")
+"""Which files: ``corpus`` (the corpus' own folder), ``linuxcnc_tp`` (LinuxCNC's
+trajectory-planner test programs, ``corpus/linuxcnc_tp``) or ``all``."""
+
+
 def cases() -> list[tuple]:
-    files = sorted(f for f in CORPUS.iterdir() if f.suffix.lower() != ".md")
-    return [(i, f, axes) for i, f in enumerate(files) for axes in ("xy", "xyz")]
+    folders = {"corpus": [CORPUS], "linuxcnc_tp": [CORPUS / "linuxcnc_tp"],
+               "all": [CORPUS, CORPUS / "linuxcnc_tp"]}[FILES]
+    files = sorted(f for folder in folders for f in folder.iterdir()
+                   if f.is_file() and f.suffix.lower() != ".md")
+    return [(i, f, axes) for i, f in enumerate(files) for axes in AXES]
 
 
 def one_file(case: tuple) -> list[dict]:
@@ -83,15 +96,20 @@ def one_file(case: tuple) -> list[dict]:
     warnings.simplefilter("ignore")  # the readers' notes on skipped words
     signal.signal(signal.SIGALRM, _alarm)
     try:
-        contours = load_contours(file, axes=axes)
+        contours = load_contours(file, axes=None if axes == "file" else axes)
     except NurbsmotionError as exc:
         return [dict(file=file.name, axes=axes, status="not read",
                      error=f"{type(exc).__name__}: {exc}")]
     rows = []
     for (k, contour), draw in itertools.product(enumerate(contours[:2]), range(DRAWS)):
-        seed = [index, k, len(axes)] + ([draw] if draw else [])
+        n_axes = contour.curve.n_axes
+        if n_axes > 3 or set(contours[0].axes or "") & set("ABC"):  # random machines: 1-3 linear axes
+            rows.append(dict(file=file.name, axes=axes, contour=k + 1, draw=draw, status="not run",
+                             error=f"axes {contour.axes}: no random machine has them"))
+            continue
+        seed = [index, k, n_axes] + ([draw] if draw else [])
         rng = np.random.default_rng(seed)
-        m = random_machine(seed, len(axes))
+        m = random_machine(seed, n_axes)
         m = m.with_options(pulse_length_um=float(rng.choice([0.1, 1.0, 10.0])))
         pulse = m.pulse_length_um
         feed = float(np.exp(rng.uniform(np.log(5.0), np.log(300.0)))) * 1e3 / pulse

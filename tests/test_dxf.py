@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 import warnings
 
 import ezdxf
@@ -295,3 +296,77 @@ def test_corpus_entities_equal_ezdxfs_evaluation(path):
         pts = ezdxf_points(e, 50)[:, : len(axes)]
         worst = max(worst, float(np.max(distance_to(contours, pts))))
     assert worst <= 1e-9 * size
+
+
+# ---------------------------------------------------------------- SPLINE repairs
+NINE = [(0, 0), (1, 2), (3, 3), (4, 1), (6, 0), (7, 2), (8, 4), (10, 3), (11, 0)]
+CLAMPED_KNOTS = [0, 0, 0, 0, 1, 2.5, 3, 4.5, 5, 7, 7, 7, 7]  # 13 = 9 + 3 + 1, non-uniform
+
+
+def spline_file(tmp_path, name, knots, weights=None, points=NINE):
+    doc, msp = drawing()
+    s = msp.add_spline()
+    s.dxf.degree = 3
+    s.control_points = [(*p, 0) for p in points]
+    s.knots = knots
+    if weights is not None:
+        s.weights = weights
+    file = tmp_path / f"{name}.dxf"
+    doc.saveas(file)
+    return file
+
+
+@pytest.mark.parametrize("name, knots, said", [
+    ("first-missing", CLAMPED_KNOTS[1:], "the first knot repeated"),
+    ("last-missing", CLAMPED_KNOTS[:-1], "the last knot repeated"),
+    ("opennurbs", CLAMPED_KNOTS[1:-1], "the first and last knot repeated"),
+])
+def test_a_short_knot_vector_reads_as_the_full_one_ezdxf_evaluates(tmp_path, name, knots, said):
+    doc, msp = drawing()
+    full = msp.add_open_spline(NINE, degree=3, knots=CLAMPED_KNOTS)
+    reference = ezdxf_points(full)[:, :2]
+    file = spline_file(tmp_path, name, knots)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        (curve,) = load_dxf(file)
+    messages = [str(w.message) for w in caught if issubclass(w.category, DxfWarning)]
+    repairs = [m for m in messages if "knot vector" in m]
+    assert len(repairs) == 1 and re.search(rf"SPLINE #\w+: knot vector has {len(knots)} entries, "
+                                           rf"expected 13 = n \+ p \+ 1 \(9 control points, degree 3\); "
+                                           rf"{said}", repairs[0])
+    size = np.max(np.ptp(reference, axis=0))
+    assert np.max(distance_to([curve], reference)) <= 1e-9 * size
+    np.testing.assert_allclose(curve(np.array([0.0, 1.0])), reference[[0, -1]], atol=1e-9 * size)
+
+
+def test_a_short_uniform_knot_vector_gets_its_last_knot_and_equals_ezdxf(tmp_path):
+    uniform = list(range(13))  # unclamped, uniform: the end knots do not shape the curve
+    doc, msp = drawing()
+    full = msp.add_open_spline(NINE, degree=3, knots=uniform)
+    reference = ezdxf_points(full)[:, :2]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        (curve,) = load_dxf(spline_file(tmp_path, "uniform", uniform[:-1]))
+    messages = [str(w.message) for w in caught]
+    assert sum("a last knot added at the same spacing" in m for m in messages) == 1
+    assert sum("unclamped knot vector" in m for m in messages) == 1
+    size = np.max(np.ptp(reference, axis=0))
+    assert np.max(distance_to([curve], reference)) <= 1e-9 * size
+
+
+def test_missing_weights_read_as_one_as_ezdxf_does(tmp_path):
+    given = [1.0, 2.0, 0.5, 1.5]
+    doc, msp = drawing()
+    full = msp.add_rational_spline(NINE, given + [1.0] * 5, degree=3, knots=CLAMPED_KNOTS)
+    reference = ezdxf_points(full)[:, :2]
+    with pytest.warns(DxfWarning, match=r"SPLINE #\w+: 4 weights for 9 control points; the other 5 read as 1"):
+        (curve,) = load_dxf(spline_file(tmp_path, "weights", CLAMPED_KNOTS, weights=given))
+    size = np.max(np.ptp(reference, axis=0))
+    assert np.max(distance_to([curve], reference)) <= 1e-9 * size
+
+
+def test_a_knot_vector_short_at_an_unknown_end_is_refused_naming_the_entity(tmp_path):
+    knots = [0, 0, 1, 2.5, 3, 4.5, 5, 6, 7, 8, 9, 9]  # 12: neither end says which is short
+    with pytest.raises(PathFileError, match=r"SPLINE #\w+: knot vector has 12 entries, expected 13 "
+                       r"= n \+ p \+ 1 \(9 control points, degree 3\), and which end lacks one"):
+        load_dxf(spline_file(tmp_path, "unknown", knots))

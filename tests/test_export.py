@@ -109,3 +109,97 @@ def test_motion_gcode_scales_pulses_and_rejects_bad_axes(tmp_path):
     with pytest.raises(ExportError, match="not G-code axis letters"):
         save_motion_gcode(SetpointArrays([0, 1], [0, 1], [[0, 0], [1, 1]], axis_names=("x", "q")), tmp_path / "n.ngc")
     assert not (tmp_path / "n.ngc").exists()
+
+
+# ---------------------------------------------------------------- halstreamer, ROS, resolution
+def test_halstreamer_one_line_per_period_in_machine_units(tmp_path):
+    from nurbsmotion.export import save_halstreamer
+
+    sp = circle_motion()  # [mm]
+    file = save_halstreamer(sp, tmp_path / "halstreamer.txt", units="mm", scale=1.0, resolution=1e-6)
+    text = file.read_text().splitlines()
+    assert text[0] == "# nurbsmotion setpoints for LinuxCNC halstreamer: 400 lines, one per servo period of 0.001 s"
+    assert text[1].endswith("cfg=ff") and text[2] == "# columns: x [mm] y [mm] (to 1e-06 mm)"
+    data = np.loadtxt(file, comments="#")  # as halstreamer reads it: '#' lines skipped
+    assert data.shape == (400, 2)
+    np.testing.assert_allclose(data, sp.position, rtol=0, atol=0.5e-6 + 1e-12)
+    assert all(len(x.split(".")[1]) == 6 for x in text[3].split())
+
+
+def test_halstreamer_needs_one_setpoint_per_period(tmp_path):
+    from nurbsmotion.export import save_halstreamer
+
+    sp = circle_motion()
+    sp.t = sp.t.copy()
+    sp.t[100:] += 0.0005
+    with pytest.raises(ExportError, match=r"one per servo period \(0.001 s\), but t\[100\] - t\[99\] = 0.0015 s"):
+        save_halstreamer(sp, tmp_path / "h.txt")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ros_trajectory_follows_the_circle(tmp_path):
+    """Positions, velocities and accelerations of the YAML against the analytic circle
+    (radius 10 mm at 1 rev/s: speed 62.8 mm/s, centripetal 395 mm/s^2), in SI units."""
+    yaml = pytest.importorskip("yaml")
+    from nurbsmotion.export import save_ros_trajectory
+
+    sp = circle_motion()
+    file = save_ros_trajectory(sp, tmp_path / "trajectory.yaml", period=0.01, scale=1e-3, resolution=1e-9)
+    msg = yaml.safe_load(file.read_text())
+    assert msg["joint_names"] == ["x", "y"]
+    points = msg["points"]
+    t = np.array([p["time_from_start"]["sec"] + 1e-9 * p["time_from_start"]["nanosec"] for p in points])
+    np.testing.assert_allclose(t[:-1], np.arange(len(t) - 1) * 0.01, atol=1e-12)
+    assert t[-1] == pytest.approx(sp.t[-1], abs=1e-12)
+    pos = np.array([p["positions"] for p in points])
+    vel = np.array([p["velocities"] for p in points])
+    acc = np.array([p["accelerations"] for p in points])
+    w, r = 2 * math.pi, 10e-3  # [rad/s], [m]
+    inner = slice(2, -2)  # the spline's not-a-knot ends are less exact
+    np.testing.assert_allclose(pos, r * np.c_[np.cos(w * t), np.sin(w * t)], atol=1e-9)
+    np.testing.assert_allclose(vel[inner], r * w * np.c_[-np.sin(w * t), np.cos(w * t)][inner], atol=1e-7)
+    np.testing.assert_allclose(acc[inner], -r * w * w * np.c_[np.cos(w * t), np.sin(w * t)][inner], atol=1e-4)
+
+
+def test_resolution_writes_a_fraction_of_a_pulse(tmp_path):
+    sp = circle_motion()
+    file = save_setpoints(sp, tmp_path / "setpoints.csv", resolution=1e-6)
+    lines = file.read_text().splitlines()
+    assert lines[0] == "t,u,x,y"
+    t, u, x, y = lines[1].split(",")
+    assert (len(t.split(".")[1]), len(u.split(".")[1]), len(x.split(".")[1])) == (9, 12, 6)
+    data = np.loadtxt(file, delimiter=",", skiprows=1)
+    np.testing.assert_allclose(data[:, 2:], sp.position, rtol=0, atol=0.5e-6 + 1e-12)
+    table = pvt_table(sp, 0.01)
+    pvt = save_pvt(table, tmp_path / "pvt.csv", resolution=1e-6)
+    back = np.loadtxt(pvt, delimiter=",", skiprows=1)
+    np.testing.assert_allclose(back[:, 1], table.position[:, 0], rtol=0, atol=0.5e-6 + 1e-12)
+
+
+def test_run_exports_halstreamer_and_ros_and_names_the_paths_unit(tmp_path, capsys):
+    """``run --export halstreamer --export ros``: mm per servo period and a ROS 2
+    trajectory in m; the printed line and summary.json say where the path's unit came
+    from, and a copied machine file is named where its name differs."""
+    import json
+    from pathlib import Path
+
+    from nurbsmotion.cli import main
+    from nurbsmotion.machine import die_bonder
+
+    machine = tmp_path / "weak.toml"
+    machine.write_text(__import__("tomli_w").dumps(die_bonder().to_dict()))  # a copy, renamed
+    ngc = str(Path(__file__).resolve().parents[1] / "examples" / "butterfly.ngc") + "#2"
+    out = tmp_path / "out"
+    assert main(["run", ngc, "--machine", str(machine), "--out", str(out), "--no-figures",
+                 "--export", "halstreamer", "--export", "ros", "--export", "csv"]) == 0
+    printed = capsys.readouterr().out
+    assert f"planned on die-bonder (from {machine}) at" in printed
+    assert "(path in mm, G21 on line 1)" in printed
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["path_unit"], summary["path_unit_source"]) == ("mm", "G21 on line 1")
+    hal = np.loadtxt(out / "halstreamer.txt", comments="#")
+    sp = np.loadtxt(out / "setpoints.csv", delimiter=",", skiprows=1)
+    np.testing.assert_array_equal(hal, sp[:, 2:])  # mm both, to 1e-6 mm
+    assert len(hal) == summary["steps"] + 1
+    text = (out / "trajectory.yaml").read_text()
+    assert "joint_names: [x, y]" in text and "time_from_start: {sec: 0, nanosec: 0}" in text

@@ -334,3 +334,18 @@ def test_gcode_export_refuses_pulses_and_overwrite(tmp_path):
     file = save_gcode(builtin_path("die-bonder-pi"), tmp_path / "pi.ngc", feed=1.0, units="mm")
     with pytest.raises(OutputExistsError):
         save_gcode(builtin_path("butterfly"), file, feed=1.0)
+
+
+def test_console_commands_are_skipped_with_one_warning(tmp_path):
+    """A sender's script (GRBL): $ settings, status ?, feed hold !, cycle start ~ and a $J
+    jog are not part of the program; one warning names them all."""
+    path = tmp_path / "console.gcode"
+    path.write_text("G21 G90\n$I\n$G\n?\n$H\n!\n~\n$X\n$J=G91 X1 F100\nG0 X0 Y0\nG1 X10 F100\n"
+                    "?\nG1 Y5\n$$\nM2\n")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        program = load_gcode(path)
+    said = [str(w.message) for w in caught if "console" in str(w.message)]
+    assert said == [f"{path}, line 2: controller console commands ($..., ?, !, ~: GRBL's settings, "
+                    "status, jog, feed hold, cycle start) skipped: they are not part of the program"]
+    np.testing.assert_array_equal(program.contours[0].curve.control_points, [[0, 0], [10, 0], [10, 5]])

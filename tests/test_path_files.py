@@ -172,3 +172,36 @@ def test_resolve_path_builtin_names_and_files(tmp_path, monkeypatch):
         resolve_path("die-bonder-p")
     with pytest.raises(PathFileError, match="no such file"):
         resolve_path(str(tmp_path / "absent.toml"))
+
+
+# ---------------------------------------------------------------- command-line wording (issue 36)
+def test_a_misspelt_choice_gets_a_did_you_mean(capsys):
+    from nurbsmotion.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["run", "butterfly", "--interpolator", "planed", "--out", "x"])
+    err = capsys.readouterr().err
+    assert "; did you mean 'planned'? (see nurbsmotion run --help)" in err
+    with pytest.raises(SystemExit):
+        main(["rnu", "butterfly"])
+    assert "did you mean 'run'?" in capsys.readouterr().err
+
+
+def test_settle_window_help_states_its_default_once(capsys):
+    from nurbsmotion.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    start = text.index("--settle-window SETTLE_WINDOW the motion")
+    entry = text[start: text.index("--out OUT", start)]
+    assert entry.count("default") == 1
+
+
+def test_a_bare_feed_far_too_slow_asks_for_its_unit(tmp_path, capsys):
+    from nurbsmotion.cli import main
+
+    assert main(["run", "die-bonder-pi", "--feed", "5", "--out", str(tmp_path / "o")]) != 0
+    err = capsys.readouterr().err
+    assert "--feed 5 is a bare number, read in the path's unit per second (5 pulse/s)" in err
+    assert "5 m/s? give the unit (e.g. --feed 5m/s, 5mm/s or 5mm/min)" in err

@@ -45,7 +45,8 @@ def _contour(args, machine: Machine | None = None):
     as a study's cases read theirs (:func:`nurbsmotion.run_input.load_run_contour`)."""
     from .run_input import load_run_contour
 
-    return load_run_contour(args.path, machine, units=args.units)
+    return load_run_contour(args.path, machine, units=args.units,
+                            project=getattr(args, "project", None))
 
 
 def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float = 1.0,
@@ -92,12 +93,18 @@ def _cmd_contours(args) -> int:
     contours = load_contours(args.path, axes=args.axes, units=args.units)
     print(f"{args.path}: {len(contours)} contour{'s' if len(contours) != 1 else ''} "
           f"(choose one with {args.path}#k)")
+    named = contours[0].axes if contours and contours[0].axes else None
+    if named:
+        how = "as --axes gives them" if args.axes else "every axis the file moves; --axes to choose"
+        rotary = " (A, B, C in degrees)" if set(named) & set("ABC") else ""
+        print(f"axes: {named}{rotary} ({how})")
     print("| # | pieces | length | bounding box | units | programmed feed |")
     print("|---|---|---|---|---|---|")
     for k, c in enumerate(contours, start=1):
         curve = c.curve
-        box = " ".join(f"{n}[{lo:.6g}, {hi:.6g}]" for n, lo, hi in
-                       zip(_axis_names(curve.n_axes), *curve.bounding_box()))
+        box = " ".join(f"{n}[{lo:.6g}, {hi:.6g}]{' deg' if n in 'abc' and c.axes else ''}" for n, lo, hi in
+                       zip(list(c.axes.lower()) if c.axes else _axis_names(curve.n_axes),
+                           *curve.bounding_box()))
         pieces = len(c.feed.speeds) if c.feed is not None else len(curve.sharp_corners()) + 1
         if c.feed is None:
             feed = "none"
@@ -214,7 +221,11 @@ def _run(args, precompiler) -> int:
                             per_shown=per_unit, shown_unit=f"{unit}/s")
     feed_number = feed if isinstance(feed, (int, float)) else feed.highest
     path = to_pulses(curve, machine)
-    check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
+    try:
+        check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
+    except NurbsmotionError:
+        _ask_for_feed_unit(args, curve, machine, path.length, feed)
+        raise
     plant = None if args.plant is None else _true_plant(load_machine(args.plant), machine)
     eps = units.length_in_pulses(args.corner_tolerance, curve, machine, "--corner-tolerance")
     if eps and args.interpolator != "planned":
@@ -295,6 +306,9 @@ def _run(args, precompiler) -> int:
         if contour.feed is not None:  # the file gave a feed: say which one ran
             extra["feed_used"] = note
         extra["notes"] = list(notes)
+        extra["path_unit"] = curve.units
+        if contour.units_source:
+            extra["path_unit_source"] = contour.units_source
         data = summary(metrics, interpolator=args.interpolator, feed=feed_number,
                        machine=machine.name, path=args.path, time_optimal_bound=bound,
                        length_unit=unit, pulses_per_length_unit=per_unit, extra=extra)
@@ -311,13 +325,40 @@ def _run(args, precompiler) -> int:
     settled = (f"settled at {metrics.settle_time_s:.4g} s "
                f"({metrics.settle_time_s / bound:.3f} x)" if metrics.settled
                else "not settled by the end of the run")
-    print(f"{args.interpolator} on {machine.name} at {at}: cycle time {metrics.cycle_time_s:.4g} s "
+    source = f", {contour.units_source}" if contour.units_source else ""
+    print(f"{args.interpolator} on {_machine_label(args.machine, machine)} at {at} (path in "
+          f"{curve.units}{source}): cycle time {metrics.cycle_time_s:.4g} s "
           f"({metrics.cycle_time_s / bound:.3f} x the time-optimal bound), {settled}, "
           "max contour error "
           f"{metrics.max_contour_error / per_unit:.4g} {unit} "
           f"({metrics.max_contour_error:.4g} pulse), {sat} saturated "
           f"sample{'s' if sat != 1 else ''} -> {out}")
     return 0
+
+
+def _ask_for_feed_unit(args, curve, machine: Machine, length: float, feed) -> None:
+    """A bare ``--feed`` number (no unit) that makes the move too long to run is most
+    likely in another unit than the path's: raise asking for it, instead of pointing at
+    ``--max-samples``."""
+    given = getattr(args, "feed", None)
+    if given is None or given[1] is not None or not isinstance(feed, (int, float)) or feed <= 0:
+        return
+    value, unit = given[0], curve.units or "pulse"
+    hours = length / feed / 3600.0
+    raise InvalidArgumentError(
+        f"--feed {value:g} is a bare number, read in the path's unit per second ({value:g} "
+        f"{unit}/s): the move would take {hours:.3g} h. {value:g} m/s? give the unit (e.g. "
+        f"--feed {value:g}m/s, {value:g}mm/s or {value:g}mm/min), or raise --max-samples if "
+        f"{value:g} {unit}/s is meant")
+
+
+def _machine_label(spec: str, machine: Machine) -> str:
+    """The machine's name, and the file it came from where that is named otherwise
+    (a copied machine file keeps the name inside it)."""
+    path = Path(spec)
+    if path.suffix.lower() in (".toml", ".json") and path.stem != machine.name:
+        return f"{machine.name} (from {spec})"
+    return machine.name
 
 
 def _total(expected: float) -> int | None:
@@ -391,24 +432,39 @@ def _write_trace(args, trace, file: Path, unit: str, per_unit: float) -> None:
         write_trace(trace, file, overwrite=args.overwrite, progress=bar.update, **options)
 
 
+EXPORT_PULSE_FRACTION = 1e-3
+"""Exported positions are written to this fraction of a pulse (CSV, PVT, halstreamer, ROS)."""
 EXPORT_FILES = {"csv": "setpoints.csv", "npz": "setpoints.npz", "pvt": "pvt.csv",
+                "halstreamer": "halstreamer.txt", "ros": "trajectory.yaml",
                 "gcode": "motion.ngc"}
 """``run --export`` formats and the files they write."""
 
 
 def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None:
     """The commanded setpoints of a run, in the path's own units (G-code: in mm)."""
-    from .export import SetpointArrays, pvt_table, save_motion_gcode, save_pvt, save_setpoints
+    from .export import (SetpointArrays, pvt_table, save_halstreamer, save_motion_gcode, save_pvt,
+                         save_ros_trajectory, save_setpoints)
 
     scale = machine.pulses_per_unit(curve.units)
     end = trace.finished_index + 1
     sp = SetpointArrays(trace.t[:end], trace.u[:end], trace.position_command[:end] / scale,
                         trace.feed[:end] / scale, machine.axis_names)
+    # Values to a thousandth of a pulse: finer digits are below what the encoder resolves.
+    per_mm = machine.pulses_per_unit("mm")
+    resolution = EXPORT_PULSE_FRACTION / scale  # [path units]
     for fmt, file in files.items():
         if fmt in ("csv", "npz"):
-            save_setpoints(sp, file, overwrite=args.overwrite)
+            save_setpoints(sp, file, resolution=resolution, overwrite=args.overwrite)
         elif fmt == "pvt":
-            save_pvt(pvt_table(sp, args.pvt_period), file, overwrite=args.overwrite)
+            save_pvt(pvt_table(sp, args.pvt_period), file, resolution=resolution,
+                     overwrite=args.overwrite)
+        elif fmt == "halstreamer":  # LinuxCNC's machine unit: mm
+            save_halstreamer(sp, file, units="mm", scale=scale / per_mm,
+                             resolution=EXPORT_PULSE_FRACTION / per_mm, overwrite=args.overwrite)
+        elif fmt == "ros":  # ROS joint values are SI: m
+            save_ros_trajectory(sp, file, period=args.pvt_period, scale=scale / per_mm * 1e-3,
+                                resolution=EXPORT_PULSE_FRACTION / per_mm * 1e-3,
+                                overwrite=args.overwrite)
         else:  # G-code is in mm whatever the path's units
             save_motion_gcode(sp, file, units="mm", overwrite=args.overwrite,
                               scale=scale / machine.pulses_per_unit("mm"))
@@ -497,8 +553,8 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
     def _get_help_string(self, action):
         if action.required or action.default in (None, False) or isinstance(
-                action, argparse._StoreTrueAction):
-            return action.help
+                action, argparse._StoreTrueAction) or "(default:" in (action.help or ""):
+            return action.help  # (the help that states its default itself says it once)
         return super()._get_help_string(action)
 
 
@@ -592,7 +648,22 @@ class _Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (no usage block)."""
 
     def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)\n")
+        self.exit(2, f"{self.prog}: error: {_one_line(message)}{_did_you_mean(message)} "
+                     f"(see {self.prog} --help)\n")
+
+
+def _did_you_mean(message: str) -> str:
+    """``; did you mean 'run'?`` for argparse's invalid choice of a command or an option
+    value that is close to one of the choices (difflib's ratio), else ``""``."""
+    import difflib
+    import re
+
+    found = re.search(r"invalid choice: '([^']*)' \(choose from ([^)]*)\)", message)
+    if not found:
+        return ""
+    choices = re.findall(r"'([^']*)'", found.group(2))
+    close = difflib.get_close_matches(found.group(1), choices, n=1, cutoff=0.6)
+    return f"; did you mean '{close[0]}'?" if close else ""
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -639,6 +710,10 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("path", help=path_help)
     i.add_argument("--feed", type=parse_feed, help=feed_help)
     i.add_argument("--units", choices=PATH_UNITS, help=units_help)
+    i.add_argument("--project", metavar="AXES",
+                   help="read a G-code file's moves as their projection on the machine's axes "
+                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
+                   "refusing moves that change other axes with them")
     i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
                    help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
     i.add_argument("--sample-period", type=_sample_period, default=1e-3,
@@ -654,6 +729,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--machine", default="die-bonder", help=machine_help)
     r.add_argument("--feed", type=parse_feed, help=feed_help)
     r.add_argument("--units", choices=PATH_UNITS, help=units_help)
+    r.add_argument("--project", metavar="AXES",
+                   help="read a G-code file's moves as their projection on the machine's axes "
+                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
+                   "refusing moves that change other axes with them")
     r.add_argument("--interpolator", choices=LOOP_METHODS, default=DEFAULT_INTERPOLATOR,
                    help="planned: plans the actual motion within ±Umax and steers the plant "
                    "along it; paper: Yeh & Sun (2008), saturation-aware one step ahead; "
@@ -687,8 +766,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="trace.csv or trace.parquet (smaller, faster to read)")
     r.add_argument("--export", action="append", choices=sorted(EXPORT_FILES),
                    help="also write the commanded setpoints (up to the end point, in the "
-                   "path's units): csv, npz, pvt (position-velocity-time table), gcode "
-                   "(LinuxCNC G1 per sample, in mm); repeat for several")
+                   "path's units, to a thousandth of a pulse): csv, npz, pvt "
+                   "(position-velocity-time table), gcode (LinuxCNC G1 per sample, in mm), "
+                   "halstreamer (one line per servo period for LinuxCNC's halstreamer, in mm), "
+                   "ros (ROS 2 JointTrajectory YAML at --pvt-period, in m); repeat for several")
     r.add_argument("--pvt-period", type=_positive_float, default=0.01,
                    help="period of the PVT table [s]")
     r.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
@@ -702,6 +783,10 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--machine", default="die-bonder", help=machine_help)
     b.add_argument("--feed", type=parse_feed, help=feed_help)
     b.add_argument("--units", choices=PATH_UNITS, help=units_help)
+    b.add_argument("--project", metavar="AXES",
+                   help="read a G-code file's moves as their projection on the machine's axes "
+                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
+                   "refusing moves that change other axes with them")
     b.add_argument("--sampled", action="store_true",
                    help="print instead a lower bound for any sampled motion that stops at "
                    "every sharp corner [s]: whole samples per "
@@ -715,8 +800,8 @@ def _parser() -> argparse.ArgumentParser:
     c = command("contours", "list the contours of a path file: index, pieces, length, "
                 "bounding box, units, programmed feed (pick one with FILE#k)")
     c.add_argument("path", help="path file (.ngc, .dxf, .json, ...)")
-    c.add_argument("--axes", default="xy", help="the machine's path axes for G-code and DXF, "
-                   "e.g. xy or xyz")
+    c.add_argument("--axes", help="read G-code and DXF on these path axes, e.g. xy or xyz, as a "
+                   "machine with them would (default: every axis the file moves)")
     c.add_argument("--units", choices=PATH_UNITS, help=units_help)
     c.set_defaults(func=_cmd_contours)
 

@@ -10,8 +10,11 @@ failed export leaves nothing behind.
 Formats
 -------
 setpoints CSV
-    Header ``t,u,x,y[,z...]`` (axis names), one row per sample, numbers with 17
-    significant digits (they read back bit for bit).
+    Header ``t,u,x,y[,z...]`` (axis names), one row per sample: ``t`` [s], ``u`` the
+    curve parameter (0 at the start of the path, 1 at its end; dimensionless) and each
+    axis' commanded position [path units]. Numbers with 17 significant digits (they read
+    back bit for bit), or, with ``resolution``, positions to that length (e.g. a thousandth
+    of a pulse), ``t`` to the nanosecond and ``u`` to 1e-12.
 setpoints NPZ
     Arrays ``t``, ``u``, ``position``, ``axis_names`` and, when known, ``feed``.
 PVT table
@@ -21,6 +24,17 @@ PVT table
     setpoints (``scipy.interpolate.CubicSpline``, not-a-knot ends), so the Hermite segments
     the controller builds follow the setpoint motion. Saved as CSV with header
     ``t,x,x_velocity,y,y_velocity,...``.
+halstreamer
+    One line per servo period, a float per axis separated by blanks, as LinuxCNC's
+    ``halstreamer`` feeds a ``streamer`` loaded with ``cfg=ff...`` (one ``f`` per axis):
+    the commanded position [the machine's length unit, mm or inch] at each sample. Comment
+    lines (``#``) first name the period, the streamer configuration and each column's unit.
+ROS trajectory
+    A ``trajectory_msgs/msg/JointTrajectory`` (ROS 2) as YAML: ``joint_names`` (the axis
+    names), then ``points`` at a fixed period, each with ``positions`` [m], ``velocities``
+    [m/s], ``accelerations`` [m/s^2] (SI, as REP 103 has joint values; from the C2 cubic
+    spline through the setpoints, as the PVT table) and ``time_from_start`` (``sec``,
+    ``nanosec``), the last point at the end of the setpoints.
 motion G-code
     One ``G1`` per sample period with the F that makes the move last exactly that period
     (``F = distance / period * 60``), ``G4`` dwells where the setpoint stands still, in
@@ -35,6 +49,7 @@ t : time [s]; u : curve parameter; T : PVT period [s]; F : feed [units/min].
 from __future__ import annotations
 
 import io
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -55,6 +70,9 @@ __all__ = [
     "pvt_table",
     "save_pvt",
     "save_motion_gcode",
+    "save_halstreamer",
+    "save_ros_trajectory",
+    "decimals_for_resolution",
 ]
 
 _DEFAULT_AXES = ("x", "y", "z", "a", "b", "c", "u", "v", "w")
@@ -135,7 +153,23 @@ class SetpointArrays:
         return self.position.shape[1]
 
 
-def save_setpoints(setpoints: Any, file: str | os.PathLike, *, overwrite: bool = False) -> Path:
+def decimals_for_resolution(resolution: float | None) -> int | None:
+    """Digits after the point that write a value to within ``resolution`` (half a unit
+    of the last digit at most), or None (17 significant digits) for None."""
+    if resolution is None:
+        return None
+    if not (np.isfinite(resolution) and resolution > 0):
+        raise ExportError(f"resolution must be finite and > 0, got {resolution!r}")
+    return max(0, int(math.ceil(-math.log10(2.0 * resolution))))
+
+
+def _fixed(values: np.ndarray, decimals: int | None) -> str:
+    """A column format: fixed ``decimals`` or 17 significant digits."""
+    return "%.17g" if decimals is None else f"%.{decimals}f"
+
+
+def save_setpoints(setpoints: Any, file: str | os.PathLike, *, resolution: float | None = None,
+                   overwrite: bool = False) -> Path:
     """Write setpoints as CSV (``t,u,x,y,...``) or NumPy ``.npz``, chosen by the ending.
 
     Parameters
@@ -143,6 +177,10 @@ def save_setpoints(setpoints: Any, file: str | os.PathLike, *, overwrite: bool =
     setpoints : SetpointArrays or any object with t, u, position [, feed, axis_names]
     file : str or path-like
         ``*.csv`` or ``*.npz``.
+    resolution : float, optional
+        CSV: write positions to this length [path units] (e.g. a thousandth of a pulse),
+        ``t`` to 1 ns and ``u`` to 1e-12; by default 17 significant digits. NPZ keeps every
+        bit.
     overwrite : bool
         Replace an existing file.
 
@@ -158,7 +196,9 @@ def save_setpoints(setpoints: Any, file: str | os.PathLike, *, overwrite: bool =
     if suffix == ".csv":
         header = ",".join(("t", "u") + sp.axis_names)
         table = np.column_stack([sp.t, sp.u, sp.position])
-        return write_output(file, lambda f: _write_csv(f, header, table), overwrite=overwrite)
+        d = decimals_for_resolution(resolution)
+        fmt = "%.17g" if d is None else ["%.9f", "%.12f"] + [f"%.{d}f"] * sp.n_axes
+        return write_output(file, lambda f: _write_csv(f, header, table, fmt), overwrite=overwrite)
     if suffix == ".npz":
         arrays = {"t": sp.t, "u": sp.u, "position": sp.position, "axis_names": np.array(sp.axis_names)}
         if sp.feed is not None:
@@ -167,9 +207,9 @@ def save_setpoints(setpoints: Any, file: str | os.PathLike, *, overwrite: bool =
     raise ExportError(f"{file}: unknown setpoint file ending {suffix!r}; use .csv or .npz")
 
 
-def _write_csv(handle, header: str, table: np.ndarray) -> None:
+def _write_csv(handle, header: str, table: np.ndarray, fmt="%.17g") -> None:
     buffer = io.StringIO()
-    np.savetxt(buffer, table, delimiter=",", fmt="%.17g", header=header, comments="")
+    np.savetxt(buffer, table, delimiter=",", fmt=fmt, header=header, comments="")
     handle.write(buffer.getvalue())
 
 
@@ -225,14 +265,129 @@ def pvt_table(setpoints: Any, period: float) -> PvtTable:
     return PvtTable(times + sp.t[0], spline(times), spline(times, 1), sp.axis_names)
 
 
-def save_pvt(table: PvtTable, file: str | os.PathLike, *, overwrite: bool = False) -> Path:
-    """Write a PVT table as CSV with header ``t,x,x_velocity,y,y_velocity,...``."""
+def save_pvt(table: PvtTable, file: str | os.PathLike, *, resolution: float | None = None,
+             overwrite: bool = False) -> Path:
+    """Write a PVT table as CSV with header ``t,x,x_velocity,y,y_velocity,...``: ``t``
+    [s], positions [path units], velocities [path units / s]. With ``resolution`` [path
+    units], positions to that length, velocities to that length per second and ``t`` to
+    1 ns; by default 17 significant digits."""
     columns, names = [table.t], ["t"]
     for j, axis in enumerate(table.axis_names):
         columns += [table.position[:, j], table.velocity[:, j]]
         names += [axis, f"{axis}_velocity"]
     table_array = np.column_stack(columns)
-    return write_output(file, lambda f: _write_csv(f, ",".join(names), table_array), overwrite=overwrite)
+    d = decimals_for_resolution(resolution)
+    fmt = "%.17g" if d is None else ["%.9f"] + [f"%.{d}f"] * (2 * len(table.axis_names))
+    return write_output(file, lambda f: _write_csv(f, ",".join(names), table_array, fmt),
+                        overwrite=overwrite)
+
+
+def _uniform_period(t: np.ndarray) -> float:
+    """The sample period of setpoints taken at a fixed period [s], else ExportError."""
+    dt = np.diff(t)
+    period = float(np.median(dt))
+    bad = np.flatnonzero(np.abs(dt - period) > 1e-9 * period)
+    if bad.size:
+        k = int(bad[0])
+        raise ExportError(f"setpoints must be one per servo period ({period:.9g} s), but "
+                          f"t[{k + 1}] - t[{k}] = {dt[k]:.9g} s")
+    return period
+
+
+def save_halstreamer(setpoints: Any, file: str | os.PathLike, *, units: str = "mm", scale: float = 1.0,
+                     resolution: float | None = None, overwrite: bool = False) -> Path:
+    """Write the setpoints as LinuxCNC ``halstreamer`` input (see the module docstring).
+
+    Parameters
+    ----------
+    setpoints : SetpointArrays or any object with t, u, position [, axis_names]
+        One per servo period.
+    file : str or path-like
+    units : str
+        The machine's length unit the positions are written in (named in the header).
+    scale : float
+        Factor from path units to ``units`` (e.g. 1e-3 for pulses of 1 um to mm).
+    resolution : float, optional
+        Write positions to this length [``units``], e.g. a thousandth of a pulse; by
+        default 17 significant digits.
+    overwrite : bool
+
+    Raises
+    ------
+    ExportError
+        For setpoints not at a fixed period, or a bad scale.
+    """
+    sp = SetpointArrays.from_series(setpoints)
+    if not (np.isfinite(scale) and scale > 0):
+        raise ExportError(f"scale must be finite and > 0, got {scale!r}")
+    period = _uniform_period(sp.t)
+    d = decimals_for_resolution(resolution)
+    position = sp.position * scale
+    head = [
+        f"# nurbsmotion setpoints for LinuxCNC halstreamer: {len(sp.t)} lines, one per servo "
+        f"period of {period:.9g} s",
+        f"# load the streamer with: loadrt streamer depth=... cfg={'f' * sp.n_axes}",
+        "# columns: " + " ".join(f"{a} [{units}]" for a in sp.axis_names)
+        + ("" if d is None else f" (to {10.0 ** -d:g} {units})"),
+    ]
+    fmt = " ".join([_fixed(position, d)] * sp.n_axes)
+
+    def write(f) -> None:
+        buffer = io.StringIO()
+        np.savetxt(buffer, position, fmt=fmt, header="\n".join(head), comments="")
+        f.write(buffer.getvalue())
+
+    return write_output(file, write, overwrite=overwrite)
+
+
+def save_ros_trajectory(setpoints: Any, file: str | os.PathLike, *, period: float, scale: float = 1.0,
+                        resolution: float | None = None, overwrite: bool = False) -> Path:
+    """Write the motion as a ROS 2 ``trajectory_msgs/msg/JointTrajectory`` in YAML (see
+    the module docstring).
+
+    Parameters
+    ----------
+    setpoints : SetpointArrays or any object with t, u, position [, axis_names]
+    file : str or path-like
+    period : float
+        Time between points [s], > 0.
+    scale : float
+        Factor from path units to metres (e.g. 1e-6 for pulses of 1 um).
+    resolution : float, optional
+        Write positions to this length [m] (velocities and accelerations to that length
+        per second and per second squared); by default 17 significant digits.
+    overwrite : bool
+    """
+    sp = SetpointArrays.from_series(setpoints)
+    if not (np.isfinite(scale) and scale > 0):
+        raise ExportError(f"scale must be finite and > 0, got {scale!r}")
+    table = pvt_table(sp, period)
+    spline = CubicSpline(sp.t - sp.t[0], sp.position * scale, axis=0)
+    since = table.t - sp.t[0]
+    position, velocity, acceleration = spline(since), spline(since, 1), spline(since, 2)
+    d = decimals_for_resolution(resolution)
+    number = (lambda x: f"{x:.17g}") if d is None else (lambda x: f"{x:.{d}f}")
+    nanoseconds = np.rint(since * 1e9).astype(np.int64)
+    lines = [
+        "# trajectory_msgs/msg/JointTrajectory (ROS 2), written by nurbsmotion: positions [m],",
+        "# velocities [m/s], accelerations [m/s^2], time_from_start [s + ns]",
+        "header:",
+        "  stamp: {sec: 0, nanosec: 0}",
+        "  frame_id: ''",
+        f"joint_names: [{', '.join(sp.axis_names)}]",
+        "points:",
+    ]
+    for k in range(len(since)):
+        sec, nanosec = divmod(int(nanoseconds[k]), 1_000_000_000)
+        lines += [
+            f"  - positions: [{', '.join(map(number, position[k]))}]",
+            f"    velocities: [{', '.join(map(number, velocity[k]))}]",
+            f"    accelerations: [{', '.join(map(number, acceleration[k]))}]",
+            "    effort: []",
+            f"    time_from_start: {{sec: {sec}, nanosec: {nanosec}}}",
+        ]
+    text = "\n".join(lines) + "\n"
+    return write_output(file, lambda f: f.write(text), overwrite=overwrite)
 
 
 def save_motion_gcode(

@@ -71,7 +71,7 @@ _SUMMARY_UNITS = {
     "settle_time_s": "s",
     "settled": "true or false", "settle_window": "pulse", "end_overshoot": "pulse",
     "corner_overshoot": "pulse", "move_and_settle_ratio": "1 (settle time / bound)",
-    "notes": "list of text",
+    "notes": "list of text", "path_unit": "name", "path_unit_source": "text",
 }
 
 TRACE_FORMATS = ("csv", "parquet")

@@ -12,7 +12,7 @@ F : commanded feed [pulse/s]; scale : pulses (or target units) per path unit.
 
 from __future__ import annotations
 
-from .errors import InvalidFeedError
+from .errors import InvalidArgumentError, InvalidFeedError
 from .feed import FeedLimit
 from .machine import Machine
 from . import units
@@ -28,9 +28,13 @@ def path_axes(machine: Machine | None) -> str:
     return "".join(names) if all(len(a) == 1 and a in "xyzabcuvw" for a in names) else "xy"
 
 
-def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | None = None):
+def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | None = None,
+                     project: str | None = None):
     """The path ``spec`` names (a built-in name or a file, ``FILE#k`` for a contour) with
     its programmed feed, read on ``machine``'s axes (:func:`path_axes`).
+
+    ``project`` (``--project``), if given, must name those axes: a G-code file's moves are
+    then read as their projection on them instead of refused where they change other axes.
 
     Returns
     -------
@@ -41,10 +45,23 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
     ------
     PathFileError
         Naming the file, if it cannot be read.
+    InvalidArgumentError
+        If ``project`` does not name the machine's axes, or the path moves a rotary axis.
     """
     from .paths import resolve_contour
 
-    return resolve_contour(spec, axes=path_axes(machine), units=units)
+    axes = path_axes(machine)
+    if project is not None and project.lower() != axes:
+        raise InvalidArgumentError(f"--project {project} must name the machine's axes ({axes}): "
+                                   "the path is read as its projection on them")
+    contour = resolve_contour(spec, axes=axes, units=units, project=project is not None)
+    rotary = sorted(set(contour.axes or "") & set("ABC"))
+    if rotary:  # degrees would be scaled by the pulse length as if they were lengths
+        raise InvalidArgumentError(
+            f"the path moves the rotary axis {', '.join(rotary)} [deg]; running rotary axes is "
+            "not supported yet (a machine has one pulse length, no pulses per degree): list "
+            f"the contours with 'nurbsmotion contours {spec}'")
+    return contour
 
 
 def programmed_feed(cap, programmed: FeedLimit | None, scale: float, source: str = "the path"):

@@ -4,10 +4,12 @@ Reading
 -------
 :func:`load_dxf` reads the model space and returns its contours:
 
-- ``SPLINE``: degree, knots, weights and control points as stored. A spline defined by
-  fit points only is refused (its curve depends on the CAD system's fitting; re-export it
-  with control points). Unclamped (periodic) splines are refused by
-  :class:`NurbsCurve`'s validation, wrapped with the entity.
+- ``SPLINE``: degree, knots, weights and control points as stored; a spline defined by
+  fit points only as ezdxf constructs it. Repaired as CAD readers do, each repair one
+  :class:`DxfWarning` naming the entity: an unclamped (closed, periodic) knot vector is
+  rewritten clamped on its domain (the same curve); a knot vector one or two entries
+  short of ``n + p + 1`` gets its missing end knots; missing weights are 1
+  (:func:`_repaired`).
 - ``LINE``; ``ARC`` and ``CIRCLE`` as exact rational arcs; ``LWPOLYLINE`` with bulges as
   exact arcs (closing segment included when the polyline is closed).
 - Entities must lie in the XY plane (extrusion +Z or -Z; a -Z extrusion mirrors the
@@ -164,6 +166,50 @@ def _unclamped_to_clamped(degree: int, knots, points: np.ndarray, weights) -> tu
     return new, fit.c[:, :-1] / fit.c[:, -1:], fit.c[:, -1]
 
 
+def _multiplicity(values: np.ndarray) -> int:
+    """How many entries at the start of ``values`` equal the first."""
+    return int(np.argmax(values != values[0])) if np.any(values != values[0]) else len(values)
+
+
+def _repaired(label: str, degree: int, knots: np.ndarray, n: int, weights) -> tuple:
+    """A SPLINE's knots and weights as CAD readers take them where the file is short of
+    them, one :class:`DxfWarning` naming the entity per repair:
+
+    - ``n + p - 1`` knots (OpenNURBS's convention, which leaves out the two end knots that
+      no basis function of the curve's domain uses): the first and last knot repeated;
+    - ``n + p`` knots: the end knot that the other end shows is missing (an end with ``p``
+      equal knots where the other has ``p + 1``, or the end of a uniform vector) added;
+      the end knots do not change the curve on its domain ``[t_p, t_n]``;
+    - fewer weights than control points: the others 1 (ezdxf's weight of a spline that
+      gives none).
+    """
+    p, k = degree, np.asarray(knots, dtype=float)
+    expected = n + p + 1
+    if n > p and len(k) in (expected - 1, expected - 2) and len(k) >= 2 and np.all(np.diff(k) >= 0):
+        head, tail = _multiplicity(k), _multiplicity(k[::-1])
+        steps = np.diff(k)
+        uniform = bool(np.allclose(steps, steps[0], rtol=1e-12, atol=0.0)) and steps[0] > 0
+        if len(k) == expected - 2:
+            k, where = np.concatenate([k[:1], k, k[-1:]]), "the first and last knot repeated"
+        elif head == p and tail != p:
+            k, where = np.concatenate([k[:1], k]), "the first knot repeated"
+        elif tail == p and head != p:
+            k, where = np.concatenate([k, k[-1:]]), "the last knot repeated"
+        elif uniform:
+            k, where = np.concatenate([k, [k[-1] + steps[0]]]), "a last knot added at the same spacing"
+        else:
+            raise InvalidCurveError(f"{label}: knot vector has {len(knots)} entries, expected {expected} "
+                                    f"= n + p + 1 ({n} control points, degree {p}), and which end "
+                                    "lacks one cannot be told")
+        _warn(f"{label}: knot vector has {len(knots)} entries, expected {expected} = n + p + 1 "
+              f"({n} control points, degree {p}); {where}, as CAD readers do")
+    if weights is not None and 0 < len(weights) < n:
+        _warn(f"{label}: {len(weights)} weights for {n} control points; the other "
+              f"{n - len(weights)} read as 1")
+        weights = np.concatenate([weights, np.ones(n - len(weights))])
+    return k, weights
+
+
 def _pieces(entity) -> list[NurbsCurve]:
     """Path pieces of one entity in world coordinates (3 columns), named by type and
     handle; an empty list for a degenerate entity of zero length."""
@@ -188,9 +234,12 @@ def _pieces(entity) -> list[NurbsCurve]:
             raise InvalidCurveError(f"{label}: weights must be finite and > 0")
         if not np.all(np.isfinite(knots)):
             raise InvalidCurveError(f"{label}: knots must be finite")
+        knots, weights = _repaired(label, degree, knots, len(points), weights)
         if len(points) > degree and np.all(np.diff(knots) >= 0) and len(knots) == len(points) + degree + 1 \
                 and not (np.all(knots[:degree + 1] == knots[0]) and np.all(knots[-degree - 1:] == knots[-1])):
             knots, points, weights = _unclamped_to_clamped(degree, knots, points, weights)
+            _warn(f"{label}: unclamped knot vector (a closed or periodic spline); read on its "
+                  f"domain [{knots[0]:.6g}, {knots[-1]:.6g}] as the same curve with clamped knots")
         if np.ptp(points, axis=0).max(initial=0.0) == 0.0:
             return []
         return [NurbsCurve(degree, knots, points, weights, name=label)]
@@ -274,7 +323,7 @@ def _chain(pieces: list[NurbsCurve], tol: float) -> list[list[NurbsCurve]]:
 
 
 def load_dxf(
-    file: str | os.PathLike, *, tolerance: float = DEFAULT_JOIN_TOLERANCE, axes: str = "xy"
+    file: str | os.PathLike, *, tolerance: float = DEFAULT_JOIN_TOLERANCE, axes: str | None = "xy"
 ) -> list[NurbsCurve]:
     """Read the contours of a DXF drawing's model space (see the module docstring).
 
@@ -287,7 +336,8 @@ def load_dxf(
         size (the largest extent of all control points).
     axes : {"xy", "xyz"}
         The machine's axes: ``"xy"`` reads flat entities (each at a constant Z) as 2-axis
-        paths; ``"xyz"`` reads 3-D paths.
+        paths; ``"xyz"`` reads 3-D paths; None: ``"xy"`` where every entity is flat, else
+        ``"xyz"`` (what ``nurbsmotion contours`` lists).
 
     Returns
     -------
@@ -304,7 +354,8 @@ def load_dxf(
     import ezdxf
 
     path = check_input_file(file)
-    axes = str(axes).lower()
+    auto = axes is None
+    axes = "xyz" if auto else str(axes).lower()
     if axes not in ("xy", "xyz"):
         raise PathFileError(f"DXF paths have the axes xy or xyz, not {axes!r}", str(path))
     doc = _read(path)
@@ -320,6 +371,7 @@ def load_dxf(
                             f"({', '.join(f'{k} = {v}' for k, v in sorted(_UNITS.items()))}); give "
                             "--units to read its numbers in another unit", str(path))
     pieces: list[NurbsCurve] = []
+    flat = True  # every piece at a constant Z
     skipped: Counter = Counter()
     degenerate: Counter = Counter()
     for entity in doc.modelspace():
@@ -332,7 +384,8 @@ def load_dxf(
                 degenerate[entity.dxftype()] += 1
             for piece in found:
                 z = piece.control_points[:, 2]
-                if axes == "xy" and np.ptp(z) > 1e-12 * max(1.0, np.max(np.abs(z))):
+                flat = flat and not np.ptp(z) > 1e-12 * max(1.0, np.max(np.abs(z)))
+                if axes == "xy" and not flat:
                     raise InvalidCurveError(
                         f"{_label(entity)} is not flat: Z runs from {z.min():g} to {z.max():g}; a "
                         "machine with a Z axis (xyz) can read it")
@@ -353,6 +406,9 @@ def load_dxf(
         raise PathFileError(
             "no path entity in the model space (LINE, ARC, CIRCLE, ELLIPSE, SPLINE, LWPOLYLINE, "
             "POLYLINE)", source=str(path))
+    if auto and flat:
+        pieces = [NurbsCurve(c.degree, c.knots, c.control_points[:, :2], c.weights, name=c.name)
+                  for c in pieces]
     size = float(np.max(np.ptp(np.vstack([c.control_points for c in pieces]), axis=0)))
     contours = []
     for k, chain in enumerate(_chain(pieces, tolerance * size)):

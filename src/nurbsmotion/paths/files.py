@@ -87,11 +87,19 @@ class Contour:
         file gives none.
     source : str
         The file (or built-in name) and contour, e.g. ``"part.ngc#2"``.
+    axes : str or None
+        The file's name of each column of the curve (``"XYZ"``, ``"XYC"``) where the file
+        names its axes (G-code, DXF), else None.
+    units_source : str or None
+        Where ``curve.units`` came from: ``"G21 on line 3"``, ``"the DXF header
+        ($INSUNITS)"``, ``"the file's units field"``, ``"--units"``, ``"assumed: ..."``.
     """
 
     curve: NurbsCurve
     feed: FeedLimit | None
     source: str
+    axes: str | None = None
+    units_source: str | None = None
 
 
 _REQUIRED = ("degree", "knots", "control_points")
@@ -330,46 +338,63 @@ def load_path(file: str | os.PathLike, *, axes: str = "xy", units: str | None = 
     return load_contour(file, axes=axes, units=units).curve
 
 
-def load_contour(file: str | os.PathLike, *, axes: str = "xy", units: str | None = None) -> Contour:
+def load_contour(file: str | os.PathLike, *, axes: str = "xy", units: str | None = None,
+                 project: bool = False) -> Contour:
     """:func:`load_path`, also returning the file's programmed feed (a :class:`Contour`)."""
     spec = os.fspath(file)
     index = None
     match = _CONTOUR_SELECTOR.match(spec)
     if match and not Path(spec).exists():
         spec, index = match.group("file"), int(match.group("index"))
-    contours = load_contours(spec, axes=axes, units=units)
+    contours = load_contours(spec, axes=axes, units=units, project=project)
     chosen = _choose_contour([c.curve for c in contours], index, spec)
     return next(c for c in contours if c.curve is chosen)
 
 
-def load_contours(file: str | os.PathLike, *, axes: str = "xy", units: str | None = None) -> list[Contour]:
-    """Every contour of a path file, with its programmed feed (see :func:`load_path`)."""
+def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: str | None = None,
+                  project: bool = False) -> list[Contour]:
+    """Every contour of a path file, with its programmed feed (see :func:`load_path`).
+
+    ``axes=None`` reads a G-code or DXF file on every axis it moves (G-code: by a feed or
+    a rapid; DXF: XY where every entity is flat, else XYZ); ``project``: a G-code feed
+    move of other axes together with ``axes`` is read as its projection on them."""
     path = Path(file)
     if units is not None and units not in PATH_UNITS:
         raise PathFileError(f"unit {units!r} is not one of {', '.join(PATH_UNITS)}", str(path))
     suffix = path.suffix.lower()
     if suffix in (".json", ".toml"):
-        with warnings.catch_warnings():
-            if units is not None:  # the override makes the assumption moot
-                warnings.simplefilter("ignore", PathWarning)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
             curve = _read_json(path) if suffix == ".json" else _read_toml(path)
-        found = [Contour(curve, None, str(path))]
+        assumed = any(issubclass(w.category, PathWarning) for w in caught)
+        for w in caught:  # the override makes the assumption moot
+            if units is None or not issubclass(w.category, PathWarning):
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        found = [Contour(curve, None, str(path), None,
+                         "assumed: the file has no units field" if assumed else "the file's units field")]
     elif suffix in _GCODE_SUFFIXES:
         from .gcode import GcodeWarning, load_gcode
 
         with warnings.catch_warnings():
             if units is not None:
                 warnings.filterwarnings("ignore", "no G20/G21", GcodeWarning)
-            program = load_gcode(path, axes=axes)
-        found = [Contour(c.curve, c.feed_limit, f"{path}#{k + 1}")
+            program = load_gcode(path, axes=axes, project=project)
+        found = [Contour(c.curve, None if program.rapids_only else c.feed_limit, f"{path}#{k + 1}",
+                         program.axes, program.units_source)
                  for k, c in enumerate(program.contours)]
     elif suffix == ".dxf":
         from .dxf import DxfWarning, load_dxf
 
-        with warnings.catch_warnings():
-            if units is not None:
-                warnings.filterwarnings("ignore", ".*declares no unit", DxfWarning)
-            found = [Contour(c, None, f"{path}#{k + 1}") for k, c in enumerate(load_dxf(path, axes=axes))]
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            curves = load_dxf(path, axes=axes)
+        assumed = any("declares no unit" in str(w.message) for w in caught)
+        for w in caught:
+            if units is None or "declares no unit" not in str(w.message):
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        source = "assumed: the drawing declares no unit" if assumed else "the DXF header ($INSUNITS)"
+        found = [Contour(c, None, f"{path}#{k + 1}", "XY" if c.n_axes == 2 else "XYZ", source)
+                 for k, c in enumerate(curves)]
     else:
         raise PathFileError(
             f"unknown path file ending {suffix!r}; expected one of "
@@ -377,7 +402,7 @@ def load_contours(file: str | os.PathLike, *, axes: str = "xy", units: str | Non
             source=str(path),
         )
     if units is not None:
-        found = [Contour(_relabel(c.curve, units), c.feed, c.source) for c in found]
+        found = [Contour(_relabel(c.curve, units), c.feed, c.source, c.axes, "--units") for c in found]
     return found
 
 
@@ -425,7 +450,8 @@ def resolve_path(spec: str, *, axes: str = "xy", units: str | None = None) -> Nu
     return resolve_contour(spec, axes=axes, units=units).curve
 
 
-def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None) -> Contour:
+def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None,
+                    project: bool = False) -> Contour:
     """:func:`resolve_path`, also returning the file's programmed feed (a :class:`Contour`)."""
     if spec in BUILTIN_PATHS and not Path(spec).exists():
         curve = builtin_path(spec)
@@ -433,10 +459,10 @@ def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None) ->
             if units not in PATH_UNITS:
                 raise PathFileError(f"unit {units!r} is not one of {', '.join(PATH_UNITS)}")
             curve = _relabel(curve, units)
-        return Contour(curve, None, spec)
+        return Contour(curve, None, spec, None, "--units" if units is not None else "the built-in path")
     if not Path(spec).suffix and not _CONTOUR_SELECTOR.match(spec):
         raise PathFileError(
             f"{spec!r} is neither a built-in path ({', '.join(BUILTIN_PATHS)}) nor a file "
             f"name with an ending ({', '.join(PATH_FILE_SUFFIXES)})"
         )
-    return load_contour(spec, axes=axes, units=units)
+    return load_contour(spec, axes=axes, units=units, project=project)

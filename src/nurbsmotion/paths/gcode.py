@@ -32,11 +32,15 @@ What is read
     ``G94`` (units per minute) or ``G93`` (inverse time); ``G20``/``G21``; ``G90``/``G91``;
     ``G53``; ``G54``-``G59.3``; ``G10 L2/L20``; ``G92``, ``G92.1``/``.2``/``.3``;
     ``G28``/``G30`` (a rapid through the given point to the stored home: a new contour);
-    polar ``@``/``^``. Words that do not change the path are skipped, each kind reported
-    once as a :class:`GcodeWarning` (one line). ``M2``/``M30`` end the program; ``G4``
-    (dwell) ends the contour. What would change the path but is not read (cutter
-    compensation, canned cycles, spindle-synchronised motion, probing, UVW planes) is a
-    :class:`PathFileError` naming the line.
+    polar ``@``/``^``; the canned cycles ``G73``, ``G74``, ``G81``-``G89`` with ``G98``/``G99``,
+    ``L`` repeats, incremental and polar positions, in the three planes, expanded into G0
+    and G1 moves as LinuxCNC's ``interp_cycles.cc`` does (:meth:`_Reader.canned_cycle`:
+    each feed move along the depth axis a piece of a contour, every rapid, reversal or
+    dwell the end of one), ``G80``. Words that do not change the path are skipped, each
+    kind reported once as a :class:`GcodeWarning` (one line). ``M2``/``M30`` end the
+    program; ``G4`` (dwell) ends the contour. What would change the path but is not read
+    (cutter compensation, the G76 threading cycle, spindle-synchronised motion, probing, UVW
+    planes) is a :class:`PathFileError` naming the line.
 
 Contours
     The machine's axes decide which coordinates form the path (``axes``, default
@@ -177,12 +181,23 @@ class GcodeProgram:
         The file name.
     warnings : tuple of str
         The :class:`GcodeWarning` messages issued while reading.
+    axes : str
+        The path axes the contours have, in their column order (e.g. ``"XYZ"``).
+    units_source : str
+        Where ``units`` came from (``"G21 on line 3"``, or that it was assumed).
+    rapids_only : bool
+        The program has no feed move: its rapids are the contours, with no programmed
+        feed (``programmed_feed`` NaN), as LinuxCNC's trajectory-planner tests of rapids
+        are run.
     """
 
     contours: tuple
     units: str
     source: str
     warnings: tuple = field(default=())
+    axes: str = "XY"
+    units_source: str = ""
+    rapids_only: bool = False
 
 
 def linuxcnc_knots(n_points: int, order: int) -> np.ndarray:
@@ -202,25 +217,30 @@ _PLANES = {17.0: (0, 1, 2, "I", "J"), 18.0: (2, 0, 1, "K", "I"), 19.0: (1, 2, 0,
 """G17/G18/G19: (first axis, second axis, linear axis, first offset word, second offset
 word), as LinuxCNC's convert_arc passes them (XZ is (Z, X): G2 is clockwise seen from +Y)."""
 _MOTION = {0.0: "G0", 1.0: "G1", 2.0: "G2", 3.0: "G3", 5.0: "G5", 5.1: "G5.1",
-           5.2: "G5.2", 5.3: "G5.3", 6.2: "G6.2"}  # fmt: skip
+           5.2: "G5.2", 5.3: "G5.3", 6.2: "G6.2", 80.0: "G80", 33.0: "G33", 33.1: "G33.1",
+           **{float(g): f"G{g}" for g in (73, 74, 81, 82, 83, 84, 85, 86, 87, 88, 89)}}  # fmt: skip
+_CYCLES = frozenset(f"G{g}" for g in (73, 74, 81, 82, 83, 84, 85, 86, 87, 88, 89))
+"""The canned cycles read (LinuxCNC's ``convert_cycle``)."""
+PECK_CLEARANCE_INCH = 0.010
+"""How far G73 and G83 back off above the depth reached before the next peck [inch]
+(LinuxCNC 2.9's ``G83_RAPID_DELTA``, the interpreter the tests compare with; later
+versions default to 0.050 inch or 1 mm, set in the INI file or by a ``D`` word)."""
 _COORD_SYSTEMS = {54.0: 1, 55.0: 2, 56.0: 3, 57.0: 4, 58.0: 5, 59.0: 6, 59.1: 7, 59.2: 8, 59.3: 9}
 _SKIPPED_G = {
     4.0: "G4 dwell", 40.0: None, 43.0: "G43 tool length offset (not applied)",
     43.1: "G43.1 tool length offset (not applied)", 43.2: "G43.2 tool length offset (not applied)",
     49.0: None, 61.0: None, 61.1: None, 64.0: "G64 path blending tolerance",
-    80.0: None, 94.0: None, 96.0: "G96 constant surface speed", 97.0: "G97 spindle RPM mode",
-    98.0: None, 99.0: None, 7.0: "G7 lathe diameter mode", 8.0: "G8 lathe radius mode",
+    94.0: None, 96.0: "G96 constant surface speed", 97.0: "G97 spindle RPM mode",
+    7.0: "G7 lathe diameter mode", 8.0: "G8 lathe radius mode",
     17.0: None, 18.0: None, 19.0: None,
 }  # fmt: skip
 _REFUSED_G = {
     41.0: "cutter radius compensation changes the path", 42.0: "cutter radius compensation changes the path",
     41.1: "cutter radius compensation changes the path", 42.1: "cutter radius compensation changes the path",
-    95.0: "feed per revolution is not read; use G94 (units per minute)",
     17.1: "the UVW planes are not read", 18.1: "the UVW planes are not read", 19.1: "the UVW planes are not read",
-    33.0: "spindle-synchronised motion is not read", 33.1: "rigid tapping is not read",
-    76.0: "canned cycles are not read", 38.2: "probing is not read", 38.3: "probing is not read",
+    76.0: "the G76 threading cycle is not read (its passes follow the spindle, which the "
+          "path cannot; write the passes as G33 or G1 moves)", 38.2: "probing is not read", 38.3: "probing is not read",
     38.4: "probing is not read", 38.5: "probing is not read",
-    **{float(g): "canned cycles are not read" for g in (73, 74, 81, 82, 83, 84, 85, 86, 87, 88, 89)},
 }  # fmt: skip
 _END_M = {2.0, 30.0}
 _PLAIN_G = {(0.0,): "G0", (1.0,): "G1"}
@@ -235,7 +255,8 @@ _SKIPPED_M_RANGES = ((48, 53, "M48-M53 override switches"), (62, 68, "M62-M68 di
                      (70, 73, "M70-M73 modal state save/restore"), (100, 199, "M100-M199 user commands"))
 _MOTION_WORDS = {kind: frozenset(_AXES + words) for kind, words in (
     ("G0", "@^"), ("G1", "@^"), ("G2", "IJKRP"), ("G3", "IJKRP"), ("G5", "IJPQ"), ("G5.1", "IJ"),
-    ("G5.2", "PL"), ("G6.2", "PQKRL"))}
+    ("G5.2", "PL"), ("G6.2", "PQKRL"), ("G80", ""), ("G33", "K"), ("G33.1", "KI"),
+    *((cycle, "RLPQIJK@^") for cycle in _CYCLES))}
 """The words each motion mode reads: the axes X..W and its own (polar @ ^ for G0/G1)."""
 MAX_COORDINATE = 1e9
 """Largest coordinate, centre offset or radius read [program units]: beyond it a path of
@@ -290,6 +311,7 @@ class _Reader:
         self.source = source
         self.axes = [_AXES.index(a.upper()) for a in axes]
         self.units: str | None = None  # output units
+        self.units_source = "assumed: no G20/G21"  # where self.units came from
         self.input_inch: bool | None = None
         self.absolute = True
         self.arc_absolute = False
@@ -317,6 +339,20 @@ class _Reader:
         self.path_of = _picker(self.axes)  # X..W -> tuple of the path coordinates
         self.others_of = _picker(others)
         self._k = None  # lengths(), until G20/G21 changes the input units
+        self.project = False  # feed moves of other axes with the path axes: keep their projection
+        self.auto = False  # no axes given: a feed move of other axes with the path axes is _NeedAxes
+        self.moved = [False] * 9  # axes X..W that any move changed
+        self.fed_outside: dict = {}  # axis outside the path -> first line a feed move changed it
+        self.spindle_on = False  # M3/M4 (True) or M5
+        self.per_rev = False  # G95: F is a length per spindle revolution
+        self.feed_per_rev = 0.0  # [output units / rev]
+        self.spindle_rpm = 0.0  # the last S word [rev/min]
+        self.pitch = 0.0  # G33 / G33.1 K [output units / rev]
+        self.rapids_as_path = False  # a program without feed moves: its rapids are the path
+        self.rapid = False  # the move being read is a rapid read as the path
+        self.retract_old_level = False  # G98 (True) or G99, LinuxCNC's default
+        self.cycle_words: dict = {}  # R, depth, P, Q, I/J/K kept from the last cycle [input units]
+        self.cycle_level: float | None = None  # the initial level of a series of cycles [output units]
 
     @property
     def position(self) -> np.ndarray:
@@ -343,6 +379,7 @@ class _Reader:
     def scale(self) -> float:
         if self.units is None:
             self.units = "mm"
+            self.units_source = "assumed: no G20/G21 before the first move"
             self.input_inch = False
             self.warn("no G20/G21 before the first move; reading millimetres (G21)")
         if self.input_inch == (self.units == "inch"):
@@ -486,6 +523,9 @@ class _Reader:
             if not self.f_on_line:
                 raise self.error("inverse-time feed (G93) needs an F word on every feed move")
             feed = self.feed_word * length
+        if feed <= 0 and self.per_rev:
+            raise self.error("feed per revolution (G95) needs a turning spindle: an S word and "
+                             "M3/M4 before the move", line)
         if feed <= 0:
             raise self.error("feed move without a feed rate: no F word (or F0) before it", line)
         return feed
@@ -503,7 +543,11 @@ class _Reader:
         """A G1 move from the current position to ``path_end`` (the path coordinates)."""
         length = (self.chain if self.chain is not None else self.open_chain()).add_line(path_end)
         feed = self.feed
-        self.piece_feeds.append(feed if feed > 0 and not self.inverse_time else self.piece_feed(length, self.line))
+        if self.rapid:  # a rapid read as the path: no programmed feed
+            feed = math.nan
+        elif not (feed > 0 and not self.inverse_time):
+            feed = self.piece_feed(length, self.line)
+        self.piece_feeds.append(feed)
         self.piece_lines.append(self.line)
 
     def add_length(self, length: float, line: int) -> None:
@@ -544,6 +588,9 @@ class _Reader:
             raise self.error(f"feed F{f:g} must be >= 0 and at most {MAX_COORDINATE:g}")
         if self.inverse_time:
             self.feed_word = f
+        elif self.per_rev:
+            self.feed_per_rev = f * (1.0 if self.units is None else self.scale())
+            self.feed = self.feed_per_rev * self.spindle_rpm
         else:
             self.feed = f * (1.0 if self.units is None else self.scale())
 
@@ -566,7 +613,8 @@ class _Reader:
                 return True
         rest = dict(words)
         if "$$" in rest:
-            self.warn("GRBL '$' settings lines skipped", "$$")
+            self.warn("controller console commands ($..., ?, !, ~: GRBL's settings, status, "
+                      "jog, feed hold, cycle start) skipped: they are not part of the program", "$$")
             return True
         motion = None
         special = None  # a non-modal G code of group 0 that uses the axis words
@@ -574,6 +622,9 @@ class _Reader:
             if g not in _MOTION:  # G1, G01 and G1.0 are read as 1.0 exactly; others may be computed
                 g = round(g, 4)
             if g in _MOTION:
+                if motion == "G80" or (g == 80.0 and motion is not None):  # LinuxCNC reads G80 G0
+                    motion = motion if g == 80.0 else _MOTION[g]
+                    continue
                 if motion is not None:
                     raise self.error(f"two motion codes on one line: {motion} and {_g_name(g)}")
                 motion = _MOTION[g]
@@ -582,14 +633,19 @@ class _Reader:
                 self._k = None
                 if self.units is None:
                     self.units = "inch" if self.input_inch else "mm"
+                    self.units_source = f"{_g_name(g)} on line {self.line}"
             elif g in (90.0, 91.0):
                 self.absolute = g == 90.0
             elif g in (90.1, 91.1):
                 self.arc_absolute = g == 90.1
-            elif g in (93.0, 94.0):
-                self.inverse_time = g == 93.0
+            elif g in (93.0, 94.0, 95.0):
+                if (g == 95.0) != self.per_rev or (g == 93.0) != self.inverse_time:
+                    self.feed = self.feed_per_rev = 0.0  # LinuxCNC's convert_feed_mode: F anew
+                self.inverse_time, self.per_rev = g == 93.0, g == 95.0
             elif g in (17.0, 18.0, 19.0):
                 self.plane = g
+            elif g in (98.0, 99.0):
+                self.retract_old_level = g == 98.0
             elif g in _COORD_SYSTEMS:
                 self.program.numbered[5220] = float(_COORD_SYSTEMS[g])
                 self.frame_changes += 1
@@ -617,6 +673,8 @@ class _Reader:
         for m in block.m:
             if m in _END_M:
                 continue
+            if m in (3.0, 4.0, 5.0):
+                self.spindle_on = m != 5.0
             name = _skipped_m(m)
             if name is None:
                 raise self.error(f"M{m:g} is not an M code this reader knows")
@@ -624,6 +682,12 @@ class _Reader:
             if m >= 48:  # the words of M48-M53, M61-M68 (P, Q, E, L, R) go with them
                 for letter in "PEQLR":
                     rest.pop(letter, None)
+        if "S" in rest:
+            if not 0 <= rest["S"] <= MAX_COORDINATE:
+                raise self.error(f"spindle speed S{rest['S']:g} must be >= 0")
+            self.spindle_rpm = rest["S"]
+            if self.per_rev:
+                self.feed = self.feed_per_rev * self.spindle_rpm
         if not rest.keys().isdisjoint(_SKIPPED_WORDS):
             for letter, what in _SKIPPED_WORDS.items():
                 if letter in rest:
@@ -638,6 +702,7 @@ class _Reader:
                              f"with G5.3 before this {motion}")
         if self.block is not None and self.block["kind"] == "G6.2" and motion not in (None, "G6.2"):
             self.close_g6()
+        previous = self.motion
         if motion is not None:
             self.motion = motion
         if special is not None:
@@ -651,6 +716,11 @@ class _Reader:
             self.g5_point(rest, opening=self.block is None)
         elif self.motion == "G6.2" and (motion == "G6.2" or rest):
             self.g6_point(rest, opening=self.block is None)
+        elif self.motion in _CYCLES and (motion is not None or rest):
+            self.canned_cycle(rest, previous)
+        elif self.motion == "G80" and rest:
+            raise self.error(f"axis words {sorted(rest)} after G80 (canned cycles off) need a "
+                             "motion code (G0, G1, ...)")
         elif rest or motion in ("G2", "G3"):
             self.move(rest)
         return not (block.m and any(m in _END_M for m in block.m))
@@ -663,6 +733,8 @@ class _Reader:
         (:class:`_RunState`); every other row goes through :meth:`read`, after which the
         bulk state is checked against the reader's and recomputed where they differ."""
         table = rows.table
+        if self.rapids_as_path:  # rare (a program of rapids only) and small: line by line
+            return all(self.read(table.block(r)) for r in range(rows.start, rows.stop))
         run = _RunColumns(table, rows.start, rows.stop)
         state = None
         s = 0
@@ -684,7 +756,7 @@ class _Reader:
     def lean(self) -> bool:
         """Whether :meth:`read`'s lean path (and so :meth:`read_rows`'s bulk) applies."""
         return (self.block is None and self.units is not None and self.absolute
-                and not self.inverse_time and self.identity_frame())
+                and not self.inverse_time and not self.per_rev and self.identity_frame())
 
     def apply_rows(self, run: "_RunColumns", state: "_RunState", s: int, t: int) -> None:
         """Apply rows ``s .. t - 1`` of a run as :meth:`read` would, one by one."""
@@ -707,7 +779,15 @@ class _Reader:
                 self.chain.add_lines(ends)
                 self.piece_feeds.frombytes(state.feed[ends_at].tobytes())
                 self.piece_lines.frombytes(run.line[part].tobytes())
-        j = t - state.s
+        j0, j = s - state.s, t - state.s
+        for i, col in state._columns.items():
+            if not self.moved[i] or (i not in self.axes and i not in self.fed_outside):
+                changed = col[j0 + 1: j + 1] != col[j0: j]
+                if changed.any():
+                    self.moved[i] = True
+                    fed = changed & (state.motion[j0 + 1: j + 1] == 1.0)
+                    if i not in self.axes and fed.any():
+                        self.fed_outside.setdefault(i, int(run.line[s + int(np.argmax(fed))]))
         self.pos = state.position(j)
         self.feed = float(state.feed[j])
         if state.motion[j] >= 0:
@@ -785,25 +865,61 @@ class _Reader:
             raise self.error(f"word(s) {', '.join(extra)} not read with {kind}")
         if kind in ("G5", "G5.1") and self.plane != 17.0:
             raise self.error(f"{kind} is only allowed in the XY plane (G17), as in LinuxCNC")
+        if kind in ("G33", "G33.1"):
+            self.synchronised(kind, w, machine)
+            return
         self.travel(kind, w, self.target(w, machine=machine))
+
+    def synchronised(self, kind: str, w: dict, machine: bool) -> None:
+        """G33 (a line at the spindle's pace: feed = pitch K x S) and G33.1 (rigid tapping:
+        in to the end point and back to the start at that pace, the spindle reversing at
+        the bottom), read with the last S word as the spindle's speed, as LinuxCNC moves
+        them with the spindle at that speed (``convert_straight``)."""
+        if "K" in w:
+            self.pitch = self.lengths()[0] * self.value("K", w.pop("K"))
+        w.pop("I", None)  # G33.1 I: the spindle's speed scale on the way out, not the path
+        if self.pitch <= 0:
+            raise self.error(f"{kind} needs the pitch K (a length per revolution, > 0)")
+        if not (self.spindle_on and self.spindle_rpm > 0):
+            raise self.error(f"{kind} moves with the spindle: it needs an S word and M3/M4 before it")
+        feed, self.feed = self.feed, self.pitch * self.spindle_rpm  # [output units / min]
+        per_rev, inverse, self.per_rev, self.inverse_time = self.per_rev, self.inverse_time, False, False
+        try:
+            start = list(self.pos)
+            end = self.target(w, machine=machine)
+            self.travel("G1", {}, end)
+            if kind == "G33.1":  # the spindle reverses at the bottom: a stop, then out again
+                self.end_contour()
+                self.travel("G1", {}, start)
+                self.end_contour()
+        finally:
+            self.feed, self.per_rev, self.inverse_time = feed, per_rev, inverse
 
     def travel(self, kind: str, w: dict, end: list) -> None:
         """Move to ``end`` (absolute X..W) with motion ``kind``: a piece of the open
         contour, or the end of it (rapid, move of an axis outside the path)."""
+        self.rapid = kind == "G0" and self.rapids_as_path
+        if self.rapid:
+            kind = "G1"
         start = self.pos
         path_end = self.path_of(end)
         moves_path = path_end != self.path_of(start)
         moves_other = self.others_of(end) != self.others_of(start)
+        if moves_other or moves_path:
+            self.note_moved(kind, start, end)
         if kind == "G0":
             if moves_path or moves_other:
                 self.end_contour()
-        elif moves_other and (moves_path or kind in ("G2", "G3")):
+        elif moves_other and (moves_path or kind in ("G2", "G3")) and not self.project:
             others = "".join(_AXES[i] for i in range(9) if end[i] != start[i] and i not in self.axes)
+            path = "".join(_AXES[i] for i in self.axes)
+            if self.auto:
+                raise _NeedAxes(set(others))
             raise self.error(
-                f"{kind} moves {others} together with the path axes {''.join(_AXES[i] for i in self.axes)}; "
-                f"a machine with the axes {''.join(sorted(set(_AXES[i] for i in self.axes) | set(others), key=_AXES.index))} "
-                "can follow it")
-        elif moves_other:
+                f"{kind} moves {others} together with the path axes {path}; "
+                f"a machine with the axes {''.join(sorted(set(path) | set(others), key=_AXES.index))} "
+                f"can follow it (or read the path's projection on {path}: --project {path.lower()})")
+        elif moves_other and not moves_path and kind not in ("G2", "G3"):
             self.end_contour()  # a plunge or lift of an axis outside the path ends the contour
         elif kind == "G1":
             if moves_path:
@@ -815,6 +931,171 @@ class _Reader:
         if kind != "G5":
             self._g5_pq = None
         self.pos = end
+
+    # -- canned cycles G73, G74, G81-G89
+    def canned_cycle(self, w: dict, previous: str | None) -> None:
+        """One block of a canned cycle, expanded into G0 and G1 moves as LinuxCNC's
+        ``convert_cycle_xy`` / ``_yz`` / ``_zx`` (``interp_cycles.cc``) do: in the selected
+        plane's axes (a, b) and the axis across it (c, the depth), every repeat (``L``)
+        rapids to the hole at the clearance level, down to ``R``, runs the cycle's feed
+        moves along c, and retracts to ``R`` (G99) or to the level the series of cycles
+        started at (G98) if that is higher. Each feed move along c is a piece of a contour
+        (a path with c), a rapid ends the contour; a dwell, a spindle stop or orientation
+        does not change the path and is not kept. G88's manual retract is a jump to the
+        clearance level (a new contour), as the interpreter assumes it."""
+        kind = self.motion
+        again = previous == kind  # LinuxCNC: motion_mode == motion, the words may be left out
+        if not w.keys() <= _MOTION_WORDS[kind]:
+            extra = sorted(set(w) - _MOTION_WORDS[kind])
+            raise self.error(f"word(s) {', '.join(extra)} not read with {kind}")
+        if self.inverse_time:
+            raise self.error(f"{kind}: canned cycles cannot use inverse-time feed (G93)")
+        if self.feed <= 0:
+            raise self.error(f"{kind}: a canned cycle needs a feed rate (F)")
+        ia, ib, ic, oa, ob = _PLANES[self.plane]
+        la, lb, lc = _AXES[ia], _AXES[ib], _AXES[ic]
+        if set(w) & set("UVW"):
+            raise self.error(f"{kind}: U, V or W in a canned cycle in the {_g_name(self.plane)} plane")
+        if ("@" in w or "^" in w) and self.plane != 17.0:
+            raise self.error(f"{kind}: polar coordinates @ ^ are read in the XY plane (G17) only")
+        if ("@" in w or "^" in w) and ("X" in w or "Y" in w):
+            raise self.error("polar coordinates @ ^ cannot be given with X or Y")
+        kept = self.cycle_words
+        if "R" not in w and not again:
+            raise self.error(f"{kind} needs the retract level R the first time")
+        if lc not in w and not again:
+            raise self.error(f"{kind} needs the depth {lc} the first time (in the "
+                             f"{_g_name(self.plane)} plane)")
+        needs = {"G82": "P", "G86": "P", "G88": "P", "G89": "P", "G73": "Q", "G83": "Q"}.get(kind)
+        if needs and needs not in w and not again:
+            raise self.error(f"{kind} needs {needs} the first time")
+        offsets = {17.0: "IJK", 19.0: "JKI", 18.0: "KIJ"}[self.plane]  # a, b offsets; c middle
+        if kind == "G87" and not again:
+            missing = [x for x in offsets if x not in w]
+            if missing:
+                raise self.error(f"G87 needs {', '.join(missing)} the first time")
+        repeats = w.get("L", 1.0)
+        if repeats != int(repeats) or not 1 <= repeats <= 100_000:
+            raise self.error(f"{kind}: repeats L{repeats:g} must be a whole number from 1 to 100000")
+        for letter in "RPQIJK" + lc:
+            if letter in w:
+                kept[letter if letter != lc else "depth"] = self.value(letter, w[letter])
+        k = self.lengths()[ic]
+        cur = self.to_program(self.pos)
+        level = cur[ic]
+        if previous not in _CYCLES or self.cycle_level is None:
+            self.cycle_level = level  # LinuxCNC's cycle_il: where the series of cycles began
+        initial = self.cycle_level
+        pa, pb = cur[ia], cur[ib]
+        step_a = step_b = step_radius = step_angle = 0.0
+        if self.absolute:
+            r, bottom = k * kept["R"], k * kept["depth"]
+            if "@" in w or "^" in w:
+                radius = k * self.value("@", w["@"]) if "@" in w else math.hypot(pa, pb)
+                theta = math.radians(self.value("^", w["^"])) if "^" in w else math.atan2(pb, pa)
+                pa, pb = radius * math.cos(theta), radius * math.sin(theta)
+            else:
+                pa = k * w[la] if la in w else pa
+                pb = k * w[lb] if lb in w else pb
+        else:
+            step_a, step_b = k * w.get(la, 0.0), k * w.get(lb, 0.0)
+            step_radius = k * self.value("@", w["@"]) if "@" in w else 0.0
+            step_angle = math.radians(self.value("^", w["^"])) if "^" in w else 0.0
+            r = k * kept["R"] + initial
+            bottom = r + k * kept["depth"]
+        if r < bottom:
+            raise self.error(f"{kind}: the retract level R ({r:g}) is below the depth "
+                             f"{lc} ({bottom:g})")
+
+        def go(kind_: str, a: float, b: float, c: float) -> None:  # the other axes stay
+            q = list(cur)
+            q[ia], q[ib], q[ic] = a, b, c
+            self.travel(kind_, {}, self.to_absolute_point(q))
+
+        a, b = cur[ia], cur[ib]
+        if initial < r:  # below the R level: straight up to it first
+            go("G0", a, b, r)
+            initial = level = r
+        clear = initial if self.retract_old_level else r
+        peck = PECK_CLEARANCE_INCH * _INCH / (_INCH if self.units == "inch" else 1.0)
+        for n in range(int(repeats)):
+            pa, pb = (pa + step_a, pb + step_b) if not self.absolute else (pa, pb)
+            if step_radius or step_angle:
+                if pa == 0.0 and pb == 0.0:
+                    raise self.error("incremental polar motion is indeterminate at the origin")
+                radius, theta = math.hypot(pa, pb) + step_radius, math.atan2(pb, pa) + step_angle
+                pa, pb = radius * math.cos(theta), radius * math.sin(theta)
+            if n == 0 and level > r:
+                go("G0", pa, pb, level)
+                go("G0", pa, pb, r)
+            else:
+                go("G0", pa, pb, clear)
+                if clear > r:
+                    go("G0", pa, pb, r)
+            self.cycle_moves(kind, go, pa, pb, r, clear, bottom, kept, offsets, k, peck)
+        if kind == "G88":  # the operator retracts by hand; the interpreter continues at clear
+            self.end_contour()
+            q = list(cur)
+            q[ia], q[ib], q[ic] = pa, pb, clear
+            self.pos = self.to_absolute_point(q)
+        self.cycle_words = kept
+
+    def cycle_moves(self, kind, go, a, b, r, clear, bottom, kept, offsets, k, peck) -> None:
+        """The moves of one repeat of a cycle at (a, b) from the R level
+        (``convert_cycle_g81`` .. ``_g89``)."""
+        if kind in ("G73", "G83"):
+            delta = k * kept["Q"]
+            if delta <= 0:
+                raise self.error(f"{kind}: peck depth Q{kept['Q']:g} must be > 0")
+            if (r - bottom) / delta > 100_000:
+                raise self.error(f"{kind}: peck depth Q{kept['Q']:g} makes more than 100000 pecks")
+            depth = r - delta
+            while depth > bottom:
+                go("G1", a, b, depth)
+                if kind == "G83":
+                    go("G0", a, b, r)
+                go("G0", a, b, depth + peck)
+                depth -= delta
+            go("G1", a, b, bottom)
+            go("G0", a, b, clear)
+        elif kind in ("G81", "G82", "G86"):
+            go("G1", a, b, bottom)
+            self.end_contour()  # a dwell, or the spindle stopping, at the bottom
+            go("G0", a, b, clear)
+        elif kind in ("G74", "G84", "G89"):
+            go("G1", a, b, bottom)
+            self.end_contour()  # the spindle reverses or the tool dwells at the bottom
+            go("G1", a, b, clear)
+            self.end_contour()
+        elif kind == "G85":
+            go("G1", a, b, bottom)
+            self.end_contour()  # the feed reverses at the bottom: a stop
+            go("G1", a, b, r)
+            self.end_contour()
+            go("G0", a, b, clear)
+        elif kind == "G87":
+            oa, ob = a + k * kept[offsets[0]], b + k * kept[offsets[1]]
+            middle = k * kept[offsets[2]] + (0.0 if self.absolute else bottom)
+            go("G0", oa, ob, r)
+            go("G0", oa, ob, bottom)
+            go("G0", a, b, bottom)
+            go("G1", a, b, middle)
+            go("G1", a, b, bottom)
+            go("G0", oa, ob, bottom)
+            go("G0", oa, ob, clear)
+            go("G0", a, b, clear)
+        else:  # G88
+            go("G1", a, b, bottom)
+            self.end_contour()
+
+    def note_moved(self, kind: str, start: list, end: list) -> None:
+        """Record the axes a move changes, and the first line where a feed move changes
+        an axis outside the path (:attr:`moved`, :attr:`fed_outside`)."""
+        for i in range(9):
+            if end[i] != start[i]:
+                self.moved[i] = True
+                if kind != "G0" and i not in self.axes and i not in self.fed_outside:
+                    self.fed_outside[i] = self.line
 
     def arc(self, w: dict, start: list, end: list) -> None:
         """G2/G3 in the selected plane, computed in program coordinates as LinuxCNC does:
@@ -866,10 +1147,13 @@ class _Reader:
                 f"radius to end of arc differs from radius to start: start {[sx, sy]} "
                 f"centre {[cx, cy]} end {[ex, ey]} r1 {r1:.6g} r2 {r2:.6g}")
         if i1 not in self.axes or i2 not in self.axes:
+            if self.auto:
+                raise _NeedAxes({_AXES[i1], _AXES[i2]})
             raise self.error(f"an arc in the {_g_name(self.plane)} plane needs the axes "
                              f"{_AXES[i1]}{_AXES[i2]} in the path (the path has "
                              f"{''.join(_AXES[i] for i in self.axes)})")
-        linear = any(pe[i] != ps[i] for i in range(9) if i != i1 and i != i2)
+        linear = any(pe[i] != ps[i] for i in range(9) if i != i1 and i != i2
+                     and (i in self.axes or not self.project))  # projected: the path's own axes
         # Within HELIX_TOLERANCE the exact arc ending on the programmed point (its last
         # control point moved by at most the radius difference) is as close to LinuxCNC's
         # spiral as the spiral's own cubic pieces are.
@@ -993,6 +1277,8 @@ class _Reader:
         control point repeating the start (LinuxCNC's own examples) gives C'(0) = 0, which
         the path keeps (see NurbsCurve)."""
         if not set(plane) <= set(self.axes):
+            if self.auto:
+                raise _NeedAxes({_AXES[i] for i in plane})
             raise self.error(f"the curve lies in the {''.join(_AXES[i] for i in plane)} plane but "
                              f"the path has the axes {''.join(_AXES[i] for i in self.axes)}")
         curve = self.make(build, line)
@@ -1221,34 +1507,18 @@ def _forward_fill(values: np.ndarray, first: float) -> np.ndarray:
     return full[index]
 
 
-def load_gcode(file: str | os.PathLike, axes: str = "xy") -> GcodeProgram:
-    """Read the contours of a G-code program (see the module docstring).
+class _NeedAxes(Exception):
+    """A feed move changes these axes (letters) together with the path axes: read again
+    with them (:func:`load_gcode` without ``axes``)."""
 
-    Parameters
-    ----------
-    file : str or path-like
-        The program.
-    axes : str
-        The machine's axes that form the path, in order, from ``XYZABCUVW`` (e.g. ``"xy"``
-        for a 2-axis machine, ``"xyz"`` for a 3-axis one). A move of any other axis ends
-        the contour; a feed move of another axis together with path axes is refused.
+    def __init__(self, letters: set):
+        super().__init__("".join(sorted(letters)))
+        self.letters = letters
 
-    Returns
-    -------
-    GcodeProgram
-        Its contours (each a joined NurbsCurve with per-piece feeds) and units.
 
-    Raises
-    ------
-    PathFileError
-        At the first malformed line or the first thing that changes the path but is not
-        read, naming the file, the line and the value.
-    """
-    path = check_input_file(file)
-    axes = str(axes).upper()
-    if not axes or len(set(axes)) != len(axes) or not set(axes) <= set(_AXES):
-        raise PathFileError(f"path axes {axes!r} must be distinct letters of {_AXES}", str(path))
+def _read_program(path: Path, axes: str, project: bool, auto: bool, rapids: bool = False) -> _Reader:
     reader = _Reader(str(path), axes)
+    reader.project, reader.auto, reader.rapids_as_path = project, auto, rapids
     lines = split_lines(path.read_bytes(), str(path), upper=True)
     program = Program(lines, str(path), reader.system_parameter)  # upper-cased: plain lines in bulk
     del lines  # the program keeps what it needs
@@ -1257,10 +1527,93 @@ def load_gcode(file: str | os.PathLike, axes: str = "xy") -> GcodeProgram:
         if not (reader.read_rows(item) if isinstance(item, Rows) else reader.read(item)):
             break
     reader.finish()
-    if not reader.contours:
+    return reader
+
+
+def _project(contour: GcodeContour, cols: list) -> GcodeContour:
+    c = contour.curve
+    curve = NurbsCurve(c.degree, c.knots, c.control_points[:, cols], c.weights, name=c.name, units=c.units)
+    return GcodeContour(curve, contour.piece_edges, contour.programmed_feed, contour.lines)
+
+
+def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: bool = False) -> GcodeProgram:
+    """Read the contours of a G-code program (see the module docstring).
+
+    Parameters
+    ----------
+    file : str or path-like
+        The program.
+    axes : str or None
+        The machine's axes that form the path, in order, from ``XYZABCUVW`` (e.g. ``"xy"``
+        for a 2-axis machine, ``"xyz"`` for a 3-axis one). A move of any other axis ends
+        the contour; a feed move of another axis together with path axes is refused (or
+        projected, with ``project``). None: every axis the program moves (by a feed or a
+        rapid), in the order X Y Z A B C U V W (what ``nurbsmotion contours`` lists).
+    project : bool
+        Read a feed move of other axes together with path axes as its projection on the
+        path axes (``--project xy``: a helix becomes its circle) instead of refusing it.
+
+    Returns
+    -------
+    GcodeProgram
+        Its contours (each a joined NurbsCurve with per-piece feeds), units and axes. A
+        program whose feed moves change axes outside the path (a plunge in Z on an XY
+        machine) gets one :class:`GcodeWarning` naming them and the machine that would
+        follow them.
+
+    Raises
+    ------
+    PathFileError
+        At the first malformed line or the first thing that changes the path but is not
+        read, naming the file, the line and the value.
+    """
+    path = check_input_file(file)
+    auto = axes is None
+    axes = "XYZ" if auto else str(axes).upper()
+    if not axes or len(set(axes)) != len(axes) or not set(axes) <= set(_AXES):
+        raise PathFileError(f"path axes {axes!r} must be distinct letters of {_AXES}", str(path))
+    rapids = False
+    for _ in range(2 * len(_AXES)):
+        with warnings.catch_warnings(record=True) as caught:  # shown once, from the last pass
+            warnings.simplefilter("always")
+            try:
+                reader = _read_program(path, axes, project, auto, rapids)
+            except _NeedAxes as exc:
+                axes = "".join(a for a in _AXES if a in set(axes) | exc.letters)
+                continue
+        if not reader.contours and not reader.fed_outside and not rapids and any(reader.moved):
+            rapids = True  # no feed move at all: LinuxCNC's planner tests of rapids
+            continue
+        for c in reader.contours:  # an arc or a spline moves its plane's axes between its ends
+            for col, i in enumerate(reader.axes):
+                reader.moved[i] = reader.moved[i] or bool(np.ptp(c.curve.control_points[:, col]) > 0)
+        moved = "".join(a for i, a in enumerate(_AXES) if reader.moved[i])
+        if not auto or set(moved) <= set(axes):
+            break
+        axes = "".join(a for a in _AXES if a in set(axes) | set(moved))
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    contours = reader.contours
+    if auto and moved and moved != axes:  # an axis of the first guess (XYZ) that never moves
+        contours = [_project(c, [axes.index(a) for a in moved]) for c in contours]
+        axes = moved
+    if reader.fed_outside:
+        outside = "".join(_AXES[i] for i in sorted(reader.fed_outside))
+        first = min(reader.fed_outside.values())
+        every = "".join(a for a in _AXES if a in set(axes) | set(outside))
+        reader.line = first
+        reader.warn(f"feed moves of {outside} (the first here) are not part of the contours on "
+                    f"the axes {axes}; a machine with the axes {every} would follow them")
+    if rapids and contours:
+        text = (f"{path}: the program has no feed move: its rapids (G0) are read as the path, "
+                "with no programmed feed (give one)")
+        reader.warnings.append(text)
+        warnings.warn(text, GcodeWarning, stacklevel=2)
+    if not contours:
         raise PathFileError(f"the program has no feed move of the path axes {axes} to make a path from",
                             str(path))
-    return GcodeProgram(tuple(reader.contours), reader.units or "mm", str(path), tuple(reader.warnings))
+    return GcodeProgram(tuple(contours), reader.units or "mm", str(path), tuple(reader.warnings), axes,
+                        reader.units_source, rapids)
 
 # ---------------------------------------------------------------------- writer
 def format_number(x: float, decimals: int) -> str:

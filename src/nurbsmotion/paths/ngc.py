@@ -224,6 +224,9 @@ _PLAIN_LINE = re.compile(r"^(?:[ \t]*(?:/[ \t]*)?(?:N[0-9]+[ \t]*)?((?:[A-MP-Z][
 _LETTERS_TO_BLANKS = str.maketrans(dict.fromkeys("ABCDEFGHIJKLMNOPQRSTUVWXYZ", " "))
 _TABLE_CHUNK = 1 << 16  # lines tokenised at a time (bounds the temporary lists)
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
+_CONSOLE = frozenset("?!~")
+"""Lines that are a controller's console commands (GRBL's status query, feed hold, cycle
+start), as a sender's script holds them: skipped like ``$`` commands."""
 _DOLLAR_WORD = re.compile(r"\$[+-]?[0-9.]")  # LinuxCNC's spindle selector $n (GRBL: $H, $$, $x=v)
 _OWORD = re.compile(r"o(<[^>]*>|\d+)([a-z]+)")
 _FUNCTIONS = {
@@ -476,8 +479,8 @@ class Program:
                 return ("o", label, kw, tuple(args))
             raise p.error(f"cannot read the O-word {code[:20]!r} (expected o<name> or o123 "
                           "followed by sub, call, if, while, ...)")
-        if code.startswith("$") and not _DOLLAR_WORD.match(code):
-            return ("skip", "GRBL '$' settings line")
+        if (code.startswith("$") and not _DOLLAR_WORD.match(code)) or code in _CONSOLE:
+            return ("skip", "console command")
         words, assigns = p.words()
         return ("w", words, tuple(assigns))
 
