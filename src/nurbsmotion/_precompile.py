@@ -79,8 +79,8 @@ def loop_example(interpolator: str) -> tuple | None:
                          f(n, 2, **ro), f(n, **ro), True, f(n, **ro),
                          Settling(f(n, **ro), 0.0, 0, 0, 0, 0), LoopState.new(),
                          AxisState(f(n), f(n), f(n)), new_rows(1, n, True), 0, 0, f(n), f(n),
-                         f(n), f(n, 2), inactive_stage(n), new_plant_state(inactive_stage(n),
-                                                                           f(n))))
+                         f(n), f(n, 2), inactive_stage(n),
+                         new_plant_state(inactive_stage(n), f(n)))
 
 
 def examples_here(interpolator: str) -> list[tuple]:
