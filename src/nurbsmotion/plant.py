@@ -248,10 +248,10 @@ def _stop_time(p, x, v, h, direction, c, y):
     if p[W2] == 0.0:
         wss = p[KC] * v
         w0 = x[0]
+        if direction * wss >= 0.0:  # monotone towards wss: no reversal
+            return -1.0
         if direction * w0 <= 0.0:
             return 0.0
-        if direction * wss >= 0.0:
-            return -1.0
         t = p[TAU] * math.log1p(-w0 / wss)
         return t if t <= h else -1.0
     n = max(1, int(math.ceil(h / p[CHECK_SLIDE])))
