@@ -40,7 +40,7 @@ from numba import njit
 
 from . import stepping
 from .control import pid_commit, pid_output
-from .plant import measure, new_plant_state, positions, sample_step
+from .plant import is_active, measure, new_plant_state, positions, sample_step
 from .servo import plant_step
 
 __all__ = ["Rows", "Settling", "LoopState", "AxisState", "DONE", "FULL", "FAILED",
@@ -195,7 +195,7 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
     record_bounds = rows.bounds.shape[0] > 0
     end = settling.end
     window2 = settling.window * settling.window
-    real = stage.active
+    real = is_active(stage)  # a constant of the stage's type: an ideal loop has no stage
     record_measured = rows.measured.shape[0] > 0
     tool = pstate.tool
     while True:
@@ -335,7 +335,7 @@ def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
     if sink is not None:
         capacity = SINK_BLOCK_SAMPLES
     capacity = max(1, min(int(capacity), settling.max_samples))
-    real = bool(stage.active)
+    real = bool(is_active(stage))
     rows = new_rows(capacity, n_axes, with_bounds, real)
     scratch = (np.empty(n_axes), np.empty(n_axes), np.empty(n_axes), np.empty((n_axes, 2)))
     first = 0

@@ -64,10 +64,12 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from numba.extending import overload
 
 from .errors import InvalidMachineError
 
-__all__ = ["PlantStage", "PlantState", "make_stage", "inactive_stage", "new_plant_state",
+__all__ = ["PlantStage", "IdleStage", "is_active", "PlantState", "make_stage", "inactive_stage",
+           "new_plant_state",
            "linear_loop_poles", "continuous_model", "stage_response"]
 
 # Columns of PlantStage.param
@@ -136,6 +138,30 @@ class PlantState(NamedTuple):
     y: np.ndarray
 
 
+IdleStage = NamedTuple("IdleStage", list(PlantStage.__annotations__.items()))
+IdleStage.__doc__ = """An ideal plant's stage: the fields of :class:`PlantStage`, never run.
+A type of its own, so that the compiled loop knows at compile time that it has no plant
+stage (:func:`is_active`) and an ideal run's loop is the one it was before the stage."""
+
+
+def is_active(stage) -> bool:
+    """Whether the loop runs the stage (a constant of the stage's type when compiled)."""
+    return bool(stage.active)
+
+
+@overload(is_active, inline="always", jit_options={"cache": True})
+def _is_active_overload(stage):
+    from numba.core import types
+
+    if not isinstance(stage, types.BaseNamedTuple):
+        return None
+    value = stage.instance_class is not IdleStage
+
+    def impl(stage):
+        return value
+    return impl
+
+
 @njit(cache=True)
 def _x_minus_g(x: float) -> float:
     """``x - (1 - exp(-x))`` to rounding (as :func:`nurbsmotion.servo.zoh_matrices`)."""
@@ -186,7 +212,7 @@ def _coefficients(p, h, out):
         out[CES] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _slide(p, c, x, v, y):
     """``y`` = the sliding state one interval (coefficients ``c``) after ``x`` under the
     constant net drive ``v`` [V]."""
@@ -222,13 +248,13 @@ def _stuck(p, x, h, y):
         y[3] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _motor_speed(p, x):
     """The motor's speed [rad/s]."""
     return x[0] + p[LAM] * x[3] / p[KE]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _net_drive(p, x, v):
     """The drive on the motor but for friction [V]: ``v`` less spring and damper."""
     return v - p[KSPR] * x[2] - p[CDMP] * x[3]
@@ -328,7 +354,7 @@ def _breakaway_time(p, x, v, h, y):
     return hi
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def advance(stage, pstate, j, v, h, which, c, y):
     """Advance axis ``j`` of ``pstate`` by ``h`` [s] under the constant drive ``v`` [V]
     (applied drive plus load steps); ``which`` (0 or 1) names the precomputed interval
@@ -390,7 +416,7 @@ def advance(stage, pstate, j, v, h, which, c, y):
         x[i] = y[i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def sample_step(stage, pstate, k, j, applied, c, y):
     """Axis ``j`` over sample k: the DAC on the drive ``applied`` [V] (clipped), the
     delay line, the load steps, and :func:`advance` over each interval of constant drive."""
@@ -426,7 +452,7 @@ def sample_step(stage, pstate, k, j, applied, c, y):
         t = end
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _mix(z):
     """splitmix64's finaliser."""
     z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
@@ -434,7 +460,7 @@ def _mix(z):
     return z ^ (z >> np.uint64(31))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def noise_draw(seed, k, j):
     """A standard normal draw for sample k, axis j (Box-Muller on two splitmix64 words)."""
     base = (np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15)
@@ -446,7 +472,7 @@ def noise_draw(seed, k, j):
     return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def positions(stage, pstate, j):
     """``(tool, encoder, encoder_speed)`` of axis j: the load's and the encoder mass's
     true positions [pulse] and the encoder mass's speed [rad/s]."""
@@ -457,7 +483,7 @@ def positions(stage, pstate, j):
     return tool, enc, x[0] + p[ENC] * x[3] / p[KE]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def measure(stage, true_position, start, k, j):
     """What the controller reads of a true position [pulse] at sample k, axis j."""
     m = true_position
@@ -475,9 +501,9 @@ def inactive_stage(n_axes: int) -> PlantStage:
     arrays = (z, np.zeros(n_axes, np.bool_), np.zeros(n_axes, np.bool_),
               np.zeros((n_axes, 2, N_COEF)), np.full((n_axes, 1), np.inf),
               np.zeros((n_axes, 1)))
-    for arr in arrays:  # read-only as a made stage's: the same compiled loop
+    for arr in arrays:  # read-only as a made stage's
         arr.flags.writeable = False
-    return PlantStage(False, False, 0.0, 0, 0.0, 1.0, 0, 0.0, 1.0, *arrays)
+    return IdleStage(False, False, 0.0, 0, 0.0, 1.0, 0, 0.0, 1.0, *arrays)
 
 
 def _mode(tau: float, lam: float, frequency: float, damping: float):
@@ -557,10 +583,19 @@ def make_stage(effects, tau, Kc, Ke, max_drive: float, sample_period: float) -> 
                       friction, two, coef, dist_t, dist_d)
 
 
+_IDLE_STATES: dict = {}
+
+
 def new_plant_state(stage: PlantStage, position) -> PlantState:
     """The stage at rest at ``position`` [pulse] (shape (n_axes,)); a motor with friction
-    starts stuck."""
+    starts stuck. An inactive stage's state is never read or written: one per number of
+    axes is shared (an ideal run makes none)."""
     n = len(position)
+    if not stage.active:
+        if n not in _IDLE_STATES:
+            _IDLE_STATES[n] = new_plant_state(PlantStage(*stage)._replace(active=True),
+                                              np.zeros(n))
+        return _IDLE_STATES[n]
     x = np.zeros((n, 4))
     x[:, 1] = position
     direction = np.where(stage.friction, 0.0, 1.0)
