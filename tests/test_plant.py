@@ -349,3 +349,30 @@ def test_ideal_run_unchanged_and_real_run_measured():
     rest = real.at_rest()
     assert set(rest.limit_cycle) == {"x", "y"} and not any(rest.limit_cycle.values())
     assert rest.peak_speed["x"] > 0 and rest.window_s == pytest.approx(0.3)
+
+
+def test_campaign_plant_groups_take_effect_keys():
+    from nurbsmotion.campaign import _plant, _true_machine
+
+    group = _plant({"name": "d", "delay": 3e-4, "encoder": "counts",
+                    "coulomb_friction": 0.3, "stiction": 0.4}, 0)
+    true = _true_machine(die_bonder(), group)
+    assert true.delay == 3e-4 and true.encoder == "counts"
+    assert all(a.coulomb_friction == 0.3 and a.stiction == 0.4 for a in true.axes)
+    assert _true_machine(die_bonder(), _plant({"name": "n"}, 0)) == die_bonder()
+    with pytest.raises(ValueError, match="stiction_v"):
+        _plant({"name": "x", "stiction_v": 0.4}, 0)
+    with pytest.raises(InvalidMachineError, match="poles"):
+        _true_machine(die_bonder(), _plant({"name": "d", "delay": 8e-4}, 0))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_random_real_machines_keep_their_axes(seed):
+    from nurbsmotion.random_machines import random_machine
+
+    real, ideal = random_machine(seed, real=True), random_machine(seed)
+    assert real.has_effects and not ideal.has_effects
+    assert [(a.time_constant, a.position_gain) for a in real.axes] == \
+        [(a.time_constant, a.position_gain) for a in ideal.axes]
+    assert real.delay <= 0.5 * real.sample_period
+    assert Machine.from_dict(real.to_dict()) == real
