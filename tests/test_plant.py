@@ -233,21 +233,25 @@ def test_delay_matches_cont2discrete(delay, two_mass):
     np.testing.assert_allclose(tool[:, 0], ref, rtol=0, atol=1e-9 * scale)
 
 
+def _read(stage, *args):
+    return measure(stage.noise, stage.seed, stage.counts, *args)
+
+
 def test_counts_by_hand():
     stage = make_stage(_effects(encoder="counts"), [0.1], [100.0], [100.0], 10.0, Ts)
-    assert measure(stage, 3.2, 0.5, 0, 0) == 2.5      # 0.5 + floor(2.7)
-    assert measure(stage, 0.5, 0.5, 0, 0) == 0.5
-    assert measure(stage, 0.49, 0.5, 0, 0) == -0.5    # floor, not toward zero
-    assert measure(stage, -3.0, 0.0, 0, 0) == -3.0
+    assert _read(stage, 3.2, 0.5, 0, 0) == 2.5      # 0.5 + floor(2.7)
+    assert _read(stage, 0.5, 0.5, 0, 0) == 0.5
+    assert _read(stage, 0.49, 0.5, 0, 0) == -0.5    # floor, not toward zero
+    assert _read(stage, -3.0, 0.0, 0, 0) == -3.0
     exact = make_stage(_effects(), [0.1], [100.0], [100.0], 10.0, Ts)
-    assert measure(exact, 3.2, 0.5, 0, 0) == 3.2
+    assert _read(exact, 3.2, 0.5, 0, 0) == 3.2
 
 
 def test_noise_by_hand_and_reproducible():
     stage = make_stage(_effects(noise=2.0, seed=11), [0.1], [100.0], [100.0], 10.0, Ts)
-    got = [measure(stage, 10.0, 0.0, k, 1) for k in range(5)]
+    got = [_read(stage, 10.0, 0.0, k, 1) for k in range(5)]
     assert got == [10.0 + 2.0 * noise_draw(11, k, 1) for k in range(5)]
-    assert got == [measure(stage, 10.0, 0.0, k, 1) for k in range(5)]  # same seed
+    assert got == [_read(stage, 10.0, 0.0, k, 1) for k in range(5)]  # same seed
     draws = np.array([noise_draw(3, k, 0) for k in range(20000)])
     assert abs(draws.mean()) < 0.03 and abs(draws.std() - 1.0) < 0.03
     assert noise_draw(3, 5, 0) != noise_draw(4, 5, 0) != noise_draw(3, 5, 1)

@@ -198,6 +198,14 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
     real = is_active(stage)  # a constant of the stage's type: an ideal loop has no stage
     record_measured = rows.measured.shape[0] > 0
     tool = pstate.tool
+    # the stage's arrays and numbers, taken out of their tuples once (a tuple of arrays
+    # passed to a function costs a reference count of each array at every call)
+    P, X, origin, scratch, y = stage.param, pstate.x, pstate.origin, pstate.scratch, pstate.y
+    noise, seed, counts = stage.noise, stage.seed, stage.counts
+    C, F, DT, DD = stage.coef, stage.friction, stage.disturbance_time, stage.disturbance_drive
+    dac_step, dac_levels, n_delay = stage.dac_step, stage.dac_levels, stage.delay_samples
+    split, Tp = stage.split, stage.sample_period
+    D, LINE, ND = pstate.direction, pstate.line, pstate.next_disturbance
     while True:
         if k >= settling.max_samples:
             loop.k[0] = k
@@ -210,8 +218,8 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
             return PAUSED
         for j in range(n_axes):
             if real:
-                tool[j], reading, speed = positions(stage, pstate, j)
-                position[j] = measure(stage, reading, pstate.origin[j], k, j)
+                tool[j], reading, speed = positions(P, X, j)
+                position[j] = measure(noise, seed, counts, reading, origin[j], k, j)
                 if encoder:
                     velocity[j] = (position[j] - axes.position_prev[j]) / Ts
                 else:
@@ -261,7 +269,8 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
                 rows.bounds[i, j, 0] = bounds[j, 0]
                 rows.bounds[i, j, 1] = bounds[j, 1]
             if real:
-                sample_step(stage, pstate, k, j, applied, pstate.scratch, pstate.y)
+                sample_step(P, C, F, DT, DD, dac_step, dac_levels, n_delay, split, Tp, X, D,
+                            LINE, ND, k, j, applied, scratch, y)
                 axes.position_prev[j] = position[j]
                 continue
             w, th = plant_step(Ad, Bd, j, axes.speed[j], axes.position[j], applied)

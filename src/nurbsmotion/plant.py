@@ -70,7 +70,7 @@ from .errors import InvalidMachineError
 
 __all__ = ["PlantStage", "IdleStage", "is_active", "PlantState", "make_stage", "inactive_stage",
            "new_plant_state",
-           "linear_loop_poles", "continuous_model", "stage_response"]
+           "linear_loop_poles", "continuous_model", "stage_response", "stage_arrays"]
 
 # Columns of PlantStage.param
 TAU, KC, KE, LAM, SIG, W2, GAIN, SA1, SA0, KSPR, CDMP, FC, FS, ENC, TOOL, CHECK_SLIDE, \
@@ -355,15 +355,46 @@ def _breakaway_time(p, x, v, h, y):
 
 
 @njit(cache=True, inline="always")
-def advance(stage, pstate, j, v, h, which, c, y):
-    """Advance axis ``j`` of ``pstate`` by ``h`` [s] under the constant drive ``v`` [V]
-    (applied drive plus load steps); ``which`` (0 or 1) names the precomputed interval
-    ``h`` is, or -1. ``c`` (N_COEF,) and ``y`` (4,) are scratch."""
-    p = stage.param[j]
-    x = pstate.x[j]
-    if not stage.friction[j]:
+def _slide_at(P, C, X, j, which, v):
+    """:func:`_slide` of axis ``j`` over the precomputed interval ``which``, in place on
+    ``X[j]``, by index (no array views: the loop's hot path)."""
+    x0 = X[j, 0]
+    x2 = X[j, 2]
+    x3 = X[j, 3]
+    X[j, 0] = C[j, which, CA] * x0 + C[j, which, CB0] * v
+    X[j, 1] = X[j, 1] + C[j, which, CKT] * x0 + C[j, which, CB1] * v
+    if P[j, W2] > 0.0:
+        m = P[j, SIG]
+        ys = P[j, GAIN] * v / P[j, W2]
+        z0 = x2 - ys
+        X[j, 2] = C[j, which, CEC] * z0 + C[j, which, CES] * (x3 + m * z0) + ys
+        X[j, 3] = C[j, which, CEC] * x3 - C[j, which, CES] * (m * x3 + P[j, W2] * z0)
+
+
+@njit(cache=True, inline="always")
+def advance(P, C, F, X, D, j, v, h, which, c, y):
+    """Advance axis ``j`` by ``h`` [s] under the constant drive ``v`` [V] (applied drive
+    plus load steps); ``which`` (0 or 1) names the precomputed interval ``h`` is, or -1.
+    ``P``, ``C``, ``F``: the stage's ``param``, ``coef``, ``friction``; ``X``, ``D``: the
+    state's ``x`` and ``direction`` (changed); ``c`` (N_COEF,) and ``y`` (4,) scratch.
+    Arrays, never the NamedTuples: a tuple of arrays passed to a function costs a
+    reference count of each of them at every call (several times the step itself).
+    Inlined into the loop, whose locals are set up once per block; the events' function
+    (large, rare) is a call of its own."""
+    if which >= 0 and not F[j]:  # the common case
+        _slide_at(P, C, X, j, which, v)
+        return
+    _advance_events(P[j], C[j], F[j], X[j], D, j, v, h, which, c, y)
+
+
+@njit(cache=True)
+def _advance_events(p, coef, friction, x, directions, j, v, h, which, c, y):
+    """:func:`advance` for an interval of its own length or an axis with friction:
+    ``p`` the axis's ``param`` row, ``coef`` its (2, N_COEF) coefficients, ``x`` its
+    state (changed), ``directions`` every axis's motor direction (entry j changed)."""
+    if not friction:
         if which >= 0:
-            _slide(p, stage.coef[j, which], x, v, y)
+            _slide(p, coef[which], x, v, y)
         else:
             _slide_for(p, x, v, h, c, y)
         for i in range(4):
@@ -373,7 +404,7 @@ def advance(stage, pstate, j, v, h, which, c, y):
     for _ in range(MAX_EVENTS):
         if remaining <= 0.0:
             return
-        direction = pstate.direction[j]
+        direction = directions[j]
         if direction == 0.0:
             t = _breakaway_time(p, x, v, remaining, y)
             if t < 0.0:
@@ -385,14 +416,14 @@ def advance(stage, pstate, j, v, h, which, c, y):
                 _stuck(p, x, t, y)
                 for i in range(4):
                     x[i] = y[i]
-            pstate.direction[j] = 1.0 if _net_drive(p, x, v) > 0.0 else -1.0
+            directions[j] = 1.0 if _net_drive(p, x, v) > 0.0 else -1.0
             remaining -= t
             continue
         veff = v - p[FC] * direction
         t = _stop_time(p, x, veff, remaining, direction, c, y)
         if t < 0.0:
             if which >= 0 and remaining == h:
-                _slide(p, stage.coef[j, which], x, veff, y)
+                _slide(p, coef[which], x, veff, y)
             else:
                 _slide_for(p, x, veff, remaining, c, y)
             for i in range(4):
@@ -405,11 +436,11 @@ def advance(stage, pstate, j, v, h, which, c, y):
         remaining -= t
         net = _net_drive(p, x, v)
         if abs(net) <= p[FS]:
-            pstate.direction[j] = 0.0
+            directions[j] = 0.0
         else:
-            pstate.direction[j] = 1.0 if net > 0.0 else -1.0
+            directions[j] = 1.0 if net > 0.0 else -1.0
     # MAX_EVENTS reached: the motor is held for the rest of the interval
-    pstate.direction[j] = 0.0
+    directions[j] = 0.0
     x[0] = -p[LAM] * x[3] / p[KE]
     _stuck(p, x, remaining, y)
     for i in range(4):
@@ -417,21 +448,21 @@ def advance(stage, pstate, j, v, h, which, c, y):
 
 
 @njit(cache=True, inline="always")
-def sample_step(stage, pstate, k, j, applied, c, y):
+def sample_step(P, C, F, DT, DD, dac_step, dac_levels, delay_samples, split, Ts, X, D, LINE,
+                ND, k, j, applied, c, y):
     """Axis ``j`` over sample k: the DAC on the drive ``applied`` [V] (clipped), the
-    delay line, the load steps, and :func:`advance` over each interval of constant drive."""
-    q = stage.dac_step
+    delay line, the load steps, and :func:`advance` over each interval of constant drive.
+    The arguments before ``k`` are :func:`stage_arrays` (the stage's and its state's
+    arrays and numbers)."""
+    q = dac_step
     if q > 0.0:
         level = math.floor(applied / q + 0.5)
-        level = min(max(level, -stage.dac_levels), stage.dac_levels - 1.0)
+        level = min(max(level, -dac_levels), dac_levels - 1.0)
         applied = level * q
-    length = pstate.line.shape[1]
-    pstate.line[j, k % length] = applied
-    n = stage.delay_samples
-    new = pstate.line[j, (k - n) % length]
-    old = pstate.line[j, (k - n - 1) % length]
-    Ts = stage.sample_period
-    split = stage.split
+    length = LINE.shape[1]
+    LINE[j, k % length] = applied
+    new = LINE[j, (k - delay_samples) % length]
+    old = LINE[j, (k - delay_samples - 1) % length]
     t0 = k * Ts
     t = 0.0
     while t < Ts:
@@ -440,16 +471,24 @@ def sample_step(stage, pstate, k, j, applied, c, y):
         else:
             seg_start, seg_end, drive = split, Ts, new
             seg_which = 1 if split > 0.0 else 0
-        i = pstate.next_disturbance[j]
-        at = stage.disturbance_time[j, i] - t0
+        i = ND[j]
+        at = DT[j, i] - t0
         if at <= t:  # a load step due now (or, by rounding, a hair before)
-            pstate.next_disturbance[j] = i + 1
+            ND[j] = i + 1
             continue
-        load = stage.disturbance_drive[j, i - 1] if i > 0 else 0.0
+        load = DD[j, i - 1] if i > 0 else 0.0
         end = min(seg_end, at)
         which = seg_which if (t == seg_start and end == seg_end) else -1
-        advance(stage, pstate, j, drive + load, end - t, which, c, y)
+        advance(P, C, F, X, D, j, drive + load, end - t, which, c, y)
         t = end
+
+
+def stage_arrays(stage: "PlantStage", pstate: "PlantState") -> tuple:
+    """The first arguments of :func:`sample_step`, from a stage and its state."""
+    return (stage.param, stage.coef, stage.friction, stage.disturbance_time,
+            stage.disturbance_drive, stage.dac_step, stage.dac_levels,
+            stage.delay_samples, stage.split, stage.sample_period, pstate.x,
+            pstate.direction, pstate.line, pstate.next_disturbance)
 
 
 @njit(cache=True, inline="always")
@@ -473,23 +512,24 @@ def noise_draw(seed, k, j):
 
 
 @njit(cache=True, inline="always")
-def positions(stage, pstate, j):
-    """``(tool, encoder, encoder_speed)`` of axis j: the load's and the encoder mass's
-    true positions [pulse] and the encoder mass's speed [rad/s]."""
-    p = stage.param[j]
-    x = pstate.x[j]
-    tool = x[1] + p[TOOL] * x[2]
-    enc = x[1] + p[ENC] * x[2]
-    return tool, enc, x[0] + p[ENC] * x[3] / p[KE]
+def positions(P, X, j):
+    """``(tool, encoder, encoder_speed)`` of axis j (``P``, ``X``: the stage's ``param``
+    and the state's ``x``): the load's and the encoder mass's true positions [pulse] and
+    the encoder mass's speed [rad/s]."""
+    tool = X[j, 1] + P[j, TOOL] * X[j, 2]
+    enc = X[j, 1] + P[j, ENC] * X[j, 2]
+    return tool, enc, X[j, 0] + P[j, ENC] * X[j, 3] / P[j, KE]
 
 
 @njit(cache=True, inline="always")
-def measure(stage, true_position, start, k, j):
-    """What the controller reads of a true position [pulse] at sample k, axis j."""
+def measure(noise, seed, counts, true_position, start, k, j):
+    """What the controller reads of a true position [pulse] at sample k, axis j: with
+    Gaussian noise of standard deviation ``noise`` [pulse] (seeded by ``seed``), in whole
+    counts from ``start`` [pulse] if ``counts``."""
     m = true_position
-    if stage.noise > 0.0:
-        m = m + stage.noise * noise_draw(stage.seed, k, j)
-    if stage.counts:
+    if noise > 0.0:
+        m = m + noise * noise_draw(seed, k, j)
+    if counts:
         m = start + math.floor(m - start)
     return m
 
@@ -627,9 +667,10 @@ def stage_response(stage: PlantStage, drive, position=None):
     pstate = new_plant_state(stage, start)
     xs = np.empty((drive.shape[0] + 1, n_axes, 4))
     xs[0] = pstate.x
+    args = stage_arrays(stage, pstate)
     for k in range(drive.shape[0]):
         for j in range(n_axes):
-            sample_step(stage, pstate, k, j, float(drive[k, j]), pstate.scratch, pstate.y)
+            sample_step(*args, k, j, float(drive[k, j]), pstate.scratch, pstate.y)
         xs[k + 1] = pstate.x
     tool = xs[:, :, 1] + stage.param[:, TOOL] * xs[:, :, 2]
     return xs, tool
