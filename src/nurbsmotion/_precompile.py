@@ -48,6 +48,7 @@ def loop_example(interpolator: str) -> tuple | None:
     from .closed_loop import AxisState, LoopState, Settling, new_rows, run_samples
     from .control import PID_LAW, PID_STATE
     from .interpolators.base import PathData
+    from .plant import inactive_stage, new_plant_state
     from .interpolators.paper import PaperPlan
     from .interpolators.planned import SUPPORT_DIRECTIONS, PlannedPlan, PlannedState
     from .interpolators.taylor import StepState, TaylorPlan
@@ -78,7 +79,8 @@ def loop_example(interpolator: str) -> tuple | None:
                          f(n, 2, **ro), f(n, **ro), True, f(n, **ro),
                          Settling(f(n, **ro), 0.0, 0, 0, 0, 0), LoopState.new(),
                          AxisState(f(n), f(n), f(n)), new_rows(1, n, True), 0, 0, f(n), f(n),
-                         f(n), f(n, 2))
+                         f(n), f(n, 2), inactive_stage(n),
+                         new_plant_state(inactive_stage(n), f(n)))
 
 
 def examples_here(interpolator: str) -> list[tuple]:

@@ -87,6 +87,13 @@ class PlantGroup:
     tau_scale: tuple = (1.0,)
     Kc_scale: tuple = (1.0,)
     spread: float = 0.0
+    effects: tuple = ()
+    """``(key, value)`` pairs of the machine as it is (issue 32) the true plant has on top
+    of the machine's: machine-level keys (``encoder``, ``measurement_noise``, ``seed``,
+    ``delay``, ``dac_bits``) and per-axis keys set on every axis (``coulomb_friction``,
+    ``stiction``, ``resonance_frequency``, ``resonance_damping``, ``load_fraction``,
+    ``encoder_on``): a study sweeps delay, friction or a mode with one plant group per
+    value."""
 
 
 @dataclass(frozen=True)
@@ -298,7 +305,10 @@ def _plant(entry, i: int) -> PlantGroup:
     where = f"plants[{i}]"
     if not isinstance(entry, dict) or not isinstance(entry.get("name"), str):
         raise ValueError(f"{where} must be a table with a 'name'")
-    unknown = set(entry) - {"name", "tau_scale", "Kc_scale", "spread"}
+    from .machine import AXIS_EFFECT_KEYS, MACHINE_EFFECT_KEYS
+
+    effect_keys = (set(MACHINE_EFFECT_KEYS) | set(AXIS_EFFECT_KEYS)) - {"disturbance"}
+    unknown = set(entry) - {"name", "tau_scale", "Kc_scale", "spread"} - effect_keys
     if unknown:
         raise ValueError(f"{where}: unknown field(s) {sorted(unknown)}")
     scales = []
@@ -311,7 +321,12 @@ def _plant(entry, i: int) -> PlantGroup:
     spread = entry.get("spread", 0.0)
     if not (_is_number(spread) and 0 <= spread < 1):
         raise ValueError(f"{where}.spread must be in [0, 1), got {spread!r}")
-    return PlantGroup(entry["name"], scales[0], scales[1], float(spread))
+    effects = tuple(sorted((k, entry[k]) for k in effect_keys if k in entry))
+    for k, v in effects:
+        if isinstance(v, (list, dict)):
+            raise ValueError(f"{where}.{k} must be one value (it applies to every axis), "
+                             f"got {v!r}")
+    return PlantGroup(entry["name"], scales[0], scales[1], float(spread), effects)
 
 
 def _seed(*words: int) -> int:
@@ -437,6 +452,22 @@ def _plant_scales(case: Case, n_axes: int) -> tuple[np.ndarray, np.ndarray]:
     return out[0], out[1]
 
 
+def _true_machine(machine: Machine, group: PlantGroup) -> Machine:
+    """``machine`` with the plant group's effect keys (per-axis keys on every axis),
+    validated as a machine (a delay its loop cannot take is refused, naming the poles)."""
+    if not group.effects:
+        return machine
+    from dataclasses import replace
+
+    from .machine import AXIS_EFFECT_KEYS
+
+    keys = dict(group.effects)
+    axis_keys = {k: v for k, v in keys.items() if k in AXIS_EFFECT_KEYS}
+    machine_keys = {k: v for k, v in keys.items() if k not in AXIS_EFFECT_KEYS}
+    return machine.with_options(axes=tuple(replace(a, **axis_keys) for a in machine.axes),
+                                **machine_keys)
+
+
 def case_trace(case: Case):
     """Run one case: ``(trace, summary dict, tau scales, Kc scales)``.
 
@@ -457,15 +488,19 @@ def case_trace(case: Case):
     # (per piece where the file programs one, capped by the study's feed).
     feed = run_feed(_feed_text(case), contour, machine)
     tau_s, kc_s = _plant_scales(case, machine.n_axes)
-    plant = ServoPlant.of_machine(machine, pulses(0.0), time_constant_scale=tau_s,
-                                  electrical_gain_scale=kc_s)
+    plant = ServoPlant.of_machine(_true_machine(machine, case.plant), pulses(0.0),
+                                  time_constant_scale=tau_s, electrical_gain_scale=kc_s)
     trace = run(pulses, machine, feed, case.interpolator, plant=plant,
                 settle_time=case.settle_time, settle_window=case.settle_window)
     metrics = trace_metrics(trace, settle_window=case.settle_window)
     bound = _bound(case, pulses, machine, feed) if case.bound else math.nan
+    extra = None
+    if plant.effects is not None:  # what the machine did at rest (issue 32); added keys
+        rest = trace.at_rest().to_dict()
+        extra = {"hold_window_s": rest.pop("window_s"), **rest}
     data = summary(metrics, interpolator=case.interpolator,
                    feed=feed if isinstance(feed, (int, float)) else feed.highest,
-                   machine=machine.name, path=case.path, time_optimal_bound=bound)
+                   machine=machine.name, path=case.path, time_optimal_bound=bound, extra=extra)
     return trace, data, tau_s, kc_s
 
 

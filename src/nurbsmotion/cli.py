@@ -226,7 +226,8 @@ def _run(args, precompiler) -> int:
     except NurbsmotionError:
         _ask_for_feed_unit(args, curve, machine, path.length, feed)
         raise
-    plant = None if args.plant is None else _true_plant(load_machine(args.plant), machine)
+    plant_machine = machine if args.plant is None else load_machine(args.plant)
+    plant = None if args.plant is None else _true_plant(plant_machine, machine)
     eps = units.length_in_pulses(args.corner_tolerance, curve, machine, "--corner-tolerance")
     if eps and args.interpolator != "planned":
         raise InvalidArgumentError(
@@ -272,11 +273,11 @@ def _run(args, precompiler) -> int:
         expected = estimate_samples(path.length, lowest, machine.sample_period)
         precompiler.wait()
         run_options = dict(max_samples=args.max_samples, interpolator_options=options,
-                           plant=plant, settle_window=window)
+                           plant=plant, settle_window=window, hold=args.hold)
         file = None if args.no_trace else out / TRACE_FILES[args.trace_format]
         if stream:  # the rows go to the metrics and the trace file as the loop runs
-            metrics, notes = _run_streamed(args, path, machine, feed, run_options, file,
-                                           unit, per_unit, expected)
+            metrics, notes, at_rest = _run_streamed(args, path, machine, feed, run_options,
+                                                    file, unit, per_unit, expected)
             bar.update(3)
         else:
             with _progress(args, total=_total(expected), unit="sample", unit_scale=True,
@@ -287,7 +288,7 @@ def _run(args, precompiler) -> int:
             # The metrics before the trace file: their temporaries are gone before the
             # writer's buffers are made (the peak memory is the larger, not the sum).
             stage(stages[2])
-            metrics, notes = trace.metrics(), trace.notes
+            metrics, notes, at_rest = trace.metrics(), trace.notes, trace.at_rest()
             bar.update()
             stage(stages[3])
             if file is not None:
@@ -303,6 +304,10 @@ def _run(args, precompiler) -> int:
         if args.interpolator == "planned":
             extra.update({"path_tolerance": path_tolerance,
                           f"path_tolerance_{unit}": path_tolerance / per_unit})
+        extra.update(_at_rest_keys(at_rest, unit, per_unit))
+        if machine.has_effects or plant_machine.has_effects:  # both, as they were read
+            extra["machine_model"] = machine.to_dict()
+            extra["true_plant"] = plant_machine.to_dict()
         if contour.feed is not None:  # the file gave a feed: say which one ran
             extra["feed_used"] = note
         extra["notes"] = list(notes)
@@ -370,11 +375,15 @@ def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | Non
                   unit: str, per_unit: float, expected: float):
     """Run the loop with its rows streamed to the metrics and the trace file (if any);
     return the metrics and the interpolator's notes."""
-    from .loop import background_sink, run_streamed
-    from .metrics import RunningMetrics
+    from .loop import background_sink, hold_samples_of, run_streamed, settle_hold_samples
+    from .metrics import RunningAtRest, RunningMetrics
     from .report import TraceWriter
 
     running = RunningMetrics(path, machine, run_options["settle_window"])
+    true_plant = run_options["plant"] or machine.plant()
+    resting = RunningAtRest(machine, path.end_points[1], run_options["settle_window"],
+                            hold_samples_of(true_plant, run_options["hold"])
+                            or settle_hold_samples(machine))
     with contextlib.ExitStack() as stack:
         writer = None if file is None else stack.enter_context(TraceWriter(
             file, machine, fmt=args.trace_format, every=args.trace_every, length_unit=unit,
@@ -387,6 +396,7 @@ def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | Non
         def consume(first, rows, finished, last):
             nonlocal announce
             running.add(first, rows, finished, last)
+            resting.add(first, rows, finished, last)
             if writer is not None:
                 writer.add(first, rows, finished, last)
             if announce and writer.rows_written:
@@ -400,7 +410,18 @@ def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | Non
                                progress=lambda k: samples.update(k - samples.n),
                                **run_options)
     return (running.result(outcome.finished_index, outcome.success, outcome.message),
-            outcome.notes)
+            outcome.notes, resting.result())
+
+
+def _at_rest_keys(at_rest, unit: str, per_unit: float) -> dict:
+    """The summary keys of :class:`nurbsmotion.metrics.AtRest`, the peaks also in the
+    path's unit (``peak_speed_mm_per_s``, ``peak_acceleration_mm_per_s2``, ...)."""
+    data = at_rest.to_dict()
+    out = {"hold_window_s": data.pop("window_s"), **data}
+    for key, suffix in (("peak_speed", "per_s"), ("peak_acceleration", "per_s2"),
+                        ("peak_jerk", "per_s3")):
+        out[f"{key}_{unit}_{suffix}"] = {a: v / per_unit for a, v in data[key].items()}
+    return out
 
 
 def _trace_notice(args, file: Path, rows: int, size: float, bar=None) -> None:
@@ -471,16 +492,19 @@ def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None
 
 
 def _true_plant(plant_machine: Machine, machine: Machine):
-    """The plant of ``plant_machine`` (tau, Kc, Ke per axis) with the drive limit and the
-    sample period of ``machine``, the controller's."""
+    """The plant of ``plant_machine`` (tau, Kc, Ke per axis, and the effects of the
+    machine as it is) with the drive limit and the sample period of ``machine``, the
+    controller's."""
     from .servo import ServoPlant
 
     if plant_machine.n_axes != machine.n_axes:
         raise InvalidArgumentError(
             f"--plant {plant_machine.name!r} has {plant_machine.n_axes} axes, --machine "
             f"{machine.name!r} {machine.n_axes}")
+    # the true machine's effects (counts, delay, friction, mode...) go with its plant
     return ServoPlant(plant_machine.tau, plant_machine.Kc, plant_machine.Ke,
-                      machine.max_drive, machine.sample_period)
+                      machine.max_drive, machine.sample_period, None,
+                      plant_machine.effects() if plant_machine.has_effects else None)
 
 
 def _cmd_reproduce(args) -> int:
@@ -633,6 +657,17 @@ def _sample_period(text: str) -> float:
     return value
 
 
+def _non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be finite and >= 0, got {text!r}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     """argparse type: an integer >= 1."""
     try:
@@ -738,9 +773,14 @@ def _parser() -> argparse.ArgumentParser:
                    "along it; paper: Yeh & Sun (2008), saturation-aware one step ahead; "
                    "taylor1/taylor2: constant feed")
     r.add_argument("--plant", metavar="MACHINE",
-                   help="simulate a true plant whose tau, Kc, Ke per axis come from this "
-                   "machine (its gains are ignored), while the controller and the planner "
-                   "use --machine (default: the --machine's own plant)")
+                   help="simulate a true plant whose tau, Kc, Ke per axis and effects "
+                   "(encoder counts, noise, delay, DAC, friction, load steps, a two-mass "
+                   "mode) come from this machine (its gains are ignored), while the "
+                   "controller and the planner use --machine (default: the --machine's "
+                   "own plant)")
+    r.add_argument("--hold", type=_non_negative_float, default=None, metavar="SECONDS",
+                   help="go on this long after the motion has settled, to see what it does "
+                   "at rest (default: 0.3 s where the true plant has any effect, else 0)")
     r.add_argument("--corner-tolerance", default="0",
                    help="planned: how far the motion may leave a sharp corner instead of "
                    "stopping there, a length (0.5mm, 10um) or a number in the path's units")

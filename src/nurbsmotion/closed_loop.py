@@ -40,6 +40,7 @@ from numba import njit
 
 from . import stepping
 from .control import pid_commit, pid_output
+from .plant import is_active, measure, new_plant_state, positions, sample_step
 from .servo import plant_step
 
 __all__ = ["Rows", "Settling", "LoopState", "AxisState", "DONE", "FULL", "FAILED",
@@ -109,6 +110,7 @@ class Rows(NamedTuple):
     drive: np.ndarray           # (n, n_axes) [V], before the limit
     drive_applied: np.ndarray   # (n, n_axes) [V]
     bounds: np.ndarray          # (n or 0, n_axes, 2) [pulse/s]
+    measured: np.ndarray        # (n or 0, n_axes) [pulse], what the controller read
 
 
 class Settling(NamedTuple):
@@ -129,18 +131,20 @@ class Settling(NamedTuple):
     max_samples: int
 
 
-def new_rows(capacity: int, n_axes: int, with_bounds: bool) -> Rows:
-    """Uninitialised rows for ``capacity`` samples."""
+def new_rows(capacity: int, n_axes: int, with_bounds: bool, with_measured: bool = False) -> Rows:
+    """Uninitialised rows for ``capacity`` samples (``measured`` only for a plant whose
+    reading differs from its true position: otherwise it is ``position``)."""
     shape = (capacity, n_axes)
     return Rows(np.empty(capacity), np.empty(capacity), np.empty(capacity, np.int8),
                 np.empty(shape), np.empty(shape), np.empty(shape), np.empty(shape),
                 np.empty(shape), np.empty(shape),
-                np.empty((capacity if with_bounds else 0, n_axes, 2)))
+                np.empty((capacity if with_bounds else 0, n_axes, 2)),
+                np.empty((capacity if with_measured else 0, n_axes)))
 
 
 @njit(cache=True, nogil=True)  # a sink's thread (metrics, trace file) runs meanwhile
 def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settling, loop,
-                axes, rows, first, stop, command, velocity, position, bounds):
+                axes, rows, first, stop, command, velocity, position, bounds, stage, pstate):
     """Run the loop from ``loop.k[0]`` until it ends, ``rows`` are full or sample ``stop``
     is reached; sample k goes to row ``k - first``.
 
@@ -169,6 +173,13 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
         Return :data:`PAUSED` before running this sample.
     command, velocity, position, bounds : ndarray
         Scratch: shapes (n_axes,), (n_axes,), (n_axes,), (n_axes, 2).
+    stage : nurbsmotion.plant.PlantStage
+        The true plant's effects; when ``stage.active``, it runs in place of ``Ad``,
+        ``Bd``: the controller reads what :func:`nurbsmotion.plant.measure` gives of the
+        encoder's mass, the rows' ``position`` is the tool's true position and the settle
+        window is judged on it.
+    pstate : nurbsmotion.plant.PlantState
+        Its state (unused when the stage is inactive).
 
     Returns
     -------
@@ -184,6 +195,17 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
     record_bounds = rows.bounds.shape[0] > 0
     end = settling.end
     window2 = settling.window * settling.window
+    real = is_active(stage)  # a constant of the stage's type: an ideal loop has no stage
+    record_measured = rows.measured.shape[0] > 0
+    tool = pstate.tool
+    # the stage's arrays and numbers, taken out of their tuples once (a tuple of arrays
+    # passed to a function costs a reference count of each array at every call)
+    P, X, origin, scratch, y = stage.param, pstate.x, pstate.origin, pstate.scratch, pstate.y
+    noise, seed, counts = stage.noise, stage.seed, stage.counts
+    C, F, DT, DD = stage.coef, stage.friction, stage.disturbance_time, stage.disturbance_drive
+    dac_step, dac_levels, n_delay = stage.dac_step, stage.dac_levels, stage.delay_samples
+    split, Tp = stage.split, stage.sample_period
+    D, LINE, ND = pstate.direction, pstate.line, pstate.next_disturbance
     while True:
         if k >= settling.max_samples:
             loop.k[0] = k
@@ -195,6 +217,14 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
             loop.k[0] = k
             return PAUSED
         for j in range(n_axes):
+            if real:
+                tool[j], reading, speed = positions(P, X, j)
+                position[j] = measure(noise, seed, counts, reading, origin[j], k, j)
+                if encoder:
+                    velocity[j] = (position[j] - axes.position_prev[j]) / Ts
+                else:
+                    velocity[j] = Ke[j] * speed
+                continue
             position[j] = axes.position[j]
             if encoder:
                 velocity[j] = (position[j] - axes.position_prev[j]) / Ts
@@ -228,7 +258,9 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
             applied = min(max(out, -umax), umax)
             over = over or not abs(out) <= umax
             rows.command[i, j] = command[j]
-            rows.position[i, j] = position[j]
+            rows.position[i, j] = tool[j] if real else position[j]
+            if record_measured:
+                rows.measured[i, j] = position[j]
             rows.speed_command[i, j] = (command[j] - prev_cmd) / (Ke[j] * Ts)
             rows.speed[i, j] = velocity[j] / Ke[j]
             rows.drive[i, j] = out
@@ -236,6 +268,11 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
             if record_bounds:
                 rows.bounds[i, j, 0] = bounds[j, 0]
                 rows.bounds[i, j, 1] = bounds[j, 1]
+            if real:
+                sample_step(P, C, F, DT, DD, dac_step, dac_levels, n_delay, split, Tp, X, D,
+                            LINE, ND, k, j, applied, scratch, y)
+                axes.position_prev[j] = position[j]
+                continue
             w, th = plant_step(Ad, Bd, j, axes.speed[j], axes.position[j], applied)
             axes.position_prev[j] = position[j]
             axes.speed[j] = w
@@ -243,7 +280,7 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
         loop.u[0] = u
         dist2 = 0.0
         for j in range(n_axes):
-            dist2 += (position[j] - end[j]) ** 2
+            dist2 += ((tool[j] if real else position[j]) - end[j]) ** 2
         inside = dist2 <= window2
         loop.inside[0] = loop.inside[0] + 1 if inside else 0
         if loop.finished[0] >= 0:
@@ -302,16 +339,19 @@ def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
     loop = LoopState.new()
     origin = np.array(start if plant.position is None else plant.position, dtype=float)
     axes = AxisState(np.zeros(n_axes), origin.copy(), origin.copy())
+    stage = plant.stage()
+    pstate = new_plant_state(stage, origin)
     if sink is not None:
         capacity = SINK_BLOCK_SAMPLES
     capacity = max(1, min(int(capacity), settling.max_samples))
-    rows = new_rows(capacity, n_axes, with_bounds)
+    real = bool(is_active(stage))
+    rows = new_rows(capacity, n_axes, with_bounds, real)
     scratch = (np.empty(n_axes), np.empty(n_axes), np.empty(n_axes), np.empty((n_axes, 2)))
     first = 0
     while True:
         code = run_samples(plan, state, law, law_state, plant.Ad, plant.Bd,
                            plant.mechanical_gain, encoder, start, settling, loop, axes, rows,
-                           first, int(loop.k[0]) + BLOCK_SAMPLES, *scratch)
+                           first, int(loop.k[0]) + BLOCK_SAMPLES, *scratch, stage, pstate)
         k = int(loop.k[0])
         more = code in (PAUSED, FULL)
         if sink is not None:
@@ -321,7 +361,7 @@ def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
         if not more:
             break
         if sink is not None:
-            first, rows = k, new_rows(capacity, n_axes, with_bounds)
+            first, rows = k, new_rows(capacity, n_axes, with_bounds, real)
         elif code == FULL:
             capacity = min(2 * capacity, settling.max_samples)
             rows = _grown(rows, capacity, k)

@@ -39,6 +39,11 @@ SETTLE_TIME = 0.05
 SETTLE_LIMIT = 10.0
 """Default longest wait for the motion to settle after the setpoint reached the end [s]."""
 
+HOLD_TIME = 0.3
+"""Default time a run on a true plant with any effect of the machine as it is
+(:mod:`nurbsmotion.plant`) goes on after it has settled, so that what happens at rest
+(hunting, a limit cycle, a stuck axis) is seen [s]; 0 on an ideal plant."""
+
 __all__ = ["Trace", "RunOutcome", "SetpointSeries", "simulate", "simulate_streamed",
            "background_sink", "interpolate", "run", "run_streamed", "to_pulses",
            "settle_hold_samples", "check_run_arguments"]
@@ -83,6 +88,9 @@ class RunOutcome:
         What the interpolator says of how it ran the path (its ``notes``, e.g. that the
         ``planned`` motion stops at the sharp corners because rounding them within the
         corner tolerance would not arrive sooner); also at the end of ``message``.
+    hold_samples : int
+        The samples the run went on after it had settled (:data:`HOLD_TIME`), 0 on an
+        ideal plant by default.
     """
 
     n_samples: int
@@ -95,6 +103,7 @@ class RunOutcome:
     machine: Machine
     interpolator: str
     notes: tuple
+    hold_samples: int
 
     @property
     def cycle_time(self) -> float:
@@ -107,7 +116,7 @@ class Trace(RunOutcome):
     """Everything the loop did, one row per sample k (t = k*Ts): the attributes of
     :class:`RunOutcome` (``n_samples``, ``finished_index``, ``settled_index``,
     ``settle_window``, ``success``, ``message``, ``curve``, ``machine``,
-    ``interpolator``, ``notes``), and the rows.
+    ``interpolator``, ``notes``, ``hold_samples``), and the rows.
 
     Attributes
     ----------
@@ -136,6 +145,10 @@ class Trace(RunOutcome):
         What the interpolator did at each sample (:class:`nurbsmotion.stepping.Status`):
         working, finished, limited (a step changed to keep the drive within Umax) or
         cornered (no admissible step: the drive exceeds Umax).
+    position_measured : ndarray, shape (n_samples, n_axes), or None
+        What the controller read of the position [pulse] on a true plant with effects
+        (counts, noise, the encoder on the motor of a two-mass axis); ``position`` is then
+        the tool's true position. ``None`` on an ideal plant, where the two are one.
     """
 
     t: np.ndarray
@@ -149,12 +162,20 @@ class Trace(RunOutcome):
     feed: np.ndarray
     speed_bounds: np.ndarray | None
     status: np.ndarray
+    position_measured: np.ndarray | None = None
 
     def metrics(self):
         """The SPEC section 9 figures (:class:`nurbsmotion.metrics.Metrics`)."""
         from .metrics import trace_metrics
 
         return trace_metrics(self)
+
+    def at_rest(self, window: int | None = None):
+        """What the machine did at rest and at its peaks, on the tool's true position
+        (:class:`nurbsmotion.metrics.AtRest`)."""
+        from .metrics import trace_at_rest
+
+        return trace_at_rest(self, window)
 
     def plot(self, out_dir, **kwargs):
         """Write the run's figures as PNG files (see :func:`nurbsmotion.plots.plot_trace`)."""
@@ -314,6 +335,7 @@ def simulate(
     settle_limit: float = SETTLE_LIMIT,
     max_samples: int | None = None,
     progress=None,
+    hold: float | None = None,
 ) -> Trace:
     """Run the closed loop from the path's start until the motion has settled at its end.
 
@@ -344,6 +366,10 @@ def simulate(
     progress : callable, optional
         ``progress(k)`` with the samples run so far, every
         :data:`nurbsmotion.closed_loop.BLOCK_SAMPLES` samples (a progress bar).
+    hold : float, optional
+        How long the run goes on after it has settled [s] (still within
+        ``settle_limit``); by default :data:`HOLD_TIME` where the true plant has any
+        effect of the machine as it is, else 0 (an ideal run is unchanged).
 
     Returns
     -------
@@ -357,12 +383,13 @@ def simulate(
     outcome, rows, _ = _closed_loop(interpolator, machine, None, plant=plant,
                                     settle_time=settle_time, settle_window=settle_window,
                                     settle_limit=settle_limit, max_samples=max_samples,
-                                    progress=progress)
+                                    progress=progress, hold=hold)
     return _trace(outcome, rows, interpolator.records_bounds)
 
 
 def _trace(outcome: RunOutcome, rows: closed_loop.Rows, with_bounds: bool) -> Trace:
     return Trace(
+        position_measured=rows.measured if rows.measured.shape[0] else None,
         **{f.name: getattr(outcome, f.name) for f in fields(RunOutcome)},
         t=np.arange(outcome.n_samples) * outcome.machine.sample_period, u=rows.u,
         position_command=rows.command, position=rows.position,
@@ -452,9 +479,20 @@ class _Tally:
                                            and np.all(np.isfinite(rows.drive)))
 
 
+def hold_samples_of(plant: ServoPlant, hold: float | None) -> int:
+    """Samples a run goes on after it has settled: ``hold`` [s] (by default
+    :data:`HOLD_TIME` on a plant with effects, 0 on an ideal one) at the plant's Ts."""
+    if hold is None:
+        hold = HOLD_TIME if plant.effects is not None else 0.0
+    if isinstance(hold, bool) or not (isinstance(hold, (int, float)) and math.isfinite(hold)
+                                      and hold >= 0):
+        raise InfeasibleError(f"hold must be a finite number >= 0 [s], got {hold!r}")
+    return int(round(hold / plant.sample_period))
+
+
 def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=SETTLE_TIME,
                  settle_window=closed_loop.SETTLE_WINDOW, settle_limit=SETTLE_LIMIT,
-                 max_samples=None, progress=None):
+                 max_samples=None, progress=None, hold=None):
     """The run behind :func:`simulate` and :func:`simulate_streamed`: ``(outcome, rows,
     finite)``, ``rows`` None with a ``sink``, ``finite`` whether every position and drive
     was finite."""
@@ -492,7 +530,8 @@ def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=SETTLE_
             max_samples = int(20 * duration / Ts + 10 / Ts) + 10
         max_samples += n_limit
     n_settle = int(round(settle_time / Ts))
-    hold = settle_hold_samples(machine)
+    n_hold = hold_samples_of(plant, hold)
+    hold = settle_hold_samples(machine) + n_hold
     settling = closed_loop.Settling(np.ascontiguousarray(end, dtype=float),
                                     float(settle_window), n_settle, hold,
                                     max(n_limit, n_settle), int(max_samples))
@@ -527,7 +566,7 @@ def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=SETTLE_
     message = "; ".join([message, *interpolator.notes])
     outcome = RunOutcome(int(loop.k[0]), finished, settled_index, float(settle_window),
                          success, message, curve, machine, interpolator.name,
-                         tuple(interpolator.notes))
+                         tuple(interpolator.notes), n_hold)
     return outcome, rows, tally.finite
 
 

@@ -30,7 +30,8 @@ from .nurbs import NurbsCurve
 from .closed_loop import SETTLE_WINDOW
 from .stepping import Status
 
-__all__ = ["Metrics", "RunningMetrics", "trace_metrics", "feed_fluctuation", "contour_error",
+__all__ = ["Metrics", "RunningMetrics", "trace_metrics", "AtRest", "RunningAtRest",
+           "trace_at_rest", "feed_fluctuation", "contour_error",
            "nearest_parameter", "settle_time", "overshoot", "SATURATION_TOLERANCE", "SETTLE_WINDOW"]
 
 SATURATION_TOLERANCE = 1e-6
@@ -728,3 +729,140 @@ def trace_metrics(trace, settle_window: float | None = None) -> Metrics:
     running._add(trace.u, trace.feed, trace.status, trace.position_command, trace.position,
                  trace.drive, trace.finished_index)
     return running.result(trace.finished_index, trace.success, trace.message)
+
+
+LIMIT_CYCLE_DRIVE = 0.1
+"""A drive still swinging both ways beyond this share of Umax over the last hold window
+is a limit cycle (:class:`AtRest`)."""
+
+
+@dataclass(frozen=True)
+class AtRest:
+    """What the machine did, measured on the tool's true position (issue 32): per axis,
+    dicts keyed by axis name.
+
+    Attributes
+    ----------
+    window_s : float
+        The last window of the run the first three figures are taken over [s]: the run's
+        hold (:data:`nurbsmotion.loop.HOLD_TIME`), or on a run without one the samples
+        its settling took (:func:`nurbsmotion.loop.settle_hold_samples`).
+    drive_chatter_rms : dict of str to float
+        RMS of the sample-to-sample change of the applied drive over that window [V].
+    limit_cycle : dict of str to bool
+        Over that window the applied drive still swings between signs with peaks beyond
+        :data:`LIMIT_CYCLE_DRIVE` of Umax, or the tool, once inside the settle window,
+        leaves it again by more than one pulse more (hunting by one count is neither).
+    residual_vibration : dict of str to float
+        Peak-to-peak of the tool's position over that window [pulse].
+    peak_speed, peak_acceleration, peak_jerk : dict of str to float
+        Largest first, second and third finite difference of the tool's position at Ts
+        over the run [pulse/s, pulse/s^2, pulse/s^3].
+    drive_limit_time_s : dict of str to float
+        Time the law's drive was at or beyond Umax [s].
+    """
+
+    window_s: float
+    drive_chatter_rms: dict
+    limit_cycle: dict
+    residual_vibration: dict
+    peak_speed: dict
+    peak_acceleration: dict
+    peak_jerk: dict
+    drive_limit_time_s: dict
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+class RunningAtRest:
+    """:class:`AtRest` gathered block by block (rows of
+    :class:`nurbsmotion.closed_loop.Rows`, in order), keeping only the last ``window``
+    samples.
+
+    Parameters
+    ----------
+    machine : Machine
+    end : ndarray, shape (n_axes,)
+        The path's end point [pulse].
+    settle_window : float
+        [pulse]
+    window : int
+        Samples of the last window, >= 2.
+    """
+
+    def __init__(self, machine, end, settle_window: float, window: int):
+        self.machine, self.end = machine, np.asarray(end, dtype=float)
+        self.settle_window = float(settle_window)
+        self.window = max(2, int(window))
+        n = machine.n_axes
+        self.tail_position = np.empty((0, n))
+        self.tail_drive = np.empty((0, n))
+        self.last3 = np.empty((0, n))  # the last three positions, for the differences
+        self.peaks = np.zeros((3, n))
+        self.at_limit = np.zeros(n, dtype=np.int64)
+
+    def add(self, first: int, rows, finished: int = -1, last: bool = False) -> None:
+        """Take the next block of rows (a sink of :func:`nurbsmotion.loop.simulate_streamed`)."""
+        self._add(rows.position, rows.drive, rows.drive_applied)
+
+    def _add(self, position, drive, drive_applied) -> None:
+        if len(position) == 0:
+            return
+        Ts = self.machine.sample_period
+        p = np.concatenate([self.last3, position])
+        for order in range(3):
+            p = np.diff(p, axis=0) / Ts  # with the last block's: a maximum, counted twice
+            if len(p):
+                self.peaks[order] = np.maximum(self.peaks[order], np.max(np.abs(p), axis=0))
+        self.last3 = np.concatenate([self.last3, position])[-3:]
+        self.at_limit += np.count_nonzero(np.abs(drive) >= self.machine.max_drive, axis=0)
+        self.tail_position = np.concatenate([self.tail_position, position])[-self.window:]
+        self.tail_drive = np.concatenate([self.tail_drive, drive_applied])[-self.window:]
+
+    def result(self) -> AtRest:
+        names = self.machine.axis_names
+        Ts = self.machine.sample_period
+        umax = self.machine.max_drive
+        pos, drv = self.tail_position, self.tail_drive
+        chatter = (np.sqrt(np.mean(np.diff(drv, axis=0) ** 2, axis=0)) if len(drv) > 1
+                   else np.zeros(len(names)))
+        swing = ((np.max(drv, axis=0) > LIMIT_CYCLE_DRIVE * umax)
+                 & (np.min(drv, axis=0) < -LIMIT_CYCLE_DRIVE * umax))
+        distance = np.abs(pos - self.end)
+        leaves = np.zeros(len(names), dtype=bool)
+        for j in range(len(names)):
+            inside = np.flatnonzero(distance[:, j] <= self.settle_window)
+            if inside.size:
+                later = distance[inside[0]:, j]
+                leaves[j] = bool(np.any(later > self.settle_window + 1.0))
+        vibration = np.ptp(pos, axis=0) if len(pos) else np.zeros(len(names))
+
+        def per_axis(values, kind=float):
+            return {a: kind(v) for a, v in zip(names, values)}
+
+        return AtRest(window_s=len(pos) * Ts,
+                      drive_chatter_rms=per_axis(chatter),
+                      limit_cycle=per_axis(swing | leaves, bool),
+                      residual_vibration=per_axis(vibration),
+                      peak_speed=per_axis(self.peaks[0]),
+                      peak_acceleration=per_axis(self.peaks[1]),
+                      peak_jerk=per_axis(self.peaks[2]),
+                      drive_limit_time_s=per_axis(self.at_limit * Ts))
+
+
+def trace_at_rest(trace, window: int | None = None) -> AtRest:
+    """:class:`AtRest` of a :class:`~nurbsmotion.loop.Trace` over its last ``window``
+    samples (by default its hold, or without one the samples its settling took)."""
+    if window is None:
+        window = trace.hold_samples or _settling_samples(trace.machine)
+    running = RunningAtRest(trace.machine, trace.curve.end_points[1], trace.settle_window,
+                            window)
+    running._add(trace.position, trace.drive, trace.drive_applied)
+    return running.result()
+
+
+def _settling_samples(machine) -> int:
+    from .loop import settle_hold_samples  # the loop's own rule (loop imports this module)
+
+    return settle_hold_samples(machine)

@@ -843,6 +843,7 @@ def _drive_figure(runs: list[_Run], events, settle: float, title: str, path: Pat
                     ax.axhline(sign * umax, color="k", linestyle="--", linewidth=0.9,
                                label="±Umax" if sign > 0 else None)
         row[0].set_ylabel(f"{names[j]}: u [V]")
+        _hold_inset(row[0], runs[0], j)
         if finite:
             _title(row[0], _drive_title(runs, j, umax, fig, row[0]), fontsize="small",
                              loc="left")
@@ -851,6 +852,23 @@ def _drive_figure(runs: list[_Run], events, settle: float, title: str, path: Pat
     _legend_below(fig, grid)
     fig.suptitle(f"drive before clipping (Fig. 7), {title}")
     return _save(fig, path, overwrite)
+
+
+def _hold_inset(ax, run: _Run, j: int) -> None:
+    """On a run that went on after it settled (a true plant with effects): the applied
+    drive over that hold, on its own scale, so that its chatter is seen."""
+    tr = run.trace
+    hold = getattr(tr, "hold_samples", 0)
+    if hold < 2:
+        return
+    t, y = tr.t[-hold:], tr.drive_applied[-hold:, j]
+    inset = ax.inset_axes([0.56, 0.06, 0.42, 0.36])
+    inset.plot(t, y, color=run.color, linewidth=0.7, marker=".", markersize=1.5)
+    chatter = float(np.sqrt(np.mean(np.diff(y) ** 2)))
+    inset.set_title(f"last {hold * tr.machine.sample_period:.3g} s (hold): chatter RMS "
+                    f"{chatter:.3g} V", fontsize="x-small")
+    inset.tick_params(labelsize="x-small")
+    inset.grid(True, linewidth=0.3, color="0.85")
 
 
 def _speed_figure(rows: list, events, settle: float, title: str, path: Path, unit: str,
@@ -887,6 +905,10 @@ def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float
     window = float(tr.settle_window)  # [pulse]
     band = window / per_unit
     within = f"±{window:g} pulse"
+    measured = getattr(tr, "position_measured", None)
+    start = tr.curve.end_points[0]
+    counts = measured is not None and bool(np.all(
+        measured - start == np.floor(measured - start)))
     fig = _figure(11.0, 2.3 * len(names) + 1.0)
     axes = fig.subplots(len(names), 2, sharex=True, squeeze=False)
     for j, (ax_all, ax_zoom) in enumerate(axes):
@@ -903,10 +925,19 @@ def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float
                        label=f"settle window {within} (±{band:.3g} {unit})")
             ax.plot(t, dev, color=run.color, marker=".", markersize=3, linewidth=1,
                     label=f"actual − end point, {run.label}")
+            if measured is not None:  # what the controller read, beside the truth
+                ax.step(t, measured[sel, j] / per_unit - end[j], where="post",
+                        color="C3", linewidth=0.8, label="measured − end point")
             ax.axvline(0.0, color="0.6", linestyle=":", linewidth=0.8,
                        label="setpoint reaches the end")
             ax.grid(True, linewidth=0.3, color="0.85")
         ax_zoom.set_ylim(-_SETTLE_ZOOM * band, _SETTLE_ZOOM * band)
+        if counts:  # the encoder's count grid, where a reading can fall
+            origin = (tr.curve.end_points[0][j] - tr.curve.end_points[1][j]) % 1.0
+            reach = math.ceil(_SETTLE_ZOOM * window) + 1  # [pulse]
+            for n in np.arange(-reach, reach + 1):
+                ax_zoom.axhline((n + origin) / per_unit, color="0.5", linewidth=0.4,
+                                linestyle="-", label="encoder counts" if n == 0 else None)
         ax_all.set_ylabel(f"{names[j]} − end [{unit}]")
         _title(ax_all, f"{names[j]}: {when}", fontsize="medium", loc="left")
         _title(ax_zoom, f"{names[j]}, zoom ±{_SETTLE_ZOOM * window:g} pulse",

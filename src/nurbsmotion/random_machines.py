@@ -14,7 +14,9 @@ from ``numpy.random.default_rng(seed)`` (the same seed gives the same machine ev
   0.5-pulse deadband and an integrator clamp of 5 pulse*s);
 - speed measured by encoder differencing or taken true.
 
-A draw whose sampled loop is unstable (the machine refuses it) is drawn again.
+A draw whose sampled loop is unstable (the machine refuses it) is drawn again. With
+``real=True`` the machine as it is (counts, noise, delay, DAC, friction, a mode; issue 32)
+is drawn too, from a stream of its own.
 """
 
 from __future__ import annotations
@@ -59,7 +61,39 @@ def _draw(rng: np.random.Generator, n_axes: int) -> Machine:
                    speed_measurement=str(rng.choice(["encoder", "true"])), name="random")
 
 
-def random_machine(seed, n_axes: int = 2) -> Machine:
+def _with_effects(machine: Machine, rng: np.random.Generator) -> Machine:
+    """``machine`` as it is (issue 32): effects drawn from ``rng`` (module docstring)."""
+    from dataclasses import replace
+
+    umax, Ts = machine.max_drive, machine.sample_period
+    axes = []
+    for a in machine.axes:
+        coulomb = float(rng.uniform(0.0, 0.05)) * umax
+        keys = {"coulomb_friction": coulomb,
+                "stiction": coulomb + float(rng.uniform(0.0, 0.03)) * umax}
+        if rng.random() < 0.5:
+            f = float(np.exp(rng.uniform(np.log(20.0), np.log(200.0))))
+            lowest = 1.0 / (4.0 * np.pi * f * a.time_constant)
+            keys.update(resonance_frequency=f,
+                        resonance_damping=min(max(float(rng.uniform(0.01, 0.1)),
+                                                  1.01 * lowest), 0.99),
+                        load_fraction=float(rng.uniform(0.2, 0.8)),
+                        encoder_on=str(rng.choice(["motor", "load"])))
+        axes.append(replace(a, **keys))
+    delay = float(rng.uniform(0.0, 0.5)) * Ts
+    options = dict(axes=tuple(axes), encoder=str(rng.choice(["exact", "counts"])),
+                   measurement_noise=float(rng.uniform(0.0, 1.0)),
+                   seed=int(rng.integers(0, 2**31)),
+                   dac_bits=[12, 14, 16, None][int(rng.integers(0, 4))])
+    for _ in range(8):  # a delay its loop cannot take is halved until it can
+        try:
+            return machine.with_options(delay=delay, **options)
+        except InvalidMachineError:
+            delay *= 0.5
+    return machine.with_options(delay=0.0, **options)
+
+
+def random_machine(seed, n_axes: int = 2, *, real: bool = False) -> Machine:
     """A seeded random stable machine (module docstring).
 
     Parameters
@@ -68,6 +102,13 @@ def random_machine(seed, n_axes: int = 2) -> Machine:
         The same seed gives the same machine.
     n_axes : int
         1 to 3 axes (named x, y, z).
+    real : bool
+        Also draw the machine as it is (issue 32), from a generator of its own (the same
+        seed gives the same axes and gains as without): the position read in counts or
+        exactly, 0-1 pulse of noise, 0-0.5 Ts of delay (halved until the loop takes it),
+        a 12-, 14-, 16-bit or no DAC; per axis Coulomb friction 0-5 % of Umax and
+        stiction up to 3 % of Umax above it, and on half the axes a 20-200 Hz mode
+        (damping 0.01-0.1, load fraction 0.2-0.8, encoder on the motor or the load).
 
     Raises
     ------
@@ -77,9 +118,14 @@ def random_machine(seed, n_axes: int = 2) -> Machine:
     if n_axes not in (1, 2, 3):
         raise InvalidArgumentError(f"random machines have 1 to 3 axes, got {n_axes!r}")
     rng = np.random.default_rng(seed)
+    # the effects' own stream (spawning does not draw from rng): same axes either way
+    effects_rng = np.random.default_rng(rng.bit_generator.seed_seq.spawn(1)[0])
     for _ in range(MAX_DRAWS):
         try:
-            return _draw(rng, n_axes)
+            machine = _draw(rng, n_axes)
         except InvalidMachineError:
             continue
+        if not real:
+            return machine
+        return _with_effects(machine, effects_rng)
     raise RuntimeError(f"no stable machine in {MAX_DRAWS} draws")  # pragma: no cover

@@ -6,7 +6,9 @@ rename.
 
 - ``trace.csv`` (or ``trace.parquet``): ``t,u,`` then for each axis ``a``:
   ``a_cmd,a_act,a_drive,a_drive_applied`` and, when the interpolator computed them,
-  ``a_speed_min,a_speed_max`` [pulse/s]; then the same lengths in the report unit ``L``
+  ``a_speed_min,a_speed_max`` [pulse/s]; on a true plant with effects (issue 32) then
+  ``a_meas`` for each axis, what the controller read (``a_act`` is the tool's true
+  position); then the same lengths in the report unit ``L``
   (:func:`nurbsmotion.units.report_unit`, ``mm`` or ``in``): for each axis
   ``a_cmd_L,a_act_L`` and ``a_speed_min_L_per_s,a_speed_max_L_per_s``. Row k is sample k:
   thd[k], tha[k] measured before u[k] is applied, u[k] before and after clipping [V].
@@ -72,6 +74,10 @@ _SUMMARY_UNITS = {
     "settled": "true or false", "settle_window": "pulse", "end_overshoot": "pulse",
     "corner_overshoot": "pulse", "move_and_settle_ratio": "1 (settle time / bound)",
     "notes": "list of text", "path_unit": "name", "path_unit_source": "text",
+    "hold_window_s": "s", "drive_chatter_rms": "V", "limit_cycle": "true or false",
+    "residual_vibration": "pulse", "peak_speed": "pulse/s", "peak_acceleration": "pulse/s^2",
+    "peak_jerk": "pulse/s^3", "drive_limit_time_s": "s", "machine_model": "machine file",
+    "true_plant": "machine file",
 }
 
 TRACE_FORMATS = ("csv", "parquet")
@@ -113,11 +119,14 @@ class _Block(NamedTuple):
     drive: np.ndarray
     drive_applied: np.ndarray
     speed_bounds: np.ndarray | None
+    position_measured: np.ndarray | None = None
 
 
 def _columns(machine, with_bounds: bool, length_unit: str | None,
-             pulses_per_length_unit: float | None) -> list[_Column]:
-    """The trace file's columns, in order (see the module docstring)."""
+             pulses_per_length_unit: float | None,
+             with_measured: bool = False) -> list[_Column]:
+    """The trace file's columns, in order (see the module docstring); ``a_meas`` (and
+    ``a_meas_L``) only for a run on a true plant whose reading is not its position."""
     cols = [_Column("t", lambda b, i: b.t[i]), _Column("u", lambda b, i: b.u[i])]
     Ke = machine.Ke
     for j, a in enumerate(machine.axis_names):
@@ -128,6 +137,9 @@ def _columns(machine, with_bounds: bool, length_unit: str | None,
         if with_bounds:
             cols += [_Column(f"{a}_speed_min", lambda b, i, j=j: b.speed_bounds[i, j, 0] * Ke[j]),
                      _Column(f"{a}_speed_max", lambda b, i, j=j: b.speed_bounds[i, j, 1] * Ke[j])]
+    if with_measured:  # after the existing columns: their places are a contract
+        cols += [_Column(f"{a}_meas", lambda b, i, j=j: b.position_measured[i, j])
+                 for j, a in enumerate(machine.axis_names)]
     if length_unit is None:
         return cols
     L, k = length_unit, 1.0 / pulses_per_length_unit
@@ -141,6 +153,9 @@ def _columns(machine, with_bounds: bool, length_unit: str | None,
                 _Column(f"{a}_speed_max_{L}_per_s",
                         lambda b, i, j=j: b.speed_bounds[i, j, 1] * Ke[j] * k),
             ]
+    if with_measured:
+        cols += [_Column(f"{a}_meas_{L}", lambda b, i, j=j: b.position_measured[i, j] * k)
+                 for j, a in enumerate(machine.axis_names)]
     return cols
 
 
@@ -170,7 +185,7 @@ def trace_columns(trace, length_unit: str | None = None,
     """Header and data of the trace file, shape (n_samples, n_columns) (small traces; the
     writers stream instead)."""
     cols = _columns(trace.machine, trace.speed_bounds is not None, length_unit,
-                    pulses_per_length_unit)
+                    pulses_per_length_unit, trace.position_measured is not None)
     idx = np.arange(len(trace.t))
     return [c.name for c in cols], np.column_stack([c.read(trace, idx) for c in cols])
 
@@ -356,7 +371,8 @@ class TraceWriter:
         :func:`nurbsmotion.loop.simulate_streamed`)."""
         times = (first + np.arange(len(rows.u))) * self.machine.sample_period
         self._write(_Block(times, rows.u, rows.command, rows.position, rows.drive,
-                           rows.drive_applied, rows.bounds if rows.bounds.shape[0] else None),
+                           rows.drive_applied, rows.bounds if rows.bounds.shape[0] else None,
+                           rows.measured if rows.measured.shape[0] else None),
                     first, finished, last)
 
     def _write(self, block, first: int, finished: int, last: bool) -> None:
@@ -366,7 +382,7 @@ class TraceWriter:
         kept = _kept(first, len(block.u), self.every, finished, last)
         if self._chunks is None:
             cols = _columns(self.machine, block.speed_bounds is not None, self.unit,
-                            self.per_unit)
+                            self.per_unit, getattr(block, "position_measured", None) is not None)
             make = _CsvChunks if self.fmt == "csv" else _ParquetChunks
             self._chunks = make(self._handle, cols, self.progress, self.threads)
             self._first = (cols, block, kept)
@@ -397,7 +413,7 @@ def estimate_trace_bytes(trace, *, fmt: str = "csv", every: int = 1,
                          pulses_per_length_unit: float | None = None) -> int:
     """Size the trace file would have [byte], from 2,000 of its rows spread over the run."""
     cols = _columns(trace.machine, trace.speed_bounds is not None, length_unit,
-                    pulses_per_length_unit)
+                    pulses_per_length_unit, trace.position_measured is not None)
     rows = trace_rows(trace, every)
     return int(_bytes_per_row(fmt, cols, trace, rows) * len(rows))
 
@@ -472,6 +488,9 @@ def summary_units(data: dict) -> dict:
             units[key] = _SUMMARY_UNITS[key]
         elif L is not None and key == f"feed_{L}_per_s":
             units[key] = f"{L}/s"
+        elif L is not None and key.startswith("peak_") and f"_{L}_per_s" in key:
+            units[key] = f"{L}/s" + key.rsplit("per_s", 1)[1].replace("2", "^2").replace(
+                "3", "^3")
         elif L is not None and key.endswith(f"_{L}"):
             units[key] = L
     return units

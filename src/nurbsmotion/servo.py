@@ -104,6 +104,10 @@ class ServoPlant:
         Ts [s].
     position : array_like, shape (n_axes,), optional
         Where the plant starts, at rest [pulse]; by default the path's start.
+    effects : dict, optional
+        The machine-as-it-is keys of the true machine (``Machine.effects()``: counts,
+        noise, delay, DAC, friction, load steps, a two-mass mode), run by the plant stage
+        of :mod:`nurbsmotion.plant`; ``None`` for the ideal plant.
 
     Attributes
     ----------
@@ -118,8 +122,10 @@ class ServoPlant:
     max_drive: float
     sample_period: float
     position: np.ndarray | None = None
+    effects: dict | None = None
     Ad: np.ndarray = field(init=False, repr=False)
     Bd: np.ndarray = field(init=False, repr=False)
+    _cache: dict = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self):
         tau = _axis_values(self.time_constant, "time_constant")
@@ -143,6 +149,10 @@ class ServoPlant:
                             ("mechanical_gain", Ke), ("max_drive", umax),
                             ("sample_period", Ts), ("Ad", Ad), ("Bd", Bd)):
             object.__setattr__(self, name, value)
+        if self.effects is not None:
+            if not isinstance(self.effects, dict) or len(self.effects.get("axes", ())) != tau.size:
+                raise InvalidMachineError(f"plant effects must be a Machine.effects() dict "
+                                          f"of {tau.size} axes, got {self.effects!r:.80}")
         if self.position is not None:
             pos = np.array(self.position, dtype=float).reshape(-1)
             if pos.size != tau.size or not np.all(np.isfinite(pos)):
@@ -159,16 +169,30 @@ class ServoPlant:
     def of_machine(cls, machine, position=None, *, time_constant_scale=1.0,
                    electrical_gain_scale=1.0, mechanical_gain_scale=1.0) -> "ServoPlant":
         """The plant of ``machine``, optionally with tau, Kc and Ke scaled (model mismatch;
-        a scale may be one number or one per axis)."""
+        a scale may be one number or one per axis), with the machine's effects if it has
+        any."""
         return cls(machine.tau * np.asarray(time_constant_scale, dtype=float),
                    machine.Kc * np.asarray(electrical_gain_scale, dtype=float),
                    machine.Ke * np.asarray(mechanical_gain_scale, dtype=float),
-                   machine.max_drive, machine.sample_period, position)
+                   machine.max_drive, machine.sample_period, position,
+                   machine.effects() if getattr(machine, "has_effects", False) else None)
+
+    def stage(self):
+        """The plant stage of :mod:`nurbsmotion.plant` (inactive for an ideal plant),
+        made once."""
+        if "stage" not in self._cache:
+            from .plant import inactive_stage, make_stage
+
+            self._cache["stage"] = (
+                inactive_stage(self.n_axes) if self.effects is None else
+                make_stage(self.effects, self.time_constant, self.electrical_gain,
+                           self.mechanical_gain, self.max_drive, self.sample_period))
+        return self._cache["stage"]
 
     def at_rest(self, position) -> "ServoPlant":
         """The same dynamics, starting at rest at ``position`` [pulse]."""
         return ServoPlant(self.time_constant, self.electrical_gain, self.mechanical_gain,
-                          self.max_drive, self.sample_period, position)
+                          self.max_drive, self.sample_period, position, self.effects)
 
     def saturate(self, drive: np.ndarray) -> np.ndarray:
         """The drive the actuator applies: ``clip(u, -Umax, Umax)`` [V]."""

@@ -1,0 +1,776 @@
+"""The plant as it is on a machine: encoder counts, noise, delay, DAC, friction, load steps
+and a two-mass resonance, as data for the one compiled loop.
+
+An ideal machine's plant is the rigid axis of SPEC section 3, read exactly, driven at
+once (:mod:`nurbsmotion.servo`). A machine with any of the keys of issue 32 (see
+:class:`nurbsmotion.machine.Machine` and :class:`~nurbsmotion.machine.Axis`) gets a plant
+*stage* (:class:`PlantStage`, numbers only) that :func:`nurbsmotion.closed_loop.run_samples`
+runs in place of :func:`nurbsmotion.servo.plant_step`. Everything in it is exact, never
+sub-stepped:
+
+**Two-mass axis.** The motor (inertia share ``1 - lam``) and the load (``lam``, the
+``load_fraction``) are joined by a spring and a damper; the viscous damping is split in
+proportion to the inertia, so that the centre-of-mass motion obeys exactly the axis's
+``tau*dw/dt = -w + Kc*v``, ``dtheta/dt = Ke*w``, and the relative coordinate
+``delta = theta_motor - theta_load`` [pulse] is a decoupled damped oscillator::
+
+    delta'' + 2*zeta*wn*delta' + wn^2*delta = Ke*Kc/((1 - lam)*tau) * v
+
+with ``wn = 2*pi*resonance_frequency`` and ``zeta = resonance_damping`` exactly (the
+damper is ``c = mu*(2*zeta*wn - 1/tau)``, ``mu = lam*(1 - lam)*tau``, which needs
+``zeta >= 1/(2*wn*tau)``). The state per axis is ``x = [w_cm, theta_cm, delta, delta']``;
+the motor is at ``theta_cm + lam*delta``, the load (the tool) at
+``theta_cm - (1 - lam)*delta``. A rigid axis has ``delta = 0``. Both blocks have closed
+forms for any interval (:func:`_coefficients`); those of the two fixed intervals of a
+sample are computed once.
+
+**Delay.** The drive of sample k reaches the plant ``delay`` later:
+``delay = n*Ts + h1``, so over ``[k*Ts, k*Ts + h1)`` the plant sees the drive of sample
+``k - n - 1`` and over ``[k*Ts + h1, (k+1)*Ts)`` that of sample ``k - n`` (0 before the
+start). Each of the two intervals is advanced exactly.
+
+**Friction** acts on the motor (bearing, screw and guide friction reflected to it), as an
+equivalent drive: sliding, ``v = u + d - coulomb*sign(w_motor)``; at rest, the motor
+stays at rest while the net drive on it (drive, load step, spring and damper) is within
+``max(stiction, coulomb)`` [V]. Between events the motion is the exact linear solution;
+the instant the motor speed reaches zero inside an interval is found in closed form on a
+rigid axis and by a safeguarded root find (Illinois regula falsi on the exact solution,
+bracketed by checks every eighth of the mode's period) on a two-mass one; the breakaway of
+a stuck two-mass motor (whose load still swings on the spring) likewise.
+
+**Load steps** (``[[axes.disturbance]]``) add their drive from their instant ``at`` on,
+splitting the interval they fall in.
+
+**Measurement.** The controller reads the encoder's mass (motor or load): its position
+plus seeded Gaussian noise (a counter-based generator: the draw of sample k, axis j
+depends on ``seed``, k and j only) and, with ``encoder = "counts"``, in whole counts
+zeroed at the start, ``start + floor(theta - start)``; its speed is differenced from
+those readings (or, with ``speed_measurement = "true"``, the encoder mass's true speed).
+
+**DAC.** The clipped drive is quantised to ``dac_bits`` over ``[-Umax, Umax)``: step
+``q = 2*Umax/2**dac_bits``, levels ``q*i`` with ``-2**(bits-1) <= i < 2**(bits-1)``,
+rounded to the nearest.
+
+Glossary
+--------
+tau [s], Kc [(rad/s)/V], Ke [pulse/rad] : the axis (SPEC section 3); lam : load fraction;
+wn [rad/s], zeta : the mode; v : net drive [V]; h : an interval [s]; Ts : sample period.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from numba.extending import overload
+
+from .errors import InvalidMachineError
+
+__all__ = ["PlantStage", "IdleStage", "is_active", "PlantState", "make_stage", "inactive_stage",
+           "new_plant_state",
+           "linear_loop_poles", "continuous_model", "stage_response", "stage_arrays"]
+
+# Columns of PlantStage.param
+TAU, KC, KE, LAM, SIG, W2, GAIN, SA1, SA0, KSPR, CDMP, FC, FS, ENC, TOOL, CHECK_SLIDE, \
+    CHECK_STUCK, N_PARAM = range(18)
+# Columns of the coefficients of one interval
+CA, CKT, CB0, CB1, CEC, CES, N_COEF = range(7)
+
+MAX_EVENTS = 64
+"""Friction events (stops, breakaways) one interval may hold at most: beyond, the motor is
+taken as stuck for the rest of it (a guard against a chattering degenerate case)."""
+
+
+class PlantStage(NamedTuple):
+    """The true plant's effects, as numbers (see the module docstring).
+
+    active : bool -- False for an ideal plant (the loop uses ``servo.plant_step``);
+    counts : bool -- the position is read in whole counts;
+    noise : float -- measurement noise, standard deviation [pulse];
+    seed : int -- its seed;
+    dac_step : float -- the DAC's step q [V] (0: none);
+    dac_levels : float -- ``2**(dac_bits - 1)``;
+    delay_samples : int -- n, whole samples of delay;
+    split : float -- h1, the rest of the delay [s] (0: none);
+    sample_period : float -- Ts [s];
+    param : ndarray, shape (n_axes, N_PARAM) -- per axis, columns TAU ... CHECK_STUCK;
+    friction : ndarray, shape (n_axes,), bool -- the axis has friction;
+    two_mass : ndarray, shape (n_axes,), bool;
+    coef : ndarray, shape (n_axes, 2, N_COEF) -- sliding coefficients of h1 and Ts - h1;
+    disturbance_time : ndarray, shape (n_axes, m + 1) -- load step instants [s], sorted,
+    then inf; disturbance_drive : same shape -- the summed load drive from each on [V].
+    """
+
+    active: bool
+    counts: bool
+    noise: float
+    seed: int
+    dac_step: float
+    dac_levels: float
+    delay_samples: int
+    split: float
+    sample_period: float
+    param: np.ndarray
+    friction: np.ndarray
+    two_mass: np.ndarray
+    coef: np.ndarray
+    disturbance_time: np.ndarray
+    disturbance_drive: np.ndarray
+
+
+class PlantState(NamedTuple):
+    """The plant stage's state, per axis: ``x`` (n_axes, 4) = [w_cm, theta_cm, delta,
+    delta'], ``direction`` (n_axes,) float: the sliding direction of the motor (+1, -1)
+    or 0 stuck; ``line`` (n_axes, n + 2): the drives on their way (ring buffer by
+    sample); ``next_disturbance`` (n_axes,) int64: the next load step's index;
+    ``origin`` (n_axes,): where the run started [pulse] (the counts' zero); and scratch:
+    ``tool`` (n_axes,), ``scratch`` (N_COEF,), ``y`` (4,)."""
+
+    x: np.ndarray
+    direction: np.ndarray
+    line: np.ndarray
+    next_disturbance: np.ndarray
+    origin: np.ndarray
+    tool: np.ndarray
+    scratch: np.ndarray
+    y: np.ndarray
+
+
+IdleStage = NamedTuple("IdleStage", list(PlantStage.__annotations__.items()))
+IdleStage.__doc__ = """An ideal plant's stage: the fields of :class:`PlantStage`, never run.
+A type of its own, so that the compiled loop knows at compile time that it has no plant
+stage (:func:`is_active`) and an ideal run's loop is the one it was before the stage."""
+
+
+def is_active(stage) -> bool:
+    """Whether the loop runs the stage (a constant of the stage's type when compiled)."""
+    return bool(stage.active)
+
+
+@overload(is_active, inline="always", jit_options={"cache": True})
+def _is_active_overload(stage):
+    from numba.core import types
+
+    if not isinstance(stage, types.BaseNamedTuple):
+        return None
+    value = stage.instance_class is not IdleStage
+
+    def impl(stage):
+        return value
+    return impl
+
+
+@njit(cache=True)
+def _x_minus_g(x: float) -> float:
+    """``x - (1 - exp(-x))`` to rounding (as :func:`nurbsmotion.servo.zoh_matrices`)."""
+    if x >= 0.5:
+        return x + math.expm1(-x)
+    term = x * x / 2.0
+    total = 0.0
+    n = 2
+    while abs(term) > 1e-17 * x * x:
+        total += term
+        n += 1
+        term *= -x / n
+    return total
+
+
+@njit(cache=True)
+def _oscillator(a1, a0, h):
+    """``exp(-m h)*C`` and ``exp(-m h)*S`` of ``y'' + a1 y' + a0 y = 0`` over ``h``:
+    ``y(h) = eC*y0 + eS*(y0' + m*y0)``, ``y'(h) = eC*y0' - eS*(m*y0' + a0*y0)``,
+    ``m = a1/2``, for any sign of ``m^2 - a0``."""
+    m = 0.5 * a1
+    q2 = m * m - a0
+    e = math.exp(-m * h)
+    if q2 < 0.0:
+        wd = math.sqrt(-q2)
+        return e * math.cos(wd * h), e * math.sin(wd * h) / wd
+    if q2 > 0.0:
+        q = math.sqrt(q2)
+        return e * math.cosh(q * h), e * math.sinh(q * h) / q
+    return e, e * h
+
+
+@njit(cache=True)
+def _coefficients(p, h, out):
+    """The sliding coefficients of one axis (its ``param`` row ``p``) over ``h`` [s]."""
+    x = h / p[TAU]
+    g = -math.expm1(-x)
+    out[CA] = 1.0 - g
+    out[CKT] = p[KE] * p[TAU] * g
+    out[CB0] = p[KC] * g
+    out[CB1] = p[KE] * p[KC] * p[TAU] * _x_minus_g(x)
+    if p[W2] > 0.0:
+        ec, es = _oscillator(2.0 * p[SIG], p[W2], h)
+        out[CEC] = ec
+        out[CES] = es
+    else:
+        out[CEC] = 0.0
+        out[CES] = 0.0
+
+
+@njit(cache=True, inline="always")
+def _slide(p, c, x, v, y):
+    """``y`` = the sliding state one interval (coefficients ``c``) after ``x`` under the
+    constant net drive ``v`` [V]."""
+    y[0] = c[CA] * x[0] + c[CB0] * v
+    y[1] = x[1] + c[CKT] * x[0] + c[CB1] * v
+    if p[W2] > 0.0:
+        m = p[SIG]
+        z0 = x[2] - p[GAIN] * v / p[W2]
+        y[2] = c[CEC] * z0 + c[CES] * (x[3] + m * z0) + p[GAIN] * v / p[W2]
+        y[3] = c[CEC] * x[3] - c[CES] * (m * x[3] + p[W2] * z0)
+    else:
+        y[2] = 0.0
+        y[3] = 0.0
+
+
+@njit(cache=True)
+def _stuck(p, x, h, y):
+    """``y`` = the state ``h`` [s] after ``x`` with the motor held at rest (a two-mass
+    load swings on the spring about it; a rigid axis does not move)."""
+    if p[W2] > 0.0:
+        lam = p[LAM]
+        motor = x[1] + lam * x[2]
+        ec, es = _oscillator(p[SA1], p[SA0], h)
+        m = 0.5 * p[SA1]
+        y[2] = ec * x[2] + es * (x[3] + m * x[2])
+        y[3] = ec * x[3] - es * (m * x[3] + p[SA0] * x[2])
+        y[1] = motor - lam * y[2]
+        y[0] = -lam * y[3] / p[KE]
+    else:
+        y[0] = 0.0
+        y[1] = x[1]
+        y[2] = 0.0
+        y[3] = 0.0
+
+
+@njit(cache=True, inline="always")
+def _motor_speed(p, x):
+    """The motor's speed [rad/s]."""
+    return x[0] + p[LAM] * x[3] / p[KE]
+
+
+@njit(cache=True, inline="always")
+def _net_drive(p, x, v):
+    """The drive on the motor but for friction [V]: ``v`` less spring and damper."""
+    return v - p[KSPR] * x[2] - p[CDMP] * x[3]
+
+
+@njit(cache=True)
+def _slide_for(p, x, v, h, c, y):
+    _coefficients(p, h, c)
+    _slide(p, c, x, v, y)
+
+
+@njit(cache=True)
+def _stop_time(p, x, v, h, direction, c, y):
+    """The first instant in (0, h] [s] at which the sliding motor's speed reaches zero
+    (``direction*w_motor <= 0``), or -1 if none. Rigid: closed form; two-mass: checks
+    every eighth of the mode's period, then Illinois regula falsi on the bracket."""
+    if p[W2] == 0.0:
+        wss = p[KC] * v
+        w0 = x[0]
+        if direction * wss >= 0.0:  # monotone towards wss: no reversal
+            return -1.0
+        if direction * w0 <= 0.0:
+            return 0.0
+        t = p[TAU] * math.log1p(-w0 / wss)
+        return t if t <= h else -1.0
+    n = max(1, int(math.ceil(h / p[CHECK_SLIDE])))
+    lo = 0.0
+    hi = -1.0
+    f_lo = direction * _motor_speed(p, x)
+    for i in range(1, n + 1):
+        t = h * i / n
+        _slide_for(p, x, v, t, c, y)
+        f = direction * _motor_speed(p, y)
+        if f <= 0.0:
+            hi = t
+            f_hi = f
+            break
+        lo = t
+        f_lo = f
+    if hi < 0.0:
+        return -1.0
+    side = 0
+    for _ in range(100):
+        if hi - lo <= 1e-15 * h + 1e-300:
+            break
+        if f_lo <= 0.0:
+            t = 0.5 * (lo + hi)
+        else:
+            t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+            if not (lo < t < hi):
+                t = 0.5 * (lo + hi)
+        _slide_for(p, x, v, t, c, y)
+        f = direction * _motor_speed(p, y)
+        if f > 0.0:
+            lo, f_lo = t, f
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
+        else:
+            hi, f_hi = t, f
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+    return hi
+
+
+@njit(cache=True)
+def _breakaway_time(p, x, v, h, y):
+    """The first instant in [0, h] [s] at which the net drive on a stuck motor exceeds
+    the breakaway drive, or -1. Rigid: constant over the interval."""
+    limit = p[FS]
+    if abs(_net_drive(p, x, v)) > limit:
+        return 0.0
+    if p[W2] == 0.0:
+        return -1.0
+    n = max(1, int(math.ceil(h / p[CHECK_STUCK])))
+    lo = 0.0
+    hi = -1.0
+    for i in range(1, n + 1):
+        t = h * i / n
+        _stuck(p, x, t, y)
+        if abs(_net_drive(p, y, v)) > limit:
+            hi = t
+            break
+        lo = t
+    if hi < 0.0:
+        return -1.0
+    for _ in range(80):  # bisection: a breakaway is rare
+        if hi - lo <= 1e-15 * h + 1e-300:
+            break
+        t = 0.5 * (lo + hi)
+        _stuck(p, x, t, y)
+        if abs(_net_drive(p, y, v)) > limit:
+            hi = t
+        else:
+            lo = t
+    return hi
+
+
+@njit(cache=True, inline="always")
+def _slide_at(P, C, X, j, which, v):
+    """:func:`_slide` of axis ``j`` over the precomputed interval ``which``, in place on
+    ``X[j]``, by index (no array views: the loop's hot path)."""
+    x0 = X[j, 0]
+    x2 = X[j, 2]
+    x3 = X[j, 3]
+    X[j, 0] = C[j, which, CA] * x0 + C[j, which, CB0] * v
+    X[j, 1] = X[j, 1] + C[j, which, CKT] * x0 + C[j, which, CB1] * v
+    if P[j, W2] > 0.0:
+        m = P[j, SIG]
+        ys = P[j, GAIN] * v / P[j, W2]
+        z0 = x2 - ys
+        X[j, 2] = C[j, which, CEC] * z0 + C[j, which, CES] * (x3 + m * z0) + ys
+        X[j, 3] = C[j, which, CEC] * x3 - C[j, which, CES] * (m * x3 + P[j, W2] * z0)
+
+
+@njit(cache=True, inline="always")
+def advance(P, C, F, X, D, j, v, h, which, c, y):
+    """Advance axis ``j`` by ``h`` [s] under the constant drive ``v`` [V] (applied drive
+    plus load steps); ``which`` (0 or 1) names the precomputed interval ``h`` is, or -1.
+    ``P``, ``C``, ``F``: the stage's ``param``, ``coef``, ``friction``; ``X``, ``D``: the
+    state's ``x`` and ``direction`` (changed); ``c`` (N_COEF,) and ``y`` (4,) scratch.
+    Arrays, never the NamedTuples: a tuple of arrays passed to a function costs a
+    reference count of each of them at every call (several times the step itself).
+    Inlined into the loop, whose locals are set up once per block; the events' function
+    (large, rare) is a call of its own."""
+    if which >= 0 and not F[j]:  # the common case
+        _slide_at(P, C, X, j, which, v)
+        return
+    _advance_events(P[j], C[j], F[j], X[j], D, j, v, h, which, c, y)
+
+
+@njit(cache=True)
+def _advance_events(p, coef, friction, x, directions, j, v, h, which, c, y):
+    """:func:`advance` for an interval of its own length or an axis with friction:
+    ``p`` the axis's ``param`` row, ``coef`` its (2, N_COEF) coefficients, ``x`` its
+    state (changed), ``directions`` every axis's motor direction (entry j changed)."""
+    if not friction:
+        if which >= 0:
+            _slide(p, coef[which], x, v, y)
+        else:
+            _slide_for(p, x, v, h, c, y)
+        for i in range(4):
+            x[i] = y[i]
+        return
+    remaining = h
+    for _ in range(MAX_EVENTS):
+        if remaining <= 0.0:
+            return
+        direction = directions[j]
+        if direction == 0.0:
+            t = _breakaway_time(p, x, v, remaining, y)
+            if t < 0.0:
+                _stuck(p, x, remaining, y)
+                for i in range(4):
+                    x[i] = y[i]
+                return
+            if t > 0.0:
+                _stuck(p, x, t, y)
+                for i in range(4):
+                    x[i] = y[i]
+            directions[j] = 1.0 if _net_drive(p, x, v) > 0.0 else -1.0
+            remaining -= t
+            continue
+        veff = v - p[FC] * direction
+        t = _stop_time(p, x, veff, remaining, direction, c, y)
+        if t < 0.0:
+            if which >= 0 and remaining == h:
+                _slide(p, coef[which], x, veff, y)
+            else:
+                _slide_for(p, x, veff, remaining, c, y)
+            for i in range(4):
+                x[i] = y[i]
+            return
+        _slide_for(p, x, veff, t, c, y)
+        for i in range(4):
+            x[i] = y[i]
+        x[0] = -p[LAM] * x[3] / p[KE]  # the motor at rest exactly (root's rounding)
+        remaining -= t
+        net = _net_drive(p, x, v)
+        if abs(net) <= p[FS]:
+            directions[j] = 0.0
+        else:
+            directions[j] = 1.0 if net > 0.0 else -1.0
+    # MAX_EVENTS reached: the motor is held for the rest of the interval
+    directions[j] = 0.0
+    x[0] = -p[LAM] * x[3] / p[KE]
+    _stuck(p, x, remaining, y)
+    for i in range(4):
+        x[i] = y[i]
+
+
+@njit(cache=True, inline="always")
+def sample_step(P, C, F, DT, DD, dac_step, dac_levels, delay_samples, split, Ts, X, D, LINE,
+                ND, k, j, applied, c, y):
+    """Axis ``j`` over sample k: the DAC on the drive ``applied`` [V] (clipped), the
+    delay line, the load steps, and :func:`advance` over each interval of constant drive.
+    The arguments before ``k`` are :func:`stage_arrays` (the stage's and its state's
+    arrays and numbers)."""
+    q = dac_step
+    if q > 0.0:
+        level = math.floor(applied / q + 0.5)
+        level = min(max(level, -dac_levels), dac_levels - 1.0)
+        applied = level * q
+    length = LINE.shape[1]
+    LINE[j, k % length] = applied
+    new = LINE[j, (k - delay_samples) % length]
+    old = LINE[j, (k - delay_samples - 1) % length]
+    t0 = k * Ts
+    t = 0.0
+    while t < Ts:
+        if t < split:
+            seg_start, seg_end, seg_which, drive = 0.0, split, 0, old
+        else:
+            seg_start, seg_end, drive = split, Ts, new
+            seg_which = 1 if split > 0.0 else 0
+        i = ND[j]
+        at = DT[j, i] - t0
+        if at <= t:  # a load step due now (or, by rounding, a hair before)
+            ND[j] = i + 1
+            continue
+        load = DD[j, i - 1] if i > 0 else 0.0
+        end = min(seg_end, at)
+        which = seg_which if (t == seg_start and end == seg_end) else -1
+        advance(P, C, F, X, D, j, drive + load, end - t, which, c, y)
+        t = end
+
+
+def stage_arrays(stage: "PlantStage", pstate: "PlantState") -> tuple:
+    """The first arguments of :func:`sample_step`, from a stage and its state."""
+    return (stage.param, stage.coef, stage.friction, stage.disturbance_time,
+            stage.disturbance_drive, stage.dac_step, stage.dac_levels,
+            stage.delay_samples, stage.split, stage.sample_period, pstate.x,
+            pstate.direction, pstate.line, pstate.next_disturbance)
+
+
+@njit(cache=True, inline="always")
+def _mix(z):
+    """splitmix64's finaliser."""
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+@njit(cache=True, inline="always")
+def noise_draw(seed, k, j):
+    """A standard normal draw for sample k, axis j (Box-Muller on two splitmix64 words)."""
+    base = (np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15)
+            + np.uint64(k) * np.uint64(64) + np.uint64(2 * j))
+    a = _mix(base + np.uint64(1))
+    b = _mix(base + np.uint64(2))
+    u1 = ((a >> np.uint64(11)) + np.uint64(1)) * (1.0 / 9007199254740993.0)
+    u2 = (b >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+    return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+
+
+@njit(cache=True, inline="always")
+def positions(P, X, j):
+    """``(tool, encoder, encoder_speed)`` of axis j (``P``, ``X``: the stage's ``param``
+    and the state's ``x``): the load's and the encoder mass's true positions [pulse] and
+    the encoder mass's speed [rad/s]."""
+    tool = X[j, 1] + P[j, TOOL] * X[j, 2]
+    enc = X[j, 1] + P[j, ENC] * X[j, 2]
+    return tool, enc, X[j, 0] + P[j, ENC] * X[j, 3] / P[j, KE]
+
+
+@njit(cache=True, inline="always")
+def measure(noise, seed, counts, true_position, start, k, j):
+    """What the controller reads of a true position [pulse] at sample k, axis j: with
+    Gaussian noise of standard deviation ``noise`` [pulse] (seeded by ``seed``), in whole
+    counts from ``start`` [pulse] if ``counts``."""
+    m = true_position
+    if noise > 0.0:
+        m = m + noise * noise_draw(seed, k, j)
+    if counts:
+        m = start + math.floor(m - start)
+    return m
+
+
+def inactive_stage(n_axes: int) -> PlantStage:
+    """The stage of an ideal plant (same types, never run)."""
+    z = np.zeros((n_axes, N_PARAM))
+    z[:, TAU] = z[:, KC] = z[:, KE] = 1.0
+    arrays = (z, np.zeros(n_axes, np.bool_), np.zeros(n_axes, np.bool_),
+              np.zeros((n_axes, 2, N_COEF)), np.full((n_axes, 1), np.inf),
+              np.zeros((n_axes, 1)))
+    for arr in arrays:  # read-only as a made stage's
+        arr.flags.writeable = False
+    return IdleStage(False, False, 0.0, 0, 0.0, 1.0, 0, 0.0, 1.0, *arrays)
+
+
+def _mode(tau: float, lam: float, frequency: float, damping: float):
+    """``(sig, w2, c)``: the mode's decay rate zeta*wn [1/s], wn^2 [1/s^2] and the
+    damper ``c = mu*(2*zeta*wn - 1/tau)`` (normalised so that viscous damping is 1)."""
+    wn = 2.0 * math.pi * frequency
+    mu = lam * (1.0 - lam) * tau
+    return damping * wn, wn * wn, mu * (2.0 * damping * wn - 1.0 / tau), mu
+
+
+def make_stage(effects, tau, Kc, Ke, max_drive: float, sample_period: float) -> PlantStage:
+    """The :class:`PlantStage` of a plant with ``effects`` (a
+    :class:`nurbsmotion.machine.Machine`'s effect keys: ``machine.effects()``), per-axis
+    tau [s], Kc [(rad/s)/V], Ke [pulse/rad], the drive limit [V] and Ts [s]."""
+    n = len(tau)
+    Ts = float(sample_period)
+    param = np.zeros((n, N_PARAM))
+    friction = np.zeros(n, np.bool_)
+    two = np.zeros(n, np.bool_)
+    m = max([len(a["disturbance"]) for a in effects["axes"]] + [0])
+    dist_t = np.full((n, m + 1), np.inf)
+    dist_d = np.zeros((n, m + 1))
+    for j, a in enumerate(effects["axes"]):
+        p = param[j]
+        p[TAU], p[KC], p[KE] = tau[j], Kc[j], Ke[j]
+        if a["resonance_frequency"] > 0:
+            lam = a["load_fraction"]
+            sig, w2, c, mu = _mode(tau[j], lam, a["resonance_frequency"],
+                                   a["resonance_damping"])
+            p[LAM], p[SIG], p[W2] = lam, sig, w2
+            p[GAIN] = Ke[j] * Kc[j] / ((1.0 - lam) * tau[j])
+            p[SA1] = 1.0 / tau[j] + c / (lam * tau[j])
+            p[SA0] = w2 * (1.0 - lam)
+            p[KSPR] = w2 * mu / (Ke[j] * Kc[j])
+            p[CDMP] = c / (Ke[j] * Kc[j])
+            p[TOOL] = -(1.0 - lam)
+            p[ENC] = lam if a["encoder_on"] == "motor" else -(1.0 - lam)
+            two[j] = True
+            p[CHECK_SLIDE] = 2.0 * math.pi / math.sqrt(w2) / 8.0
+            p[CHECK_STUCK] = 2.0 * math.pi / math.sqrt(p[SA0]) / 8.0
+        else:
+            p[CHECK_SLIDE] = p[CHECK_STUCK] = math.inf
+        p[FC] = a["coulomb_friction"]
+        p[FS] = max(a["stiction"], a["coulomb_friction"])
+        friction[j] = p[FS] > 0.0
+        steps = sorted((d["at"], d["drive"]) for d in a["disturbance"])
+        total = 0.0
+        for i, (at, drive) in enumerate(steps):
+            total += drive
+            dist_t[j, i] = at
+            dist_d[j, i] = total
+    delay = float(effects["delay"])
+    whole = int(math.floor(delay / Ts))
+    split = delay - whole * Ts
+    if split <= 1e-12 * Ts:
+        split = 0.0
+    elif split >= Ts * (1.0 - 1e-12):
+        whole, split = whole + 1, 0.0
+    coef = np.zeros((n, 2, N_COEF))
+    for j in range(n):
+        if split > 0.0:
+            _coefficients(param[j], split, coef[j, 0])
+            _coefficients(param[j], Ts - split, coef[j, 1])
+        else:
+            _coefficients(param[j], Ts, coef[j, 0])
+    bits = effects["dac_bits"]
+    if bits is not None and not math.isfinite(max_drive):
+        raise InvalidMachineError(f"dac_bits = {bits} needs a finite max_drive, got "
+                                  f"{max_drive!r}")
+    dac_step = 0.0 if bits is None else 2.0 * max_drive / 2.0 ** bits
+    levels = 1.0 if bits is None else 2.0 ** (bits - 1)
+    for arr in (param, friction, two, coef, dist_t, dist_d):
+        arr.flags.writeable = False
+    return PlantStage(True, effects["encoder"] == "counts",
+                      float(effects["measurement_noise"]), int(effects["seed"]),
+                      dac_step, levels, whole, split, Ts, param,
+                      friction, two, coef, dist_t, dist_d)
+
+
+_IDLE_STATES: dict = {}
+
+
+def new_plant_state(stage: PlantStage, position) -> PlantState:
+    """The stage at rest at ``position`` [pulse] (shape (n_axes,)); a motor with friction
+    starts stuck. An inactive stage's state is never read or written: one per number of
+    axes is shared (an ideal run makes none)."""
+    n = len(position)
+    if not stage.active:
+        if n not in _IDLE_STATES:
+            _IDLE_STATES[n] = new_plant_state(PlantStage(*stage)._replace(active=True),
+                                              np.zeros(n))
+        return _IDLE_STATES[n]
+    x = np.zeros((n, 4))
+    x[:, 1] = position
+    direction = np.where(stage.friction, 0.0, 1.0)
+    return PlantState(x, direction, np.zeros((n, stage.delay_samples + 2)),
+                      np.zeros(n, np.int64), np.array(position, dtype=float),
+                      np.zeros(n), np.zeros(N_COEF), np.zeros(4))
+
+
+def stage_response(stage: PlantStage, drive, position=None):
+    """Run the stage open loop under a drive sequence (tests, studies).
+
+    Parameters
+    ----------
+    drive : ndarray, shape (n_samples, n_axes)
+        Applied drive per sample [V] (before the DAC and the delay).
+    position : array_like, shape (n_axes,), optional
+        Start at rest [pulse]; 0 by default.
+
+    Returns
+    -------
+    x : ndarray, shape (n_samples + 1, n_axes, 4)
+        The state ``[w_cm, theta_cm, delta, delta']`` at every sample instant.
+    tool : ndarray, shape (n_samples + 1, n_axes)
+        The load's (the tool's) position [pulse].
+    """
+    drive = np.asarray(drive, dtype=float)
+    n_axes = stage.param.shape[0]
+    start = np.zeros(n_axes) if position is None else np.asarray(position, float)
+    pstate = new_plant_state(stage, start)
+    xs = np.empty((drive.shape[0] + 1, n_axes, 4))
+    xs[0] = pstate.x
+    args = stage_arrays(stage, pstate)
+    for k in range(drive.shape[0]):
+        for j in range(n_axes):
+            sample_step(*args, k, j, float(drive[k, j]), pstate.scratch, pstate.y)
+        xs[k + 1] = pstate.x
+    tool = xs[:, :, 1] + stage.param[:, TOOL] * xs[:, :, 2]
+    return xs, tool
+
+
+def continuous_model(tau: float, Kc: float, Ke: float, resonance_frequency: float = 0.0,
+                     resonance_damping: float = 0.0, load_fraction: float = 0.5):
+    """The axis's linear continuous model in physical coordinates
+    ``[w_motor, theta_motor, w_load, theta_load]`` (speeds [rad/s], positions [pulse]):
+    ``(A, B)``, shapes (4, 4) and (4,), input the drive [V]. A rigid axis is two equal
+    halves locked together (returned as the 2-state ``[w, theta]``)."""
+    if resonance_frequency <= 0:
+        return (np.array([[-1.0 / tau, 0.0], [Ke, 0.0]]), np.array([Kc / tau, 0.0]))
+    lam = load_fraction
+    sig, w2, c, mu = _mode(tau, lam, resonance_frequency, resonance_damping)
+    k = w2 * mu
+    Jm, Jl = (1.0 - lam) * tau, lam * tau
+    bm, bl = 1.0 - lam, lam
+    # spring on the angle difference [rad] = (theta_m - theta_l)/Ke
+    A = np.array([[-(bm + c) / Jm, -k / (Ke * Jm), c / Jm, k / (Ke * Jm)],
+                  [Ke, 0.0, 0.0, 0.0],
+                  [c / Jl, k / (Ke * Jl), -(bl + c) / Jl, -k / (Ke * Jl)],
+                  [0.0, 0.0, Ke, 0.0]])
+    B = np.array([Kc / Jm, 0.0, 0.0, 0.0])
+    return A, B
+
+
+def linear_loop_poles(gains, tau: float, Kc: float, Ke: float, sample_period: float,
+                      feedback_deriv: bool, delay: float = 0.0,
+                      resonance_frequency: float = 0.0, resonance_damping: float = 0.0,
+                      load_fraction: float = 0.5, encoder_on: str = "motor") -> np.ndarray:
+    """Poles of one axis's closed loop, linear (no clamps, friction or quantisers), with
+    its delay and its mode: the sampled plant over the two intervals of a sample
+    (``scipy.linalg.expm`` of the augmented matrix), the drives on their way as states,
+    and the law of :func:`nurbsmotion.control.loop_poles`.
+
+    Returns
+    -------
+    ndarray, complex
+    """
+    from scipy.linalg import expm
+
+    A, B = continuous_model(tau, Kc, Ke, resonance_frequency, resonance_damping,
+                            load_fraction)
+    nx = A.shape[0]
+    pos = np.zeros(nx)
+    spd = np.zeros(nx)
+    if nx == 2 or encoder_on == "motor":
+        pos[1], spd[0] = 1.0, Ke
+    else:
+        pos[3], spd[2] = 1.0, Ke
+    Ts = float(sample_period)
+    whole = int(math.floor(delay / Ts))
+    split = delay - whole * Ts
+    if split <= 1e-12 * Ts:
+        split = 0.0
+    elif split >= Ts * (1.0 - 1e-12):
+        whole, split = whole + 1, 0.0
+
+    def zoh(h):
+        M = np.zeros((nx + 1, nx + 1))
+        M[:nx, :nx], M[:nx, nx] = A, B
+        E = expm(M * h)
+        return E[:nx, :nx], E[:nx, nx]
+
+    P1, G1 = zoh(split) if split > 0 else (np.eye(nx), np.zeros(nx))
+    P2, G2 = zoh(Ts - split)
+    P, I, D = gains.Pgain, gains.Igain, gains.Dgain
+    nd = whole + 1  # d_1 .. d_{n+1}: drives of samples k-1 .. k-n-1
+    # state z = [x (nx), y_prev, errorI, d_1 .. d_nd]
+    nz = nx + 2 + nd
+    law = np.zeros(nz)
+    if feedback_deriv:
+        law[:nx] = -D * spd - (P + I * Ts) * pos
+    else:
+        law[:nx] = -(P + I * Ts + D / Ts) * pos
+        law[nx] = D / Ts
+    law[nx + 1] = I
+
+    def drive_of(m):  # the row giving u[k - m]
+        row = np.zeros(nz)
+        if m == 0:
+            row[:] = law
+        else:
+            row[nx + 1 + m] = 1.0
+        return row
+
+    T = np.zeros((nz, nz))
+    T[:nx, :nx] = P2 @ P1
+    T[:nx] += np.outer(P2 @ G1, drive_of(whole + 1)) + np.outer(G2, drive_of(whole))
+    T[nx, :nx] = pos
+    T[nx + 1, :nx] = -Ts * pos
+    T[nx + 1, nx + 1] = 1.0
+    T[nx + 2] = law
+    for i in range(1, nd):
+        T[nx + 2 + i, nx + 1 + i] = 1.0
+    keep = list(range(nx))
+    if not feedback_deriv:
+        keep.append(nx)
+    if I != 0.0:
+        keep.append(nx + 1)
+    keep += list(range(nx + 2, nz))
+    return np.linalg.eigvals(T[np.ix_(keep, keep)])
