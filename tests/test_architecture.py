@@ -34,7 +34,7 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "paths": (("paths", "paths.files", "paths.dxf", "paths.gcode", "paths.ngc",
                "paths.pieces", "paths.random_paths"), ("base", "geometry")),
     # The servo side knows nothing of curves: machine does not import geometry.
-    "machine": (("control", "servo", "machine", "random_machines"), ("base",)),
+    "machine": (("control", "servo", "plant", "machine", "random_machines"), ("base",)),
     # Where a path meets a machine: units (a path's lengths and feeds in the machine's
     # pulses) and the drive-limited speed along the path.
     "planning": (("units", "planning"), ("base", "geometry", "machine")),
@@ -49,7 +49,9 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "output": (("plots", "report", "export"),
                ("base", "geometry", "paths", "machine", "planning", "interpolators", "loop",
                 "metrics")),
-    "study": (("experiments", "campaign"),
+    # run_input: what a run of a named path reads (the contour and its feed), shared by
+    # the CLI and a study's cases.
+    "study": (("run_input", "experiments", "campaign"),
               ("base", "geometry", "paths", "machine", "planning", "interpolators", "loop",
                "metrics", "output")),
     "cli": (("cli", "__main__", "_precompile"),

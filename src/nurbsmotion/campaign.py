@@ -38,7 +38,7 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 from ._io import write_output
-from .errors import PathFileError
+from .errors import InvalidArgumentError, PathFileError
 from .interpolators import LOOP_METHODS
 from .machine import Machine, load_machine
 from .metrics import SETTLE_WINDOW
@@ -190,22 +190,22 @@ def load_study(file: str | os.PathLike) -> Study:
 def _study_from_dict(data: dict, source: str, base_dir: str) -> Study:
     unknown = set(data) - _STUDY_KEYS
     if unknown:
-        raise ValueError(f"unknown study field(s) {sorted(unknown)}; expected "
+        raise InvalidArgumentError(f"unknown study field(s) {sorted(unknown)}; expected "
                          f"{sorted(_STUDY_KEYS)}")
     seed = data.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+        raise InvalidArgumentError(f"seed must be an integer >= 0, got {seed!r}")
     paths = tuple(_strings(data.get("paths", []), "paths"))
     random_paths = tuple(_random_paths(e, i) for i, e in enumerate(data.get("random_paths", [])))
     if not paths and not random_paths:
-        raise ValueError("the study has no paths: give 'paths' or '[[random_paths]]'")
+        raise InvalidArgumentError("the study has no paths: give 'paths' or '[[random_paths]]'")
     feeds = data.get("feeds")
     if not isinstance(feeds, list) or not feeds or not all(
             _is_number(f) and math.isfinite(f) and f > 0 for f in feeds):
-        raise ValueError(f"feeds must be a non-empty list of numbers > 0, got {feeds!r}")
+        raise InvalidArgumentError(f"feeds must be a non-empty list of numbers > 0, got {feeds!r}")
     feed_unit = data.get("feed_unit", "m/s")
     if feed_unit not in FEED_UNITS:
-        raise ValueError(f"feed_unit {feed_unit!r} unknown; choose from {list(FEED_UNITS)}")
+        raise InvalidArgumentError(f"feed_unit {feed_unit!r} unknown; choose from {list(FEED_UNITS)}")
     for p in paths:
         _check_path_file(p, base_dir)
     machines = tuple(_strings(data.get("machines", ["die-bonder"]), "machines"))
@@ -213,18 +213,18 @@ def _study_from_dict(data: dict, source: str, base_dir: str) -> Study:
         try:
             _machine(m, base_dir)
         except (ValueError, OSError) as exc:
-            raise ValueError(f"machines: {m!r}: {exc}") from None
+            raise InvalidArgumentError(f"machines: {m!r}: {exc}") from None
     plants = tuple(_plant(e, i) for i, e in enumerate(data.get("plants", [{"name": "nominal"}])))
     if len({p.name for p in plants}) != len(plants):
-        raise ValueError("plant names must be unique")
+        raise InvalidArgumentError("plant names must be unique")
     interpolators = tuple(_strings(data.get("interpolators", ["paper"]), "interpolators"))
     for name in interpolators:
         if name not in LOOP_METHODS:
-            raise ValueError(f"unknown interpolator {name!r}; choose from {list(LOOP_METHODS)}")
+            raise InvalidArgumentError(f"unknown interpolator {name!r}; choose from {list(LOOP_METHODS)}")
     sample = data.get("sample")
     if sample is not None and (isinstance(sample, bool) or not isinstance(sample, int)
                                or sample < 1):
-        raise ValueError(f"sample must be an integer >= 1 (cases drawn), got {sample!r}")
+        raise InvalidArgumentError(f"sample must be an integer >= 1 (cases drawn), got {sample!r}")
     settle_time = _positive_number(data.get("settle_time", 0.05), "settle_time", zero=True)
     settle_window = _positive_number(data.get("settle_window", SETTLE_WINDOW), "settle_window")
     limit = data.get("case_time_limit", CASE_TIME_LIMIT)
@@ -232,7 +232,7 @@ def _study_from_dict(data: dict, source: str, base_dir: str) -> Study:
         limit = _positive_number(limit, "case_time_limit (CPU seconds, or false)")
     bound = data.get("time_optimal_bound", True)
     if not isinstance(bound, bool):
-        raise ValueError(f"time_optimal_bound must be true or false, got {bound!r}")
+        raise InvalidArgumentError(f"time_optimal_bound must be true or false, got {bound!r}")
     return Study(name=str(data.get("name", Path(source).stem)), seed=seed, paths=paths,
                  random_paths=random_paths, feeds=tuple(float(f) for f in feeds),
                  feed_unit=feed_unit, machines=machines, plants=plants,
@@ -252,13 +252,13 @@ def _check_path_file(spec: str, base_dir: str) -> None:
         return
     file = Path(base_dir) / name
     if Path(name).suffix.lower() not in PATH_FILE_SUFFIXES:
-        raise ValueError(f"paths: {spec!r} is neither a built-in path "
+        raise InvalidArgumentError(f"paths: {spec!r} is neither a built-in path "
                          f"({', '.join(BUILTIN_PATHS)}) nor a path file "
                          f"({', '.join(PATH_FILE_SUFFIXES)})")
     if not file.is_file():
-        raise ValueError(f"paths: {spec!r}: no such file {str(file)!r}")
+        raise InvalidArgumentError(f"paths: {spec!r}: no such file {str(file)!r}")
     if k and not (k.isdigit() and int(k) >= 1):
-        raise ValueError(f"paths: {spec!r}: the contour after '#' must be a number >= 1")
+        raise InvalidArgumentError(f"paths: {spec!r}: the contour after '#' must be a number >= 1")
 
 
 def _is_number(x) -> bool:
@@ -267,13 +267,13 @@ def _is_number(x) -> bool:
 
 def _positive_number(x, name: str, zero: bool = False) -> float:
     if not (_is_number(x) and math.isfinite(x) and (x >= 0 if zero else x > 0)):
-        raise ValueError(f"{name} must be a finite number {'>=' if zero else '>'} 0, got {x!r}")
+        raise InvalidArgumentError(f"{name} must be a finite number {'>=' if zero else '>'} 0, got {x!r}")
     return float(x)
 
 
 def _strings(value, name: str) -> list[str]:
     if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
-        raise ValueError(f"{name} must be a list of non-empty strings, got {value!r}")
+        raise InvalidArgumentError(f"{name} must be a list of non-empty strings, got {value!r}")
     return value
 
 
@@ -282,21 +282,21 @@ def _random_paths(entry, i: int) -> RandomPaths:
 
     where = f"random_paths[{i}]"
     if not isinstance(entry, dict):
-        raise ValueError(f"{where} must be a table")
+        raise InvalidArgumentError(f"{where} must be a table")
     unknown = set(entry) - {"families", "count", "n_axes", "length"}
     if unknown:
-        raise ValueError(f"{where}: unknown field(s) {sorted(unknown)}")
+        raise InvalidArgumentError(f"{where}: unknown field(s) {sorted(unknown)}")
     families = entry.get("families", "all")
     families = list(FAMILIES) if families == "all" else _strings(families, f"{where}.families")
     for f in families:
         if f not in FAMILIES:
-            raise ValueError(f"{where}: unknown family {f!r}; choose from {sorted(FAMILIES)}")
+            raise InvalidArgumentError(f"{where}: unknown family {f!r}; choose from {sorted(FAMILIES)}")
     count = entry.get("count", 1)
     if isinstance(count, bool) or not isinstance(count, int) or count < 1:
-        raise ValueError(f"{where}.count must be an integer >= 1, got {count!r}")
+        raise InvalidArgumentError(f"{where}.count must be an integer >= 1, got {count!r}")
     n_axes = entry.get("n_axes", 2)
     if n_axes not in (2, 3) or isinstance(n_axes, bool):
-        raise ValueError(f"{where}.n_axes must be 2 or 3, got {n_axes!r}")
+        raise InvalidArgumentError(f"{where}.n_axes must be 2 or 3, got {n_axes!r}")
     length = _positive_number(entry.get("length", 2e4), f"{where}.length")
     return RandomPaths(tuple(families), count, n_axes, length)
 
@@ -304,27 +304,27 @@ def _random_paths(entry, i: int) -> RandomPaths:
 def _plant(entry, i: int) -> PlantGroup:
     where = f"plants[{i}]"
     if not isinstance(entry, dict) or not isinstance(entry.get("name"), str):
-        raise ValueError(f"{where} must be a table with a 'name'")
+        raise InvalidArgumentError(f"{where} must be a table with a 'name'")
     from .machine import AXIS_EFFECT_KEYS, MACHINE_EFFECT_KEYS
 
     effect_keys = (set(MACHINE_EFFECT_KEYS) | set(AXIS_EFFECT_KEYS)) - {"disturbance"}
     unknown = set(entry) - {"name", "tau_scale", "Kc_scale", "spread"} - effect_keys
     if unknown:
-        raise ValueError(f"{where}: unknown field(s) {sorted(unknown)}")
+        raise InvalidArgumentError(f"{where}: unknown field(s) {sorted(unknown)}")
     scales = []
     for key in ("tau_scale", "Kc_scale"):
         v = entry.get(key, 1.0)
         v = v if isinstance(v, list) else [v]
         if not v or not all(_is_number(x) and math.isfinite(x) and x > 0 for x in v):
-            raise ValueError(f"{where}.{key} must be a number > 0 or one per axis, got {v!r}")
+            raise InvalidArgumentError(f"{where}.{key} must be a number > 0 or one per axis, got {v!r}")
         scales.append(tuple(float(x) for x in v))
     spread = entry.get("spread", 0.0)
     if not (_is_number(spread) and 0 <= spread < 1):
-        raise ValueError(f"{where}.spread must be in [0, 1), got {spread!r}")
+        raise InvalidArgumentError(f"{where}.spread must be in [0, 1), got {spread!r}")
     effects = tuple(sorted((k, entry[k]) for k in effect_keys if k in entry))
     for k, v in effects:
         if isinstance(v, (list, dict)):
-            raise ValueError(f"{where}.{k} must be one value (it applies to every axis), "
+            raise InvalidArgumentError(f"{where}.{k} must be one value (it applies to every axis), "
                              f"got {v!r}")
     return PlantGroup(entry["name"], scales[0], scales[1], float(spread), effects)
 
@@ -447,7 +447,7 @@ def _plant_scales(case: Case, n_axes: int) -> tuple[np.ndarray, np.ndarray]:
     out = []
     for v in (g.tau_scale, g.Kc_scale):
         if len(v) not in (1, n_axes):
-            raise ValueError(f"plant {g.name!r}: {len(v)} scale factors for {n_axes} axes")
+            raise InvalidArgumentError(f"plant {g.name!r}: {len(v)} scale factors for {n_axes} axes")
         out.append(np.broadcast_to(np.array(v), (n_axes,)).copy())
     return out[0], out[1]
 
@@ -869,7 +869,7 @@ def _execute(cases: list[Case], workers: int | None, scheduler,
         return _execute_dask(cases, scheduler, function)
     n = (os.cpu_count() or 1) if workers is None else int(workers)
     if n < 1:
-        raise ValueError(f"workers must be >= 1, got {workers!r}")
+        raise InvalidArgumentError(f"workers must be >= 1, got {workers!r}")
     _warm_up(cases)
     if n == 1:
         return (function(c) for c in cases)

@@ -33,6 +33,7 @@ thd, tha : commanded and measured position [pulse]; u : drive [V]; w : motor spe
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -45,7 +46,7 @@ from .servo import plant_step
 
 __all__ = ["Rows", "Settling", "LoopState", "AxisState", "DONE", "FULL", "FAILED",
            "OUT_OF_SAMPLES", "PAUSED", "BLOCK_SAMPLES", "SINK_BLOCK_SAMPLES", "new_rows",
-           "run_samples"]
+           "run_samples", "settle_hold_samples"]
 
 DONE, FULL, FAILED, OUT_OF_SAMPLES, PAUSED = 0, 1, 2, 3, 4
 """Return codes of :func:`run_samples`: settled; rows full (grow them and call again);
@@ -383,3 +384,13 @@ def _grown(rows: Rows, capacity: int, written: int) -> Rows:
         new[:written] = r[:written]
         return new
     return Rows(*(grow(r) for r in rows))
+
+
+def settle_hold_samples(machine) -> int:
+    """Samples a motion must stay inside the settle window to count as settled: the time
+    the slowest mode of the machine's closed loop (its largest pole radius r, linear,
+    sampled) takes to decay by 1000, ``ceil(ln(1e-3)/ln r)``, at least one sample."""
+    r = machine.loop_pole_radius
+    if r <= 0.0:
+        return 1
+    return max(1, int(math.ceil(math.log(1e-3) / math.log(r))))

@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit
 
 from . import closed_loop, stepping
+from .closed_loop import settle_hold_samples
 from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .control import PidGains, pid_law, pid_state
 from .errors import InfeasibleError, InvalidArgumentError
@@ -315,16 +316,6 @@ def interpolate(interpolator: Interpolator, max_samples: int = 10_000_000) -> Se
                           sample_period=Ts, finished_index=done - 1)
 
 
-def settle_hold_samples(machine: Machine) -> int:
-    """Samples a motion must stay inside the settle window to count as settled: the time
-    the slowest mode of the machine's closed loop (its largest pole radius r, linear,
-    sampled) takes to decay by 1000, ``ceil(ln(1e-3)/ln r)``, at least one sample."""
-    r = machine.loop_pole_radius
-    if r <= 0.0:
-        return 1
-    return max(1, int(math.ceil(math.log(1e-3) / math.log(r))))
-
-
 def simulate(
     interpolator: Interpolator,
     machine: Machine,
@@ -486,7 +477,7 @@ def hold_samples_of(plant: ServoPlant, hold: float | None) -> int:
         hold = HOLD_TIME if plant.effects is not None else 0.0
     if isinstance(hold, bool) or not (isinstance(hold, (int, float)) and math.isfinite(hold)
                                       and hold >= 0):
-        raise InfeasibleError(f"hold must be a finite number >= 0 [s], got {hold!r}")
+        raise InvalidArgumentError(f"hold must be a finite number >= 0 [s], got {hold!r}")
     return int(round(hold / plant.sample_period))
 
 

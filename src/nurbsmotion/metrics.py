@@ -863,6 +863,6 @@ def trace_at_rest(trace, window: int | None = None) -> AtRest:
 
 
 def _settling_samples(machine) -> int:
-    from .loop import settle_hold_samples  # the loop's own rule (loop imports this module)
+    from .closed_loop import settle_hold_samples  # the loop's own rule
 
     return settle_hold_samples(machine)
