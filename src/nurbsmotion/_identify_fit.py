@@ -1,0 +1,288 @@
+"""Fitting one axis of a log to the model of :mod:`nurbsmotion._identify_model` (private).
+
+The steps (docs/identify.md):
+
+1. An ARX regression on the position increments (the exact sampled model of a first-order
+   lag, a few input taps and a sign(speed) term) gives tau, G = Ke*Kc and the Coulomb
+   friction to start from.
+2. Stiction from the breakaways: the drive that held the axis at rest just before it
+   moved, and the drive that moved it.
+3. The delay by a search over fractions of a sample, then an output-error fit
+   (:func:`scipy.optimize.least_squares`) of the simulated increments against the logged
+   ones: tau, G, delay and Coulomb friction.
+4. A mode: started from the peak of the residual's spectrum, kept when it lowers the
+   residual clearly; then the stiction by a scan of the same residual.
+
+The residual is on the increments ``y[k+1] - y[k]`` [pulse per sample] rather than on the
+positions: the simulated speed does not drift, the position of an open-loop simulation
+does.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ._identify_model import simulate
+
+MODE_GAIN = 0.15
+"""A mode is kept when it lowers the residual's sum of squares by at least this share."""
+
+MAX_DELAY_SAMPLES = 8.0
+"""Largest delay searched [sample periods]."""
+
+
+@dataclass
+class AxisFit:
+    """The fitted parameters of one axis, their standard deviations, and notes."""
+
+    values: dict
+    sigma: dict
+    residual_rms: float
+    residual: np.ndarray
+    simulated: np.ndarray
+    notes: list = field(default_factory=list)
+    identified: dict = field(default_factory=dict)
+
+
+def _residual_fn(u, dy, Ts, speed0, fixed, names):
+    def fn(x):
+        params = dict(fixed)
+        for name, value in zip(names, x):
+            params[name] = value
+        params["time_constant"] = math.exp(params.pop("log_tau"))
+        params["gain"] = math.exp(params.pop("log_gain"))
+        if "log_omega" in params:
+            params["resonance_frequency"] = math.exp(params.pop("log_omega")) / (2 * math.pi)
+        params["delay"] = params.pop("delay_samples") * Ts
+        y = simulate(u, Ts, params, speed0)
+        return np.diff(y) - dy
+    return fn
+
+
+def _arx(u, dy, Ts, max_taps=6):
+    """tau, G and F from ``dy[k+1] = a dy[k] + sum_i b_i u[k+1-i] - cf sign(dy[k])``."""
+    n = len(dy)
+    taps = min(max_taps, max(n - 3, 1))
+    rows = np.arange(taps, n - 1)
+    moving = np.abs(dy) > 1.5
+    sign = np.where(moving, np.sign(dy), 0.0)
+    cols = [dy[rows]] + [u[rows + 1 - i] for i in range(taps)] + [-sign[rows]]
+    A = np.column_stack(cols)
+    b = dy[rows + 1]
+    coef, *_ = np.linalg.lstsq(A, b, rcond=None)
+    a = coef[0]
+    bsum = float(np.sum(coef[1:taps + 1]))
+    if not (0.0 < a < 1.0) or bsum <= 0:
+        return None
+    tau = -Ts / math.log(a)
+    gain = bsum / ((1.0 - a) * Ts)
+    friction = max(float(coef[-1]) / bsum, 0.0)
+    return tau, gain, friction
+
+
+def _breakaways(u, y, Ts, noise):
+    """Drive bounds of the stiction from the rests in the log: the largest |u| an axis at
+    rest held (lower bound) and the |u| at which it left each rest (upper bounds)."""
+    dy = np.diff(y)
+    still = np.abs(dy) <= 1.0 + 4.0 * noise
+    held, moved = [], []
+    k = 0
+    n = len(dy)
+    while k < n:
+        if not still[k]:
+            k += 1
+            continue
+        j = k
+        while j < n and still[j]:
+            j += 1
+        if j - k >= 5 and j < n:  # a rest of 5 samples or more, then a move
+            window = u[k:j]
+            held.append(float(np.max(np.abs(window))))
+            moved.append(float(abs(u[j - 1]) if j >= 1 else abs(u[j])))
+        k = j
+    return held, moved
+
+
+def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
+             max_drive: float = 10.0, base: dict | None = None) -> AxisFit:
+    """Fit one axis (see the module docstring).
+
+    Parameters
+    ----------
+    u : ndarray, shape (n_samples,)
+        Drive [V] held over each sample.
+    y : ndarray, shape (n_samples,)
+        Encoder reading [pulse].
+    Ts : float
+        Sample period [s].
+    noise : float
+        A first guess of the reading noise [pulse] (for the rest detection).
+    base : dict, optional
+        ``time_constant`` and ``gain`` to fall back on where the data say nothing.
+    """
+    notes: list[str] = []
+    dy = np.diff(y)
+    speed0 = 0.0
+    if np.any(np.abs(dy[:3]) > 1.0 + 4.0 * noise):
+        speed0 = float(np.mean(dy[:3])) / Ts
+    start = _arx(u, dy, Ts)
+    if start is None:
+        if base is None:
+            start = (0.1, 1e6, 0.0)
+        else:
+            start = (base["time_constant"], base["gain"], 0.0)
+        notes.append("the ARX start failed (a < 0 or a >= 1): started from the base machine")
+    tau0, gain0, friction0 = start
+    tau0 = min(max(tau0, 5 * Ts), 1e4 * Ts)
+
+    moving = np.abs(dy) > 1.0 + 4.0 * noise
+    direction = np.sign(dy[moving])
+    reversals = int(np.count_nonzero(np.diff(direction) != 0)) if direction.size else 0
+    both_ways = direction.size > 0 and np.any(direction > 0) and np.any(direction < 0)
+    friction_ok = bool(both_ways and reversals >= 2)
+
+    names = ["log_tau", "log_gain", "delay_samples"]
+    x0 = [math.log(tau0), math.log(gain0), 0.0]
+    lower = [math.log(Ts), -np.inf, 0.0]
+    upper = [math.log(1e6 * Ts), np.inf, MAX_DELAY_SAMPLES]
+    fixed = {"stiction": 0.0}  # the stiction is scanned once the rest is fitted
+    if friction_ok:
+        names.append("coulomb_friction")
+        x0.append(min(friction0, 0.5 * max_drive))
+        lower.append(0.0)
+        upper.append(max_drive)
+    else:
+        fixed["coulomb_friction"] = 0.0
+        notes.append("coulomb_friction and stiction: not identifiable, the axis never "
+                     "reversed its motion (a constant friction is then the same as a drive "
+                     "offset); use a log with moves both ways")
+
+    # The delay and tau: the best of a few starts (the residual has local minima a sample
+    # apart in the delay; a mode can mislead the ARX start of tau).
+    taus = [tau0] + ([base["time_constant"]] if base is not None else []) + [
+        tau0 * 3.0, tau0 * 10.0]
+    best = None
+    for tau_start in taus:
+        gain_start = gain0 if base is None or tau_start == tau0 else base["gain"]
+        for d in (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0):
+            x = list(x0)
+            x[0] = math.log(min(max(tau_start, 5 * Ts), 1e4 * Ts))
+            x[1] = math.log(gain_start)
+            x[2] = d
+            r = _residual_fn(u, dy, Ts, speed0, fixed, names)(np.array(x))
+            cost = float(r @ r)
+            if best is None or cost < best[0]:
+                best = (cost, x)
+    x0 = best[1]
+    fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+    sol = least_squares(fn, x0, bounds=(lower, upper), x_scale="jac", method="trf",
+                        xtol=1e-8, ftol=1e-10)
+    rigid = (sol, names, fixed)
+
+    # A mode: started at the residual spectrum's peak above the rigid body's band.
+    mode_sol = None
+    residual = sol.fun
+    n = residual.size
+    if n >= 64:
+        spectrum = np.abs(np.fft.rfft(residual * np.hanning(n))) ** 2
+        freqs = np.fft.rfftfreq(n, Ts)
+        band = (freqs > max(5.0 / (2 * math.pi * math.exp(sol.x[0])), 5.0)) & (
+            freqs < 0.45 / Ts)
+        if np.any(band):
+            f0 = float(freqs[band][np.argmax(spectrum[band])])
+            m_names = names + ["log_omega", "resonance_damping", "coupling"]
+            best_mode = None
+            for coupling0 in (1.0, -1.0):
+                mx0 = list(sol.x) + [math.log(2 * math.pi * f0), 0.05, coupling0]
+                m_lower = lower + [math.log(2 * math.pi * 2.0), 1e-3, -1.5]
+                m_upper = upper + [math.log(2 * math.pi * 0.5 / Ts), 0.5, 20.0]
+                m_fn = _residual_fn(u, dy, Ts, speed0, fixed, m_names)
+                try:
+                    m_sol = least_squares(m_fn, mx0, bounds=(m_lower, m_upper),
+                                          x_scale="jac", method="trf", xtol=1e-8,
+                                          ftol=1e-10)
+                except ValueError:
+                    continue
+                if best_mode is None or m_sol.cost < best_mode[0].cost:
+                    best_mode = (m_sol, m_names)
+            if best_mode is not None and best_mode[0].cost < (1 - MODE_GAIN) * sol.cost:
+                mode_sol = best_mode
+            else:
+                gain_share = 0.0 if best_mode is None else 1 - best_mode[0].cost / sol.cost
+                notes.append(
+                    f"resonance: none found below {0.5 / Ts:g} Hz (a mode lowers the "
+                    f"residual by {gain_share:.1%}, less than {MODE_GAIN:.0%}): the axis "
+                    "is rigid in this band, or the log did not excite its mode")
+    if mode_sol is not None:
+        sol, names = mode_sol
+        fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+
+    values = dict(zip(names, sol.x))
+    # Stiction: the breakaways bound it; the residual picks within the bounds.
+    identified = {"time_constant": True, "gain": True, "delay": True,
+                  "coulomb_friction": friction_ok, "stiction": False,
+                  "resonance": mode_sol is not None}
+    stiction_sigma = math.nan
+    friction = values.get("coulomb_friction", fixed.get("coulomb_friction", 0.0))
+    noise = max(noise, math.sqrt(sol.cost / max(sol.fun.size, 1)))  # rms / sqrt(2)
+    held, moved = _breakaways(u, y, Ts, noise)
+    if friction_ok and held:
+        # The largest drive an axis held at rest bounds the stiction from below (within
+        # the rest detection's threshold); the residual picks it on a grid above it.
+        hi = min(max(max(held), max(moved, default=0.0)) + 0.05 * max_drive, max_drive)
+        grid = np.linspace(friction, max(hi, friction + 1e-3 * max_drive), 31)
+
+        def cost_of(s):
+            r = _residual_fn(u, dy, Ts, speed0, dict(fixed, stiction=float(s)), names)(sol.x)
+            return float(r @ r)
+        costs = [cost_of(s) for s in grid]
+        i = int(np.argmin(costs))
+        step = float(grid[1] - grid[0])
+        fine = np.linspace(max(grid[i] - step, friction), grid[i] + step, 21)
+        fine_costs = [cost_of(s) for s in fine]
+        fixed["stiction"] = float(fine[int(np.argmin(fine_costs))])
+        stiction_sigma = float(fine[1] - fine[0])
+        identified["stiction"] = True
+        fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+    elif friction_ok:
+        notes.append("stiction: not identifiable, the axis never left a rest (of 5 samples "
+                     "or more) in the log; add a slow drive ramp from rest")
+    r = fn(sol.x)
+    dof = max(r.size - len(names), 1)
+    s2 = float(r @ r) / dof
+    try:
+        J = sol.jac
+        cov = np.linalg.pinv(J.T @ J) * s2
+        sig = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    except (np.linalg.LinAlgError, ValueError):
+        sig = np.full(len(names), math.nan)
+    out = {}
+    sigma = {}
+    for name, x, sx in zip(names, sol.x, sig):
+        if name == "log_tau":
+            out["time_constant"] = math.exp(x)
+            sigma["time_constant"] = math.exp(x) * sx
+        elif name == "log_gain":
+            out["gain"] = math.exp(x)
+            sigma["gain"] = math.exp(x) * sx
+        elif name == "log_omega":
+            out["resonance_frequency"] = math.exp(x) / (2 * math.pi)
+            sigma["resonance_frequency"] = math.exp(x) / (2 * math.pi) * sx
+        elif name == "delay_samples":
+            out["delay"] = x * Ts
+            sigma["delay"] = sx * Ts
+        else:
+            out[name] = float(x)
+            sigma[name] = float(sx)
+    out["coulomb_friction"] = out.get("coulomb_friction", fixed.get("coulomb_friction", 0.0))
+    out["stiction"] = max(fixed["stiction"], out["coulomb_friction"])
+    sigma.setdefault("coulomb_friction", math.nan)
+    sigma["stiction"] = stiction_sigma
+    params = dict(out)
+    y_sim = simulate(u, Ts, params, speed0) + y[0]
+    return AxisFit(values=out, sigma=sigma, residual_rms=float(np.sqrt(np.mean(r * r))),
+                   residual=r, simulated=y_sim, notes=notes, identified=identified)
