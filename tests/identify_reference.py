@@ -133,7 +133,8 @@ def simulate_log(axis: dict, drive: np.ndarray, sample_period: float, delay: flo
             stop.terminal = True
             stop.direction = -sgn
             sol = solve_ivp(_rhs(axis, u, sgn, False), (t, b), state, rtol=rtol, atol=1e-9,
-                            method="DOP853", events=stop, dense_output=True)
+                            method="DOP853", events=stop if S > 0 else None,
+                            dense_output=True)
             if sol.status == 1:  # the motor stopped inside
                 tz = sol.t_events[0][0]
                 record(lambda ts: sol.sol(ts)[out], t, tz, False)

@@ -24,7 +24,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
+from types import SimpleNamespace
 
 from ._identify_model import simulate
 
@@ -58,9 +58,66 @@ def _residual_fn(u, dy, Ts, speed0, fixed, names):
         if "log_omega" in params:
             params["resonance_frequency"] = math.exp(params.pop("log_omega")) / (2 * math.pi)
         params["delay"] = params.pop("delay_samples") * Ts
-        y = simulate(u, Ts, params, speed0)
+        y = simulate(u, Ts, params, params.pop("speed0", speed0))
         return np.diff(y) - dy
     return fn
+
+
+def least_squares(fn, x0, bounds, max_iterations: int = 60, **_ignored):
+    """Levenberg-Marquardt on the normal equations, bounds by projection.
+
+    scipy's ``least_squares`` factors the tall Jacobian (n_samples x a few) by SVD or QR
+    every iteration, which under a multithreaded BLAS on a busy machine cost 0.1 s each;
+    the few parameters here need only ``J^T J``. Same result fields (``x``, ``fun``,
+    ``cost`` = half the sum of squares, ``jac``, ``nfev``).
+    """
+    lower, upper = (np.asarray(b, dtype=float) for b in bounds)
+    x = np.clip(np.asarray(x0, dtype=float), lower, upper)
+    r = fn(x)
+    cost = float(r @ r)
+    nfev = 1
+    lam = 1e-3
+    J = None
+    for _ in range(max_iterations):
+        J = np.empty((r.size, x.size))
+        for i in range(x.size):
+            h = 1e-6 * max(abs(x[i]), 1.0)
+            xi = x.copy()
+            xi[i] = x[i] + h if x[i] + h <= upper[i] else x[i] - h
+            J[:, i] = (fn(xi) - r) / (xi[i] - x[i])
+            nfev += 1
+        A = J.T @ J
+        g = J.T @ r
+        scale = np.diag(A).copy()
+        scale[scale <= 0] = 1.0
+        # Parameters held at a bound by the gradient leave the step (an active set):
+        # projecting a coupled step would spoil the others.
+        free = ~(((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0)))
+        improved = False
+        done = False
+        for _ in range(12):
+            dx = np.zeros_like(x)
+            try:
+                dx[free] = -np.linalg.solve((A + lam * np.diag(scale))[np.ix_(free, free)],
+                                            g[free])
+            except np.linalg.LinAlgError:
+                lam *= 10.0
+                continue
+            xn = np.clip(x + dx, lower, upper)
+            rn = fn(xn)
+            nfev += 1
+            cn = float(rn @ rn)
+            if cn < cost:
+                done = cost - cn <= 1e-12 * cost or np.all(
+                    np.abs(xn - x) <= 1e-10 * np.maximum(np.abs(x), 1.0))
+                x, r, cost = xn, rn, cn
+                lam = max(lam / 3.0, 1e-12)
+                improved = True
+                break
+            lam *= 4.0
+        if not improved or done:
+            break
+    return SimpleNamespace(x=x, fun=r, cost=0.5 * cost, jac=J, nfev=nfev)
 
 
 def _arx(u, dy, Ts, max_taps=6):
@@ -107,6 +164,18 @@ def _breakaways(u, y, Ts, noise):
     return held, moved
 
 
+def _real_mode(mode, rigid, lower, upper) -> bool:
+    """A mode is kept when it lowers the residual clearly (by :data:`MODE_GAIN`, and the
+    rigid fit's residual is above rounding), couples into the reading, and its frequency
+    and damping are not at their bounds."""
+    rms = math.sqrt(2 * rigid.cost / max(rigid.fun.size, 1))
+    omega, zeta, coupling = mode.x[-3:]
+    inside = all(lo + 1e-6 * max(1.0, abs(lo)) < v < hi - 1e-6 * max(1.0, abs(hi))
+                 for v, lo, hi in zip(mode.x[-3:-1], lower[-3:-1], upper[-3:-1]))
+    return bool(mode.cost < (1 - MODE_GAIN) * rigid.cost and rms > 1e-3
+                and abs(coupling) > 0.02 and inside)
+
+
 def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
              max_drive: float = 10.0, base: dict | None = None) -> AxisFit:
     """Fit one axis (see the module docstring).
@@ -127,8 +196,8 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
     notes: list[str] = []
     dy = np.diff(y)
     speed0 = 0.0
-    if np.any(np.abs(dy[:3]) > 1.0 + 4.0 * noise):
-        speed0 = float(np.mean(dy[:3])) / Ts
+    if np.all(np.abs(dy[:3]) > 1.0 + 4.0 * noise) and np.ptp(np.sign(dy[:3])) == 0:
+        speed0 = float(dy[0]) / Ts
     start = _arx(u, dy, Ts)
     if start is None:
         if base is None:
@@ -145,10 +214,12 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
     both_ways = direction.size > 0 and np.any(direction > 0) and np.any(direction < 0)
     friction_ok = bool(both_ways and reversals >= 2)
 
-    names = ["log_tau", "log_gain", "delay_samples"]
-    x0 = [math.log(tau0), math.log(gain0), 0.0]
-    lower = [math.log(Ts), -np.inf, 0.0]
-    upper = [math.log(1e6 * Ts), np.inf, MAX_DELAY_SAMPLES]
+    # speed0: the speed at the log's first sample [pulse/s], fitted with the rest (a log
+    # need not start at rest).
+    names = ["log_tau", "log_gain", "delay_samples", "speed0"]
+    x0 = [math.log(tau0), math.log(gain0), 0.0, speed0]
+    lower = [math.log(Ts), -np.inf, 0.0, -np.inf]
+    upper = [math.log(1e6 * Ts), np.inf, MAX_DELAY_SAMPLES, np.inf]
     fixed = {"stiction": 0.0}  # the stiction is scanned once the rest is fitted
     if friction_ok:
         names.append("coulomb_friction")
@@ -178,10 +249,17 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
             if best is None or cost < best[0]:
                 best = (cost, x)
     x0 = best[1]
-    fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
-    sol = least_squares(fn, x0, bounds=(lower, upper), x_scale="jac", method="trf",
-                        xtol=1e-8, ftol=1e-10)
-    rigid = (sol, names, fixed)
+    # First the linear part alone (smooth in every parameter), then with the friction,
+    # whose sticking makes the residual kink: started near its optimum, the fit stays in
+    # the right valley.
+    linear = names[:4]
+    fn = _residual_fn(u, dy, Ts, speed0, dict(fixed, coulomb_friction=0.0), linear)
+    sol = least_squares(fn, x0[:4], bounds=(lower[:4], upper[:4]))
+    if friction_ok:
+        fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+        tries = [least_squares(fn, list(sol.x) + [f], bounds=(lower, upper))
+                 for f in sorted({0.0, x0[4]})]
+        sol = min(tries, key=lambda t: t.cost)
 
     # A mode: started at the residual spectrum's peak above the rigid body's band.
     mode_sol = None
@@ -203,13 +281,12 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
                 m_fn = _residual_fn(u, dy, Ts, speed0, fixed, m_names)
                 try:
                     m_sol = least_squares(m_fn, mx0, bounds=(m_lower, m_upper),
-                                          x_scale="jac", method="trf", xtol=1e-8,
-                                          ftol=1e-10)
+                                          max_iterations=30)
                 except ValueError:
                     continue
                 if best_mode is None or m_sol.cost < best_mode[0].cost:
                     best_mode = (m_sol, m_names)
-            if best_mode is not None and best_mode[0].cost < (1 - MODE_GAIN) * sol.cost:
+            if best_mode is not None and _real_mode(best_mode[0], sol, m_lower, m_upper):
                 mode_sol = best_mode
             else:
                 gain_share = 0.0 if best_mode is None else 1 - best_mode[0].cost / sol.cost
@@ -283,6 +360,7 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
     sigma.setdefault("coulomb_friction", math.nan)
     sigma["stiction"] = stiction_sigma
     params = dict(out)
-    y_sim = simulate(u, Ts, params, speed0) + y[0]
+    y_sim = simulate(u, Ts, params, out.pop("speed0", speed0)) + y[0]
+    sigma.pop("speed0", None)
     return AxisFit(values=out, sigma=sigma, residual_rms=float(np.sqrt(np.mean(r * r))),
                    residual=r, simulated=y_sim, notes=notes, identified=identified)

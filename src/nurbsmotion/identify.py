@@ -759,7 +759,8 @@ def write_excitation_csv(time_s: np.ndarray, drive: np.ndarray, axis_names, file
     def write(handle):
         buf = io.StringIO()
         buf.write(",".join(["t"] + [f"{a}_drive" for a in axis_names]) + "\n")
-        np.savetxt(buf, np.column_stack([time_s, drive]), delimiter=",", fmt="%.17g")
+        np.savetxt(buf, np.column_stack([time_s, drive]), delimiter=",",
+                   fmt=["%.12g"] + ["%.17g"] * drive.shape[1])
         handle.write(buf.getvalue())
     return write_output(file, write, overwrite=overwrite)
 
@@ -775,17 +776,16 @@ def excitation_gcode(machine: Machine, *, travel: float | None = None) -> str:
     span = travel / 2 * mm_per_pulse  # [mm]
     letters = [a.upper() for a in machine.axis_names]
     lines = ["(nurbsmotion excite: position moves for nurbsmotion identify)",
-             "G21 G91 G64", ]
+             "G21 G91"]
     for j, letter in enumerate(letters):
         vmax = float(machine.max_axis_speed[j]) if math.isfinite(machine.max_drive) else (
             10.0 * machine.Kc[j] * machine.Ke[j])
-        top = 0.5 * vmax * mm_per_pulse * 60.0  # [mm/min]
-        for share in (0.002, 0.01, 0.05, 0.2, 1.0):
+        top = 0.2 * vmax * mm_per_pulse * 60.0  # [mm/min]
+        for share in (5e-4, 5e-3, 0.05, 0.25, 1.0):
             feed = max(top * share, 1.0)
             lines += [f"G1 {letter}{span:.4f} F{feed:.6g}", f"G1 {letter}{-span:.4f}"]
         short = span / 20
         for _ in range(5):
             lines += [f"G1 {letter}{short:.4f} F{top:.6g}", f"G1 {letter}{-short:.4f}"]
-        lines.append("G4 P0.2")
     lines.append("M2")
     return "\n".join(lines) + "\n"
