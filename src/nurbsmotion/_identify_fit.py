@@ -46,6 +46,7 @@ class AxisFit:
     simulated: np.ndarray
     notes: list = field(default_factory=list)
     identified: dict = field(default_factory=dict)
+    state: tuple = ()
 
 
 def _residual_fn(u, dy, Ts, speed0, fixed, names):
@@ -176,8 +177,15 @@ def _real_mode(mode, rigid, lower, upper) -> bool:
                 and abs(coupling) > 0.02 and inside)
 
 
+SCREEN_SAMPLES = 6_000
+"""The structure of the model (delay start, friction, mode, stiction) is chosen on the
+log's first this many samples; a longer log then refines the parameters in a few
+iterations on all of it."""
+
+
 def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
-             max_drive: float = 10.0, base: dict | None = None) -> AxisFit:
+             max_drive: float = 10.0, base: dict | None = None,
+             screen: int | None = SCREEN_SAMPLES) -> AxisFit:
     """Fit one axis (see the module docstring).
 
     Parameters
@@ -194,6 +202,14 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         ``time_constant`` and ``gain`` to fall back on where the data say nothing.
     """
     notes: list[str] = []
+    if screen is not None and len(y) > screen:
+        head = fit_axis(u[:screen], y[:screen], Ts, noise=noise, max_drive=max_drive,
+                        base=base, screen=None)
+        sol, names, fixed, bounds, speed0 = head.state
+        fn = _residual_fn(u, np.diff(y), Ts, speed0, fixed, names)
+        sol = least_squares(fn, sol.x, bounds=bounds, max_iterations=6)
+        return _finish(u, y, Ts, sol, names, fixed, fn, speed0, head.notes,
+                       head.identified, head.sigma["stiction"], bounds)
     dy = np.diff(y)
     speed0 = 0.0
     if np.all(np.abs(dy[:3]) > 1.0 + 4.0 * noise) and np.ptp(np.sign(dy[:3])) == 0:
@@ -281,11 +297,15 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
                 m_fn = _residual_fn(u, dy, Ts, speed0, fixed, m_names)
                 try:
                     m_sol = least_squares(m_fn, mx0, bounds=(m_lower, m_upper),
-                                          max_iterations=30)
+                                          max_iterations=10)
                 except ValueError:
                     continue
                 if best_mode is None or m_sol.cost < best_mode[0].cost:
                     best_mode = (m_sol, m_names)
+            if best_mode is not None:  # the better start, on to convergence
+                m_fn = _residual_fn(u, dy, Ts, speed0, fixed, m_names)
+                best_mode = (least_squares(m_fn, best_mode[0].x, bounds=(m_lower, m_upper),
+                                           max_iterations=40), m_names)
             if best_mode is not None and _real_mode(best_mode[0], sol, m_lower, m_upper):
                 mode_sol = best_mode
             else:
@@ -294,8 +314,10 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
                     f"resonance: none found below {0.5 / Ts:g} Hz (a mode lowers the "
                     f"residual by {gain_share:.1%}, less than {MODE_GAIN:.0%}): the axis "
                     "is rigid in this band, or the log did not excite its mode")
+    bounds = (lower, upper)
     if mode_sol is not None:
         sol, names = mode_sol
+        bounds = (m_lower, m_upper)
         fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
 
     values = dict(zip(names, sol.x))
@@ -328,6 +350,13 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
     elif friction_ok:
         notes.append("stiction: not identifiable, the axis never left a rest (of 5 samples "
                      "or more) in the log; add a slow drive ramp from rest")
+    return _finish(u, y, Ts, sol, names, fixed, fn, speed0, notes, identified,
+                   stiction_sigma, bounds)
+
+
+def _finish(u, y, Ts, sol, names, fixed, fn, speed0, notes, identified, stiction_sigma,
+            bounds) -> AxisFit:
+    """The estimates, their standard deviations and the simulated response."""
     r = fn(sol.x)
     dof = max(r.size - len(names), 1)
     s2 = float(r @ r) / dof
@@ -363,4 +392,5 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
     y_sim = simulate(u, Ts, params, out.pop("speed0", speed0)) + y[0]
     sigma.pop("speed0", None)
     return AxisFit(values=out, sigma=sigma, residual_rms=float(np.sqrt(np.mean(r * r))),
-                   residual=r, simulated=y_sim, notes=notes, identified=identified)
+                   residual=r, simulated=y_sim, notes=notes, identified=identified,
+                   state=(sol, names, fixed, bounds, speed0))

@@ -43,13 +43,19 @@ __all__ = ["simulate_axis"]
 
 
 @njit(cache=True)
-def _mode_step(x, xd, dt, force, omega, half_damping, damped):
-    """The mode ``x'' + 2a x' + omega^2 x = force`` advanced by ``dt`` (underdamped)."""
+def _mode_step(x, xd, dt, force, omega, half_damping, damped, table):
+    """The mode ``x'' + 2a x' + omega^2 x = force`` advanced by ``dt`` (underdamped);
+    ``table`` holds ``(dt, exp, cos, sin)`` of the two usual piece lengths."""
     xp = force / (omega * omega)
     y0 = x - xp
-    e = math.exp(-half_damping * dt)
-    c = math.cos(damped * dt)
-    s = math.sin(damped * dt)
+    if dt == table[0, 0]:
+        e, c, s = table[0, 1], table[0, 2], table[0, 3]
+    elif dt == table[1, 0]:
+        e, c, s = table[1, 1], table[1, 2], table[1, 3]
+    else:
+        e = math.exp(-half_damping * dt)
+        c = math.cos(damped * dt)
+        s = math.sin(damped * dt)
     y = e * (y0 * c + (xd + half_damping * y0) / damped * s)
     v = e * (xd * c - (half_damping * xd + omega * omega * y0) / damped * s)
     return y + xp, v
@@ -87,6 +93,13 @@ def simulate_axis(drive, sample_period, delay, tau, gain, coulomb, stiction, ome
     half_damping = 0.5 * (1.0 / tau + 2.0 * zeta * omega)
     damped = math.sqrt(max(omega * omega - half_damping * half_damping, 1e-300))
     accel = gain / tau
+    table = np.empty((2, 4))
+    for i in range(2):
+        h = frac * Ts if i == 0 else (1.0 - frac) * Ts
+        table[i, 0] = h
+        table[i, 1] = math.exp(-half_damping * h)
+        table[i, 2] = math.cos(damped * h)
+        table[i, 3] = math.sin(damped * h)
     p = 0.0
     v = speed0
     stuck = speed0 == 0.0
@@ -109,7 +122,8 @@ def simulate_axis(drive, sample_period, delay, tau, gain, coulomb, stiction, ome
                 if stuck:
                     if abs(u) <= S:
                         if modal:
-                            x, xd = _mode_step(x, xd, left, 0.0, omega, half_damping, damped)
+                            x, xd = _mode_step(x, xd, left, 0.0, omega, half_damping, damped,
+                                              table)
                         left = 0.0
                         break
                     stuck = False
@@ -129,7 +143,8 @@ def simulate_axis(drive, sample_period, delay, tau, gain, coulomb, stiction, ome
                 p += vinf * dt + (v - vinf) * tau * (-math.expm1(-dt / tau))
                 v = vinf + (v - vinf) * e
                 if modal:
-                    x, xd = _mode_step(x, xd, dt, accel * net, omega, half_damping, damped)
+                    x, xd = _mode_step(x, xd, dt, accel * net, omega, half_damping,
+                                      damped, table)
                 left -= dt
                 if hit:
                     v = 0.0
