@@ -229,6 +229,7 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
     reversals = int(np.count_nonzero(np.diff(direction) != 0)) if direction.size else 0
     both_ways = direction.size > 0 and np.any(direction > 0) and np.any(direction < 0)
     friction_ok = bool(both_ways and reversals >= 2)
+    friction_zero = False
 
     # speed0: the speed at the log's first sample [pulse/s], fitted with the rest (a log
     # need not start at rest).
@@ -320,10 +321,30 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         bounds = (m_lower, m_upper)
         fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
 
+    if friction_ok:
+        # A friction the data cannot tell from zero (below 3 standard deviations, or
+        # 0.1 % of Umax) is zero: a small spurious one would stick the model at rests.
+        i = names.index("coulomb_friction")
+        r = sol.fun
+        cov = np.linalg.pinv(sol.jac.T @ sol.jac) * float(r @ r) / max(r.size - len(names), 1)
+        sigma_f = math.sqrt(max(cov[i, i], 0.0))
+        if sol.x[i] <= max(3.0 * sigma_f, 1e-3 * max_drive):
+            notes.append(f"coulomb_friction: none found ({sol.x[i]:.3g} +- {sigma_f:.2g} V, "
+                         "not above its noise); written as 0")
+            x = np.delete(sol.x, i)
+            names = names[:i] + names[i + 1:]
+            lo, hi = (np.delete(np.asarray(b, dtype=float), i) for b in bounds)
+            bounds = (list(lo), list(hi))
+            fixed = dict(fixed, coulomb_friction=0.0, stiction=0.0)
+            fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+            sol = least_squares(fn, x, bounds=bounds, max_iterations=20)
+            friction_ok = False
+            friction_zero = True
+
     values = dict(zip(names, sol.x))
     # Stiction: the breakaways bound it; the residual picks within the bounds.
     identified = {"time_constant": True, "gain": True, "delay": True,
-                  "coulomb_friction": friction_ok, "stiction": False,
+                  "coulomb_friction": friction_ok or friction_zero, "stiction": False,
                   "resonance": mode_sol is not None}
     stiction_sigma = math.nan
     friction = values.get("coulomb_friction", fixed.get("coulomb_friction", 0.0))

@@ -661,6 +661,24 @@ def _doublet(level: float, width: int) -> np.ndarray:
                            np.full(width, level)])
 
 
+def _returning(pieces, tau: float, gain: float, Ts: float, level: float,
+               rest: np.ndarray) -> np.ndarray:
+    """The pieces in a row, each followed by a move back towards the start (+-level for
+    w samples each way, then a rest) where the previous ones left the axis off it, so
+    that the excursions do not add up (frictionless rigid axis)."""
+    seq = np.zeros(0)
+    accel = gain * level / tau  # [pulse/s^2]
+    for piece in pieces:
+        seq = np.concatenate([seq, piece])
+        y = _rigid_positions(tau, gain, np.concatenate([seq, [0.0, 0.0]]), Ts)
+        off = float(y[-1] + (y[-1] - y[-2]) / Ts * tau)  # where it coasts to
+        width = int(round(math.sqrt(abs(off) / accel) / Ts))
+        if width >= 1:
+            s = -math.copysign(level, off)
+            seq = np.concatenate([seq, np.full(width, s), np.full(width, -s), rest])
+    return seq
+
+
 def excitation(machine: Machine, *, travel: float | None = None, seed: int = 0
                ) -> tuple[np.ndarray, np.ndarray]:
     """A drive sequence that makes every parameter of :func:`identify` identifiable.
@@ -669,8 +687,9 @@ def excitation(machine: Machine, *, travel: float | None = None, seed: int = 0
     breakaway: stiction), doublets (+A, -2A, +A) at five levels from 5 % to 80 % of Umax in
     both orders (friction against gain, and tau from their curvature), a random binary
     sequence of short bits (the delay and a mode up to half the sample rate), and a rest.
-    Each piece's length is set so that on the base machine, without friction, the axis
-    stays within ``travel`` of its start.
+    Each piece's length is set so that on the base machine, without friction, it moves the
+    axis at most ``travel / 2``, and a slow move back after each piece brings the axis near
+    its start again: the whole sequence stays within ``travel`` of it.
 
     Parameters
     ----------
@@ -722,7 +741,7 @@ def excitation(machine: Machine, *, travel: float | None = None, seed: int = 0
 
         def ramp(n: int, sign: float) -> np.ndarray:
             up = np.linspace(0.0, sign * top, n + 1)[1:]
-            return np.concatenate([up, up[::-1], -0.5 * up, -0.5 * up[::-1]])
+            return np.concatenate([up, up[::-1], -up, -up[::-1]])
 
         n_ramp = widest(lambda n: ramp(n, 1.0), lo=5, hi=max(int(round(0.3 / Ts)), 10))
         pieces += [ramp(n_ramp, 1.0), rest, ramp(n_ramp, -1.0), rest]
@@ -744,7 +763,7 @@ def excitation(machine: Machine, *, travel: float | None = None, seed: int = 0
             level *= 0.7
             prbs = prbs * 0.7
         pieces += [prbs, rest, rest]
-        columns.append(np.concatenate(pieces))
+        columns.append(_returning(pieces, tau, gain, Ts, 0.05 * umax, rest))
     n = max(len(c) for c in columns)
     drive = np.zeros((n, machine.n_axes))
     for j, c in enumerate(columns):
