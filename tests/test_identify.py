@@ -239,10 +239,12 @@ def _bad_log(tmp_path, mutate, header="t,x_drive,x_pos"):
 
 @pytest.mark.parametrize("mutate, header, words", [
     (lambda r: None, "t,x_drive,x_position,y_drive,y_pos", ["x_pos", "missing"]),
-    (lambda r: r[57].__setitem__(0, "0.01"), "t,x_drive,x_pos,y_drive,y_pos", ["'t'", "row 58", "increase"]),
+    (lambda r: r[57].__setitem__(0, "0.01"), "t,x_drive,x_pos,y_drive,y_pos",
+     ["'t'", "row 58", "increase"]),
     (lambda r: [row.__setitem__(1, "0.5") for row in r], "t,x_drive,x_pos,y_drive,y_pos",
      ["'x_drive'", "constant"]),
-    (lambda r: r[120].__setitem__(2, "nan"), "t,x_drive,x_pos,y_drive,y_pos", ["'x_pos'", "row 121"]),
+    (lambda r: r[120].__setitem__(2, "nan"), "t,x_drive,x_pos,y_drive,y_pos",
+     ["'x_pos'", "row 121"]),
     (lambda r: r[9].__setitem__(2, ""), "t,x_drive,x_pos,y_drive,y_pos", ["'x_pos'", "row 10"]),
     (lambda r: r[33].__setitem__(1, "1,5V".replace(",", ";")), "t,x_drive,x_pos,y_drive,y_pos",
      ["'x_drive'", "row 34"]),

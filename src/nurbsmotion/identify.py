@@ -38,7 +38,8 @@ from .machine import LENGTH_UNITS_UM, Machine
 
 __all__ = ["Log", "read_log", "log_from_arrays", "Estimate", "AxisIdentification",
            "Identification", "identify", "excitation", "excitation_gcode",
-           "write_excitation_csv", "POSITION_SUFFIXES", "DRIVE_SUFFIXES", "LOG_UNITS"]
+           "write_excitation_csv", "write_identification", "POSITION_SUFFIXES",
+           "DRIVE_SUFFIXES", "LOG_UNITS"]
 
 POSITION_SUFFIXES = ("_pos", "_meas", "_act")
 """Position columns looked for per axis, in order: a log's ``_pos``, then the project's
