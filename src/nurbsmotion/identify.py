@@ -506,6 +506,10 @@ def _finite(data):
 # -- identification --------------------------------------------------------------------
 
 
+TAU_SPREAD = 0.05
+"""A time constant whose standard deviation exceeds this share of it is reported as poorly
+identified."""
+
 DEFAULT_MECHANICAL_GAIN = 10_000 / (2 * math.pi)
 """Ke [pulse/rad] without a base machine: 10,000 pulses per revolution (the die-bonder's)."""
 
@@ -574,6 +578,13 @@ def identify(log, base: Machine | None = None, *, max_drive: float | None = None
             est["stiction"] = Estimate(v["stiction"], s["stiction"], "V")
         encoder_on = None
         axis_notes = list(fit.notes)
+        spread = s["time_constant"] / v["time_constant"]
+        if not spread <= TAU_SPREAD:
+            axis_notes.append(
+                f"time_constant and electrical_gain: poorly identified (tau +- {spread:.0%}):"
+                " the log's moves are short against tau, so only Kc/tau (the acceleration "
+                "per volt) is sharp; log longer moves (more --travel in excite, or its "
+                "G-code variant in closed loop)")
         if fit.identified["resonance"]:
             est["resonance_frequency"] = Estimate(v["resonance_frequency"],
                                                   s["resonance_frequency"], "Hz")
