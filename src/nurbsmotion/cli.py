@@ -571,6 +571,79 @@ def _campaign_case(case, out: Path, args) -> int:
           f"{data['cycle_time_s']:.4g} s, max contour error {data['max_contour_error']:.4g} "
           f"pulse -> {out}")
     return 0
+def _parse_columns(text: str) -> dict:
+    """argparse type of ``--columns``: ``KEY=NAME,KEY=NAME`` (``x_pos=enc0,t=time``)."""
+    mapping = {}
+    for part in text.split(","):
+        key, sep, name = part.partition("=")
+        if not sep or not key.strip() or not name.strip():
+            raise argparse.ArgumentTypeError(
+                f"{part!r} is not KEY=NAME (e.g. x_pos=encoder_x,x_drive=dac_x,t=time)")
+        mapping[key.strip()] = name.strip()
+    return mapping
+
+
+def _cmd_identify(args) -> int:
+    from ._identify_plot import IDENTIFY_FIGURE
+    from .identify import identify, read_log
+
+    base = load_machine(args.machine)
+    out = Path(args.out)
+    names = [out.name, "identify.json"] + ([] if args.no_figures else [IDENTIFY_FIGURE])
+    with OutputFolder(out.parent if str(out.parent) else ".", names,
+                      overwrite=args.overwrite) as staged:  # checked before any work
+        log = read_log(args.log, base.axis_names, columns=args.columns,
+                       sample_period=args.sample_period, units=args.units,
+                       pulse_length_um=base.pulse_length_um)
+        result = identify(log, base)
+        (staged.staging / out.name).write_text(result.to_toml(), encoding="utf-8")
+        import json
+
+        from .identify import _json_safe
+
+        (staged.staging / "identify.json").write_text(
+            json.dumps(_json_safe(result.to_dict()), indent=2), encoding="utf-8")
+        if not args.no_figures:
+            result.plot(staged.staging, overwrite=True)
+    for a in result.axes:
+        shown = ", ".join(f"{k} {e.value:.5g}" + (f" +- {e.sigma:.2g}" if e.sigma == e.sigma
+                                                  else "") for k, e in a.estimates.items())
+        print(f"axis {a.name}: {shown}; residual RMS {a.residual_rms:.3g} pulse/sample")
+        for note in a.notes:
+            print(f"  not identified: {note}")
+    print(f"{log.n_samples} samples in {result.seconds:.2f} s -> {out}")
+    return 0
+
+
+def _cmd_excite(args) -> int:
+    from ._io import write_output
+    from .identify import excitation, excitation_gcode, write_excitation_csv
+
+    machine = load_machine(args.machine)
+    out = Path(args.out)
+    travel = None
+    if args.travel is not None:
+        travel = units.length_in_pulses(args.travel, None, machine, "--travel",
+                                        bare_unit="pulse")
+    suffix = out.suffix.lower()
+    if suffix in (".csv", ".ngc", ".nc", ".gcode"):
+        out.parent.mkdir(parents=True, exist_ok=True)
+    if suffix == ".csv":
+        t, drive = excitation(machine, travel=travel, seed=args.seed)
+        write_excitation_csv(t, drive, machine.axis_names, out, overwrite=args.overwrite)
+        print(f"{len(t)} samples ({t[-1]:.3g} s) of drive commands within +-"
+              f"{abs(drive).max():.3g} V -> {out}")
+    elif suffix in (".ngc", ".nc", ".gcode"):
+        text = excitation_gcode(machine, travel=travel)
+        write_output(out, lambda h: h.write(text), overwrite=args.overwrite)
+        print(f"position moves -> {out} (run it: nurbsmotion run {out} --machine "
+              f"{args.machine} --out DIR, then nurbsmotion identify DIR/trace.csv)")
+    else:
+        raise InvalidArgumentError(f"--out must end in .csv (drive commands) or .ngc "
+                                   f"(G-code moves), got {out.name!r}")
+    return 0
+
+
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """Shows ``(default: ...)`` for options that have a default worth showing (not for
     required options, flags, or options without a default)."""
@@ -868,6 +941,33 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--no-figures", action="store_true", help="with --case: skip the figures")
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
     c.set_defaults(func=_cmd_campaign)
+    d = command("identify", "fit a machine file (tau, Kc, delay, friction, a mode) to a "
+                "log of drive and encoder position; gains from --machine")
+    d.add_argument("log", help="log: CSV with a header (t, <axis>_drive [V], <axis>_pos) "
+                   "or a trace.csv / trace.parquet of nurbsmotion run")
+    d.add_argument("--out", required=True, help="machine file to write (.toml); "
+                   "identify.json and identify.png go beside it")
+    d.add_argument("--machine", default="die-bonder", help=machine_help + ": its axes, "
+                   "Ke, gains, drive limit and sample period")
+    d.add_argument("--columns", type=_parse_columns, help="the log's names for t, "
+                   "<axis>_drive, <axis>_pos: KEY=NAME,... (e.g. x_pos=enc0,t=time)")
+    d.add_argument("--sample-period", type=_positive_float,
+                   help="Ts [s] of a log without a t column")
+    d.add_argument("--units", default="pulse", help="unit of the log's positions "
+                   "(pulse, um, mm, cm, m, in)")
+    d.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    d.add_argument("--no-figures", action="store_true", help="skip identify.png")
+    d.set_defaults(func=_cmd_identify)
+
+    x = command("excite", "a short test sequence that makes every parameter identifiable: "
+                "drive commands (.csv) or position moves (.ngc)")
+    x.add_argument("--machine", default="die-bonder", help=machine_help)
+    x.add_argument("--out", required=True, help="excitation.csv or excitation.ngc")
+    x.add_argument("--travel", help="bound of the excursion from the start, a length "
+                   "(20mm) or pulses (default: 20 mm)")
+    x.add_argument("--seed", type=int, default=0, help="seed of the random binary part")
+    x.add_argument("--overwrite", action="store_true", help="replace an existing file")
+    x.set_defaults(func=_cmd_excite)
     return p
 
 

@@ -1,0 +1,173 @@
+"""Issue 34 evaluation of ``nurbsmotion identify``: the identification error on random
+machines, and the run time on a 60 s log at 1 kHz.
+
+For each of N random one-axis machines (tests/identify_reference.py ``random_axis``: tau
+0.05-0.5 s, Ke*Kc over a factor 5, Coulomb friction 0.05-0.6 V with stiction 1-1.6 times
+it, half of them with a mode at 40-250 Hz, damping 0.01-0.1, load share 0.2-0.7, encoder on
+the motor (70 %) or the load; two-mass axes have friction on half of them), a delay of 0-2
+samples, 1-pulse encoder counts and Gaussian reading noise of 0-0.5 pulse:
+
+1. ``nurbsmotion excite`` of a base machine whose tau and Kc are off by up to +-30 % (what
+   a user knows before identifying);
+2. the log of the true machine under it, made by the independent ``solve_ivp`` simulator
+   of the tests (not the project's loop, not the fit's model);
+3. ``identify`` of the log, and the errors against the truth.
+
+Prints a Markdown table per class of machine (rigid, two-mass without friction, two-mass
+with friction): the median and 95th percentile of each error and the share within the
+issue's targets (tau and Kc 2 %, delay 0.1 Ts, Coulomb 10 %, mode frequency 2 %, damping
+30 %), the modes found and missed; then identify's time on a 60 s log (made with the fit's
+own model, which only sets what the log holds).
+
+Run: python benchmarks/identify_eval.py [N] (default 200; NURBSMOTION_IDENTIFY_WORKERS
+processes, default 2). Writes benchmarks/identify_eval.json.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+from multiprocessing import Pool
+from pathlib import Path
+
+import numpy as np
+
+from _common import ROOT  # noqa: F401  (puts src/ on the path)
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from identify_reference import random_axis, simulate_log  # noqa: E402
+
+from nurbsmotion.identify import excitation, identify, log_from_arrays  # noqa: E402
+from nurbsmotion.machine import Axis, Machine  # noqa: E402
+
+KE = 1591.5494
+TS = 1e-3
+GAINS = ((0.0136, 0.03), (0.00577, 0.028), (0.03, 0.05), (0.005, 0.01))
+
+
+def base_machine(tau: float, kc: float) -> Machine:
+    """A one-axis machine with tau and Kc as given and the first stable die-bonder-like
+    gains (excite uses only tau, Kc, Ke, Umax and Ts)."""
+    for kp, kd in GAINS:
+        try:
+            return Machine((Axis("x", tau, kc, KE, kp, kd),), 10.0, TS, name="base")
+        except ValueError:
+            continue
+    raise RuntimeError(f"no stable gains for tau {tau}, Kc {kc}")
+
+
+def one(seed: int) -> dict:
+    rng = np.random.default_rng(1000 + seed)
+    axis = random_axis(rng)
+    if "resonance_frequency" in axis and rng.random() < 0.5:
+        axis["coulomb_friction"] = axis["stiction"] = 0.0
+    delay = float(rng.uniform(0.0, 2.0)) * TS
+    noise = float(rng.uniform(0.0, 0.5))
+    kc = axis["gain"] / KE
+    base = base_machine(axis["time_constant"] * rng.uniform(0.7, 1.3),
+                        kc * rng.uniform(0.7, 1.3))
+    _, drive = excitation(base, seed=seed)
+    y = simulate_log(axis, drive[:, 0], TS, delay=delay, encoder="counts", noise=noise,
+                     seed=seed, rtol=1e-7)
+    started = time.process_time()
+    result = identify(log_from_arrays(drive, y[:, None], TS), base)
+    cpu = time.process_time() - started
+    est = result.axes[0].estimates
+    row = {"seed": seed, "truth": axis, "delay": delay, "noise": noise, "cpu_s": cpu,
+           "samples": len(y)}
+    row["tau_err"] = est["time_constant"].value / axis["time_constant"] - 1
+    row["kc_err"] = est["electrical_gain"].value / kc - 1
+    row["delay_err_ts"] = (est["delay"].value - delay) / TS
+    if axis["coulomb_friction"] > 0:
+        row["coulomb_err"] = (est["coulomb_friction"].value / axis["coulomb_friction"] - 1
+                              if "coulomb_friction" in est else math.nan)
+    mode = "resonance_frequency" in axis
+    row["class"] = ("rigid" if not mode else
+                    "two-mass, friction" if axis["coulomb_friction"] > 0 else "two-mass")
+    row["mode_found"] = "resonance_frequency" in est
+    if mode and row["mode_found"]:
+        row["freq_err"] = est["resonance_frequency"].value / axis["resonance_frequency"] - 1
+        row["damping_err"] = est["resonance_damping"].value / axis["resonance_damping"] - 1
+    return row
+
+
+TARGETS = (("tau_err", "tau", 0.02), ("kc_err", "Kc", 0.02),
+           ("delay_err_ts", "delay [Ts]", 0.1), ("coulomb_err", "Coulomb", 0.10),
+           ("freq_err", "mode freq.", 0.02), ("damping_err", "damping", 0.30))
+
+
+def table(rows: list[dict]) -> str:
+    lines = ["| class | machines | quantity | median abs error | 95th pct | within target |",
+             "|---|---|---|---|---|---|"]
+    for cls in ("rigid", "two-mass", "two-mass, friction"):
+        sub = [r for r in rows if r["class"] == cls]
+        if not sub:
+            continue
+        for key, label, target in TARGETS:
+            vals = np.array([abs(r[key]) for r in sub if key in r and not math.isnan(r[key])])
+            if vals.size == 0:
+                continue
+            pct = key != "delay_err_ts"
+            fmt = (lambda v: f"{100 * v:.2f} %") if pct else (lambda v: f"{v:.3f}")
+            lines.append(f"| {cls} | {len(sub)} | {label} | {fmt(np.median(vals))} | "
+                         f"{fmt(np.percentile(vals, 95))} | {np.mean(vals <= target):.0%} "
+                         f"of {vals.size} |")
+        found = sum(r["mode_found"] for r in sub)
+        lines.append(f"| {cls} | {len(sub)} | mode found | {found} of {len(sub)} | | |")
+    return "\n".join(lines)
+
+
+def timing() -> dict:
+    """identify on a 60 s log at 1 kHz (a two-mass axis with friction, delay, counts and
+    noise; the log made with the fit's own model)."""
+    from nurbsmotion._identify_model import simulate
+    from nurbsmotion.machine import die_bonder
+
+    machine = die_bonder()
+    _, drive = excitation(machine)
+    reps = int(math.ceil(60.0 / (len(drive) * TS)))
+    drive = np.tile(drive, (reps, 1))[: int(60.0 / TS)]
+    rng = np.random.default_rng(0)
+    truth = [{"time_constant": 0.31, "gain": 2506.17 * KE, "coulomb_friction": 0.3,
+              "stiction": 0.4, "delay": 0.5e-3},
+             {"time_constant": 0.135, "gain": 3156.23 * KE, "coulomb_friction": 0.3,
+              "stiction": 0.4, "delay": 0.5e-3, "resonance_frequency": 100.0,
+              "resonance_damping": 0.02, "coupling": 1.0}]
+    y = np.column_stack([np.floor(simulate(drive[:, j], TS, p)) + rng.normal(0, 0.3, len(drive))
+                         for j, p in enumerate(truth)])
+    log = log_from_arrays(drive, y, TS)
+    identify(log, machine)  # compiles or loads the kernels
+    walls, cpus = [], []
+    for _ in range(3):
+        w, c = time.perf_counter(), time.process_time()
+        identify(log, machine)
+        walls.append(time.perf_counter() - w)
+        cpus.append(time.process_time() - c)
+    return {"samples": len(drive), "axes": 2, "wall_s": float(np.median(walls)),
+            "cpu_s": float(np.median(cpus))}
+
+
+def main() -> None:
+    n = int(sys.argv[1]) if len(sys.argv) > 1 else 200
+    workers = int(os.environ.get("NURBSMOTION_IDENTIFY_WORKERS", "2"))
+    started = time.perf_counter()
+    with Pool(workers) as pool:
+        rows = pool.map(one, range(n), chunksize=1)
+    print(f"{n} random machines in {time.perf_counter() - started:.0f} s "
+          f"(identify: median {np.median([r['cpu_s'] for r in rows]):.2f} s CPU per "
+          f"{rows[0]['samples']}-sample log)\n")
+    print(table(rows))
+    t = timing()
+    print(f"\nidentify on a 60 s log at 1 kHz ({t['samples']} samples, {t['axes']} axes, "
+          f"one with a mode): {t['wall_s']:.2f} s wall, {t['cpu_s']:.2f} s CPU "
+          "(median of 3)")
+    out = Path(__file__).with_suffix(".json")
+    out.write_text(json.dumps({"rows": rows, "timing": t}, indent=1, default=float))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,417 @@
+"""Fitting one axis of a log to the model of :mod:`nurbsmotion._identify_model` (private).
+
+The steps (docs/identify.md):
+
+1. An ARX regression on the position increments (the exact sampled model of a first-order
+   lag, a few input taps and a sign(speed) term) gives tau, G = Ke*Kc and the Coulomb
+   friction to start from.
+2. Stiction from the breakaways: the drive that held the axis at rest just before it
+   moved, and the drive that moved it.
+3. The delay by a search over fractions of a sample, then an output-error fit
+   (:func:`scipy.optimize.least_squares`) of the simulated increments against the logged
+   ones: tau, G, delay and Coulomb friction.
+4. A mode: started from the peak of the residual's spectrum, kept when it lowers the
+   residual clearly; then the stiction by a scan of the same residual.
+
+The residual is on the increments ``y[k+1] - y[k]`` [pulse per sample] rather than on the
+positions: the simulated speed does not drift, the position of an open-loop simulation
+does.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+
+import numpy as np
+
+from ._identify_model import simulate
+
+MODE_GAIN = 0.15
+"""A mode is kept when it lowers the residual's sum of squares by at least this share."""
+
+MAX_DELAY_SAMPLES = 8.0
+"""Largest delay searched [sample periods]."""
+
+
+@dataclass
+class AxisFit:
+    """The fitted parameters of one axis, their standard deviations, and notes."""
+
+    values: dict
+    sigma: dict
+    residual_rms: float
+    residual: np.ndarray
+    simulated: np.ndarray
+    notes: list = field(default_factory=list)
+    identified: dict = field(default_factory=dict)
+    state: tuple = ()
+
+
+def _residual_fn(u, dy, Ts, speed0, fixed, names):
+    def fn(x):
+        params = dict(fixed)
+        for name, value in zip(names, x):
+            params[name] = value
+        params["time_constant"] = math.exp(params.pop("log_tau"))
+        params["gain"] = math.exp(params.pop("log_gain"))
+        if "log_omega" in params:
+            params["resonance_frequency"] = math.exp(params.pop("log_omega")) / (2 * math.pi)
+        params["delay"] = params.pop("delay_samples") * Ts
+        y = simulate(u, Ts, params, params.pop("speed0", speed0))
+        return np.diff(y) - dy
+    return fn
+
+
+def least_squares(fn, x0, bounds, max_iterations: int = 60, **_ignored):
+    """Levenberg-Marquardt on the normal equations, bounds by projection.
+
+    scipy's ``least_squares`` factors the tall Jacobian (n_samples x a few) by SVD or QR
+    every iteration, which under a multithreaded BLAS on a busy machine cost 0.1 s each;
+    the few parameters here need only ``J^T J``. Same result fields (``x``, ``fun``,
+    ``cost`` = half the sum of squares, ``jac``, ``nfev``).
+    """
+    lower, upper = (np.asarray(b, dtype=float) for b in bounds)
+    x = np.clip(np.asarray(x0, dtype=float), lower, upper)
+    r = fn(x)
+    cost = float(r @ r)
+    nfev = 1
+    lam = 1e-3
+    J = None
+    for _ in range(max_iterations):
+        J = np.empty((r.size, x.size))
+        for i in range(x.size):
+            h = 1e-6 * max(abs(x[i]), 1.0)
+            xi = x.copy()
+            xi[i] = x[i] + h if x[i] + h <= upper[i] else x[i] - h
+            J[:, i] = (fn(xi) - r) / (xi[i] - x[i])
+            nfev += 1
+        A = J.T @ J
+        g = J.T @ r
+        scale = np.diag(A).copy()
+        scale[scale <= 0] = 1.0
+        # Parameters held at a bound by the gradient leave the step (an active set):
+        # projecting a coupled step would spoil the others.
+        free = ~(((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0)))
+        improved = False
+        done = False
+        for _ in range(12):
+            dx = np.zeros_like(x)
+            try:
+                dx[free] = -np.linalg.solve((A + lam * np.diag(scale))[np.ix_(free, free)],
+                                            g[free])
+            except np.linalg.LinAlgError:
+                lam *= 10.0
+                continue
+            xn = np.clip(x + dx, lower, upper)
+            rn = fn(xn)
+            nfev += 1
+            cn = float(rn @ rn)
+            if cn < cost:
+                done = cost - cn <= 1e-12 * cost or np.all(
+                    np.abs(xn - x) <= 1e-10 * np.maximum(np.abs(x), 1.0))
+                x, r, cost = xn, rn, cn
+                lam = max(lam / 3.0, 1e-12)
+                improved = True
+                break
+            lam *= 4.0
+        if not improved or done:
+            break
+    return SimpleNamespace(x=x, fun=r, cost=0.5 * cost, jac=J, nfev=nfev)
+
+
+def _arx(u, dy, Ts, max_taps=6):
+    """tau, G and F from ``dy[k+1] = a dy[k] + sum_i b_i u[k+1-i] - cf sign(dy[k])``."""
+    n = len(dy)
+    taps = min(max_taps, max(n - 3, 1))
+    rows = np.arange(taps, n - 1)
+    moving = np.abs(dy) > 1.5
+    sign = np.where(moving, np.sign(dy), 0.0)
+    cols = [dy[rows]] + [u[rows + 1 - i] for i in range(taps)] + [-sign[rows]]
+    A = np.column_stack(cols)
+    b = dy[rows + 1]
+    coef, *_ = np.linalg.lstsq(A, b, rcond=None)
+    a = coef[0]
+    bsum = float(np.sum(coef[1:taps + 1]))
+    if not (0.0 < a < 1.0) or bsum <= 0:
+        return None
+    tau = -Ts / math.log(a)
+    gain = bsum / ((1.0 - a) * Ts)
+    friction = max(float(coef[-1]) / bsum, 0.0)
+    return tau, gain, friction
+
+
+def _breakaways(u, y, Ts, noise):
+    """Drive bounds of the stiction from the rests in the log: the largest |u| an axis at
+    rest held (lower bound) and the |u| at which it left each rest (upper bounds)."""
+    dy = np.diff(y)
+    still = np.abs(dy) <= 1.0 + 4.0 * noise
+    held, moved = [], []
+    k = 0
+    n = len(dy)
+    while k < n:
+        if not still[k]:
+            k += 1
+            continue
+        j = k
+        while j < n and still[j]:
+            j += 1
+        if j - k >= 5 and j < n:  # a rest of 5 samples or more, then a move
+            window = u[k:j]
+            held.append(float(np.max(np.abs(window))))
+            moved.append(float(abs(u[j - 1]) if j >= 1 else abs(u[j])))
+        k = j
+    return held, moved
+
+
+def _real_mode(mode, rigid, lower, upper) -> bool:
+    """A mode is kept when it lowers the residual clearly (by :data:`MODE_GAIN`, and the
+    rigid fit's residual is above rounding), couples into the reading, and its frequency
+    and damping are not at their bounds."""
+    rms = math.sqrt(2 * rigid.cost / max(rigid.fun.size, 1))
+    omega, zeta, coupling = mode.x[-3:]
+    inside = all(lo + 1e-6 * max(1.0, abs(lo)) < v < hi - 1e-6 * max(1.0, abs(hi))
+                 for v, lo, hi in zip(mode.x[-3:-1], lower[-3:-1], upper[-3:-1]))
+    return bool(mode.cost < (1 - MODE_GAIN) * rigid.cost and rms > 1e-3
+                and abs(coupling) > 0.02 and inside)
+
+
+SCREEN_SAMPLES = 6_000
+"""The structure of the model (delay start, friction, mode, stiction) is chosen on the
+log's first this many samples; a longer log then refines the parameters in a few
+iterations on all of it."""
+
+
+def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
+             max_drive: float = 10.0, base: dict | None = None,
+             screen: int | None = SCREEN_SAMPLES) -> AxisFit:
+    """Fit one axis (see the module docstring).
+
+    Parameters
+    ----------
+    u : ndarray, shape (n_samples,)
+        Drive [V] held over each sample.
+    y : ndarray, shape (n_samples,)
+        Encoder reading [pulse].
+    Ts : float
+        Sample period [s].
+    noise : float
+        A first guess of the reading noise [pulse] (for the rest detection).
+    base : dict, optional
+        ``time_constant`` and ``gain`` to fall back on where the data say nothing.
+    """
+    notes: list[str] = []
+    if screen is not None and len(y) > screen:
+        head = fit_axis(u[:screen], y[:screen], Ts, noise=noise, max_drive=max_drive,
+                        base=base, screen=None)
+        sol, names, fixed, bounds, speed0 = head.state
+        fn = _residual_fn(u, np.diff(y), Ts, speed0, fixed, names)
+        sol = least_squares(fn, sol.x, bounds=bounds, max_iterations=6)
+        return _finish(u, y, Ts, sol, names, fixed, fn, speed0, head.notes,
+                       head.identified, head.sigma["stiction"], bounds)
+    dy = np.diff(y)
+    speed0 = 0.0
+    if np.all(np.abs(dy[:3]) > 1.0 + 4.0 * noise) and np.ptp(np.sign(dy[:3])) == 0:
+        speed0 = float(dy[0]) / Ts
+    start = _arx(u, dy, Ts)
+    if start is None:
+        if base is None:
+            start = (0.1, 1e6, 0.0)
+        else:
+            start = (base["time_constant"], base["gain"], 0.0)
+        notes.append("the ARX start failed (a < 0 or a >= 1): started from the base machine")
+    tau0, gain0, friction0 = start
+    tau0 = min(max(tau0, 5 * Ts), 1e4 * Ts)
+
+    moving = np.abs(dy) > 1.0 + 4.0 * noise
+    direction = np.sign(dy[moving])
+    reversals = int(np.count_nonzero(np.diff(direction) != 0)) if direction.size else 0
+    both_ways = direction.size > 0 and np.any(direction > 0) and np.any(direction < 0)
+    friction_ok = bool(both_ways and reversals >= 2)
+    friction_zero = False
+
+    # speed0: the speed at the log's first sample [pulse/s], fitted with the rest (a log
+    # need not start at rest).
+    names = ["log_tau", "log_gain", "delay_samples", "speed0"]
+    x0 = [math.log(tau0), math.log(gain0), 0.0, speed0]
+    lower = [math.log(Ts), -np.inf, 0.0, -np.inf]
+    upper = [math.log(1e6 * Ts), np.inf, MAX_DELAY_SAMPLES, np.inf]
+    fixed = {"stiction": 0.0}  # the stiction is scanned once the rest is fitted
+    if friction_ok:
+        names.append("coulomb_friction")
+        x0.append(min(friction0, 0.5 * max_drive))
+        lower.append(0.0)
+        upper.append(max_drive)
+    else:
+        fixed["coulomb_friction"] = 0.0
+        notes.append("coulomb_friction and stiction: not identifiable, the axis never "
+                     "reversed its motion (a constant friction is then the same as a drive "
+                     "offset); use a log with moves both ways")
+
+    # The delay and tau: the best of a few starts (the residual has local minima a sample
+    # apart in the delay; a mode can mislead the ARX start of tau).
+    taus = [tau0] + ([base["time_constant"]] if base is not None else []) + [
+        tau0 * 3.0, tau0 * 10.0]
+    best = None
+    for tau_start in taus:
+        gain_start = gain0 if base is None or tau_start == tau0 else base["gain"]
+        for d in (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0):
+            x = list(x0)
+            x[0] = math.log(min(max(tau_start, 5 * Ts), 1e4 * Ts))
+            x[1] = math.log(gain_start)
+            x[2] = d
+            r = _residual_fn(u, dy, Ts, speed0, fixed, names)(np.array(x))
+            cost = float(r @ r)
+            if best is None or cost < best[0]:
+                best = (cost, x)
+    x0 = best[1]
+    # First the linear part alone (smooth in every parameter), then with the friction,
+    # whose sticking makes the residual kink: started near its optimum, the fit stays in
+    # the right valley.
+    linear = names[:4]
+    fn = _residual_fn(u, dy, Ts, speed0, dict(fixed, coulomb_friction=0.0), linear)
+    sol = least_squares(fn, x0[:4], bounds=(lower[:4], upper[:4]))
+    if friction_ok:
+        fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+        tries = [least_squares(fn, list(sol.x) + [f], bounds=(lower, upper))
+                 for f in sorted({0.0, x0[4]})]
+        sol = min(tries, key=lambda t: t.cost)
+
+    # A mode: started at the residual spectrum's peak above the rigid body's band.
+    mode_sol = None
+    residual = sol.fun
+    n = residual.size
+    if n >= 64:
+        spectrum = np.abs(np.fft.rfft(residual * np.hanning(n))) ** 2
+        freqs = np.fft.rfftfreq(n, Ts)
+        band = (freqs > max(5.0 / (2 * math.pi * math.exp(sol.x[0])), 5.0)) & (
+            freqs < 0.45 / Ts)
+        if np.any(band):
+            f0 = float(freqs[band][np.argmax(spectrum[band])])
+            m_names = names + ["log_omega", "resonance_damping", "coupling"]
+            best_mode = None
+            for coupling0 in (1.0, -1.0):
+                mx0 = list(sol.x) + [math.log(2 * math.pi * f0), 0.05, coupling0]
+                m_lower = lower + [math.log(2 * math.pi * 2.0), 1e-3, -1.5]
+                m_upper = upper + [math.log(2 * math.pi * 0.5 / Ts), 0.5, 20.0]
+                m_fn = _residual_fn(u, dy, Ts, speed0, fixed, m_names)
+                try:
+                    m_sol = least_squares(m_fn, mx0, bounds=(m_lower, m_upper),
+                                          max_iterations=10)
+                except ValueError:
+                    continue
+                if best_mode is None or m_sol.cost < best_mode[0].cost:
+                    best_mode = (m_sol, m_names)
+            if best_mode is not None:  # the better start, on to convergence
+                m_fn = _residual_fn(u, dy, Ts, speed0, fixed, m_names)
+                best_mode = (least_squares(m_fn, best_mode[0].x, bounds=(m_lower, m_upper),
+                                           max_iterations=40), m_names)
+            if best_mode is not None and _real_mode(best_mode[0], sol, m_lower, m_upper):
+                mode_sol = best_mode
+            else:
+                gain_share = 0.0 if best_mode is None else 1 - best_mode[0].cost / sol.cost
+                notes.append(
+                    f"resonance: none found below {0.5 / Ts:g} Hz (a mode lowers the "
+                    f"residual by {gain_share:.1%}, less than {MODE_GAIN:.0%}): the axis "
+                    "is rigid in this band, or the log did not excite its mode")
+    bounds = (lower, upper)
+    if mode_sol is not None:
+        sol, names = mode_sol
+        bounds = (m_lower, m_upper)
+        fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+
+    if friction_ok:
+        # A friction the data cannot tell from zero (below 3 standard deviations, or
+        # 0.1 % of Umax) is zero: a small spurious one would stick the model at rests.
+        i = names.index("coulomb_friction")
+        r = sol.fun
+        cov = np.linalg.pinv(sol.jac.T @ sol.jac) * float(r @ r) / max(r.size - len(names), 1)
+        sigma_f = math.sqrt(max(cov[i, i], 0.0))
+        if sol.x[i] <= max(3.0 * sigma_f, 1e-3 * max_drive):
+            notes.append(f"coulomb_friction: none found ({sol.x[i]:.3g} +- {sigma_f:.2g} V, "
+                         "not above its noise); written as 0")
+            x = np.delete(sol.x, i)
+            names = names[:i] + names[i + 1:]
+            lo, hi = (np.delete(np.asarray(b, dtype=float), i) for b in bounds)
+            bounds = (list(lo), list(hi))
+            fixed = dict(fixed, coulomb_friction=0.0, stiction=0.0)
+            fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+            sol = least_squares(fn, x, bounds=bounds, max_iterations=20)
+            friction_ok = False
+            friction_zero = True
+
+    values = dict(zip(names, sol.x))
+    # Stiction: the breakaways bound it; the residual picks within the bounds.
+    identified = {"time_constant": True, "gain": True, "delay": True,
+                  "coulomb_friction": friction_ok or friction_zero, "stiction": False,
+                  "resonance": mode_sol is not None}
+    stiction_sigma = math.nan
+    friction = values.get("coulomb_friction", fixed.get("coulomb_friction", 0.0))
+    noise = max(noise, math.sqrt(sol.cost / max(sol.fun.size, 1)))  # rms / sqrt(2)
+    held, moved = _breakaways(u, y, Ts, noise)
+    if friction_ok and held:
+        # The largest drive an axis held at rest bounds the stiction from below (within
+        # the rest detection's threshold); the residual picks it on a grid above it.
+        hi = min(max(max(held), max(moved, default=0.0)) + 0.05 * max_drive, max_drive)
+        grid = np.linspace(friction, max(hi, friction + 1e-3 * max_drive), 31)
+
+        def cost_of(s):
+            r = _residual_fn(u, dy, Ts, speed0, dict(fixed, stiction=float(s)), names)(sol.x)
+            return float(r @ r)
+        costs = [cost_of(s) for s in grid]
+        i = int(np.argmin(costs))
+        step = float(grid[1] - grid[0])
+        fine = np.linspace(max(grid[i] - step, friction), grid[i] + step, 21)
+        fine_costs = [cost_of(s) for s in fine]
+        fixed["stiction"] = float(fine[int(np.argmin(fine_costs))])
+        stiction_sigma = float(fine[1] - fine[0])
+        identified["stiction"] = True
+        fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+    elif friction_ok:
+        notes.append("stiction: not identifiable, the axis never left a rest (of 5 samples "
+                     "or more) in the log; add a slow drive ramp from rest")
+    return _finish(u, y, Ts, sol, names, fixed, fn, speed0, notes, identified,
+                   stiction_sigma, bounds)
+
+
+def _finish(u, y, Ts, sol, names, fixed, fn, speed0, notes, identified, stiction_sigma,
+            bounds) -> AxisFit:
+    """The estimates, their standard deviations and the simulated response."""
+    r = fn(sol.x)
+    dof = max(r.size - len(names), 1)
+    s2 = float(r @ r) / dof
+    try:
+        J = sol.jac
+        cov = np.linalg.pinv(J.T @ J) * s2
+        sig = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    except (np.linalg.LinAlgError, ValueError):
+        sig = np.full(len(names), math.nan)
+    out = {}
+    sigma = {}
+    for name, x, sx in zip(names, sol.x, sig):
+        if name == "log_tau":
+            out["time_constant"] = math.exp(x)
+            sigma["time_constant"] = math.exp(x) * sx
+        elif name == "log_gain":
+            out["gain"] = math.exp(x)
+            sigma["gain"] = math.exp(x) * sx
+        elif name == "log_omega":
+            out["resonance_frequency"] = math.exp(x) / (2 * math.pi)
+            sigma["resonance_frequency"] = math.exp(x) / (2 * math.pi) * sx
+        elif name == "delay_samples":
+            out["delay"] = x * Ts
+            sigma["delay"] = sx * Ts
+        else:
+            out[name] = float(x)
+            sigma[name] = float(sx)
+    out["coulomb_friction"] = out.get("coulomb_friction", fixed.get("coulomb_friction", 0.0))
+    out["stiction"] = max(fixed["stiction"], out["coulomb_friction"])
+    sigma.setdefault("coulomb_friction", math.nan)
+    sigma["stiction"] = stiction_sigma
+    params = dict(out)
+    y_sim = simulate(u, Ts, params, out.pop("speed0", speed0)) + y[0]
+    sigma.pop("speed0", None)
+    return AxisFit(values=out, sigma=sigma, residual_rms=float(np.sqrt(np.mean(r * r))),
+                   residual=r, simulated=y_sim, notes=notes, identified=identified,
+                   state=(sol, names, fixed, bounds, speed0))
