@@ -35,6 +35,9 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                "paths.pieces", "paths.random_paths"), ("base", "geometry")),
     # The servo side knows nothing of curves: machine does not import geometry.
     "machine": (("control", "servo", "plant", "machine", "random_machines"), ("base",)),
+    # A machine from its own log (the fit's model is the plant of section 11, written for
+    # the fit): it knows machines, nothing of paths.
+    "identification": (("identify", "_identify_fit", "_identify_model"), ("base", "machine")),
     # Where a path meets a machine: units (a path's lengths and feeds in the machine's
     # pulses) and the drive-limited speed along the path.
     "planning": (("units", "planning"), ("base", "geometry", "machine")),
@@ -46,25 +49,26 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
              ("base", "geometry", "machine", "planning", "interpolators")),
     "metrics": (("metrics",),
                 ("base", "geometry", "machine", "planning", "interpolators", "loop")),
-    "output": (("plots", "report", "export"),
-               ("base", "geometry", "paths", "machine", "planning", "interpolators", "loop",
-                "metrics")),
+    "output": (("plots", "report", "export", "_identify_plot"),
+               ("base", "geometry", "paths", "machine", "identification", "planning",
+                "interpolators", "loop", "metrics")),
     # run_input: what a run of a named path reads (the contour and its feed), shared by
     # the CLI and a study's cases.
     "study": (("run_input", "experiments", "campaign"),
               ("base", "geometry", "paths", "machine", "planning", "interpolators", "loop",
                "metrics", "output")),
     "cli": (("cli", "__main__", "_precompile"),
-            ("base", "geometry", "paths", "machine", "planning", "interpolators", "loop",
+            ("base", "geometry", "paths", "machine", "identification", "planning", "interpolators", "loop",
              "metrics", "output", "study")),
     # The package's façade loads its names on first use (PEP 562), from any stage.
-    "facade": (("",), ("base", "geometry", "paths", "machine", "planning", "interpolators",
+    "facade": (("",), ("base", "geometry", "paths", "machine", "identification", "planning", "interpolators",
                        "loop", "metrics", "output", "study", "cli")),
 }
 """The allowed layering, lowest first. Within a layer any import is allowed (the cycle
 check still applies)."""
 
 DELEGATIONS = {
+    ("identify", "_identify_plot"): "Identification.plot()",
     ("loop", "metrics"): "Trace.metrics() / SetpointSeries.feed_fluctuation()",
     ("loop", "plots"): "Trace.plot() / SetpointSeries.plot()",
 }
