@@ -683,7 +683,7 @@ def _rest_on_end(h: np.ndarray, theta: np.ndarray, w: np.ndarray, target: np.nda
 
 def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
                  machine: Machine, limit: float, tangent: np.ndarray, curve: NurbsCurve,
-                 param: np.ndarray) -> int:
+                 param: np.ndarray, feed) -> int:
     """Step 5: bring the plan to rest exactly on the end, at the earliest sample N the
     drive allows, no later than the sample where the desired motion arrives there (in
     place). Returns N (the arrival if the plan is left as it is).
@@ -703,7 +703,11 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     from the desired positions' curve parameters ``param`` (n,) find, never less than the
     true one: the polyline through ``y`` cuts a tight curl the samples step across) and
     none passes the end along the path's unit ``tangent`` there by more than that
-    tolerance (:func:`_past_end`). N runs from
+    tolerance (:func:`_past_end`), and their nearest path points move forward by at most
+    the ``feed`` (F [pulse/s] or a :class:`~nurbsmotion.feed.FeedLimit`) times Ts plus
+    :data:`FEED_SLACK` a sample, from the last sample it leaves as it is to N (on a
+    10 mm line at 10 mm/s the landing took the last 47 pulses in 2 samples, the tool at
+    26 mm/s: the desired motion was already at the feed there). N runs from
     the arrival less the samples
     the averaging and the inverse shape (``INVERSE_REACH + 1``), changing at most that
     many drives, up to the arrival itself, where m grows up to :data:`LANDING_SAMPLES`
@@ -716,6 +720,7 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     if float(np.max(np.abs(theta[arrive - 1:] - y[arrive - 1:]))) == 0.0:
         return arrive
     reach = INVERSE_REACH + 1
+    Ts = machine.sample_period
     h = _impulse_responses(machine, min(arrive - LEAD, LANDING_SAMPLES))
     for N in range(max(arrive - reach, LEAD + 2), arrive + 1):
         most = min(N - LEAD, h.shape[1] if N == arrive else reach)
@@ -729,10 +734,13 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
             if np.max(np.abs(drive)) > limit:
                 continue
             theta_new = theta[k0 + 1:N + 1] + moved[:, 1]
-            near = _nearest_forward(curve, theta_new, curve.arc_length(param[k0 + 1:N + 1]))
-            off = np.linalg.norm(theta_new - curve(curve.parameter_at(near)), axis=1)
+            near = _nearest_forward(curve, np.vstack([theta[k0:k0 + 1], theta_new]),
+                                    curve.arc_length(param[k0:N + 1]))
+            at = curve.parameter_at(near)
+            off = np.linalg.norm(theta_new - curve(at[1:]), axis=1)
             if np.max(off) > tolerance \
-                    or _past_end(theta_new, off, end, tangent) > PRECOMPENSATION_TOLERANCE:
+                    or _past_end(theta_new, off, end, tangent) > PRECOMPENSATION_TOLERANCE \
+                    or np.any(np.diff(near) > _feed_at(feed, at[1:]) * Ts + FEED_SLACK):
                 continue
             u[k0:N] = drive
             w[k0 + 1:N + 1] += moved[:, 0]
@@ -742,6 +750,20 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
             theta[N:] = end
             return N
     return arrive
+
+
+FEED_SLACK = 2 * PRECOMPENSATION_TOLERANCE
+"""How far [pulse] a plan's nearest path point may move beyond ``F*Ts`` in a sample: the
+desired motion moves at most F*Ts a sample (its profile is within the feed and the
+averaging of step 1 keeps it so), and the plan of step 3 is within
+:data:`PRECOMPENSATION_TOLERANCE` of it at both ends of the sample. The landing (step 5)
+is held to the same; the feed of the tool's sampled motion is thus F + FEED_SLACK/Ts."""
+
+
+def _feed_at(feed, p: np.ndarray) -> np.ndarray:
+    """The feed F [pulse/s] at the curve parameters ``p`` (m,), shape (m,)."""
+    return np.asarray(feed(p) if isinstance(feed, FeedLimit) else np.full(len(p), feed),
+                      dtype=float)
 
 
 CHECK_POINTS = 32
@@ -1015,7 +1037,12 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         off = np.linalg.norm(offset, axis=1)
         at_end = s_new >= s1 - curve.length * 1e-12
         past = float(np.max((positions[at_end] - end) @ tangent, initial=0.0))
-        if np.max(off) <= tolerance and past <= PRECOMPENSATION_TOLERANCE:
+        # the nearest points of the samples (the start at LEAD, the end at N) move by at
+        # most F*Ts + FEED_SLACK a sample: the programs hold the linearised ones to F
+        at_samples = np.concatenate([[s0], s_new[Q - 1::Q], [s1]])
+        fast = np.any(np.diff(at_samples) > _feed_at(feed, np.concatenate(
+            [p_new[Q - 1::Q], [span.u1]])) * Ts + FEED_SLACK)
+        if np.max(off) <= tolerance and past <= PRECOMPENSATION_TOLERANCE and not fast:
             return u, s_new
         farthest = float(np.max(off))
         stalled = 0 if farthest < closest else stalled + 1
@@ -1420,7 +1447,7 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
     w, theta, u = plant
     tangent = _unit(curve(1.0, 1, "left"))
     landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax, tangent, curve,
-                          param)
+                          param, feed)
     y[landed:] = y[-1]       # the desired motion rests where the plan does
     param[landed:] = 1.0
     if landed <= SHORT_MOVE_SAMPLES and (corners.size == 0 or corner_tolerance == 0):
