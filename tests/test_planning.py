@@ -1166,3 +1166,35 @@ def test_landing_stays_near_a_tight_curl_the_samples_step_across():
     curve = random_path("curls", [77, 177], n_axes=2)
     plan = plan_motion(curve, m, 2.0157e6)
     assert np.max(contour_error(curve, plan.position)) <= 3.0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_warm_started_programs_match_scipy_linprog(seed):
+    """Step 6's programs (issue 35): HiGHS warm-started from the last basis, as the rounds
+    re-linearise the path (same shape, new numbers), reaches the optimum scipy's
+    ``linprog`` finds cold, round after round; an infeasible program gives None."""
+    from scipy import sparse
+    from scipy.optimize import linprog
+    from nurbsmotion.motion_plan import _WarmProgram
+
+    rng = np.random.default_rng(seed)
+    n, m_ub, m_eq = 40, 60, 8
+    A_eq = sparse.csr_matrix(rng.normal(size=(m_eq, n)))
+    bounds = np.column_stack([np.full(n, -1.0), np.full(n, 1.0)])
+    bounds[-1] = (0.0, np.inf)                       # an unbounded column, as E
+    program = _WarmProgram()
+    A = rng.normal(size=(m_ub, n))
+    for _ in range(5):
+        A += 0.05 * rng.normal(size=A.shape)         # the next round's numbers
+        A_ub = sparse.csr_matrix(np.hstack([A[:, :-1], -np.ones((m_ub, 1))]))
+        b_ub = rng.uniform(0.5, 1.5, m_ub)
+        cost = np.r_[rng.normal(size=n - 1) * 0.01, 1.0]
+        x = program.solve(cost, A_ub, b_ub, A_eq, bounds)
+        ref = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=np.zeros(m_eq),
+                      bounds=bounds, method="highs")
+        assert ref.status == 0 and x is not None
+        assert cost @ x == pytest.approx(ref.fun, rel=1e-7, abs=1e-9)
+        assert np.all(A_ub @ x <= b_ub + 1e-7) and np.allclose(A_eq @ x, 0.0, atol=1e-7)
+    # x[0] >= 2 within |x| <= 1: no program
+    infeasible = sparse.csr_matrix(np.eye(1, n) * -1.0)
+    assert program.solve(cost, infeasible, np.array([-2.0]), A_eq, bounds) is None

@@ -78,10 +78,14 @@ is built offline in six steps:
    (along the normals; with 3 axes and more, along directions around the path and, where
    a round found a point outside the tolerance, along its own offset), within a trust
    region (as far as the feed goes in a sample; failing that, as far as the
-   linearisation stays within the tolerance). N runs down from the plan's arrival while
-   one is found (where the landing could not put the plan at rest and it rings about
-   the end by more than ``path_tolerance``, from the first of the arrival and the
-   samples after it, up to where the ringing dies down, at which one is).
+   linearisation stays within the tolerance). N runs down while one is found, from a
+   sample after the piece's continuous time-optimal duration if one is found there,
+   else from the plan's arrival (where the landing could not put the plan at rest and
+   it rings about the end by more than ``path_tolerance``, from the first of the
+   arrival and the samples after it, up to where the ringing dies down, at which one
+   is); the programs of one N are warm-started from the last one's basis (HiGHS'
+   dual simplex through ``highspy``). The nearest path points of the motion found move
+   by at most ``F*Ts +`` :data:`FEED_SLACK` a sample.
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
@@ -785,6 +789,14 @@ programs grow with the piece (0.05-0.5 s each at 50-120 samples, and a move take
 tens of them): on the 1,000 random paths of ``benchmarks/planner_sweep.py`` planning
 takes a median 0.13 s, 3.3 s at the 95th percentile and 13.6 s at most."""
 
+SHORTEN_START = 1
+"""Step 6 starts its search for a piece's arrival this many samples after the piece's
+continuous time-optimal duration (rounded up; :func:`planning.speed_profile` before any
+easing), not at the plan's arrival, and runs down from there: a short move's earliest
+arrival lies within a sample or two of that duration, and each sample it need not step
+down from costs one or more linear programs (on six 60-120 mm free-form moves at 1.7 m/s
+the plan arrived 1-10 samples later, and the search from there took 10-71 programs)."""
+
 DEFAULT_PATH_TOLERANCE = 1.0
 """How far [pulse] from the path step 6 may take a short move's motion by default: one
 pulse, the encoder's resolution (the plan it replaces is held within a quarter of it,
@@ -879,6 +891,68 @@ def _fine_positions(plant: ServoPlant, zoh, u: np.ndarray):
     return w, theta, np.vstack([fine, theta[-1:]])
 
 
+def _highs():
+    """The HiGHS module and its solver class: ``highspy`` (a dependency), or the same
+    bindings that scipy carries for its ``linprog`` where highspy is not installed."""
+    try:
+        import highspy
+        return highspy, highspy.Highs
+    except ImportError:   # pragma: no cover - highspy is a dependency
+        from scipy.optimize._highspy import _core
+        return _core, _core._Highs
+
+
+class _WarmProgram:
+    """The linear programs of one arrival sample of step 6, solved by HiGHS' dual simplex
+    (Huangfu & Hall 2018, through ``highspy``), each from the last one's optimal basis
+    where it has the same rows and columns: a round re-linearises the path at new points,
+    which changes the numbers but not the shape, and the last basis is then a few tens of
+    pivots from the new optimum instead of about a thousand (10-30 x fewer iterations on
+    the rounds of a 78 mm move at 1.7 m/s, 85 samples)."""
+
+    def __init__(self):
+        self.highs = None
+        self.basis = None
+        self.shape = None
+
+    def solve(self, cost, A_ub, b_ub, A_eq, bounds):
+        """Minimise ``cost @ x`` subject to ``A_ub @ x <= b_ub``, ``A_eq @ x = 0`` and the
+        ``bounds`` (n, 2) of x; the optimal x, or None where there is none."""
+        from scipy import sparse
+
+        highspy, Highs = _highs()
+
+        A = sparse.vstack([A_ub, A_eq]).tocsc()
+        lp = highspy.HighsLp()
+        lp.num_col_, lp.num_row_ = A.shape[1], A.shape[0]
+        lp.col_cost_ = np.asarray(cost, dtype=float)
+        lp.col_lower_ = np.ascontiguousarray(bounds[:, 0])
+        lp.col_upper_ = np.ascontiguousarray(bounds[:, 1])
+        lp.row_lower_ = np.concatenate([np.full(A_ub.shape[0], -highspy.kHighsInf),
+                                        np.zeros(A_eq.shape[0])])
+        lp.row_upper_ = np.concatenate([b_ub, np.zeros(A_eq.shape[0])])
+        lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+        lp.a_matrix_.start_ = A.indptr
+        lp.a_matrix_.index_ = A.indices
+        lp.a_matrix_.value_ = A.data
+        lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = A.shape[1], A.shape[0]
+        if self.highs is None:
+            self.highs = Highs()
+            self.highs.setOptionValue("output_flag", False)
+        h = self.highs
+        h.passModel(lp)
+        warm = self.basis is not None and self.shape == A.shape
+        h.setOptionValue("presolve", "off" if warm else "choose")
+        if warm:
+            h.setBasis(self.basis)
+        h.run()
+        if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            self.basis = None
+            return None
+        self.basis, self.shape = h.getBasis(), A.shape
+        return np.array(h.getSolution().col_value)
+
+
 def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
                 s: np.ndarray, limit: float, tolerance: float, tangent: np.ndarray, feed,
                 Ts: float, wide: bool):
@@ -909,7 +983,6 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
     random 3-axis machine, 24 rounds of E at 0.998 against held points at 1.07: 42 s
     where this rule takes 14 s; on the sweep's 461 step-6 runs it changes no arrival)."""
     from scipy import sparse
-    from scipy.optimize import linprog
 
     n_axes = curve.n_axes
     Q = zoh[0].shape[0] - 1
@@ -945,6 +1018,7 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
     has_cut = np.zeros(len(fine), bool)
     reach, previous = 1.0, math.inf
     closest, stalled = math.inf, 0  # the least of the farthest points so far; rounds since
+    program = _WarmProgram()
     for rounds in range(SHORTEN_ROUNDS):
         m = len(held)
         col_step = n_fixed + np.arange(m)
@@ -977,18 +1051,15 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         trust = np.minimum(reach * np.maximum(np.sqrt(2.0 * tolerance / np.fmax(
             curve.curvature(p), 1e-300)), F * Ts * wide), s1 - s0)
         normals = _normal_directions(T)                     # (m, r, n_axes)
-        cuts = np.flatnonzero(has_cut[held])
-        if cuts.size:   # (m, r + 1, n_axes): the held points' cuts (none: row dropped)
-            normals = np.concatenate([normals, cut[held][:, None]], axis=1)
+        if n_axes > 2:  # (m, r + 1, n_axes): the held points' cuts, and where a point
+            # has none its first normal again (a row that changes nothing), so that the
+            # program keeps its shape from round to round and is warm-started
+            normals = np.concatenate([normals, np.where(
+                has_cut[held][:, None], cut[held], normals[:, 0])[:, None]], axis=1)
         A_t = rows_along(T[:, None, :])                     # d = A_t x - b_t
         b_t = np.einsum("ij,ij->i", T, point)
         A_n = rows_along(normals)
         b_n = np.einsum("iqj,ij->iq", normals, point).ravel()
-        if cuts.size:
-            rows = np.ones(normals.shape[:2], bool)
-            rows[:, -1] = False
-            rows[cuts, -1] = True
-            A_n, b_n = A_n[rows.ravel()], b_n[rows.ravel()]
         E = sparse.csr_matrix((np.ones(len(b_n)), (np.arange(len(b_n)),
                                                    np.full(len(b_n), col_E))),
                               shape=(len(b_n), n_var))
@@ -1021,12 +1092,11 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         # a tie-break: of the motions with the least E, the one whose nearest points
         # move least (the chord is exact there); moving all by the trust costs E/16
         cost[col_step] = tolerance / (16.0 * m * trust)
-        res = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=np.zeros(A_eq.shape[0]),
-                      bounds=bounds, method="highs")
-        if res.status != 0:
+        x = program.solve(cost, A_ub, b_ub, A_eq, bounds)
+        if x is None:
             return None
         u = np.zeros((N, n_axes))
-        u[LEAD:] = res.x[:n_u].reshape(n_axes, N - LEAD).T
+        u[LEAD:] = x[:n_u].reshape(n_axes, N - LEAD).T
         positions = _fine_positions(plant, zoh, u)[2][LEAD * Q + 1:N * Q]
         guess = s.copy()
         guess[held] = np.clip(sh + np.einsum("ij,ij->i", T, positions[held] - point),
@@ -1050,7 +1120,7 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         if stalled >= SHORTEN_STALL:
             return None
         worst = float(np.max(off[held]))
-        E_now = float(res.x[col_E])
+        E_now = float(x[col_E])
         left = SHORTEN_ROUNDS - 1 - rounds
         if E_now > tolerance and E_now - tolerance > left * (previous - E_now):
             return None    # at this pace the program will not come within the tolerance
@@ -1083,7 +1153,7 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
 
 def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarray,
              arrival: int, machine: Machine, limit: float, tolerance: float,
-             tangent: np.ndarray, feed):
+             tangent: np.ndarray, feed, earliest: int | None = None):
     """Step 6 (module docstring): the plan ``theta`` (n, n_axes) of a move along the
     ``span`` of the curve that does not stop on the way, from rest on its start at
     sample 0 to rest on its end at ``arrival`` (<= :data:`SHORT_MOVE_SAMPLES`),
@@ -1096,10 +1166,12 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
     ``tolerance`` either).
 
     N runs down from ``arrival - 1`` while one is found (where none is, and the plan so
-    leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one is).
-    The first guess of the nearest points is the plan's (its parameters ``param``, shape
-    (n,)), compressed in time to arrive at N; each later N starts from the last motion
-    found, compressed by a sample.
+    leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one is);
+    given the ``earliest`` sample worth trying first (:data:`SHORTEN_START`), from there
+    if one is found there, else from the top down to it. The first guess of the nearest
+    points is the plan's (its parameters ``param``, shape (n,)), compressed in time to
+    arrive at N; each later N starts from the last motion found, compressed by a sample.
+    The programs of one N are warm-started (:class:`_WarmProgram`).
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
     Ts = machine.sample_period
@@ -1131,9 +1203,13 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
         Q = 2 * math.ceil(fastest * Ts * math.sqrt(kappa / (8.0 * tolerance)) / 2)
         zoh = _partial_zoh(machine, int(min(max(Q, 2), CHECK_POINTS)))
         Q = zoh[0].shape[0] - 1
-        times, s_known = np.arange(arrival + 1, dtype=float), plan_s
+        known = [np.arange(arrival + 1, dtype=float), plan_s]   # times, arc lengths
         best = None
-        for N in range(top, LEAD + 1, -1):
+
+        def found_at(N):
+            # the last motion found (first: the plan) compressed in time to arrive at N
+            nonlocal best
+            times, s_known = known
             t = np.arange(LEAD * Q + 1, N * Q) / Q            # fine points [samples]
             guess = np.interp(LEAD + (t - LEAD) * (times[-1] - LEAD) / (N - LEAD), times,
                               s_known)
@@ -1144,11 +1220,24 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
                 found = found or _shorten_at(curve, span, plant, zoh, N,
                                              np.maximum.accumulate(guess),
                                              limit, tolerance, tangent, feed, Ts, wide)
-            if found is None:
-                break
-            best = (N, *found, zoh)
-            times = np.concatenate([[float(LEAD)], t, [N]])
-            s_known = np.concatenate([[span.s0], found[1], [span.s1]])
+            if found is not None:
+                best = (N, *found, zoh)
+                known[:] = [np.concatenate([[float(LEAD)], t, [N]]),
+                            np.concatenate([[span.s0], found[1], [span.s1]])]
+            return found is not None
+
+        # from the estimate down while one is found; where none is there, from the top
+        # down (each from the motion found a sample later) to the estimate
+        N = top if earliest is None else min(max(earliest, LEAD + 2), top)
+        lowest = LEAD + 2
+        if N == top:
+            N, lowest = top + 1, LEAD + 2
+        elif found_at(N):
+            lowest = LEAD + 2
+        else:
+            N, lowest = top + 1, N + 1
+        while N > lowest and found_at(N - 1):
+            N -= 1
         return best
 
     # within the path tolerance; failing that, no farther from the path than the plan;
@@ -1181,7 +1270,8 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
 
 def _shorten_pieces(curve: NurbsCurve, stops: np.ndarray, corner_times: np.ndarray,
                     theta: np.ndarray, param: np.ndarray, arrival: int, machine: Machine,
-                    limit: float, tolerance: float, tangent: np.ndarray, feed):
+                    limit: float, tolerance: float, tangent: np.ndarray, feed,
+                    earliest=None):
     """Step 6 from stop to stop: every piece of the plan ``theta`` (n, n_axes; its
     parameters ``param`` (n,), at rest on the end at ``arrival``) between the stops at
     the curve parameters ``stops`` (n_pieces + 1,: the start, the stop corners, the end),
@@ -1213,7 +1303,8 @@ def _shorten_pieces(curve: NurbsCurve, stops: np.ndarray, corner_times: np.ndarr
         piece = _shorten(curve, _Span.of(curve, stops[i], stops[i + 1]),
                          theta[a:] if last else theta[a:b + 1], param[a:b + 1], b - a,
                          machine, limit, tolerance,
-                         tangent if last else _unit(curve(stops[i + 1], 1, "left")), feed)
+                         tangent if last else _unit(curve(stops[i + 1], 1, "left")), feed,
+                         None if earliest is None else int(earliest[i]))
         if piece is None:
             return None
         parts.append(piece)
@@ -1365,6 +1456,9 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
         profile = speed_profile(curve, machine, feed, drive_fraction=drive_fraction,
                                 drive_scale=drive_scale if eases else None,
                                 grid_size=grid_size, grids=grids)
+        if not eases:   # step 6 starts its search at each piece's uneased time
+            estimate = [math.ceil(t[-1] / Ts - 1e-9) + SHORTEN_START
+                        for t in profile.piece_times()]
         if profile.duration / Ts > max_samples:
             raise InfeasibleError(
                 f"the planned motion takes {profile.duration:g} s, more than "
@@ -1453,7 +1547,8 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
     if landed <= SHORT_MOVE_SAMPLES and (corners.size == 0 or corner_tolerance == 0):
         stops = np.array([piece[1][0] for piece in profile.pieces] + [1.0])
         short = _shorten_pieces(curve, stops, corners, theta, param, landed, machine,
-                                drive_fraction * umax, path_tolerance, tangent, feed)
+                                drive_fraction * umax, path_tolerance, tangent, feed,
+                                estimate)
         if short is not None:
             landed, y, param, w, theta, u, corners = short
     theta[-1] = y[-1]
