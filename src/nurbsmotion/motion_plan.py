@@ -955,7 +955,7 @@ class _WarmProgram:
 
 def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
                 s: np.ndarray, limit: float, tolerance: float, tangent: np.ndarray, feed,
-                Ts: float, wide: bool):
+                Ts: float, wide: bool, most_rounds: int = SHORTEN_ROUNDS):
     """One arrival sample N of step 6 (:func:`_shorten`) along the ``span`` of the curve
     from stop to stop (the plant at rest on its start at sample 0): drives u[LEAD] .. u[N-1]
     (|u| <= ``limit`` [V]) that keep the model's ``plant`` (at rest at the start) within
@@ -1019,7 +1019,7 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
     reach, previous = 1.0, math.inf
     closest, stalled = math.inf, 0  # the least of the farthest points so far; rounds since
     program = _WarmProgram()
-    for rounds in range(SHORTEN_ROUNDS):
+    for rounds in range(most_rounds):
         m = len(held)
         col_step = n_fixed + np.arange(m)
         col_E = n_fixed + m
@@ -1121,7 +1121,7 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
             return None
         worst = float(np.max(off[held]))
         E_now = float(x[col_E])
-        left = SHORTEN_ROUNDS - 1 - rounds
+        left = most_rounds - 1 - rounds
         if E_now > tolerance and E_now - tolerance > left * (previous - E_now):
             return None    # at this pace the program will not come within the tolerance
         if worst > E_now * spread + tolerance / 16:
@@ -1168,7 +1168,7 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
     N runs down from ``arrival - 1`` while one is found (where none is, and the plan so
     leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one is);
     given the ``earliest`` sample worth trying first (:data:`SHORTEN_START`), from there
-    if one is found there, else from the top down to it. The first guess of the nearest
+    if one is found there within :data:`SHORTEN_STALL` rounds, else from the top. The first guess of the nearest
     points is the plan's (its parameters ``param``, shape (n,)), compressed in time to
     arrive at N; each later N starts from the last motion found, compressed by a sample.
     The programs of one N are warm-started (:class:`_WarmProgram`).
@@ -1206,7 +1206,7 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
         known = [np.arange(arrival + 1, dtype=float), plan_s]   # times, arc lengths
         best = None
 
-        def found_at(N):
+        def found_at(N, most_rounds=SHORTEN_ROUNDS):
             # the last motion found (first: the plan) compressed in time to arrive at N
             nonlocal best
             times, s_known = known
@@ -1219,24 +1219,22 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
             for wide in (True, False):
                 found = found or _shorten_at(curve, span, plant, zoh, N,
                                              np.maximum.accumulate(guess),
-                                             limit, tolerance, tangent, feed, Ts, wide)
+                                             limit, tolerance, tangent, feed, Ts, wide,
+                                             most_rounds)
             if found is not None:
                 best = (N, *found, zoh)
                 known[:] = [np.concatenate([[float(LEAD)], t, [N]]),
                             np.concatenate([[span.s0], found[1], [span.s1]])]
             return found is not None
 
-        # from the estimate down while one is found; where none is there, from the top
-        # down (each from the motion found a sample later) to the estimate
+        # from the estimate down while one is found; where none is found there within
+        # SHORTEN_STALL rounds (a probe: from the plan's guess, compressed by several
+        # samples, a program that does not converge soon seldom does), from the top down
+        # (each from the motion found a sample later)
         N = top if earliest is None else min(max(earliest, LEAD + 2), top)
-        lowest = LEAD + 2
-        if N == top:
-            N, lowest = top + 1, LEAD + 2
-        elif found_at(N):
-            lowest = LEAD + 2
-        else:
-            N, lowest = top + 1, N + 1
-        while N > lowest and found_at(N - 1):
+        if N == top or not found_at(N, SHORTEN_STALL):
+            N = top + 1
+        while N > LEAD + 2 and found_at(N - 1):
             N -= 1
         return best
 
