@@ -785,9 +785,13 @@ farthest point from the path no nearer than the nearest it has been."""
 
 SHORT_MOVE_SAMPLES = 128
 """Step 6 plans the moves that rest on the end within this many samples. Its linear
-programs grow with the piece (0.05-0.5 s each at 50-120 samples, and a move takes some
-tens of them): on the 1,000 random paths of ``benchmarks/planner_sweep.py`` planning
-takes a median 0.13 s, 3.3 s at the 95th percentile and 13.6 s at most."""
+programs grow with the piece (0.05-0.5 s each at 50-120 samples cold, a tenth of that
+warm-started, and a move takes some tens of them): on the first 99 random paths of
+``benchmarks/planner_sweep.py`` (PLANNER_SWEEP_PLAN_ONLY=1) planning takes a median
+0.15 s of CPU, 1.5 s at the 95th percentile and 29 s at most (before the warm starts and
+the search from the estimate: 0.17, 2.6 and 19 s); the slow ones are 3-axis moves of
+60-120 samples whose programs grow by the points found off the path round after round
+and, at the earliest arrival, never come within the tolerance."""
 
 SHORTEN_START = 1
 """Step 6 starts its search for a piece's arrival this many samples after the piece's
