@@ -22,6 +22,11 @@ construction, wall clock).
 
 Prints the counts and the distributions (median, 95th percentile, max) per condition.
 
+With ``PLANNER_SWEEP_PLAN_ONLY=1`` it only plans (issue 35's planning-time target): per
+case the interpolator's construction (wall clock), the plan's arrival against the bound
+and the sampled bound (on the nominal plant the run settles where its plan rests), and
+the slowest cases with what they are.
+
 Run: PLANNER_SWEEP_CASES=1000 python benchmarks/planner_sweep.py   (default 1000 cases)
 """
 
@@ -113,6 +118,66 @@ def one_case(i: int) -> dict:
     return row
 
 
+def plan_only_case(i: int) -> dict:
+    """Case ``i`` (as :func:`one_case` draws it) planned only: planning time [s], the
+    plan's arrival [s], the bound and the sampled bound [s], and the path's length
+    [pulse]."""
+    rng = np.random.default_rng([SEED, i])
+    families = sorted(FAMILIES)
+    family = families[i % len(families)]
+    n_axes = int(rng.integers(2, 4))
+    feed = float(np.exp(rng.uniform(np.log(5e4), np.log(3e6))))
+    condition = CONDITIONS[(i // len(families)) % len(CONDITIONS)]
+    row = {"case": i, "family": family, "n_axes": n_axes, "feed": feed,
+           "condition": condition, "status": "ran"}
+    try:
+        curve = random_path(family, [SEED, i], n_axes=n_axes)
+    except InvalidCurveError:
+        row["status"] = "invalid path"
+        return row
+    m = machine_for(n_axes, 2.0 if condition == "gains x2" else 1.0)
+    try:
+        t0, c0 = time.perf_counter(), time.process_time()
+        interp = PlannedInterpolator(curve, m, feed)
+        row["planning"] = time.perf_counter() - t0
+        row["planning_cpu"] = time.process_time() - c0
+        row["bound"] = time_optimal_bound(curve, m, feed)
+    except NurbsmotionError as exc:
+        row["status"] = "refused"
+        row["error"] = f"{type(exc).__name__}: {exc}"
+        return row
+    row["arrival"] = interp.plan.rest * m.sample_period
+    row["sampled_bound"] = sampled_stop_bound(curve, m)
+    row["length"] = curve.length
+    return row
+
+
+def report_plan_only(rows: list) -> None:
+    ran = [r for r in rows if r["status"] == "ran"]
+    times = np.array([r["planning"] for r in ran])
+    print(f"cases {len(rows)}: planned {len(ran)}, refused "
+          f"{sum(r['status'] == 'refused' for r in rows)}, invalid paths "
+          f"{sum(r['status'] == 'invalid path' for r in rows)}")
+    cpu = np.array([r["planning_cpu"] for r in ran])
+    print(f"planning [s] median / 95 % / max: wall {_common.spread(times)}, CPU "
+          f"{_common.spread(cpu)} (the CPU time is the wall time of an unloaded core); "
+          f"CPU over 0.3 s: {int(np.sum(cpu > 0.3))}, over 2 s: {int(np.sum(cpu > 2))}")
+    nominal = [r for r in ran if r["condition"] == "nominal"]
+    ok = [r["arrival"] - r["bound"] <= max(0.05 * r["bound"], 3e-3) for r in nominal]
+    short = [o for o, r in zip(ok, nominal) if r["bound"] < 0.05]
+    print(f"nominal plans arriving within max(5 %, 3 ms) of the bound: "
+          f"{np.mean(ok) * 100:.1f} % of {len(ok)}; of those whose bound is under 50 ms "
+          f"{np.mean(short) * 100:.1f} % of {len(short)}")
+    below = [r for r in ran if r["arrival"] < r["sampled_bound"] - 1e-9]
+    print(f"plans arriving before the sampled bound: {len(below)}")
+    print("slowest plans:")
+    for r in sorted(ran, key=lambda r: r["planning_cpu"])[-12:]:
+        print(f"  case {r['case']} {r['family']} {r['n_axes']} axes {r['condition']}, "
+              f"{r['length'] / 1e3:.3g} mm at {r['feed'] / 1e6:.3g} m/s: "
+              f"{r['planning']:.2f} s ({r['planning_cpu']:.2f} s CPU), arrival {r['arrival'] * 1e3:.0f} ms, "
+              f"bound {r['bound'] * 1e3:.1f} ms")
+
+
 def piece_estimate(curve, m, feed) -> float:
     """Every corner-free piece's continuous time-optimal duration (SPEC section 9, the
     bound's own grid) rounded up to whole samples [s]; ``planned`` moves from sample 0.
@@ -183,13 +248,23 @@ def report(rows: list) -> None:
 
 def main():
     n = int(os.environ.get("PLANNER_SWEEP_CASES", "1000"))
+    plan_only = os.environ.get("PLANNER_SWEEP_PLAN_ONLY", "") not in ("", "0")
     t0 = time.perf_counter()
     rows = []
+    log = os.environ.get("PLANNER_SWEEP_LOG")   # one JSON row a line, as each case ends
     for i in range(n):
-        rows.append(one_case(i))
+        rows.append(plan_only_case(i) if plan_only else one_case(i))
+        if log:
+            import json
+            with open(log, "a") as f:
+                f.write(json.dumps(rows[-1], default=float) + "\n")
         if (i + 1) % 50 == 0:
             print(f"  {i + 1} cases, {time.perf_counter() - t0:.0f} s", flush=True)
-    report(rows)
+    (report_plan_only if plan_only else report)(rows)
+    if os.environ.get("PLANNER_SWEEP_JSON"):   # every row, for a closer look
+        import json
+        with open(os.environ["PLANNER_SWEEP_JSON"], "w") as f:
+            json.dump(rows, f, indent=0, default=float)
     print(f"(wall time {time.perf_counter() - t0:.0f} s)")
 
 

@@ -290,6 +290,50 @@ def test_plan_lands_before_the_desired_motion_creeps_in(monkeypatch):
     np.testing.assert_allclose(speed, plan.speed, atol=1e-6, rtol=1e-9)
 
 
+def _feed_cases():
+    """(name, curve [pulse], feed [pulse/s]): the issue-37 line (10 mm at 10 mm/s, read
+    from JSON in mm), the same line faster, the Pi where its feed binds, a free-form
+    curve and a short move (step 6) at feeds that bind."""
+    from nurbsmotion.paths.random_paths import random_path
+    return [("line 10 mm/s", None, 1e4), ("line 30 mm/s", None, 3e4),
+            ("pi 0.2 m/s", PI, 2e5),
+            ("free form", random_path("free_form", [77, 3], n_axes=2, length=3000.0), 2e4),
+            ("short move", random_path("short_moves", [77, 5], n_axes=2), 6e4)]
+
+
+@pytest.mark.parametrize("case", range(5))
+def test_the_tool_keeps_the_feed(case, tmp_path):
+    """Issue 37 item 2: the feed is a limit on the tool's motion. Closed loop on the
+    nominal plant (which follows the plan), the tool's speed between samples,
+    ``|theta[k+1] - theta[k]|/Ts``, stays within the feed plus the sampled system's
+    allowance, ``(FEED_SLACK + 2*e)/Ts`` with e the plan's largest distance from its
+    desired motion (the desired motion moves at most F*Ts a sample; the landing and a
+    short move's nearest path points at most FEED_SLACK more). Before, the landing took
+    the line's last 47 pulses in 2 samples: 26 mm/s at 10 mm/s, 0.998 x the bound. On a
+    line the speed along the path is x's exactly; no run settles below the bound."""
+    from nurbsmotion.motion_plan import FEED_SLACK
+    from nurbsmotion.paths.files import load_path
+    name, curve, feed = _feed_cases()[case]
+    if curve is None:
+        file = tmp_path / "line.json"
+        file.write_text('{"units": "mm", "degree": 1, "knots": [0,0,1,1], '
+                        '"control_points": [[0,0],[10,0]]}')
+        curve = to_pulses(load_path(file), MACHINE)
+    Ts = MACHINE.sample_period
+    it = PlannedInterpolator(curve, MACHINE, feed)
+    trace = simulate(it, MACHINE, settle_time=0.02)
+    _check_run(it, trace)
+    plan = plan_motion(curve, MACHINE, feed)   # the interpolator's (it keeps no y)
+    np.testing.assert_allclose(trace.position[:len(plan.position)], plan.position, atol=1e-3)
+    e = float(np.max(np.linalg.norm(plan.position - plan.desired, axis=1)))
+    speed = np.linalg.norm(np.diff(trace.position, axis=0), axis=1) / Ts
+    assert np.max(speed) <= feed + (FEED_SLACK + 2 * e) / Ts, (name, np.max(speed) / feed)
+    if name.startswith("line"):
+        assert e <= 0.25
+        assert np.max(np.diff(trace.position[:, 0])) / Ts <= feed * 1.05
+    assert settle_time(trace) >= time_optimal_bound(curve, MACHINE, feed) * (1 - 1e-3)
+
+
 def _continuous_positions(plan, machine, start, per_sample=8):
     """The continuous plant under the plan's held drives (RK45, scipy; SPEC section 3:
     tau*w' = -w + Kc*u, theta' = Ke*w), ``per_sample`` points in every sample interval."""
@@ -1122,3 +1166,35 @@ def test_landing_stays_near_a_tight_curl_the_samples_step_across():
     curve = random_path("curls", [77, 177], n_axes=2)
     plan = plan_motion(curve, m, 2.0157e6)
     assert np.max(contour_error(curve, plan.position)) <= 3.0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_warm_started_programs_match_scipy_linprog(seed):
+    """Step 6's programs (issue 35): HiGHS warm-started from the last basis, as the rounds
+    re-linearise the path (same shape, new numbers), reaches the optimum scipy's
+    ``linprog`` finds cold, round after round; an infeasible program gives None."""
+    from scipy import sparse
+    from scipy.optimize import linprog
+    from nurbsmotion.motion_plan import _WarmProgram
+
+    rng = np.random.default_rng(seed)
+    n, m_ub, m_eq = 40, 60, 8
+    A_eq = sparse.csr_matrix(rng.normal(size=(m_eq, n)))
+    bounds = np.column_stack([np.full(n, -1.0), np.full(n, 1.0)])
+    bounds[-1] = (0.0, np.inf)                       # an unbounded column, as E
+    program = _WarmProgram()
+    A = rng.normal(size=(m_ub, n))
+    for _ in range(5):
+        A += 0.05 * rng.normal(size=A.shape)         # the next round's numbers
+        A_ub = sparse.csr_matrix(np.hstack([A[:, :-1], -np.ones((m_ub, 1))]))
+        b_ub = rng.uniform(0.5, 1.5, m_ub)
+        cost = np.r_[rng.normal(size=n - 1) * 0.01, 1.0]
+        x = program.solve(cost, A_ub, b_ub, A_eq, bounds)
+        ref = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=np.zeros(m_eq),
+                      bounds=bounds, method="highs")
+        assert ref.status == 0 and x is not None
+        assert cost @ x == pytest.approx(ref.fun, rel=1e-7, abs=1e-9)
+        assert np.all(A_ub @ x <= b_ub + 1e-7) and np.allclose(A_eq @ x, 0.0, atol=1e-7)
+    # x[0] >= 2 within |x| <= 1: no program
+    infeasible = sparse.csr_matrix(np.eye(1, n) * -1.0)
+    assert program.solve(cost, infeasible, np.array([-2.0]), A_eq, bounds) is None

@@ -78,10 +78,14 @@ is built offline in six steps:
    (along the normals; with 3 axes and more, along directions around the path and, where
    a round found a point outside the tolerance, along its own offset), within a trust
    region (as far as the feed goes in a sample; failing that, as far as the
-   linearisation stays within the tolerance). N runs down from the plan's arrival while
-   one is found (where the landing could not put the plan at rest and it rings about
-   the end by more than ``path_tolerance``, from the first of the arrival and the
-   samples after it, up to where the ringing dies down, at which one is).
+   linearisation stays within the tolerance). N runs down while one is found, from a
+   sample after the piece's continuous time-optimal duration if one is found there,
+   else from the plan's arrival (where the landing could not put the plan at rest and
+   it rings about the end by more than ``path_tolerance``, from the first of the
+   arrival and the samples after it, up to where the ringing dies down, at which one
+   is); the programs of one N are warm-started from the last one's basis (HiGHS'
+   dual simplex through ``highspy``). The nearest path points of the motion found move
+   by at most ``F*Ts +`` :data:`FEED_SLACK` a sample.
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
@@ -683,7 +687,7 @@ def _rest_on_end(h: np.ndarray, theta: np.ndarray, w: np.ndarray, target: np.nda
 
 def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
                  machine: Machine, limit: float, tangent: np.ndarray, curve: NurbsCurve,
-                 param: np.ndarray) -> int:
+                 param: np.ndarray, feed) -> int:
     """Step 5: bring the plan to rest exactly on the end, at the earliest sample N the
     drive allows, no later than the sample where the desired motion arrives there (in
     place). Returns N (the arrival if the plan is left as it is).
@@ -703,7 +707,11 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     from the desired positions' curve parameters ``param`` (n,) find, never less than the
     true one: the polyline through ``y`` cuts a tight curl the samples step across) and
     none passes the end along the path's unit ``tangent`` there by more than that
-    tolerance (:func:`_past_end`). N runs from
+    tolerance (:func:`_past_end`), and their nearest path points move forward by at most
+    the ``feed`` (F [pulse/s] or a :class:`~nurbsmotion.feed.FeedLimit`) times Ts plus
+    :data:`FEED_SLACK` a sample, from the last sample it leaves as it is to N (on a
+    10 mm line at 10 mm/s the landing took the last 47 pulses in 2 samples, the tool at
+    26 mm/s: the desired motion was already at the feed there). N runs from
     the arrival less the samples
     the averaging and the inverse shape (``INVERSE_REACH + 1``), changing at most that
     many drives, up to the arrival itself, where m grows up to :data:`LANDING_SAMPLES`
@@ -716,6 +724,7 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     if float(np.max(np.abs(theta[arrive - 1:] - y[arrive - 1:]))) == 0.0:
         return arrive
     reach = INVERSE_REACH + 1
+    Ts = machine.sample_period
     h = _impulse_responses(machine, min(arrive - LEAD, LANDING_SAMPLES))
     for N in range(max(arrive - reach, LEAD + 2), arrive + 1):
         most = min(N - LEAD, h.shape[1] if N == arrive else reach)
@@ -729,10 +738,13 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
             if np.max(np.abs(drive)) > limit:
                 continue
             theta_new = theta[k0 + 1:N + 1] + moved[:, 1]
-            near = _nearest_forward(curve, theta_new, curve.arc_length(param[k0 + 1:N + 1]))
-            off = np.linalg.norm(theta_new - curve(curve.parameter_at(near)), axis=1)
+            near = _nearest_forward(curve, np.vstack([theta[k0:k0 + 1], theta_new]),
+                                    curve.arc_length(param[k0:N + 1]))
+            at = curve.parameter_at(near)
+            off = np.linalg.norm(theta_new - curve(at[1:]), axis=1)
             if np.max(off) > tolerance \
-                    or _past_end(theta_new, off, end, tangent) > PRECOMPENSATION_TOLERANCE:
+                    or _past_end(theta_new, off, end, tangent) > PRECOMPENSATION_TOLERANCE \
+                    or np.any(np.diff(near) > _feed_at(feed, at[1:]) * Ts + FEED_SLACK):
                 continue
             u[k0:N] = drive
             w[k0 + 1:N + 1] += moved[:, 0]
@@ -742,6 +754,20 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
             theta[N:] = end
             return N
     return arrive
+
+
+FEED_SLACK = 2 * PRECOMPENSATION_TOLERANCE
+"""How far [pulse] a plan's nearest path point may move beyond ``F*Ts`` in a sample: the
+desired motion moves at most F*Ts a sample (its profile is within the feed and the
+averaging of step 1 keeps it so), and the plan of step 3 is within
+:data:`PRECOMPENSATION_TOLERANCE` of it at both ends of the sample. The landing (step 5)
+is held to the same; the feed of the tool's sampled motion is thus F + FEED_SLACK/Ts."""
+
+
+def _feed_at(feed, p: np.ndarray) -> np.ndarray:
+    """The feed F [pulse/s] at the curve parameters ``p`` (m,), shape (m,)."""
+    return np.asarray(feed(p) if isinstance(feed, FeedLimit) else np.full(len(p), feed),
+                      dtype=float)
 
 
 CHECK_POINTS = 32
@@ -759,9 +785,21 @@ farthest point from the path no nearer than the nearest it has been."""
 
 SHORT_MOVE_SAMPLES = 128
 """Step 6 plans the moves that rest on the end within this many samples. Its linear
-programs grow with the piece (0.05-0.5 s each at 50-120 samples, and a move takes some
-tens of them): on the 1,000 random paths of ``benchmarks/planner_sweep.py`` planning
-takes a median 0.13 s, 3.3 s at the 95th percentile and 13.6 s at most."""
+programs grow with the piece (0.05-0.5 s each at 50-120 samples cold, a tenth of that
+warm-started, and a move takes some tens of them): on the first 99 random paths of
+``benchmarks/planner_sweep.py`` (PLANNER_SWEEP_PLAN_ONLY=1) planning takes a median
+0.15 s of CPU, 1.5 s at the 95th percentile and 29 s at most (before the warm starts and
+the search from the estimate: 0.17, 2.6 and 19 s); the slow ones are 3-axis moves of
+60-120 samples whose programs grow by the points found off the path round after round
+and, at the earliest arrival, never come within the tolerance."""
+
+SHORTEN_START = 1
+"""Step 6 starts its search for a piece's arrival this many samples after the piece's
+continuous time-optimal duration (rounded up; :func:`planning.speed_profile` before any
+easing), not at the plan's arrival, and runs down from there: a short move's earliest
+arrival lies within a sample or two of that duration, and each sample it need not step
+down from costs one or more linear programs (on six 60-120 mm free-form moves at 1.7 m/s
+the plan arrived 1-10 samples later, and the search from there took 10-71 programs)."""
 
 DEFAULT_PATH_TOLERANCE = 1.0
 """How far [pulse] from the path step 6 may take a short move's motion by default: one
@@ -857,9 +895,71 @@ def _fine_positions(plant: ServoPlant, zoh, u: np.ndarray):
     return w, theta, np.vstack([fine, theta[-1:]])
 
 
+def _highs():
+    """The HiGHS module and its solver class: ``highspy`` (a dependency), or the same
+    bindings that scipy carries for its ``linprog`` where highspy is not installed."""
+    try:
+        import highspy
+        return highspy, highspy.Highs
+    except ImportError:   # pragma: no cover - highspy is a dependency
+        from scipy.optimize._highspy import _core
+        return _core, _core._Highs
+
+
+class _WarmProgram:
+    """The linear programs of one arrival sample of step 6, solved by HiGHS' dual simplex
+    (Huangfu & Hall 2018, through ``highspy``), each from the last one's optimal basis
+    where it has the same rows and columns: a round re-linearises the path at new points,
+    which changes the numbers but not the shape, and the last basis is then a few tens of
+    pivots from the new optimum instead of about a thousand (10-30 x fewer iterations on
+    the rounds of a 78 mm move at 1.7 m/s, 85 samples)."""
+
+    def __init__(self):
+        self.highs = None
+        self.basis = None
+        self.shape = None
+
+    def solve(self, cost, A_ub, b_ub, A_eq, bounds):
+        """Minimise ``cost @ x`` subject to ``A_ub @ x <= b_ub``, ``A_eq @ x = 0`` and the
+        ``bounds`` (n, 2) of x; the optimal x, or None where there is none."""
+        from scipy import sparse
+
+        highspy, Highs = _highs()
+
+        A = sparse.vstack([A_ub, A_eq]).tocsc()
+        lp = highspy.HighsLp()
+        lp.num_col_, lp.num_row_ = A.shape[1], A.shape[0]
+        lp.col_cost_ = np.asarray(cost, dtype=float)
+        lp.col_lower_ = np.ascontiguousarray(bounds[:, 0])
+        lp.col_upper_ = np.ascontiguousarray(bounds[:, 1])
+        lp.row_lower_ = np.concatenate([np.full(A_ub.shape[0], -highspy.kHighsInf),
+                                        np.zeros(A_eq.shape[0])])
+        lp.row_upper_ = np.concatenate([b_ub, np.zeros(A_eq.shape[0])])
+        lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+        lp.a_matrix_.start_ = A.indptr
+        lp.a_matrix_.index_ = A.indices
+        lp.a_matrix_.value_ = A.data
+        lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = A.shape[1], A.shape[0]
+        if self.highs is None:
+            self.highs = Highs()
+            self.highs.setOptionValue("output_flag", False)
+        h = self.highs
+        h.passModel(lp)
+        warm = self.basis is not None and self.shape == A.shape
+        h.setOptionValue("presolve", "off" if warm else "choose")
+        if warm:
+            h.setBasis(self.basis)
+        h.run()
+        if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            self.basis = None
+            return None
+        self.basis, self.shape = h.getBasis(), A.shape
+        return np.array(h.getSolution().col_value)
+
+
 def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
                 s: np.ndarray, limit: float, tolerance: float, tangent: np.ndarray, feed,
-                Ts: float, wide: bool):
+                Ts: float, wide: bool, most_rounds: int = SHORTEN_ROUNDS):
     """One arrival sample N of step 6 (:func:`_shorten`) along the ``span`` of the curve
     from stop to stop (the plant at rest on its start at sample 0): drives u[LEAD] .. u[N-1]
     (|u| <= ``limit`` [V]) that keep the model's ``plant`` (at rest at the start) within
@@ -887,7 +987,6 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
     random 3-axis machine, 24 rounds of E at 0.998 against held points at 1.07: 42 s
     where this rule takes 14 s; on the sweep's 461 step-6 runs it changes no arrival)."""
     from scipy import sparse
-    from scipy.optimize import linprog
 
     n_axes = curve.n_axes
     Q = zoh[0].shape[0] - 1
@@ -923,7 +1022,8 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
     has_cut = np.zeros(len(fine), bool)
     reach, previous = 1.0, math.inf
     closest, stalled = math.inf, 0  # the least of the farthest points so far; rounds since
-    for rounds in range(SHORTEN_ROUNDS):
+    program = _WarmProgram()
+    for rounds in range(most_rounds):
         m = len(held)
         col_step = n_fixed + np.arange(m)
         col_E = n_fixed + m
@@ -955,18 +1055,15 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         trust = np.minimum(reach * np.maximum(np.sqrt(2.0 * tolerance / np.fmax(
             curve.curvature(p), 1e-300)), F * Ts * wide), s1 - s0)
         normals = _normal_directions(T)                     # (m, r, n_axes)
-        cuts = np.flatnonzero(has_cut[held])
-        if cuts.size:   # (m, r + 1, n_axes): the held points' cuts (none: row dropped)
-            normals = np.concatenate([normals, cut[held][:, None]], axis=1)
+        if n_axes > 2:  # (m, r + 1, n_axes): the held points' cuts, and where a point
+            # has none its first normal again (a row that changes nothing), so that the
+            # program keeps its shape from round to round and is warm-started
+            normals = np.concatenate([normals, np.where(
+                has_cut[held][:, None], cut[held], normals[:, 0])[:, None]], axis=1)
         A_t = rows_along(T[:, None, :])                     # d = A_t x - b_t
         b_t = np.einsum("ij,ij->i", T, point)
         A_n = rows_along(normals)
         b_n = np.einsum("iqj,ij->iq", normals, point).ravel()
-        if cuts.size:
-            rows = np.ones(normals.shape[:2], bool)
-            rows[:, -1] = False
-            rows[cuts, -1] = True
-            A_n, b_n = A_n[rows.ravel()], b_n[rows.ravel()]
         E = sparse.csr_matrix((np.ones(len(b_n)), (np.arange(len(b_n)),
                                                    np.full(len(b_n), col_E))),
                               shape=(len(b_n), n_var))
@@ -999,12 +1096,11 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         # a tie-break: of the motions with the least E, the one whose nearest points
         # move least (the chord is exact there); moving all by the trust costs E/16
         cost[col_step] = tolerance / (16.0 * m * trust)
-        res = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=np.zeros(A_eq.shape[0]),
-                      bounds=bounds, method="highs")
-        if res.status != 0:
+        x = program.solve(cost, A_ub, b_ub, A_eq, bounds)
+        if x is None:
             return None
         u = np.zeros((N, n_axes))
-        u[LEAD:] = res.x[:n_u].reshape(n_axes, N - LEAD).T
+        u[LEAD:] = x[:n_u].reshape(n_axes, N - LEAD).T
         positions = _fine_positions(plant, zoh, u)[2][LEAD * Q + 1:N * Q]
         guess = s.copy()
         guess[held] = np.clip(sh + np.einsum("ij,ij->i", T, positions[held] - point),
@@ -1015,7 +1111,12 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         off = np.linalg.norm(offset, axis=1)
         at_end = s_new >= s1 - curve.length * 1e-12
         past = float(np.max((positions[at_end] - end) @ tangent, initial=0.0))
-        if np.max(off) <= tolerance and past <= PRECOMPENSATION_TOLERANCE:
+        # the nearest points of the samples (the start at LEAD, the end at N) move by at
+        # most F*Ts + FEED_SLACK a sample: the programs hold the linearised ones to F
+        at_samples = np.concatenate([[s0], s_new[Q - 1::Q], [s1]])
+        fast = np.any(np.diff(at_samples) > _feed_at(feed, np.concatenate(
+            [p_new[Q - 1::Q], [span.u1]])) * Ts + FEED_SLACK)
+        if np.max(off) <= tolerance and past <= PRECOMPENSATION_TOLERANCE and not fast:
             return u, s_new
         farthest = float(np.max(off))
         stalled = 0 if farthest < closest else stalled + 1
@@ -1023,8 +1124,8 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         if stalled >= SHORTEN_STALL:
             return None
         worst = float(np.max(off[held]))
-        E_now = float(res.x[col_E])
-        left = SHORTEN_ROUNDS - 1 - rounds
+        E_now = float(x[col_E])
+        left = most_rounds - 1 - rounds
         if E_now > tolerance and E_now - tolerance > left * (previous - E_now):
             return None    # at this pace the program will not come within the tolerance
         if worst > E_now * spread + tolerance / 16:
@@ -1056,7 +1157,7 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
 
 def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarray,
              arrival: int, machine: Machine, limit: float, tolerance: float,
-             tangent: np.ndarray, feed):
+             tangent: np.ndarray, feed, earliest: int | None = None):
     """Step 6 (module docstring): the plan ``theta`` (n, n_axes) of a move along the
     ``span`` of the curve that does not stop on the way, from rest on its start at
     sample 0 to rest on its end at ``arrival`` (<= :data:`SHORT_MOVE_SAMPLES`),
@@ -1069,10 +1170,12 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
     ``tolerance`` either).
 
     N runs down from ``arrival - 1`` while one is found (where none is, and the plan so
-    leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one is).
-    The first guess of the nearest points is the plan's (its parameters ``param``, shape
-    (n,)), compressed in time to arrive at N; each later N starts from the last motion
-    found, compressed by a sample.
+    leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one is);
+    given the ``earliest`` sample worth trying first (:data:`SHORTEN_START`), from there
+    if one is found there within :data:`SHORTEN_STALL` rounds, else from the top. The first guess of the nearest
+    points is the plan's (its parameters ``param``, shape (n,)), compressed in time to
+    arrive at N; each later N starts from the last motion found, compressed by a sample.
+    The programs of one N are warm-started (:class:`_WarmProgram`).
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
     Ts = machine.sample_period
@@ -1104,9 +1207,13 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
         Q = 2 * math.ceil(fastest * Ts * math.sqrt(kappa / (8.0 * tolerance)) / 2)
         zoh = _partial_zoh(machine, int(min(max(Q, 2), CHECK_POINTS)))
         Q = zoh[0].shape[0] - 1
-        times, s_known = np.arange(arrival + 1, dtype=float), plan_s
+        known = [np.arange(arrival + 1, dtype=float), plan_s]   # times, arc lengths
         best = None
-        for N in range(top, LEAD + 1, -1):
+
+        def found_at(N, most_rounds=SHORTEN_ROUNDS):
+            # the last motion found (first: the plan) compressed in time to arrive at N
+            nonlocal best
+            times, s_known = known
             t = np.arange(LEAD * Q + 1, N * Q) / Q            # fine points [samples]
             guess = np.interp(LEAD + (t - LEAD) * (times[-1] - LEAD) / (N - LEAD), times,
                               s_known)
@@ -1116,12 +1223,23 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
             for wide in (True, False):
                 found = found or _shorten_at(curve, span, plant, zoh, N,
                                              np.maximum.accumulate(guess),
-                                             limit, tolerance, tangent, feed, Ts, wide)
-            if found is None:
-                break
-            best = (N, *found, zoh)
-            times = np.concatenate([[float(LEAD)], t, [N]])
-            s_known = np.concatenate([[span.s0], found[1], [span.s1]])
+                                             limit, tolerance, tangent, feed, Ts, wide,
+                                             most_rounds)
+            if found is not None:
+                best = (N, *found, zoh)
+                known[:] = [np.concatenate([[float(LEAD)], t, [N]]),
+                            np.concatenate([[span.s0], found[1], [span.s1]])]
+            return found is not None
+
+        # from the estimate down while one is found; where none is found there within
+        # SHORTEN_STALL rounds (a probe: from the plan's guess, compressed by several
+        # samples, a program that does not converge soon seldom does), from the top down
+        # (each from the motion found a sample later)
+        N = top if earliest is None else min(max(earliest, LEAD + 2), top)
+        if N == top or not found_at(N, SHORTEN_STALL):
+            N = top + 1
+        while N > LEAD + 2 and found_at(N - 1):
+            N -= 1
         return best
 
     # within the path tolerance; failing that, no farther from the path than the plan;
@@ -1154,7 +1272,8 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
 
 def _shorten_pieces(curve: NurbsCurve, stops: np.ndarray, corner_times: np.ndarray,
                     theta: np.ndarray, param: np.ndarray, arrival: int, machine: Machine,
-                    limit: float, tolerance: float, tangent: np.ndarray, feed):
+                    limit: float, tolerance: float, tangent: np.ndarray, feed,
+                    earliest=None):
     """Step 6 from stop to stop: every piece of the plan ``theta`` (n, n_axes; its
     parameters ``param`` (n,), at rest on the end at ``arrival``) between the stops at
     the curve parameters ``stops`` (n_pieces + 1,: the start, the stop corners, the end),
@@ -1186,7 +1305,8 @@ def _shorten_pieces(curve: NurbsCurve, stops: np.ndarray, corner_times: np.ndarr
         piece = _shorten(curve, _Span.of(curve, stops[i], stops[i + 1]),
                          theta[a:] if last else theta[a:b + 1], param[a:b + 1], b - a,
                          machine, limit, tolerance,
-                         tangent if last else _unit(curve(stops[i + 1], 1, "left")), feed)
+                         tangent if last else _unit(curve(stops[i + 1], 1, "left")), feed,
+                         None if earliest is None else int(earliest[i]))
         if piece is None:
             return None
         parts.append(piece)
@@ -1340,6 +1460,9 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
         profile = speed_profile(curve, machine, feed, drive_fraction=drive_fraction,
                                 drive_scale=drive_scale if eases else None,
                                 grid_size=grid_size, grids=grids)
+        if not eases:   # step 6 starts its search at each piece's uneased time
+            estimate = [math.ceil(t[-1] / Ts - 1e-9) + SHORTEN_START
+                        for t in profile.piece_times()]
         if profile.duration / Ts > max_samples:
             raise InfeasibleError(
                 f"the planned motion takes {profile.duration:g} s, more than "
@@ -1422,13 +1545,14 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
     w, theta, u = plant
     tangent = _unit(curve(1.0, 1, "left"))
     landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax, tangent, curve,
-                          param)
+                          param, feed)
     y[landed:] = y[-1]       # the desired motion rests where the plan does
     param[landed:] = 1.0
     if landed <= SHORT_MOVE_SAMPLES and (corners.size == 0 or corner_tolerance == 0):
         stops = np.array([piece[1][0] for piece in profile.pieces] + [1.0])
         short = _shorten_pieces(curve, stops, corners, theta, param, landed, machine,
-                                drive_fraction * umax, path_tolerance, tangent, feed)
+                                drive_fraction * umax, path_tolerance, tangent, feed,
+                                estimate)
         if short is not None:
             landed, y, param, w, theta, u, corners = short
     theta[-1] = y[-1]

@@ -33,6 +33,10 @@ Each family stresses one thing an interpolator or a figure can get wrong:
     Out and back along parallel legs 2-40 pulses apart, with a smooth U-turn.
 ``closed``
     A closed free-form loop (end = start) around a star-shaped polygon.
+``spirals``
+    An Archimedean spiral of 1.5-5 turns out from its centre (radius growing evenly with
+    the angle, from 0.5-5 % of the length): a curvature that falls steadily, so the
+    speed limit of the drive rises along the whole path.
 ``short_moves``
     A free-form move of 0.3-3 % of ``length``: on the die-bonder with the default length
     a move whose time-optimal bound is below 50 ms.
@@ -168,6 +172,16 @@ def _closed(rng, length, n_axes):
     return NurbsCurve(3, _uniform_knots(3, len(points)), points)
 
 
+def _spirals(rng, length, n_axes):
+    turns = rng.uniform(1.5, 5.0)
+    n = int(math.ceil(turns * 8)) + 1
+    angle = np.linspace(0, 2 * math.pi * turns, n) + rng.uniform(0, 2 * math.pi)
+    radius = np.linspace(rng.uniform(0.005, 0.05), 0.5, n) * length
+    points = np.column_stack([radius * np.cos(angle), radius * np.sin(angle)])
+    return NurbsCurve(3, _uniform_knots(3, n), _embed(rng, points - points[0], n_axes,
+                                                      length))
+
+
 def _short_moves(rng, length, n_axes):
     return _free_form(rng, length * rng.uniform(0.003, 0.03), n_axes)
 
@@ -213,6 +227,7 @@ FAMILIES: dict[str, Callable] = {
     "hairpins": _hairpins,
     "closed": _closed,
     "short_moves": _short_moves,
+    "spirals": _spirals,
 }
 """Random-path families by name (see the module docstring)."""
 
