@@ -320,7 +320,8 @@ def test_every_help_shows_the_defaults(capsys):
     for command, shown in [("run", ["(default: planned)", "(default: die-bonder)",
                                     "(default: csv)", "period of the PVT table [s] "
                                     "(default: 0.01)"]),
-                           ("interpolate", ["(default: taylor2)", "Ts [s] (default: 0.001)"]),
+                           ("interpolate", ["(default: taylor2)",
+                                            "Ts [s], at least 1e-05 (default: 0.001)"]),
                            ("bound", ["(default: die-bonder)"]),
                            ("reproduce", ["(default: results)"])]:
         with pytest.raises(SystemExit):

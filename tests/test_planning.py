@@ -1002,12 +1002,21 @@ def test_bad_feed_is_an_invalid_argument(feed):
         time_optimal_bound(PI, MACHINE, feed)
 
 
-def test_drive_too_weak_for_the_curvature_is_infeasible():
+def test_drive_too_weak_for_the_feed_is_refused():
+    """At 1e-12 V the drive moves, slowly: a feed 1e11 times its top speed is refused by
+    run's checks as what it is (issue 37; it was 'cannot move along the path', the speed
+    limit taken relative to the unreachable feed), a plan is refused for its samples, and
+    the bound is the drive-limited time, at least the length over the top speed."""
+    from nurbsmotion.errors import InvalidFeedError
+    from nurbsmotion.loop import check_run_arguments
+    from nurbsmotion.planning import top_speed
+
     weak = die_bonder(max_drive=1e-12)
-    with pytest.raises(InfeasibleError, match="cannot move along the path"):
+    with pytest.raises(InvalidFeedError, match="times the fastest"):
+        check_run_arguments(PI, weak, 1e6)
+    with pytest.raises(InfeasibleError, match="samples"):
         PlannedInterpolator(PI, weak, 1e6)
-    with pytest.raises(InfeasibleError, match="cannot move along the path"):
-        time_optimal_bound(PI, weak, 1e6)
+    assert time_optimal_bound(PI, weak, 1e6) >= PI.length / top_speed(weak)
 
 
 def test_plan_too_long_is_infeasible_not_a_hang():
