@@ -21,7 +21,7 @@ from pathlib import Path
 from . import units
 from ._io import OutputFolder
 from .budget import MAX_SAMPLES, check_samples, estimate_samples
-from .errors import InvalidArgumentError, NurbsmotionError
+from .errors import InvalidArgumentError, NurbsmotionError, WorkLimitError
 from .interpolators import DEFAULT_INTERPOLATOR, LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
 from .machine import MIN_SAMPLE_PERIOD, Machine, load_machine
 from .motion_plan import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
@@ -223,7 +223,7 @@ def _run(args, precompiler) -> int:
     path = to_pulses(curve, machine)
     try:
         check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
-    except NurbsmotionError:
+    except WorkLimitError:  # too many samples: a bare feed number in the wrong unit?
         _ask_for_feed_unit(args, curve, machine, path.length, feed)
         raise
     plant_machine = machine if args.plant is None else load_machine(args.plant)
