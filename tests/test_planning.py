@@ -1207,3 +1207,60 @@ def test_warm_started_programs_match_scipy_linprog(seed):
     # x[0] >= 2 within |x| <= 1: no program
     infeasible = sparse.csr_matrix(np.eye(1, n) * -1.0)
     assert program.solve(cost, infeasible, np.array([-2.0]), A_eq, bounds) is None
+
+
+def test_a_single_count_does_not_throw_the_identification():
+    """Issue 33 item 1: an encoder edge under a resting axis (the count toggling 0, 1, 0,
+    ... with no drive) leaves the estimate and its covariance as they were when the
+    reading is in counts (its residual is within the dead zone of the reading), and
+    moves it without one; an exact reading has no dead zone (today's step)."""
+    from nurbsmotion.interpolators.planned import (_identify, _prior_estimate,
+                                                   reading_knowledge)
+
+    it = PlannedInterpolator(PI, MACHINE, 1e6)
+    p = it.plan
+    assert reading_knowledge(MACHINE, p.a, p.b0, p.c, p.b1) == {"dead_zone": 0.0}
+    dz = reading_knowledge(MACHINE.with_options(encoder="counts"), p.a, p.b0, p.c,
+                           p.b1)["dead_zone"]
+    # a count's residual: 1 + |1 + a| at most (positions weighted 1, -(1 + a), a)
+    assert 1.0 + abs(1.0 + p.a[0]) <= 2.0 * dz
+    for zone, moved in ((dz, False), (0.0, True)):
+        est = _prior_estimate(p)
+        prior = est.copy()
+        hist = np.zeros((5, 2))
+        for k in range(40):
+            _identify(est, hist, 0, float(k % 2), p.a[0], p.b0[0], p.c[0], p.b1[0], zone)
+        assert (not np.array_equal(est[:, 0], prior[:, 0])) == moved
+
+
+def test_identification_on_counts_stays_near_the_true_plant():
+    """Positions read in whole counts of a plant with tau x1.3, Kc x0.8 under a random
+    drive: with the dead zone the estimated drive ratio ga (:func:`_gains`) ends within
+    10 % of the true one (scipy's expm) and never reaches the clip GAIN_RANGE."""
+    from nurbsmotion.interpolators.planned import (GAIN_RANGE, _identify,
+                                                   _prior_estimate, reading_knowledge)
+
+    it = PlannedInterpolator(PI, MACHINE, 1e6)
+    p = it.plan
+    dz = reading_knowledge(MACHINE.with_options(encoder="counts"), p.a, p.b0, p.c,
+                           p.b1)["dead_zone"]
+    plant = ServoPlant.of_machine(MACHINE, PI(0.0), time_constant_scale=1.3,
+                                  electrical_gain_scale=0.8)
+    drive = np.random.default_rng(5).uniform(-10, 10, (400, 2))
+    drive[0] = 0.0
+    _, position = plant.response(drive)
+    counts = np.floor(position - position[0]) + position[0]
+    est = _prior_estimate(p)
+    hist = np.zeros((5, 2))
+    for k in range(1, 400):
+        for j in range(2):
+            ga, _ = _identify(est, hist, j, counts[k, j], p.a[j], p.b0[j], p.c[j],
+                              p.b1[j], dz)
+            assert 1.0 / GAIN_RANGE < ga < GAIN_RANGE
+            hist[1, j], hist[0, j] = hist[0, j], drive[k, j]
+    for j in range(2):
+        a, b0, c, b1 = _scipy_zoh(j, 1.3, 0.8)
+        s_model = p.b1[j] + p.c[j] * p.b0[j] - p.a[j] * p.b1[j]
+        ga_true = s_model / (b1 + c * b0 - a * b1)
+        assert abs(est[1, j] + est[2, j] - (b1 + c * b0 - a * b1)) <= 0.1 * abs(
+            b1 + c * b0 - a * b1), (j, ga_true)

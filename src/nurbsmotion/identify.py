@@ -414,6 +414,12 @@ class Identification:
                         "resonance_damping", "load_fraction"):
                 if key in est:
                     entry[key] = est[key].value
+            if "resonance_damping" in est:
+                # The machine file's resonance_damping is the twist's whole damping ratio
+                # (docs/model.md section 11), which includes the axis's own viscous
+                # damping split by inertia, 1/(2*wn*tau); the fit's is the spring-damper's.
+                wn = 2.0 * math.pi * est["resonance_frequency"].value
+                entry["resonance_damping"] += 1.0 / (2.0 * wn * entry["time_constant"])
             if ax.encoder_on is not None:
                 entry["encoder_on"] = ax.encoder_on
         return data

@@ -172,7 +172,7 @@ def _pole_gains(a, b0, c, b1, pole):
 
 
 @njit(cache=True)
-def _identify(est, hist, j, position, a, b0, c, b1):
+def _identify(est, hist, j, position, a, b0, c, b1, dead_zone=0.0):
     """Update axis j's estimate of its sampled plant from the position measured now.
 
     Every plant of the model's form (SPEC section 3, ZOH) obeys, in measured positions
@@ -186,6 +186,12 @@ def _identify(est, hist, j, position, a, b0, c, b1):
     encoder read to one pulse (:func:`_position_noise`). ``est`` rows 0-2 hold
     (a, b1, beta), rows 3-11 their covariance (row-major 3x3); ``hist`` rows u[k-1],
     u[k-2] [V], th[k-1] [pulse], dth[k-1] [pulse] and 1 once th[k-1] is known.
+
+    ``dead_zone`` [pulse] (:func:`identification_dead_zone`): the largest residual the
+    reading alone can make (encoder counts, noise, DAC); a residual within it carries no
+    information on the plant and leaves the estimate and its covariance as they are, and
+    a larger one updates them by its part beyond it (the dead-zone RLS of bounded noise:
+    a single count cannot throw the estimate). 0 (an exact reading): every residual.
     Returns :func:`_gains`."""
     if hist[4, j] > 0.0:
         y = position - hist[2, j]
@@ -193,8 +199,14 @@ def _identify(est, hist, j, position, a, b0, c, b1):
         p0 = est[3, j] * x0 + est[4, j] * x1 + est[5, j] * x2
         p1 = est[6, j] * x0 + est[7, j] * x1 + est[8, j] * x2
         p2 = est[9, j] * x0 + est[10, j] * x1 + est[11, j] * x2
-        gain = 1.0 / (_position_noise(a) + x0 * p0 + x1 * p1 + x2 * p2)
         err = y - est[0, j] * x0 - est[1, j] * x1 - est[2, j] * x2
+        if dead_zone > 0.0:
+            if abs(err) <= dead_zone:
+                hist[3, j] = y
+                hist[2, j] = position
+                return _gains(est, j, a, b0, c, b1)
+            err -= math.copysign(dead_zone, err)
+        gain = 1.0 / (_position_noise(a) + x0 * p0 + x1 * p1 + x2 * p2)
         est[0, j] += p0 * gain * err
         est[1, j] += p1 * gain * err
         est[2, j] += p2 * gain * err
@@ -370,7 +382,7 @@ def _short_of_stop(u, x, w, stop, s, a, b0, c, b1, umax):
 def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
                 plan_drive_speed, plan_drive_accel, support, gains, a, b0, c, b1, log_a,
                 umax, headroom, rate_gain, rest, guards, guard_offsets, slope, offset,
-                out_setpoint, out_drive):
+                out_setpoint, out_drive, dead_zone=0.0):
     """One sample of the planned interpolator (module docstring, steps 1-4).
 
     Plain loops over floats and float arrays, so that numba compiles it unchanged.
@@ -423,6 +435,9 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
         The law's affine form at this sample: u[k] = slope*thd[k] + offset [V/pulse, V].
     out_setpoint, out_drive : ndarray, shape (n_axes,)
         Written: thd[k] [pulse] and the drive it produces [V].
+    dead_zone : float
+        The identification's dead zone [pulse] (:func:`_identify`,
+        :func:`reading_knowledge`).
 
     Returns
     -------
@@ -439,7 +454,8 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
     # drives applied (recursive least squares, see :func:`_identify`)
     r_tail = 1.0
     for j in range(n_axes):
-        ga, gv = _identify(est, hist, j, position[j], a[j], b0[j], c[j], b1[j])
+        ga, gv = _identify(est, hist, j, position[j], a[j], b0[j], c[j], b1[j],
+                           dead_zone)
         gains[0, j] = ga
         gains[1, j] = gv
         # 2a. the largest uniform rate at which the estimated plant can follow the plan
@@ -547,6 +563,7 @@ class PlannedPlan(NamedTuple):
     rest: int                    # the first sample of the plan's rest on the end
     guards: np.ndarray           # (n_guards, 4) where the plant must be able to stop
     guard_offsets: np.ndarray    # (n_axes + 1,) each axis' rows of guards
+    dead_zone: float = 0.0       # the identification's dead zone [pulse]
 
 
 class PlannedState(NamedTuple):
@@ -670,7 +687,7 @@ class PlannedInterpolator(Interpolator):
             a=a, b0=b0, c=c, b1=b1, log_a=np.log(a), headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole, rest=rest, guards=guards,
-            guard_offsets=guard_offsets)
+            guard_offsets=guard_offsets, **reading_knowledge(machine, a, b0, c, b1))
         release_freed_memory()  # the plan's temporaries, before a long run's peak
 
     def nominal_duration(self) -> float:
@@ -792,7 +809,7 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
         plan.position, plan.drive_speed, plan.drive_accel, state.support, state.gains,
         plan.a, plan.b0, plan.c, plan.b1, plan.log_a, law[0]["maxoutput"], plan.headroom,
         plan.rate_gain, plan.rest, plan.guards, plan.guard_offsets, state.slope,
-        state.offset, command, state.drive)
+        state.offset, command, state.drive, plan.dead_zone)
     state.phi[0] = phi_next
     state.rate[0] = rate
     state.excess[0] = excess
@@ -1014,3 +1031,27 @@ def _prior_estimate(plan: PlannedPlan) -> np.ndarray:
     est[7] = (GAIN_RANGE * b1) ** 2
     est[11] = (GAIN_RANGE * beta) ** 2
     return est
+
+
+def reading_knowledge(machine: Machine, a, b0, c, b1) -> dict:
+    """What the online step takes from the model machine's reading of the position
+    (:attr:`Machine.encoder`, :attr:`Machine.measurement_noise`,
+    :attr:`Machine.dac_bits`): the identification's ``dead_zone`` [pulse], 0 for an
+    exact reading and an exact drive (today's step, bit for bit).
+
+    The regression's residual (:func:`_identify`) reads positions with weights 1,
+    -(1 + a), a and drives with b1, beta; a reading within q/2 of the position (q = one
+    count [pulse]) and with Gaussian noise sigma [pulse], and a drive within half a DAC
+    step of the one asked for, leave a residual of at most
+    ``(q/2 + 3*sigma)*(1 + |1 + a| + |a|) + (|b1| + |beta|)*lsb/2`` (3 sigma: the noise's
+    bound but for 0.3 % of the samples), the worst axis."""
+    q = 1.0 if machine.encoder == "counts" else 0.0
+    sigma = float(machine.measurement_noise)
+    lsb = (2.0 * machine.max_drive / 2.0 ** machine.dac_bits
+           if machine.dac_bits is not None else 0.0)
+    a, b0, c, b1 = (np.asarray(v, dtype=float) for v in (a, b0, c, b1))
+    beta = c * b0 - a * b1
+    reading = (0.5 * q + 3.0 * sigma) * (1.0 + np.abs(1.0 + a) + np.abs(a))
+    drive = (np.abs(b1) + np.abs(beta)) * 0.5 * lsb
+    dead_zone = float(np.max(reading + drive)) if q or sigma or lsb else 0.0
+    return {"dead_zone": dead_zone}
