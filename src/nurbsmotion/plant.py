@@ -425,10 +425,67 @@ def advance(P, C, F, X, D, j, v, h, which, c, y):
     reference count of each of them at every call (several times the step itself).
     Inlined into the loop, whose locals are set up once per block; the events' function
     (large, rare) is a call of its own."""
-    if which >= 0 and not F[j]:  # the common case
-        _slide_at(P, C, X, j, which, v)
-        return
+    if which >= 0:
+        if not F[j]:  # the common case
+            _slide_at(P, C, X, j, which, v)
+            return
+        if _friction_quiet(P, C, X, D, j, v, h, which):
+            return
     _advance_events(P[j], C[j], F[j], X[j], D, j, v, h, which, c, y)
+
+
+@njit(cache=True, inline="always")
+def _friction_quiet(P, C, X, D, j, v, h, which):
+    """A friction axis over a precomputed interval with no event, done in place by index
+    (no call, no array views), if it is one: sliding with no stop, or stuck with no
+    breakaway, decided by the very tests :func:`_advance_events` makes first (the
+    single check at the interval's end when the interval is within one check step), so
+    the state is the same to the bit. Returns False (nothing changed) otherwise."""
+    d = D[j]
+    if d != 0.0:
+        veff = v - P[j, FC] * d
+        if P[j, W2] == 0.0:
+            if d * (P[j, KC] * veff) >= 0.0:  # monotone towards a speed in d's sense
+                _slide_at(P, C, X, j, which, veff)
+                return True
+            return False
+        if h / P[j, CHECK_SLIDE] > 1.0:
+            return False
+        w = C[j, which, CA] * X[j, 0] + C[j, which, CB0] * veff
+        ys = P[j, GAIN] * veff / P[j, W2]
+        z0 = X[j, 2] - ys
+        x3 = X[j, 3]
+        d3 = C[j, which, CEC] * x3 - C[j, which, CES] * (P[j, SIG] * x3 + P[j, W2] * z0)
+        if d * (w + P[j, LAM] * d3 / P[j, KE]) <= 0.0:
+            return False
+        _slide_at(P, C, X, j, which, veff)
+        return True
+    limit = P[j, FS]
+    if abs(v - P[j, KSPR] * X[j, 2] - P[j, CDMP] * X[j, 3]) > limit:
+        return False
+    if P[j, W2] == 0.0:
+        X[j, 0] = 0.0
+        X[j, 2] = 0.0
+        X[j, 3] = 0.0
+        return True
+    if h / P[j, CHECK_STUCK] > 1.0:
+        return False
+    lam = P[j, LAM]
+    x2 = X[j, 2]
+    x3 = X[j, 3]
+    motor = X[j, 1] + lam * x2
+    ec = C[j, which, CSC]
+    es = C[j, which, CSS]
+    m = 0.5 * P[j, SA1]
+    y2 = ec * x2 + es * (x3 + m * x2)
+    y3 = ec * x3 - es * (m * x3 + P[j, SA0] * x2)
+    if abs(v - P[j, KSPR] * y2 - P[j, CDMP] * y3) > limit:
+        return False
+    X[j, 0] = -lam * y3 / P[j, KE]
+    X[j, 1] = motor - lam * y2
+    X[j, 2] = y2
+    X[j, 3] = y3
+    return True
 
 
 @njit(cache=True)
