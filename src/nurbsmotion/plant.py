@@ -76,7 +76,9 @@ __all__ = ["PlantStage", "IdleStage", "is_active", "PlantState", "make_stage", "
 TAU, KC, KE, LAM, SIG, W2, GAIN, SA1, SA0, KSPR, CDMP, FC, FS, ENC, TOOL, CHECK_SLIDE, \
     CHECK_STUCK, N_PARAM = range(18)
 # Columns of the coefficients of one interval
-CA, CKT, CB0, CB1, CEC, CES, N_COEF = range(7)
+CA, CKT, CB0, CB1, CEC, CES, CSC, CSS, N_COEF = range(9)
+# (CSC, CSS: the stuck motor's load oscillator, ``_oscillator(SA1, SA0, h)``, set by
+# :func:`make_stage` for the two fixed intervals only)
 
 MAX_EVENTS = 64
 """Friction events (stops, breakaways) one interval may hold at most: beyond, the motor is
@@ -98,7 +100,8 @@ class PlantStage(NamedTuple):
     param : ndarray, shape (n_axes, N_PARAM) -- per axis, columns TAU ... CHECK_STUCK;
     friction : ndarray, shape (n_axes,), bool -- the axis has friction;
     two_mass : ndarray, shape (n_axes,), bool;
-    coef : ndarray, shape (n_axes, 2, N_COEF) -- sliding coefficients of h1 and Ts - h1;
+    coef : ndarray, shape (n_axes, 2, N_COEF) -- sliding (and stuck: CSC, CSS)
+    coefficients of h1 and Ts - h1;
     disturbance_time : ndarray, shape (n_axes, m + 1) -- load step instants [s], sorted,
     then inf; disturbance_drive : same shape -- the summed load drive from each on [V].
     """
@@ -233,9 +236,22 @@ def _stuck(p, x, h, y):
     """``y`` = the state ``h`` [s] after ``x`` with the motor held at rest (a two-mass
     load swings on the spring about it; a rigid axis does not move)."""
     if p[W2] > 0.0:
+        ec, es = _oscillator(p[SA1], p[SA0], h)
+        _stuck_with(p, x, ec, es, y)
+    else:
+        y[0] = 0.0
+        y[1] = x[1]
+        y[2] = 0.0
+        y[3] = 0.0
+
+
+@njit(cache=True, inline="always")
+def _stuck_with(p, x, ec, es, y):
+    """:func:`_stuck` of a two-mass axis given the load oscillator's ``ec``, ``es`` of
+    the interval (precomputed for the two fixed intervals of a sample)."""
+    if p[W2] > 0.0:
         lam = p[LAM]
         motor = x[1] + lam * x[2]
-        ec, es = _oscillator(p[SA1], p[SA0], h)
         m = 0.5 * p[SA1]
         y[2] = ec * x[2] + es * (x[3] + m * x[2])
         y[3] = ec * x[3] - es * (m * x[3] + p[SA0] * x[2])
@@ -266,28 +282,52 @@ def _slide_for(p, x, v, h, c, y):
     _slide(p, c, x, v, y)
 
 
+@njit(cache=True, inline="always")
+def _motor_speed_after(p, x, v, h):
+    """The sliding motor's speed [rad/s] ``h`` [s] after ``x`` under the constant net
+    drive ``v`` [V] of a two-mass axis: :func:`_slide_for` then :func:`_motor_speed`,
+    the same operations on the same numbers (so the same bits) without the positions'
+    coefficients (the root find's function)."""
+    g = -math.expm1(-(h / p[TAU]))
+    w = (1.0 - g) * x[0] + (p[KC] * g) * v
+    ec, es = _oscillator(2.0 * p[SIG], p[W2], h)
+    z0 = x[2] - p[GAIN] * v / p[W2]
+    d = ec * x[3] - es * (p[SIG] * x[3] + p[W2] * z0)
+    return w + p[LAM] * d / p[KE]
+
+
 @njit(cache=True)
-def _stop_time(p, x, v, h, direction, c, y):
+def _stop_time(p, x, v, h, direction, c, y, cf, fixed):
     """The first instant in (0, h] [s] at which the sliding motor's speed reaches zero
     (``direction*w_motor <= 0``), or -1 if none. Rigid: closed form; two-mass: checks
-    every eighth of the mode's period, then Illinois regula falsi on the bracket."""
+    every eighth of the mode's period, then Illinois regula falsi on the bracket.
+    ``cf``: the coefficients of ``h`` when ``fixed`` (a precomputed interval: the check
+    at ``h`` costs no transcendental). Returns ``(t, at_end)``: ``at_end`` when there
+    is no stop and ``y`` holds the state at ``h`` (exactly as sliding over ``h`` gives)."""
     if p[W2] == 0.0:
         wss = p[KC] * v
         w0 = x[0]
         if direction * wss >= 0.0:  # monotone towards wss: no reversal
-            return -1.0
+            return -1.0, False
         if direction * w0 <= 0.0:
-            return 0.0
+            return 0.0, False
         t = p[TAU] * math.log1p(-w0 / wss)
-        return t if t <= h else -1.0
+        return (t, False) if t <= h else (-1.0, False)
     n = max(1, int(math.ceil(h / p[CHECK_SLIDE])))
     lo = 0.0
     hi = -1.0
     f_lo = direction * _motor_speed(p, x)
+    f_hi = 0.0
     for i in range(1, n + 1):
         t = h * i / n
-        _slide_for(p, x, v, t, c, y)
-        f = direction * _motor_speed(p, y)
+        if fixed and t == h:
+            _slide(p, cf, x, v, y)
+            f = direction * _motor_speed(p, y)
+        elif t == h:
+            _slide_for(p, x, v, t, c, y)
+            f = direction * _motor_speed(p, y)
+        else:
+            f = direction * _motor_speed_after(p, x, v, t)
         if f <= 0.0:
             hi = t
             f_hi = f
@@ -295,7 +335,7 @@ def _stop_time(p, x, v, h, direction, c, y):
         lo = t
         f_lo = f
     if hi < 0.0:
-        return -1.0
+        return -1.0, lo == h
     side = 0
     for _ in range(100):
         if hi - lo <= 1e-15 * h + 1e-300:
@@ -306,8 +346,7 @@ def _stop_time(p, x, v, h, direction, c, y):
             t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
             if not (lo < t < hi):
                 t = 0.5 * (lo + hi)
-        _slide_for(p, x, v, t, c, y)
-        f = direction * _motor_speed(p, y)
+        f = direction * _motor_speed_after(p, x, v, t)
         if f > 0.0:
             lo, f_lo = t, f
             if side == -1:
@@ -318,30 +357,35 @@ def _stop_time(p, x, v, h, direction, c, y):
             if side == 1:
                 f_lo *= 0.5
             side = 1
-    return hi
+    return hi, False
 
 
 @njit(cache=True)
-def _breakaway_time(p, x, v, h, y):
+def _breakaway_time(p, x, v, h, y, cf, fixed):
     """The first instant in [0, h] [s] at which the net drive on a stuck motor exceeds
-    the breakaway drive, or -1. Rigid: constant over the interval."""
+    the breakaway drive, or -1. Rigid: constant over the interval. ``cf``, ``fixed`` and
+    the returned ``(t, at_end)`` as :func:`_stop_time`'s (``y`` the stuck state at
+    ``h``)."""
     limit = p[FS]
     if abs(_net_drive(p, x, v)) > limit:
-        return 0.0
+        return 0.0, False
     if p[W2] == 0.0:
-        return -1.0
+        return -1.0, False
     n = max(1, int(math.ceil(h / p[CHECK_STUCK])))
     lo = 0.0
     hi = -1.0
     for i in range(1, n + 1):
         t = h * i / n
-        _stuck(p, x, t, y)
+        if fixed and t == h:
+            _stuck_with(p, x, cf[CSC], cf[CSS], y)
+        else:
+            _stuck(p, x, t, y)
         if abs(_net_drive(p, y, v)) > limit:
             hi = t
             break
         lo = t
     if hi < 0.0:
-        return -1.0
+        return -1.0, lo == h
     for _ in range(80):  # bisection: a breakaway is rare
         if hi - lo <= 1e-15 * h + 1e-300:
             break
@@ -351,7 +395,7 @@ def _breakaway_time(p, x, v, h, y):
             hi = t
         else:
             lo = t
-    return hi
+    return hi, False
 
 
 @njit(cache=True, inline="always")
@@ -381,10 +425,67 @@ def advance(P, C, F, X, D, j, v, h, which, c, y):
     reference count of each of them at every call (several times the step itself).
     Inlined into the loop, whose locals are set up once per block; the events' function
     (large, rare) is a call of its own."""
-    if which >= 0 and not F[j]:  # the common case
-        _slide_at(P, C, X, j, which, v)
-        return
+    if which >= 0:
+        if not F[j]:  # the common case
+            _slide_at(P, C, X, j, which, v)
+            return
+        if _friction_quiet(P, C, X, D, j, v, h, which):
+            return
     _advance_events(P[j], C[j], F[j], X[j], D, j, v, h, which, c, y)
+
+
+@njit(cache=True, inline="always")
+def _friction_quiet(P, C, X, D, j, v, h, which):
+    """A friction axis over a precomputed interval with no event, done in place by index
+    (no call, no array views), if it is one: sliding with no stop, or stuck with no
+    breakaway, decided by the very tests :func:`_advance_events` makes first (the
+    single check at the interval's end when the interval is within one check step), so
+    the state is the same to the bit. Returns False (nothing changed) otherwise."""
+    d = D[j]
+    if d != 0.0:
+        veff = v - P[j, FC] * d
+        if P[j, W2] == 0.0:
+            if d * (P[j, KC] * veff) >= 0.0:  # monotone towards a speed in d's sense
+                _slide_at(P, C, X, j, which, veff)
+                return True
+            return False
+        if h / P[j, CHECK_SLIDE] > 1.0:
+            return False
+        w = C[j, which, CA] * X[j, 0] + C[j, which, CB0] * veff
+        ys = P[j, GAIN] * veff / P[j, W2]
+        z0 = X[j, 2] - ys
+        x3 = X[j, 3]
+        d3 = C[j, which, CEC] * x3 - C[j, which, CES] * (P[j, SIG] * x3 + P[j, W2] * z0)
+        if d * (w + P[j, LAM] * d3 / P[j, KE]) <= 0.0:
+            return False
+        _slide_at(P, C, X, j, which, veff)
+        return True
+    limit = P[j, FS]
+    if abs(v - P[j, KSPR] * X[j, 2] - P[j, CDMP] * X[j, 3]) > limit:
+        return False
+    if P[j, W2] == 0.0:
+        X[j, 0] = 0.0
+        X[j, 2] = 0.0
+        X[j, 3] = 0.0
+        return True
+    if h / P[j, CHECK_STUCK] > 1.0:
+        return False
+    lam = P[j, LAM]
+    x2 = X[j, 2]
+    x3 = X[j, 3]
+    motor = X[j, 1] + lam * x2
+    ec = C[j, which, CSC]
+    es = C[j, which, CSS]
+    m = 0.5 * P[j, SA1]
+    y2 = ec * x2 + es * (x3 + m * x2)
+    y3 = ec * x3 - es * (m * x3 + P[j, SA0] * x2)
+    if abs(v - P[j, KSPR] * y2 - P[j, CDMP] * y3) > limit:
+        return False
+    X[j, 0] = -lam * y3 / P[j, KE]
+    X[j, 1] = motor - lam * y2
+    X[j, 2] = y2
+    X[j, 3] = y3
+    return True
 
 
 @njit(cache=True)
@@ -405,10 +506,13 @@ def _advance_events(p, coef, friction, x, directions, j, v, h, which, c, y):
         if remaining <= 0.0:
             return
         direction = directions[j]
+        fixed = which >= 0 and remaining == h
+        cf = coef[which] if fixed else c
         if direction == 0.0:
-            t = _breakaway_time(p, x, v, remaining, y)
+            t, at_end = _breakaway_time(p, x, v, remaining, y, cf, fixed)
             if t < 0.0:
-                _stuck(p, x, remaining, y)
+                if not at_end:
+                    _stuck(p, x, remaining, y)
                 for i in range(4):
                     x[i] = y[i]
                 return
@@ -420,10 +524,12 @@ def _advance_events(p, coef, friction, x, directions, j, v, h, which, c, y):
             remaining -= t
             continue
         veff = v - p[FC] * direction
-        t = _stop_time(p, x, veff, remaining, direction, c, y)
+        t, at_end = _stop_time(p, x, veff, remaining, direction, c, y, cf, fixed)
         if t < 0.0:
-            if which >= 0 and remaining == h:
-                _slide(p, coef[which], x, veff, y)
+            if at_end:
+                pass  # y is already the state at the interval's end
+            elif fixed:
+                _slide(p, cf, x, veff, y)
             else:
                 _slide_for(p, x, veff, remaining, c, y)
             for i in range(4):
@@ -604,11 +710,11 @@ def make_stage(effects, tau, Kc, Ke, max_drive: float, sample_period: float) -> 
         whole, split = whole + 1, 0.0
     coef = np.zeros((n, 2, N_COEF))
     for j in range(n):
-        if split > 0.0:
-            _coefficients(param[j], split, coef[j, 0])
-            _coefficients(param[j], Ts - split, coef[j, 1])
-        else:
-            _coefficients(param[j], Ts, coef[j, 0])
+        intervals = (split, Ts - split) if split > 0.0 else (Ts,)
+        for i, h in enumerate(intervals):
+            _coefficients(param[j], h, coef[j, i])
+            if two[j]:
+                coef[j, i, CSC], coef[j, i, CSS] = _oscillator(param[j, SA1], param[j, SA0], h)
     bits = effects["dac_bits"]
     if bits is not None and not math.isfinite(max_drive):
         raise InvalidMachineError(f"dac_bits = {bits} needs a finite max_drive, got "
