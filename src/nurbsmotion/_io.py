@@ -10,6 +10,7 @@ behind.
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import shutil
@@ -21,7 +22,7 @@ from typing import IO, Callable, Iterator
 
 from .errors import InvalidArgumentError, OutputExistsError, PathFileError
 
-__all__ = ["check_input_file", "read_text_file", "parse_json_or_toml", "write_output",
+__all__ = ["json_safe", "check_input_file", "read_text_file", "parse_json_or_toml", "write_output",
            "atomic_output", "OutputFolder"]
 
 
@@ -319,3 +320,15 @@ class OutputFolder:
                 stale = self.folder / name
                 if name not in moved and (stale.is_file() or stale.is_symlink()):
                     stale.unlink()
+
+
+def json_safe(value):
+    """``value`` with every float that is not finite replaced by None (JSON has no inf or
+    NaN), through dicts, lists and tuples."""
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

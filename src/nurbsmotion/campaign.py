@@ -80,7 +80,7 @@ class PlantGroup:
 
     ``tau_scale`` and ``Kc_scale`` multiply the model's tau and Kc (scalar or one per
     axis); with ``spread > 0`` each of them is instead drawn per axis and per case from
-    uniform(1 - spread, 1 + spread) with the case's seed (SPEC section 10's mismatch).
+    uniform(1 - spread, 1 + spread) with the case's seed (docs/model.md#beyond-the-paper: the mismatch).
     """
 
     name: str

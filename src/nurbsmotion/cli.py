@@ -599,10 +599,10 @@ def _cmd_identify(args) -> int:
         (staged.staging / out.name).write_text(result.to_toml(), encoding="utf-8")
         import json
 
-        from .identify import _json_safe
+        from ._io import json_safe
 
         (staged.staging / "identify.json").write_text(
-            json.dumps(_json_safe(result.to_dict()), indent=2), encoding="utf-8")
+            json.dumps(json_safe(result.to_dict()), indent=2), encoding="utf-8")
         if not args.no_figures:
             result.plot(staged.staging, overwrite=True)
     for a in result.axes:

@@ -1,6 +1,6 @@
 """The closed loop, sample by sample: one implementation, compiled and readable.
 
-At sample k (t = k*Ts), for every axis (SPEC sections 1, 3 and 4):
+At sample k (t = k*Ts), for every axis (docs/model.md#chain, #servo-axis and #controllers):
 
 1. the plant's position tha[k] is measured, and its velocity: encoder differencing
    ``(tha[k] - tha[k-1])/Ts`` or the true motor speed ``Ke*w[k]`` [pulse/s];

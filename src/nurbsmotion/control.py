@@ -1,7 +1,7 @@
 """The control law as data: LinuxCNC's ``pid`` HAL component, per axis.
 
 The law is ``calc_pid`` of LinuxCNC's ``src/hal/components/pid.c``, evaluated once per
-sample Ts for every axis (SPEC section 10)::
+sample Ts for every axis (docs/model.md#beyond-the-paper)::
 
     e      = command - feedback, clamped to +-maxerror (0: no clamp), less the deadband
     errorI = errorI + e*Ts unless the output sat at its limit pushing the same way as e
@@ -16,7 +16,7 @@ and the output is limited to +-maxoutput (the machine's drive limit Umax), which
 limit state the integrator reads at the next sample. Positions are in pulses, the output
 in volts, times in seconds.
 
-The paper's laws are presets of it (SPEC section 4, eq. 2.4, 2.12 and 3.3 of Yeh & Sun
+The paper's laws are presets of it (docs/model.md#controllers, eq. 2.4, 2.12 and 3.3 of Yeh & Sun
 2008): ``Pgain = Kp``, ``Dgain = Kd/Ke``, ``FF1 = 1/(Kc*Ke)``, ``FF2 = tau/(Kc*Ke)`` for PD+
 (``FF1 = FF2 = 0`` for PD). The ``true`` speed measurement of the paper's PD+ is the
 component's ``feedback-deriv`` pin fed with the motor speed: ``errorD = cmdD - Ke*w``.

@@ -4,7 +4,7 @@ The die-bonder Pi move at F = 0.2, 0.5 and 1.0 m/s and the butterfly at 0.05, 0.
 0.2 m/s on the die-bonder preset, each with constant-feed Taylor interpolation (first
 order, eq. 3.2: the interpolator the paper's algorithm reduces to when nothing saturates),
 with the paper's saturation-aware algorithm, and with this project's look-ahead planner. Writes the analogues of the paper's
-Fig. 5-7 for every path and feed, and a Markdown and a JSON table of the SPEC section 9
+Fig. 5-7 for every path and feed, and a Markdown and a JSON table of the docs/model.md#run-figures
 figures of every run.
 """
 

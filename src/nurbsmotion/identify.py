@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import check_input_file, write_output
+from ._io import check_input_file, json_safe, write_output
 from .errors import InvalidArgumentError, PathFileError
 from .machine import LENGTH_UNITS_UM, Machine
 
@@ -639,22 +639,13 @@ def write_identification(result: Identification, out, *, figure: bool = True,
     folder = out.parent
     written = [write_output(out, lambda h: h.write(result.to_toml()), overwrite=overwrite)]
     written.append(write_output(folder / "identify.json",
-                                lambda h: json.dump(_json_safe(result.to_dict()), h,
+                                lambda h: json.dump(json_safe(result.to_dict()), h,
                                                     indent=2),
                                 overwrite=overwrite))
     if figure:
         written.append(result.plot(folder, overwrite=overwrite))
     return written
 
-
-def _json_safe(data):
-    if isinstance(data, dict):
-        return {k: _json_safe(v) for k, v in data.items()}
-    if isinstance(data, (list, tuple)):
-        return [_json_safe(v) for v in data]
-    if isinstance(data, float) and not math.isfinite(data):
-        return None
-    return data
 
 
 # -- excitation ------------------------------------------------------------------------

@@ -6,7 +6,7 @@ the rows, :func:`simulate_streamed` -> :class:`RunOutcome`), or open loop
 :func:`simulate` builds the run from data: the interpolator's plan and a fresh state, the
 machine's control law (:meth:`nurbsmotion.machine.Machine.law`) and the true plant's ZOH
 matrices, and runs :func:`nurbsmotion.closed_loop.run_samples` (measure, step, law, clip,
-plant; SPEC sections 1 and 4) until the setpoint has reached the end and the motion has
+plant; docs/model.md#chain and #controllers) until the setpoint has reached the end and the motion has
 settled there. It changes none of the objects it is given.
 """
 
@@ -166,7 +166,7 @@ class Trace(RunOutcome):
     position_measured: np.ndarray | None = None
 
     def metrics(self):
-        """The SPEC section 9 figures (:class:`nurbsmotion.metrics.Metrics`)."""
+        """The docs/model.md#run-figures figures (:class:`nurbsmotion.metrics.Metrics`)."""
         from .metrics import trace_metrics
 
         return trace_metrics(self)
@@ -218,7 +218,7 @@ class SetpointSeries:
         return float(self.t[self.finished_index])
 
     def feed_fluctuation(self) -> tuple[float, float]:
-        """SPEC section 9: ``(|thd[k] - thd[k-1]|/Ts - Vcmd[k]) / Vcmd[k]``, (max |.|, RMS).
+        """docs/model.md#run-figures: ``(|thd[k] - thd[k-1]|/Ts - Vcmd[k]) / Vcmd[k]``, (max |.|, RMS).
 
         Taken over the full steps 1 .. finished_index - 1: the last step is cut short to
         land on the end exactly, so it is not a fluctuation.

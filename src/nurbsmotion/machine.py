@@ -1,7 +1,7 @@
 """Machine description: servo axes, controller gains, drive limit, sample period.
 
-A :class:`Machine` is a value object: named :class:`Axis` entries (plant and gains, SPEC
-sections 3-4), the drive limit ``max_drive`` (Umax), the ``sample_period`` (Ts) shared by
+A :class:`Machine` is a value object: named :class:`Axis` entries (plant and gains,
+docs/model.md#servo-axis to #controllers), the drive limit ``max_drive`` (Umax), the ``sample_period`` (Ts) shared by
 interpolation and control, the control law and how speed is measured, and the length of one
 encoder pulse so that paths drawn in mm can run on it. It knows nothing of NURBS.
 
@@ -9,7 +9,7 @@ Built-in preset ``die-bonder``: Table 1 of Yeh & Sun (2008), Umax = 10 V, Ts = 1
 1 pulse = 1 um. Users bring their own identified axes in a TOML or JSON machine file
 (:func:`load_machine`); see ``examples/die_bonder.toml``.
 
-Glossary (SPEC section 2)
+Glossary (docs/model.md#units)
 -------------------------
 tau : time constant [s]; Kc : electrical gain [(rad/s)/V]; Ke : mechanical gain
 [pulse/rad]; Kp : position gain [V/pulse]; Kd : speed gain [V/(rad/s)];
@@ -247,10 +247,10 @@ class Machine:
     sample_period : float
         Ts [s], > 0, shared by the interpolator and the controller.
     controller : {"pd+", "pd", "pid"}
-        Control law (SPEC sections 4 and 10): the paper's PD+ or PD from each axis's Kp
+        Control law (docs/model.md#controllers and #beyond-the-paper): the paper's PD+ or PD from each axis's Kp
         and Kd, or LinuxCNC's ``pid`` from each axis's ``pid`` parameters.
     speed_measurement : {"encoder", "true"}
-        ``"encoder"``: speed by differencing positions (SPEC eq. 3.3); ``"true"``: the
+        ``"encoder"``: speed by differencing positions (eq. 3.3 (docs/model.md#controllers)); ``"true"``: the
         simulated motor speed.
     pulse_length_um : float
         Length of one encoder pulse [um], to convert paths drawn in mm, m or inch.
@@ -272,7 +272,7 @@ class Machine:
     The last five and each axis's ``coulomb_friction``, ``stiction``, ``disturbance``,
     ``resonance_frequency``, ``resonance_damping``, ``load_fraction`` and ``encoder_on``
     describe the machine as it is (:mod:`nurbsmotion.plant`); with none of them set the
-    plant is the ideal one of SPEC section 3.
+    plant is the ideal one of docs/model.md#servo-axis.
 
     Raises
     ------
@@ -607,7 +607,7 @@ _MACHINE_DEFAULTS = {k: Machine.__dataclass_fields__[k].default for k in MACHINE
 
 
 def die_bonder(**changes: Any) -> Machine:
-    """The die-bonder of Yeh & Sun (2008), Table 1 (SPEC section 3).
+    """The die-bonder of Yeh & Sun (2008), Table 1 (docs/model.md#servo-axis).
 
     Umax = 10 V, Ts = 1 ms, PD+ with encoder differencing, 1 pulse = 1 um. Keyword
     arguments replace fields (e.g. ``max_drive=math.inf``).

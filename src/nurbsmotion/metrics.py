@@ -1,4 +1,4 @@
-"""The figures every run reports (SPEC section 9), computed from a trace.
+"""The figures every run reports (docs/model.md#run-figures), computed from a trace.
 
 - cycle time: time at which the setpoint first reaches the path's end;
 - following error per axis thd[k] - tha[k], max |.| and RMS;
@@ -8,7 +8,7 @@
   (by more than :data:`SATURATION_TOLERANCE`, far below one step of a 16-bit DAC, so that
   an interpolator that drives exactly at the limit is not counted for rounding errors);
 - feedrate fluctuation ``(|thd[k] - thd[k-1]|/Ts - Vcmd[k]) / Vcmd[k]``, max |.| and RMS;
-- SPEC section 10: settle time (the first time after which the actual position stays
+- docs/model.md#beyond-the-paper: settle time (the first time after which the actual position stays
   within ``settle_window`` of the end point until the trace ends), and the overshoot of
   the end point and of every sharp corner along the direction of arrival.
 
@@ -41,7 +41,7 @@ SATURATION_TOLERANCE = 1e-6
 
 @dataclass(frozen=True)
 class Metrics:
-    """SPEC section 9 figures of one run; per-axis values are dicts keyed by axis name.
+    """docs/model.md#run-figures figures of one run; per-axis values are dicts keyed by axis name.
 
     Attributes
     ----------
@@ -120,7 +120,7 @@ class Metrics:
 
 def feed_fluctuation(position: np.ndarray, feed: np.ndarray, sample_period: float,
                      finished_index: int) -> tuple[float, float]:
-    """Feedrate fluctuation (max |.|, RMS) of SPEC section 9; see
+    """Feedrate fluctuation (max |.|, RMS) of docs/model.md#run-figures; see
     :meth:`nurbsmotion.loop.SetpointSeries.feed_fluctuation`."""
     if finished_index < 2:
         return 0.0, 0.0
@@ -713,7 +713,7 @@ class RunningMetrics:
 
 
 def trace_metrics(trace, settle_window: float | None = None) -> Metrics:
-    """All SPEC section 9 and 10 figures of a :class:`~nurbsmotion.loop.Trace` but the
+    """All docs/model.md#run-figures and #beyond-the-paper figures of a :class:`~nurbsmotion.loop.Trace` but the
     time-optimal bound (:class:`RunningMetrics` over the whole trace).
 
     Parameters

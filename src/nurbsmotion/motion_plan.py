@@ -1,7 +1,7 @@
 """The planned motion: the actual position, sample by sample, and the drive that makes it.
 
 The ``planned`` interpolator (issue 10) plans what the machine does, not the setpoint. The
-plant of every axis is known exactly (SPEC section 3): under a zero-order hold, with the
+plant of every axis is known exactly (docs/model.md#servo-axis): under a zero-order hold, with the
 state ``x = [w, theta]``,
 
     w[k+1]     = a*w[k] + b0*u[k]
@@ -647,7 +647,7 @@ def _past_end(positions: np.ndarray, off: np.ndarray, end: np.ndarray,
 
 
 def _impulse_responses(machine: Machine, size: int) -> np.ndarray:
-    """``h[j, p] = A^p B`` of every axis' ZOH plant (SPEC section 3), p < ``size``: the
+    """``h[j, p] = A^p B`` of every axis' ZOH plant (docs/model.md#servo-axis), p < ``size``: the
     change of [speed, position] p + 1 samples after a unit drive. Shape (n_axes, size, 2)."""
     a, b0, c, b1 = axis_zoh(machine)
     h = np.empty((len(a), size, 2))
@@ -698,7 +698,7 @@ def _land_on_end(y: np.ndarray, w: np.ndarray, theta: np.ndarray, u: np.ndarray,
     motion's last samples creep (the averaging of step 1 halves the last braking, and the
     arrival is rounded up to a sample). The plant is linear, so a change du of the last
     m drives moves sample k by ``sum_i h[k - 1 - i] du[i]`` with ``h[p] = A^p B`` (the ZOH
-    plant, SPEC section 3). Per axis, the change that puts the state at N at rest on the
+    plant, docs/model.md#servo-axis). Per axis, the change that puts the state at N at rest on the
     end and otherwise departs least from ``y`` (equality-constrained least squares over
     the window's positions) is applied, and the drive is 0 after N. It is kept if the
     changed drive is within ``limit`` [V] and the window's positions stay as near the

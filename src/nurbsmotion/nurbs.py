@@ -15,7 +15,7 @@ Conventions
   :attr:`NurbsCurve.domain`.
 - Interior knots may repeat up to the degree ``p``. Multiplicity ``p`` makes the curve only
   C0 there: a possible *sharp corner*. Derivatives at such a knot are one-sided, from the
-  right by default (the span the motion moves into, SPEC section 5), from the left with
+  right by default (the span the motion moves into, docs/model.md#interpolation), from the left with
   ``side="left"``.
 
 - Limits of double precision are refused at construction with the limit in the message:
@@ -926,7 +926,7 @@ def make_circle(
 
 
 BUILTIN_PATHS = {"die-bonder-pi": "die_bonder_pi.json", "butterfly": "butterfly.json"}
-"""Built-in benchmark paths (SPEC section 8) by name, and their package data files."""
+"""Built-in benchmark paths (docs/model.md#benchmarks) by name, and their package data files."""
 
 
 def builtin_path(name: str) -> NurbsCurve:
@@ -946,7 +946,7 @@ def builtin_path(name: str) -> NurbsCurve:
 
 
 def make_die_bonder_pi() -> NurbsCurve:
-    """The die-bonder Pi move of SPEC section 8 [pulse]: cubic, two sharp corners, ~103.1 mm."""
+    """The die-bonder Pi move of docs/model.md#benchmarks [pulse]: cubic, two sharp corners, ~103.1 mm."""
     return builtin_path("die-bonder-pi")
 
 

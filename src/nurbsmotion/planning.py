@@ -3,10 +3,10 @@
 The path is parametrised by arc length s; per axis j, x_j(s) with derivatives q1_j =
 dx_j/ds and q2_j = d2x_j/ds2. A motion s(t) with speed sd = ds/dt and acceleration sdd
 gives the axis speed xd_j = q1_j*sd and acceleration xdd_j = q2_j*sd^2 + q1_j*sdd. The
-drive of a perfectly tracked axis (the feedforward of the PD+ law, SPEC sections 3-4)
+drive of a perfectly tracked axis (the feedforward of the PD+ law, docs/model.md#servo-axis to #controllers)
 stays within the limit when
 
-    |tau_j*xdd_j + xd_j| <= Umax*Kc_j*Ke_j = M_j          (SPEC section 9)
+    |tau_j*xdd_j + xd_j| <= Umax*Kc_j*Ke_j = M_j          (docs/model.md#run-figures)
 
 For a given s and sd this is an interval of sdd per axis; their intersection is the
 admissible acceleration range [amin(s, sd), amax(s, sd)]. The largest sd at which the range
@@ -31,7 +31,7 @@ Glossary
 s : arc length [pulse]; sd, V : speed along the path [pulse/s]; sdd : tangential
 acceleration [pulse/s^2]; b = sd^2; q1, q2 : first and second derivatives of the axis
 positions with respect to s [1, 1/pulse]; tau [s], Kc [(rad/s)/V], Ke [pulse/rad], Umax
-[V]: SPEC section 2; M = Umax*Kc*Ke : the largest steady axis speed [pulse/s]; F : the
+[V]: docs/model.md#units; M = Umax*Kc*Ke : the largest steady axis speed [pulse/s]; F : the
 commanded feed [pulse/s].
 """
 
@@ -130,7 +130,7 @@ MAX_GRID_POINTS = 5_000_000
 def top_speed(machine: Machine) -> float:
     """The fastest any motion within the drive limits moves along a path [pulse/s]:
     ``sqrt(sum_j (Umax*Kc_j*Ke_j)^2)``. Each axis's speed obeys ``tau_j*xdd_j + xd_j =
-    Kc_j*Ke_j*u_j`` (SPEC section 3), a first-order filter of a drive ``|u_j| <= Umax``,
+    Kc_j*Ke_j*u_j`` (docs/model.md#servo-axis), a first-order filter of a drive ``|u_j| <= Umax``,
     so from rest ``|xd_j|`` never exceeds ``Umax*Kc_j*Ke_j``. ``inf`` for an ideal drive."""
     if machine.max_drive == math.inf:
         return math.inf
@@ -495,7 +495,7 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
     """The fastest speed along ``curve`` that keeps the feedforward drive within bounds.
 
     Per axis ``|tau_j*xdd_j + xd_j| <= drive_fraction*Umax*Kc_j*Ke_j``, ``V <= feed``, and
-    ``V = 0`` at both ends and at every sharp corner (SPEC section 9).
+    ``V = 0`` at both ends and at every sharp corner (docs/model.md#run-figures).
 
     Parameters
     ----------
@@ -630,7 +630,7 @@ def _check_feed(feed) -> float:
 
 def _rest_to_rest_reach(a: float, b0: float, c: float, b1: float, n: int,
                         speed_slack: float = 0.0) -> float:
-    """The farthest [pulse per V of Umax] one ZOH axis (SPEC section 3: ``w[k+1] = a*w[k] +
+    """The farthest [pulse per V of Umax] one ZOH axis (docs/model.md#servo-axis: ``w[k+1] = a*w[k] +
     b0*u[k]``, ``theta[k+1] = theta[k] + c*w[k] + b1*u[k]``) moves in ``n`` samples from
     rest, under ``|u| <= 1``, ending with ``|w[n]| <= speed_slack`` [rad/s per V].
 
@@ -688,7 +688,7 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
     takes a whole number of samples per corner-free piece, each at least
     what the slowest axis needs to move its displacement across the piece from rest to
     rest under ``|u| <= Umax`` (:func:`_rest_to_rest_reach`, exact for the ZOH plant of
-    SPEC section 3). The last piece only has to end within ``settle_window`` of the end
+    docs/model.md#servo-axis). The last piece only has to end within ``settle_window`` of the end
     on each axis, and slow enough to be within it at the next sample too: a motor speed
     w moves the axis by at least ``c*|w| - b1*Umax`` over a sample, so ``|w| <= (2*window
     + b1*Umax)/c``.
@@ -737,7 +737,7 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
 
 def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,
                        grid_size: int = 20_000) -> float:
-    """The least time to traverse ``curve`` at rest at both ends (SPEC section 9) [s].
+    """The least time to traverse ``curve`` at rest at both ends (docs/model.md#run-figures) [s].
 
     Under ``|tau_j*xdd_j + xd_j| <= Umax*Kc_j*Ke_j`` on every axis (the feedforward drive
     of a perfectly tracked motion), ``V <= feed`` and ``V = 0`` at sharp corners; computed

@@ -1,7 +1,7 @@
 """The plant as it is on a machine: encoder counts, noise, delay, DAC, friction, load steps
 and a two-mass resonance, as data for the one compiled loop.
 
-An ideal machine's plant is the rigid axis of SPEC section 3, read exactly, driven at
+An ideal machine's plant is the rigid axis of docs/model.md#servo-axis, read exactly, driven at
 once (:mod:`nurbsmotion.servo`). A machine with any of the keys of issue 32 (see
 :class:`nurbsmotion.machine.Machine` and :class:`~nurbsmotion.machine.Axis`) gets a plant
 *stage* (:class:`PlantStage`, numbers only) that :func:`nurbsmotion.closed_loop.run_samples`
@@ -53,7 +53,7 @@ rounded to the nearest.
 
 Glossary
 --------
-tau [s], Kc [(rad/s)/V], Ke [pulse/rad] : the axis (SPEC section 3); lam : load fraction;
+tau [s], Kc [(rad/s)/V], Ke [pulse/rad] : the axis (docs/model.md#servo-axis); lam : load fraction;
 wn [rad/s], zeta : the mode; v : net drive [V]; h : an interval [s]; Ts : sample period.
 """
 
@@ -67,6 +67,7 @@ from numba import njit
 from numba.extending import overload
 
 from .errors import InvalidMachineError
+from .servo import x_minus_one_minus_exp
 
 __all__ = ["PlantStage", "IdleStage", "is_active", "PlantState", "make_stage", "inactive_stage",
            "new_plant_state",
@@ -165,19 +166,9 @@ def _is_active_overload(stage):
     return impl
 
 
-@njit(cache=True)
-def _x_minus_g(x: float) -> float:
-    """``x - (1 - exp(-x))`` to rounding (as :func:`nurbsmotion.servo.zoh_matrices`)."""
-    if x >= 0.5:
-        return x + math.expm1(-x)
-    term = x * x / 2.0
-    total = 0.0
-    n = 2
-    while abs(term) > 1e-17 * x * x:
-        total += term
-        n += 1
-        term *= -x / n
-    return total
+_x_minus_g = njit(cache=True)(x_minus_one_minus_exp)
+"""``x - (1 - exp(-x))`` to rounding, compiled
+(:func:`nurbsmotion.servo.x_minus_one_minus_exp`)."""
 
 
 @njit(cache=True)

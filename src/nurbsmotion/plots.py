@@ -1,4 +1,4 @@
-"""Figures of a run, written as PNG files (SPEC section 9; Figs. 5-7 of Yeh & Sun (2008)).
+"""Figures of a run, written as PNG files (docs/model.md#run-figures; Figs. 5-7 of Yeh & Sun (2008)).
 
 matplotlib is imported inside the functions, so ``import nurbsmotion`` never imports it.
 Figures are built as :class:`matplotlib.figure.Figure` objects on an Agg canvas, without

@@ -37,7 +37,7 @@ from typing import Callable, Iterable, NamedTuple
 
 import numpy as np
 
-from ._io import atomic_output, write_output
+from ._io import atomic_output, json_safe, write_output
 from .errors import OutputExistsError
 
 __all__ = ["SUMMARY_KEYS", "SUMMARY_LENGTH_KEYS", "TRACE_FORMATS", "TRACE_FILES",
@@ -448,9 +448,9 @@ def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
     feed : float
         Commanded feed [pulse/s].
     time_optimal_bound : float
-        SPEC section 9 bound [s] (:func:`nurbsmotion.planning.time_optimal_bound`);
+        docs/model.md#run-figures bound [s] (:func:`nurbsmotion.planning.time_optimal_bound`);
         ``cycle_time_ratio`` is the cycle time divided by it, ``move_and_settle_ratio``
-        the settle time (SPEC section 10) divided by it (``inf`` when the motion did not
+        the settle time (docs/model.md#beyond-the-paper) divided by it (``inf`` when the motion did not
         settle).
     length_unit : str, optional
         The report unit (``"mm"``, ``"in"``; :func:`nurbsmotion.units.report_unit`).
@@ -496,19 +496,10 @@ def summary_units(data: dict) -> dict:
     return units
 
 
-def _json_safe(value):
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None  # JSON has no inf/NaN
-    return value
-
 
 def write_json(data, path: Path, *, overwrite: bool = False) -> Path:
     """Write JSON (inf and NaN as null), indented, through a temporary name."""
-    text = json.dumps(_json_safe(data), indent=2) + "\n"
+    text = json.dumps(json_safe(data), indent=2) + "\n"
     return write_output(path, lambda h: h.write(text), overwrite=overwrite)
 
 

@@ -1,6 +1,6 @@
 """The servo plant: independent axes simulated exactly under a zero-order hold.
 
-Each axis follows SPEC section 3 (eq. 2.1-2.2 with b = [Kc/tau, 0]^T)::
+Each axis follows docs/model.md#servo-axis (eq. 2.1-2.2 with b = [Kc/tau, 0]^T)::
 
     tau * dw/dt = -w + Kc * u        dtheta/dt = Ke * w
 
@@ -49,7 +49,7 @@ def zoh_matrices(time_constant: float, electrical_gain: float, mechanical_gain: 
     x = float(sample_period) / tau
     g = -math.expm1(-x)
     Ad = np.array([[1.0 - g, 0.0], [Ke * tau * g, 1.0]])
-    Bd = np.array([Kc * g, Ke * Kc * tau * _x_minus_one_minus_exp(x)])
+    Bd = np.array([Kc * g, Ke * Kc * tau * x_minus_one_minus_exp(x)])
     return Ad, Bd
 
 
@@ -66,7 +66,7 @@ def zoh_coefficients(time_constant, electrical_gain, mechanical_gain, sample_per
     return a, b0, c, b1
 
 
-def _x_minus_one_minus_exp(x: float) -> float:
+def x_minus_one_minus_exp(x: float) -> float:
     """``x - (1 - exp(-x))`` for x > 0, accurate to rounding: the series
     ``sum_{n>=2} (-1)^n x^n / n!`` below 0.5 (where the difference cancels), else direct."""
     if x >= 0.5:

@@ -6,10 +6,10 @@ compiled function registered with :func:`nurbsmotion.stepping.register` (the con
 in :mod:`nurbsmotion.stepping`). The object is never changed by a run.
 
 The step itself is the Taylor expansion of order 1 or 2 (eq. 3.2 / 3.1 of Yeh & Sun 2008,
-with the tangential-acceleration term of SPEC section 5). A step that crosses a knot where
+with the tangential-acceleration term of docs/model.md#interpolation). A step that crosses a knot where
 the curve loses the continuity the expansion relies on (C1 for first order, C2 for second
 order; a sharp corner is one) is integrated piecewise: the expansion restarts at the knot
-with the derivatives of the span the step moves into (SPEC section 5's one-sided rule),
+with the derivatives of the span the step moves into (docs/model.md#interpolation: the one-sided rule),
 for the rest of Ts. The step that reaches u = 1 lands on it exactly and reports
 ``FINISHED``.
 
@@ -121,7 +121,7 @@ def taylor_increment(d, order, V, A, T):
     """Parameter step of the speed-controlled interpolator (eq. 3.1 / 3.2).
 
     ``du = V*T/|D| + (A/|D| - V^2 <D, D2>/|D|^4) * T^2 / 2`` for order 2 (eq. 3.1 plus the
-    tangential-acceleration term A that eq. 3.1 omits, SPEC section 5; Farouki & Tsai
+    tangential-acceleration term A that eq. 3.1 omits, docs/model.md#interpolation; Farouki & Tsai
     2001); ``du = V*T/|D|`` for order 1 (eq. 3.2). Should the second-order term make the
     step non-positive (a step far too long for the local curvature), the first-order step
     is used.

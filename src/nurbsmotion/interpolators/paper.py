@@ -1,6 +1,6 @@
 """The saturation-aware interpolation of Yeh & Sun (2008), sections 3.3-3.4, faithfully.
 
-Each sample, for every axis j (SPEC section 7):
+Each sample, for every axis j (docs/model.md#paper-algorithm):
 
 1. V = commanded feed; unit tangent D = C'(u_i)/|C'(u_i)|; estimated axis speed
    wd_j = D_j*V/Ke_j (eq. 3.7);
@@ -13,7 +13,7 @@ The bounds of step 2 come from the loop's control law as it is (its affine form 
 new setpoint, :func:`nurbsmotion.control.pid_affine`): for the paper's PD+ they are eq. 3.6
 exactly; for PD or any LinuxCNC ``pid`` law the same construction gives that law's bounds.
 
-Known gaps, reproduced on purpose (SPEC section 7): the tangent at u_i misses the other
+Known gaps, reproduced on purpose (docs/model.md#paper-algorithm): the tangent at u_i misses the other
 axis's motion when a step crosses a sharp corner; one sample of look-ahead cannot slow down
 before a corner or the path's end; nothing bounds jerk or contour error.
 """

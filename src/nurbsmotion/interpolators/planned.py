@@ -74,7 +74,7 @@ from numba import njit
 from .. import stepping
 from .._memory import release_freed_memory
 from ..control import pid_affine, pid_output
-from ..errors import InfeasibleError, InvalidArgumentError
+from ..errors import InvalidArgumentError
 from ..feed import FeedLimit
 from ..machine import Machine
 from ..motion_plan import DEFAULT_PATH_TOLERANCE, axis_zoh, move_tolerance, plan_motion
@@ -175,7 +175,7 @@ def _pole_gains(a, b0, c, b1, pole):
 def _identify(est, hist, j, position, a, b0, c, b1, dead_zone=0.0):
     """Update axis j's estimate of its sampled plant from the position measured now.
 
-    Every plant of the model's form (SPEC section 3, ZOH) obeys, in measured positions
+    Every plant of the model's form (docs/model.md#servo-axis, ZOH) obeys, in measured positions
     and applied drives only,
 
         dth[k] = a*dth[k-1] + b1*u[k-1] + beta*u[k-2],   beta = c*b0 - a*b1,

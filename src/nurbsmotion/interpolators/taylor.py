@@ -1,7 +1,7 @@
 """Open-loop parameter interpolators: uniform (eq. 1.1) and Taylor (eq. 3.1 / 3.2).
 
 Neither reads the loop state. At a sharp corner the derivatives are taken from the right
-(the span the step moves into, SPEC section 5); a step may jump over a corner.
+(the span the step moves into, docs/model.md#interpolation); a step may jump over a corner.
 """
 
 from __future__ import annotations
@@ -199,7 +199,7 @@ class TaylorInterpolator(FeedTableInterpolator):
     feed : float, callable or piecewise feed
         V [path units/s]: a constant, a function of the curve parameter u, or a
         piecewise-constant feed over u (see :func:`feed_table`). A varying feed enters the
-        second-order step with its tangential acceleration (SPEC section 5).
+        second-order step with its tangential acceleration (docs/model.md#interpolation).
     order : {1, 2}
         1: eq. 3.2; 2: eq. 3.1.
     """

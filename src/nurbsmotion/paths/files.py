@@ -383,7 +383,7 @@ def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: st
                          program.axes, program.units_source)
                  for k, c in enumerate(program.contours)]
     elif suffix == ".dxf":
-        from .dxf import DxfWarning, load_dxf
+        from .dxf import load_dxf
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
