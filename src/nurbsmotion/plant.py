@@ -67,7 +67,6 @@ from numba import njit
 from numba.extending import overload
 
 from .errors import InvalidMachineError
-from .servo import x_minus_one_minus_exp
 
 __all__ = ["PlantStage", "IdleStage", "is_active", "PlantState", "make_stage", "inactive_stage",
            "new_plant_state",
@@ -166,9 +165,24 @@ def _is_active_overload(stage):
     return impl
 
 
+def x_minus_one_minus_exp(x: float) -> float:
+    """``x - (1 - exp(-x))`` for x > 0, accurate to rounding: the series
+    ``sum_{n>=2} (-1)^n x^n / n!`` below 0.5 (where the difference cancels), else direct."""
+    if x >= 0.5:
+        return x + math.expm1(-x)
+    term = x * x / 2.0
+    total = 0.0
+    n = 2
+    while abs(term) > 1e-17 * x * x:
+        total += term
+        n += 1
+        term *= -x / n
+    return total
+
+
 _x_minus_g = njit(cache=True)(x_minus_one_minus_exp)
-"""``x - (1 - exp(-x))`` to rounding, compiled
-(:func:`nurbsmotion.servo.x_minus_one_minus_exp`)."""
+""":func:`x_minus_one_minus_exp` compiled, for the plant stage
+(:func:`nurbsmotion.servo.zoh_matrices` calls the Python one)."""
 
 
 @njit(cache=True)

@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit
 
 from .errors import InvalidMachineError
+from .plant import x_minus_one_minus_exp
 
 __all__ = ["ServoPlant", "zoh_matrices", "zoh_coefficients", "plant_step"]
 
@@ -64,21 +65,6 @@ def zoh_coefficients(time_constant, electrical_gain, mechanical_gain, sample_per
     b0 = np.array([B[0] for _, B in mats])
     b1 = np.array([B[1] for _, B in mats])
     return a, b0, c, b1
-
-
-def x_minus_one_minus_exp(x: float) -> float:
-    """``x - (1 - exp(-x))`` for x > 0, accurate to rounding: the series
-    ``sum_{n>=2} (-1)^n x^n / n!`` below 0.5 (where the difference cancels), else direct."""
-    if x >= 0.5:
-        return x + math.expm1(-x)
-    term = x * x / 2.0
-    total = 0.0
-    n = 2
-    while abs(term) > 1e-17 * x * x:
-        total += term
-        n += 1
-        term *= -x / n
-    return total
 
 
 def _axis_values(values, name: str) -> np.ndarray:
