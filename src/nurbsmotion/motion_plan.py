@@ -906,6 +906,32 @@ def _highs():
         return _core, _core._Highs
 
 
+def _silent(Highs):
+    """A HiGHS solver with its output off. HiGHS 1.16 prints its banner on the C level's
+    standard output when the process makes its first solver, before any option can be set
+    (it would land in the middle of a command's printed results); so the file descriptor
+    is pointed at the null device for that construction alone."""
+    import os
+    import sys
+
+    sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+    except OSError:  # no standard output to protect
+        highs = Highs()
+    else:
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(null, 1)
+            highs = Highs()
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+            os.close(null)
+    highs.setOptionValue("output_flag", False)
+    return highs
+
+
 class _WarmProgram:
     """The linear programs of one arrival sample of step 6, solved by HiGHS' dual simplex
     (Huangfu & Hall 2018, through ``highspy``), each from the last one's optimal basis
@@ -941,8 +967,7 @@ class _WarmProgram:
         lp.a_matrix_.value_ = A.data
         lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = A.shape[1], A.shape[0]
         if self.highs is None:
-            self.highs = Highs()
-            self.highs.setOptionValue("output_flag", False)
+            self.highs = _silent(Highs)
         h = self.highs
         h.passModel(lp)
         warm = self.basis is not None and self.shape == A.shape
