@@ -529,12 +529,13 @@ def test_too_many_control_points_are_refused_before_they_are_converted():
     and 3.4 GB ("too many knot spans"), though its size is known at once."""
     from nurbsmotion.nurbs import MAX_CONTROL_POINTS
 
-    class Rows(list):  # counted, never converted: converting 500,001 rows would be work
+    class Rows(list):  # counted, never converted: converting them all would be work
         def __array__(self, *args, **kwargs):
             raise AssertionError("converted before the count was checked")
 
     rows = Rows([[0.0, 0.0]] * (MAX_CONTROL_POINTS + 1))
-    with pytest.raises(InvalidCurveError, match="500,001 control points.*MAX_CONTROL_POINTS"):
+    with pytest.raises(InvalidCurveError,
+                       match=f"{MAX_CONTROL_POINTS + 1:,} control points.*MAX_CONTROL_POINTS"):
         NurbsCurve(1, [0.0] * (MAX_CONTROL_POINTS + 3), rows)
 
 

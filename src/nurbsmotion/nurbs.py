@@ -86,12 +86,14 @@ MAX_MAGNITUDE = 1e50
 inverse): keeps w*P, |C'|^3 (curvature) and the servo's squares finite in double
 precision, whatever the knot spacing."""
 
-MAX_CONTROL_POINTS = 500_000
-"""Most control points a curve may have (so at most that many knot spans). A curve is
+MAX_CONTROL_POINTS = 5_000_000
+"""Most control points a curve may have (so at most that many knot spans): a
+1,000,000-line CAM program joined into one path has about 2,000,000. A curve is
 refused beyond it when it is built, and a path file when it is read, before its points
 are converted or checked: the arc-length tables and the zero-speed check grow with the
-spans (a million control points took 106 s and 3.4 GB before the planner refused them).
-Half a million 0.01 mm chords are a 5 m toolpath."""
+spans (a million control points took 106 s and 3.4 GB before the planner refused them;
+within this limit, :func:`nurbsmotion.planning.check_path_size` refuses from the knots
+alone a path whose planner grid would not fit)."""
 
 PATH_UNITS = ("pulse", "um", "mm", "cm", "m", "in", "inch")
 """Length units a curve may be drawn in (``units``); ``None`` means unspecified (pulses
