@@ -66,7 +66,10 @@ def _axis_numbers(a):
     return a.time_constant, a.electrical_gain, a.mechanical_gain, a.position_gain, a.speed_gain
 
 
-def one_case(i: int) -> dict:
+def _draw(i: int):
+    """Case ``i``'s row (family, axes, feed, condition), random path (None where the
+    draw is not a valid curve: the row says so), machine, and its generator (the box
+    condition draws the plant from it next)."""
     rng = np.random.default_rng([SEED, i])
     families = sorted(FAMILIES)
     family = families[i % len(families)]
@@ -79,8 +82,15 @@ def one_case(i: int) -> dict:
         curve = random_path(family, [SEED, i], n_axes=n_axes)
     except InvalidCurveError:
         row["status"] = "invalid path"
+        return row, None, None, rng
+    return row, curve, machine_for(n_axes, 2.0 if condition == "gains x2" else 1.0), rng
+
+
+def one_case(i: int) -> dict:
+    row, curve, m, rng = _draw(i)
+    if curve is None:
         return row
-    m = machine_for(n_axes, 2.0 if condition == "gains x2" else 1.0)
+    condition, feed, n_axes = row["condition"], row["feed"], row["n_axes"]
     plant = None
     if condition == "box":
         plant = ServoPlant.of_machine(m, curve(0.0),
@@ -122,20 +132,10 @@ def plan_only_case(i: int) -> dict:
     """Case ``i`` (as :func:`one_case` draws it) planned only: planning time [s], the
     plan's arrival [s], the bound and the sampled bound [s], and the path's length
     [pulse]."""
-    rng = np.random.default_rng([SEED, i])
-    families = sorted(FAMILIES)
-    family = families[i % len(families)]
-    n_axes = int(rng.integers(2, 4))
-    feed = float(np.exp(rng.uniform(np.log(5e4), np.log(3e6))))
-    condition = CONDITIONS[(i // len(families)) % len(CONDITIONS)]
-    row = {"case": i, "family": family, "n_axes": n_axes, "feed": feed,
-           "condition": condition, "status": "ran"}
-    try:
-        curve = random_path(family, [SEED, i], n_axes=n_axes)
-    except InvalidCurveError:
-        row["status"] = "invalid path"
+    row, curve, m, _ = _draw(i)
+    if curve is None:
         return row
-    m = machine_for(n_axes, 2.0 if condition == "gains x2" else 1.0)
+    feed = row["feed"]
     try:
         t0, c0 = time.perf_counter(), time.process_time()
         interp = PlannedInterpolator(curve, m, feed)

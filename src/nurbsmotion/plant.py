@@ -240,14 +240,8 @@ def _slide(p, c, x, v, y):
 def _stuck(p, x, h, y):
     """``y`` = the state ``h`` [s] after ``x`` with the motor held at rest (a two-mass
     load swings on the spring about it; a rigid axis does not move)."""
-    if p[W2] > 0.0:
-        ec, es = _oscillator(p[SA1], p[SA0], h)
-        _stuck_with(p, x, ec, es, y)
-    else:
-        y[0] = 0.0
-        y[1] = x[1]
-        y[2] = 0.0
-        y[3] = 0.0
+    ec, es = _oscillator(p[SA1], p[SA0], h) if p[W2] > 0.0 else (0.0, 0.0)
+    _stuck_with(p, x, ec, es, y)
 
 
 @njit(cache=True, inline="always")
