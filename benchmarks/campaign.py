@@ -5,7 +5,7 @@ Runs the same cases of a study (by default ``benchmarks/die_bonder_study.toml``;
 ``--cases N``, whole paths spread evenly over the study until N cases) three ways into
 temporary folders and reports, for each, cases per second and the 1 -> 2 worker scaling
 (target >= 1.8x), and the engine's own cost per case (target <= 5 % of the case's time).
-The serial run is the same engine (:func:`nurbsmotion.campaign.run_study`) with one
+The serial run is the same engine (:func:`nurbsmotion.study.run_study`) with one
 worker: the cases run in this process, in the same order, with the same per-path tables.
 
 The machine may be shared, so every figure is given twice:
@@ -13,7 +13,7 @@ The machine may be shared, so every figure is given twice:
 - *wall*: cases / wall time, as a user sees it (``os.getloadavg()`` is printed with it);
 - *load-corrected*: the wall time times the share of CPU the cases actually got
   (sum of ``case_cpu_s`` over sum of ``case_time_s``, both measured inside
-  :func:`nurbsmotion.campaign.run_case`). Other programs' load stretches a case's wall
+  :func:`nurbsmotion.study.run_case`). Other programs' load stretches a case's wall
   time but not its CPU time, so this is the wall time the run would have taken with its
   workers on cores of their own; work the engine adds (start-up, duplicated path tables,
   the tail where a worker idles, the parent's writing) is kept in it.
@@ -36,7 +36,7 @@ Every configuration starts with the kernels loaded: this process loads them befo
 serial run (forked local workers inherit them); the Dask cluster is started and each of
 its workers loads them (the engine's worker plugin) before its first timed run, and that
 start-up is reported on its own line. The LocalCluster runs twice: with
-:data:`nurbsmotion.campaign.DASK_SETTINGS` (as ``docs/campaign.md`` starts a cluster's
+:data:`nurbsmotion.study.DASK_SETTINGS` (as ``docs/campaign.md`` starts a cluster's
 scheduler and workers), and with Dask's default settings.
 
     python benchmarks/campaign.py [--study FILE] [--cases 1000]
@@ -55,8 +55,11 @@ import numpy as np
 
 import _common  # noqa: F401  (puts src/ on the path)
 
-from nurbsmotion import campaign
-from nurbsmotion.campaign import load_study, read_rows, run_study, study_cases
+from nurbsmotion.study import case as study_case
+from nurbsmotion.study import execute
+from nurbsmotion.study.dataset import read_rows
+from nurbsmotion.study.run import run_study
+from nurbsmotion.study.spec import load_study, study_cases
 
 
 _REST_SECONDS = 5.0
@@ -83,12 +86,12 @@ def timed(study, cases, client=None, workers=None) -> dict:
     """One run into a fresh folder, with this process's per-path caches emptied (forked
     workers would inherit them): wall time, the cases' summed wall and CPU time, and the
     CPU time of every process of the run [s]."""
-    campaign._BOUNDS.clear()
-    for cached in (campaign._contour, campaign._pulses):
+    study_case._BOUNDS.clear()
+    for cached in (study_case._contour, study_case._pulses):
         cached.cache_clear()
-    campaign._PATH_ERRORS.clear()
+    study_case._PATH_ERRORS.clear()
     if client is not None:
-        client.run(lambda: [c.cache_clear() for c in (campaign._contour, campaign._pulses)])
+        client.run(lambda: [c.cache_clear() for c in (study_case._contour, study_case._pulses)])
         remote0 = _cluster_cpu(client)
     load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
@@ -138,7 +141,7 @@ def spread_cases(cases, n: int):
     """Whole paths (all their cases), spread evenly over the study, until ``n`` cases."""
     groups: dict = {}
     for c in cases:
-        groups.setdefault(campaign._path_key(c), []).append(c)
+        groups.setdefault(study_case._path_key(c), []).append(c)
     groups = list(groups.values())
     if sum(map(len, groups)) <= n:
         return cases
@@ -164,7 +167,7 @@ def main() -> None:
     print(f"{len(cases)} cases of {args.study}; {os.cpu_count()} cores", flush=True)
     # Load (or compile) the kernels, and import what writes the dataset, once, so that
     # no configuration pays it (the serial run would, being first).
-    campaign._warm_up(cases)
+    execute._warm_up(cases)
     import pyarrow.dataset  # noqa: F401
     import pyarrow.parquet  # noqa: F401
     serial = timed(study, cases, workers=1)
@@ -181,7 +184,7 @@ def main() -> None:
 
     # DASK_SETTINGS first: a nanny puts its workers' environment (Dask's default
     # MALLOC_TRIM_THRESHOLD_) into this process's os.environ, which later nannies pass on.
-    for name, settings in (("DASK_SETTINGS", campaign.DASK_SETTINGS), ("Dask's defaults", {})):
+    for name, settings in (("DASK_SETTINGS", execute.DASK_SETTINGS), ("Dask's defaults", {})):
         cpu0 = _cpu(resource.RUSAGE_SELF)
         t0 = time.perf_counter()
         with dask.config.set(settings), LocalCluster(
@@ -190,7 +193,7 @@ def main() -> None:
             started = time.perf_counter() - t0
             # Its workers are fresh interpreters (the pool's are forks of this warm one):
             # each imports the library and loads the kernels from numba's cache, once.
-            campaign._dask_warm_up(client, cases)
+            execute._dask_warm_up(client, cases)
             client.run(lambda: None)  # every worker has run the plugin's setup
             ready = time.perf_counter() - t0
             cpu = _cpu(resource.RUSAGE_SELF) - cpu0 + _cluster_cpu(client)

@@ -52,9 +52,12 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "output": (("plots", "report", "export", "_identify_plot"),
                ("base", "geometry", "paths", "machine", "identification", "planning",
                 "interpolators", "loop", "metrics")),
-    # run_input: what a run of a named path reads (the contour and its feed), shared by
-    # the CLI and a study's cases.
-    "study": (("run_input", "experiments", "campaign"),
+    # study.run_input: what a run of a named path reads (the contour and its feed), shared
+    # by the CLI and a study's cases; run_input, experiments and campaign are the old
+    # import paths, re-exporting the study package's names.
+    "study": (("study", "study.spec", "study.case", "study.dataset", "study.execute",
+               "study.run", "study.digest", "study.reproduce", "study.run_input",
+               "run_input", "experiments", "campaign"),
               ("base", "geometry", "paths", "machine", "planning", "interpolators", "loop",
                "metrics", "output")),
     "cli": (("cli", "__main__", "_precompile"),

@@ -86,7 +86,7 @@ def test_every_file_a_command_writes_is_declared(tmp_path):
 
 
 def test_reproduce_declares_every_figure(tmp_path):
-    from nurbsmotion.experiments import reproduce, reproduce_outputs
+    from nurbsmotion.study.reproduce import reproduce, reproduce_outputs
 
     experiment = {"die-bonder-pi": (1.0,)}
     reproduce(tmp_path, experiment=experiment, interpolators=("taylor1",))

@@ -10,10 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nurbsmotion import campaign
-from nurbsmotion.campaign import (STATUS_ERROR, STATUS_OK, WORKER_DIED, load_study,
-                                  read_rows, run_study, study_cases)
 from nurbsmotion.cli import main
+from nurbsmotion.study import case as study_case
+from nurbsmotion.study import dataset, execute, run as study_run
+from nurbsmotion.study.dataset import read_rows
+from nurbsmotion.study.execute import DASK_SETTINGS
+from nurbsmotion.study.run import run_study
+from nurbsmotion.study.spec import (STATUS_ERROR, STATUS_OK, WORKER_DIED, load_study,
+                                    study_cases)
 from nurbsmotion.errors import OutputExistsError, PathFileError
 from nurbsmotion.machine import die_bonder
 from nurbsmotion.paths.random_paths import FAMILIES, random_path
@@ -130,7 +134,7 @@ def test_a_runaway_case_is_stopped_and_recorded(tmp_path, monkeypatch):
     from nurbsmotion.errors import WorkLimitError
 
     with pytest.raises(WorkLimitError, match="case_time_limit"):
-        with campaign._cpu_limit(0.2):
+        with study_case._cpu_limit(0.2):
             while True:
                 pass
     study = load_study(write_study(tmp_path, "case_time_limit = 0.2\n" + SMALL))
@@ -141,8 +145,8 @@ def test_a_runaway_case_is_stopped_and_recorded(tmp_path, monkeypatch):
         while True:
             pass
 
-    monkeypatch.setattr(campaign, "case_trace", forever)
-    row = campaign.run_case(case)
+    monkeypatch.setattr(study_case, "case_trace", forever)
+    row = study_case.run_case(case)
     assert row["status"] == STATUS_ERROR and row["error_type"] == "WorkLimitError"
     assert 0.1 <= row["case_cpu_s"] < 5
 
@@ -150,7 +154,7 @@ def test_a_runaway_case_is_stopped_and_recorded(tmp_path, monkeypatch):
 def test_a_folder_in_use_is_refused(tmp_path):
     study = load_study(write_study(tmp_path))
     out = tmp_path / "out"
-    with campaign._locked(out):
+    with dataset._locked(out):
         with pytest.raises(OutputExistsError, match="another running campaign"):
             run_study(study, out, workers=1, progress=False, resume=True)
         with pytest.raises(OutputExistsError, match="another running campaign"):
@@ -164,9 +168,9 @@ def _plan(cases, n_workers, case_cpu, table_cpu):
     Returns the cases per worker and when each worker ran out of work."""
     import heapq
 
-    planner = campaign._Planner(cases)
-    slots = [campaign._Slot() for _ in range(n_workers)]
-    slow = campaign._path_key(cases[-1])
+    planner = execute._Planner(cases)
+    slots = [execute._Slot() for _ in range(n_workers)]
+    slow = study_case._path_key(cases[-1])
     built = [set() for _ in slots]
     ran = [[] for _ in slots]
     end = [0.0] * n_workers
@@ -177,7 +181,7 @@ def _plan(cases, n_workers, case_cpu, table_cpu):
             end[k] = t
             continue
         case = slots[k].sent.popleft()
-        key = campaign._path_key(case)
+        key = study_case._path_key(case)
         cpu = case_cpu * (10 if key == slow else 1)
         cpu += table_cpu if key not in built[k] else 0.0
         built[k].add(key)
@@ -190,10 +194,10 @@ def _plan(cases, n_workers, case_cpu, table_cpu):
 def test_workers_keep_a_path_and_finish_together(tmp_path):
     study = load_study(write_study(tmp_path, SWEEP_BATCHES))
     cases = study_cases(study)
-    n_paths = len({campaign._path_key(c) for c in cases})
+    n_paths = len({study_case._path_key(c) for c in cases})
 
     def splits(ran):  # paths run by more than one worker, counted once per extra worker
-        return sum(len({campaign._path_key(c) for c in r}) for r in ran) - n_paths
+        return sum(len({study_case._path_key(c) for c in r}) for r in ran) - n_paths
 
     for n_workers in (2, 3):
         for case_cpu, table_cpu in ((0.1, 0.0), (0.1, 0.5), (0.01, 1.0)):
@@ -222,12 +226,12 @@ spread = 0.2
 
 _ORPHAN_SCRIPT = """
 import os, sys, time
-from nurbsmotion import campaign
+from nurbsmotion.study import execute, spec
 def wait(case):
     os.write(1, f"{os.getpid()}\\n".encode())  # one write: print() makes two, which interleave
     time.sleep(120)
-cases = campaign.study_cases(campaign.load_study(sys.argv[1]))[:4]
-for row in campaign._execute_pool(cases, 2, wait):
+cases = spec.study_cases(spec.load_study(sys.argv[1]))[:4]
+for row in execute._execute_pool(cases, 2, wait):
     pass
 """
 
@@ -293,7 +297,7 @@ def test_a_case_reruns_with_its_run_output(tmp_path):
 def test_ctrl_c_leaves_a_resumable_dataset(tmp_path, monkeypatch):
     study = load_study(write_study(tmp_path))
     out = tmp_path / "out"
-    real = campaign.run_case
+    real = study_case.run_case
     calls = []
 
     def interrupted(case):
@@ -302,11 +306,11 @@ def test_ctrl_c_leaves_a_resumable_dataset(tmp_path, monkeypatch):
             raise KeyboardInterrupt
         return real(case)
 
-    monkeypatch.setattr(campaign, "run_case", interrupted)
+    monkeypatch.setattr(study_run, "run_case", interrupted)
     with pytest.raises(KeyboardInterrupt):
         run_study(study, out, workers=1, progress=False)
     assert len(read_rows(out)) == 3
-    monkeypatch.setattr(campaign, "run_case", real)
+    monkeypatch.setattr(study_run, "run_case", real)
     done = run_study(study, out, workers=1, progress=False, resume=True)
     assert done.computed == len(study_cases(study)) - 3
 
@@ -318,7 +322,7 @@ def _suicidal_trace(case):
     return _REAL_CASE_TRACE(case)
 
 
-_REAL_CASE_TRACE = campaign.case_trace
+_REAL_CASE_TRACE = study_case.case_trace
 
 
 @pytest.mark.skipif(os.name != "posix", reason="needs fork and SIGKILL")
@@ -328,7 +332,7 @@ def test_a_dying_worker_is_retried_once_then_recorded(tmp_path, monkeypatch):
     if multiprocessing.get_start_method() != "fork":
         pytest.skip("the patched case needs forked workers")
     study = load_study(write_study(tmp_path))
-    monkeypatch.setattr(campaign, "case_trace", _suicidal_trace)
+    monkeypatch.setattr(study_case, "case_trace", _suicidal_trace)
     out = tmp_path / "out"
     run_study(study, out, workers=2, progress=False, cases=study_cases(study)[:5])
     rows = {r["case_index"]: r for r in read_rows(out).to_pylist()}
@@ -367,12 +371,12 @@ def test_the_documented_dask_settings_are_dask_settings():
 
     import yaml
 
-    for key, value in campaign.DASK_SETTINGS.items():
+    for key, value in DASK_SETTINGS.items():
         default = dask.config.get(key)  # KeyError if Dask does not know it
         assert value is None or type(default) is type(value), key
     text = (Path(__file__).parents[1] / "docs" / "campaign.md").read_text()
     documented = yaml.safe_load(re.search(r"<<'EOF'\n(.*?)\nEOF\n", text, re.S).group(1))
-    for key, value in campaign.DASK_SETTINGS.items():
+    for key, value in DASK_SETTINGS.items():
         assert dask.config.get(key, config=documented) == value, key
 
 
@@ -396,9 +400,9 @@ def check_case(case) -> dict:
     on the path and ends at its end (for ``planned``, whose setpoints lead the path:
     every drive within Umax and the motion at rest on the end), the contour error never
     exceeds the distance to the setpoint."""
-    row = campaign._case_columns(case)
+    row = study_case._case_columns(case)
     try:
-        trace, data, tau_s, kc_s = campaign.case_trace(case)
+        trace, data, tau_s, kc_s = study_case.case_trace(case)
     except Exception as exc:  # refused curves are recorded, as the engine does
         row.update(status=STATUS_ERROR, error_type=type(exc).__name__,
                    error_message=str(exc))
@@ -500,7 +504,7 @@ def test_random_families_keep_every_interpolator_invariant(tmp_path, interpolato
     cases = study_cases(study)
     if len(cases) >= 150:  # a sample this large holds every family
         assert {c.path_family for c in cases} == set(FAMILIES)
-    rows = list(campaign._execute(cases, None, None, check_case))
+    rows = list(execute._execute(cases, None, None, check_case))
     assert len(rows) == len(cases) == study.sample
     bad = [(r["case_id"], r["path_family"], r["interpolator"], r["error_message"])
            for r in rows if r["error_type"] == "InvariantViolated"]
@@ -615,7 +619,7 @@ def test_a_study_runs_every_path_as_run_does(tmp_path, feed, unit, cli_feed):
         # Independently of `run`: the motion takes at least the path's length at the
         # feed (the lower of the study's and the program's where the file has F words).
         machine = die_bonder()
-        contour = campaign._contour(row["path"], None, None, 0, 0.0, str(tmp_path), "xy")
+        contour = study_case._contour(row["path"], None, None, 0, 0.0, str(tmp_path), "xy")
         per_unit = machine.pulses_per_unit(contour.curve.units)
         speed = feed * {"mm/s": 1.0, "m/s": 1e3, "mm/min": 1 / 60}[unit] \
             * machine.pulses_per_unit("mm")
@@ -633,7 +637,9 @@ def test_a_bad_study_is_refused_before_any_case_runs(tmp_path, capsys, monkeypat
     def never(case):
         raise AssertionError("a case ran")
 
-    monkeypatch.setattr(campaign, "case_trace", never)
+    # run_case and the warm-up each call the case_trace of their own module
+    monkeypatch.setattr(study_case, "case_trace", never)
+    monkeypatch.setattr(execute, "case_trace", never)
     (tmp_path / "part.ngc").write_text("G21\nG1 X1 F60\nM2\n")
     f = write_study(tmp_path, SMALL.replace('"broken.json"', '"part.ngc", "gone.ngc"'))
     assert main(["campaign", str(f), "--out", str(tmp_path / "out"), "--workers", "1",

@@ -212,7 +212,7 @@ def test_reproduce_writes_tables_and_figures(tmp_path):
 
 def test_reproduce_figures(tmp_path):
     """Per path and feed: the contour, and the speed and drive of every axis."""
-    from nurbsmotion.experiments import reproduce
+    from nurbsmotion.study.reproduce import reproduce
 
     seen = []
     result = reproduce(tmp_path, experiment={"die-bonder-pi": (0.5,)},

@@ -356,7 +356,8 @@ def test_ideal_run_unchanged_and_real_run_measured():
 
 
 def test_campaign_plant_groups_take_effect_keys():
-    from nurbsmotion.campaign import _plant, _true_machine
+    from nurbsmotion.study.case import _true_machine
+    from nurbsmotion.study.spec import _plant
 
     group = _plant({"name": "d", "delay": 3e-4, "encoder": "counts",
                     "coulomb_friction": 0.3, "stiction": 0.4}, 0)

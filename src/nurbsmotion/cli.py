@@ -42,8 +42,8 @@ def parse_feed(text: str) -> tuple[float, str | None]:
 def _contour(args, machine: Machine | None = None):
     """The path named on the command line with its programmed feed (a ``Contour``): read
     with ``--units`` and, for G-code and DXF, the machine's axes (XY without a machine),
-    as a study's cases read theirs (:func:`nurbsmotion.run_input.load_run_contour`)."""
-    from .run_input import load_run_contour
+    as a study's cases read theirs (:func:`nurbsmotion.study.run_input.load_run_contour`)."""
+    from .study.run_input import load_run_contour
 
     return load_run_contour(args.path, machine, units=args.units,
                             project=getattr(args, "project", None))
@@ -74,7 +74,7 @@ def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float 
             return one(1.0, unit)
         return f"{one(per_shown, shown_unit)} = {one(1.0, unit)}"
 
-    from .run_input import programmed_feed
+    from .study.run_input import programmed_feed
 
     feed = programmed_feed(cap, contour.feed, scale, args.path)  # campaigns' rule too
     if contour.feed is None:
@@ -508,7 +508,7 @@ def _true_plant(plant_machine: Machine, machine: Machine):
 
 
 def _cmd_reproduce(args) -> int:
-    from .experiments import reproduce
+    from .study.reproduce import reproduce
 
     t0 = time.perf_counter()
     with _outputs(args) as staged, _progress(args, unit="run") as bar:
@@ -526,7 +526,8 @@ def _cmd_reproduce(args) -> int:
 
 
 def _cmd_campaign(args) -> int:
-    from .campaign import find_case, load_study, run_study
+    from .study.run import run_study
+    from .study.spec import find_case, load_study
 
     if args.out is not None and not args.out.strip():
         raise InvalidArgumentError(f"--out {args.out!r} is empty; name a folder ('.' for the "
@@ -554,7 +555,7 @@ def _cmd_campaign(args) -> int:
 
 def _campaign_case(case, out: Path, args) -> int:
     """``campaign --case ID``: one case's normal run output."""
-    from .campaign import case_trace
+    from .study.case import case_trace
     from .plots import TRACE_FIGURES
     from .report import write_json, write_trace_csv
 
@@ -681,7 +682,7 @@ def _outputs_of(args) -> list[str]:
                 + [EXPORT_FILES[f] for f in args.export or ()]
                 + ([] if args.no_figures else list(TRACE_FIGURES)))
     if args.command == "reproduce":
-        from .experiments import reproduce_outputs
+        from .study.reproduce import reproduce_outputs
 
         return reproduce_outputs(figures=not args.no_figures)
     return []
@@ -691,7 +692,7 @@ def project_outputs() -> list[str]:
     """Every file name ``interpolate``, ``run`` and ``reproduce`` may write into their
     output folder (with any option): what ``--overwrite`` removes when this run does not
     write it, and what refuses a folder without it. docs/cli.md lists them."""
-    from .experiments import reproduce_outputs
+    from .study.reproduce import reproduce_outputs
     from .plots import SETPOINT_FIGURES, TRACE_FIGURES
     from .report import TRACE_FILES
 

@@ -1,0 +1,41 @@
+"""Old import paths keep working after a module moved (issue 31): each old path gives
+the very objects of the new one."""
+
+import importlib
+
+import pytest
+
+
+def _same(old: str, new: str, names) -> None:
+    old_module, new_module = importlib.import_module(old), importlib.import_module(new)
+    for name in names:
+        assert getattr(old_module, name) is getattr(new_module, name), name
+
+
+def test_campaign():
+    from nurbsmotion import campaign
+
+    # ``digest`` is also the name of its module: the function is the module's.
+    _same("nurbsmotion.campaign", "nurbsmotion.study", set(campaign.__all__) - {"digest"})
+    _same("nurbsmotion.campaign", "nurbsmotion.study.digest", ["digest"])
+
+
+def test_experiments():
+    from nurbsmotion import experiments
+
+    _same("nurbsmotion.experiments", "nurbsmotion.study.reproduce", experiments.__all__)
+
+
+def test_run_input():
+    from nurbsmotion import run_input
+
+    _same("nurbsmotion.run_input", "nurbsmotion.study.run_input", run_input.__all__)
+
+
+@pytest.mark.parametrize("name", ["run_study", "run_case", "load_study", "read_rows",
+                                  "write_digest", "reproduce_outputs"])
+def test_study_package_exports(name):
+    import nurbsmotion.study as study
+
+    assert callable(getattr(study, name))
+
