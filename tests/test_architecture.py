@@ -60,7 +60,8 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                "run_input", "experiments", "campaign"),
               ("base", "geometry", "paths", "machine", "planning", "interpolators", "loop",
                "metrics", "output")),
-    "cli": (("cli", "__main__", "_precompile"),
+    "cli": (("cli", "cli.__main__", "cli.parser", "cli.commands", "cli.console", "__main__",
+             "_precompile"),
             ("base", "geometry", "paths", "machine", "identification", "planning", "interpolators", "loop",
              "metrics", "output", "study")),
     # The package's façade loads its names on first use (PEP 562), from any stage.

@@ -331,7 +331,7 @@ def test_warnings_are_one_line_without_source_echo(tmp_path, capsys, monkeypatch
         warnings.warn("first line\nsecond line", UserWarning)
         raise InfeasibleError("stop")
 
-    monkeypatch.setattr(cli, "_cmd_bound", warn_and_fail)
+    monkeypatch.setattr(cli.parser, "_cmd_bound", warn_and_fail)  # where _parser reads it
     parser = cli._parser
     monkeypatch.setattr(cli, "_parser", lambda: _with_func(parser(), warn_and_fail))
     assert main(["bound", "die-bonder-pi", "--feed", "1"]) == 2

@@ -381,7 +381,7 @@ def test_trace_options(tmp_path, capsys, monkeypatch):
     assert main(base + ["--out", str(tmp_path / "none"), "--no-trace"]) == 0
     assert sorted(p.name for p in (tmp_path / "none").iterdir()) == ["summary.json"]
     capsys.readouterr()
-    monkeypatch.setattr(cli, "TRACE_NOTICE_BYTES", 1000)
+    monkeypatch.setattr(cli.commands, "TRACE_NOTICE_BYTES", 1000)
     assert main(base + ["--out", str(tmp_path / "big")]) == 0
     err = capsys.readouterr().err
     assert "trace.csv" in err and "--trace-every" in err and "--no-trace" in err

@@ -39,3 +39,12 @@ def test_study_package_exports(name):
 
     assert callable(getattr(study, name))
 
+
+def test_cli():
+    """cli.py became the package cli/: its public names and main keep their path."""
+    from nurbsmotion import cli
+
+    _same("nurbsmotion.cli", "nurbsmotion.cli.parser", ["parse_feed", "synopsis"])
+    _same("nurbsmotion.cli", "nurbsmotion.cli.console", ["project_outputs"])
+    assert callable(cli.main) and cli.__all__ == ["main", "parse_feed", "synopsis",
+                                                  "project_outputs"]

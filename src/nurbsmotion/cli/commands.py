@@ -1,49 +1,37 @@
-"""Command-line interface: ``nurbsmotion interpolate | run | bound | reproduce | campaign``.
+"""The commands, one function each: ``_cmd_<command>(args) -> int``.
 
-A thin layer over the library: it parses arguments, calls library functions, writes files
-and turns the library's typed errors into one line on stderr and a non-zero exit code.
+Each parses nothing and checks nothing argparse has not: it reads the path and the
+machine, calls the library (the loop, the bound, the study engine, identification), and
+writes its files through the output folder of :mod:`.console`. The helpers of ``run``
+(the feed used, the streamed run, the trace file, the exports, the true plant) sit
+beside it.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
-import logging
 import math
-import signal
 import sys
-import threading
 import time
-import warnings
 from pathlib import Path
 
-
-from . import units
-from ._io import OutputFolder
-from .budget import MAX_SAMPLES, check_samples, estimate_samples
-from .errors import InvalidArgumentError, NurbsmotionError, WorkLimitError
-from .interpolators import DEFAULT_INTERPOLATOR, LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
-from .machine import MIN_SAMPLE_PERIOD, Machine, load_machine
-from .motion_plan import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
-from .planning import sampled_stop_bound, time_optimal_bound
-
-__all__ = ["main", "parse_feed", "synopsis", "project_outputs"]
-
-
-def parse_feed(text: str) -> tuple[float, str | None]:
-    """argparse type of ``--feed``: :func:`nurbsmotion.units.parse_feed`, its error as an
-    argparse error."""
-    try:
-        return units.parse_feed(text)
-    except units.InvalidFeedError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+from .. import units
+from .._io import OutputFolder
+from ..budget import check_samples, estimate_samples
+from ..errors import InvalidArgumentError, WorkLimitError
+from ..interpolators import make_open_loop
+from ..machine import Machine, load_machine
+from ..motion_plan import DEFAULT_PATH_TOLERANCE
+from ..planning import sampled_stop_bound, time_optimal_bound
+from .console import EXPORT_FILES, _outputs, _progress
 
 
 def _contour(args, machine: Machine | None = None):
     """The path named on the command line with its programmed feed (a ``Contour``): read
     with ``--units`` and, for G-code and DXF, the machine's axes (XY without a machine),
     as a study's cases read theirs (:func:`nurbsmotion.study.run_input.load_run_contour`)."""
-    from .study.run_input import load_run_contour
+    from ..study.run_input import load_run_contour
 
     return load_run_contour(args.path, machine, units=args.units,
                             project=getattr(args, "project", None))
@@ -74,7 +62,7 @@ def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float 
             return one(1.0, unit)
         return f"{one(per_shown, shown_unit)} = {one(1.0, unit)}"
 
-    from .study.run_input import programmed_feed
+    from ..study.run_input import programmed_feed
 
     feed = programmed_feed(cap, contour.feed, scale, args.path)  # campaigns' rule too
     if contour.feed is None:
@@ -88,7 +76,7 @@ def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float 
 
 
 def _cmd_contours(args) -> int:
-    from .paths import load_contours
+    from ..paths import load_contours
 
     contours = load_contours(args.path, axes=args.axes, units=args.units)
     print(f"{args.path}: {len(contours)} contour{'s' if len(contours) != 1 else ''} "
@@ -117,9 +105,9 @@ def _cmd_contours(args) -> int:
 
 
 def _cmd_interpolate(args) -> int:
-    from .export import SetpointArrays, save_setpoints
-    from .loop import interpolate
-    from .plots import plot_setpoints
+    from ..export import SetpointArrays, save_setpoints
+    from ..loop import interpolate
+    from ..plots import plot_setpoints
 
     contour = _contour(args)
     curve = contour.curve
@@ -161,7 +149,7 @@ def _check_bound(bound: float, machine: Machine, curve, max_samples: int) -> Non
 
 
 def _cmd_bound(args) -> int:
-    from .loop import check_run_arguments, to_pulses
+    from ..loop import check_run_arguments, to_pulses
 
     machine = load_machine(args.machine)
     contour = _contour(args, machine)
@@ -185,21 +173,13 @@ def _cmd_bound(args) -> int:
         print(f"feed: {note}", file=sys.stderr)
     return 0
 
-
 TRACE_NOTICE_BYTES = 200e6
 """A trace file larger than this [byte] is announced with its size and the options to
 make it smaller (``--trace-every``, ``--no-trace``)."""
 
 
-def _progress(args, **kwargs):
-    """A tqdm bar on stderr; silent when stderr is not a terminal or with ``--quiet``."""
-    from tqdm import tqdm
-
-    return tqdm(disable=True if args.quiet else None, leave=False, **kwargs)
-
-
 def _cmd_run(args) -> int:
-    from ._precompile import Precompiler
+    from .._precompile import Precompiler
 
     # On an empty numba cache the closed loop compiles on the other core meanwhile.
     with Precompiler(args.interpolator) as precompiler:
@@ -207,8 +187,8 @@ def _cmd_run(args) -> int:
 
 
 def _run(args, precompiler) -> int:
-    from .loop import check_run_arguments, run, to_pulses
-    from .report import TRACE_FILES, summary, write_json
+    from ..loop import check_run_arguments, run, to_pulses
+    from ..report import TRACE_FILES, summary, write_json
 
     machine = load_machine(args.machine)
     contour = _contour(args, machine)
@@ -375,9 +355,9 @@ def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | Non
                   unit: str, per_unit: float, expected: float):
     """Run the loop with its rows streamed to the metrics and the trace file (if any);
     return the metrics and the interpolator's notes."""
-    from .loop import background_sink, hold_samples_of, run_streamed, settle_hold_samples
-    from .metrics import RunningAtRest, RunningMetrics
-    from .report import TraceWriter
+    from ..loop import background_sink, hold_samples_of, run_streamed, settle_hold_samples
+    from ..metrics import RunningAtRest, RunningMetrics
+    from ..report import TraceWriter
 
     running = RunningMetrics(path, machine, run_options["settle_window"])
     true_plant = run_options["plant"] or machine.plant()
@@ -442,7 +422,7 @@ def _trace_notice(args, file: Path, rows: int, size: float, bar=None) -> None:
 
 def _write_trace(args, trace, file: Path, unit: str, per_unit: float) -> None:
     """Write the trace file of a whole run, announcing its size first when it is large."""
-    from .report import estimate_trace_bytes, trace_rows, write_trace
+    from ..report import estimate_trace_bytes, trace_rows, write_trace
 
     options = dict(fmt=args.trace_format, every=args.trace_every, length_unit=unit,
                    pulses_per_length_unit=per_unit)
@@ -452,18 +432,13 @@ def _write_trace(args, trace, file: Path, unit: str, per_unit: float) -> None:
                    desc=f"write {file.name}") as bar:
         write_trace(trace, file, overwrite=args.overwrite, progress=bar.update, **options)
 
-
 EXPORT_PULSE_FRACTION = 1e-3
 """Exported positions are written to this fraction of a pulse (CSV, PVT, halstreamer, ROS)."""
-EXPORT_FILES = {"csv": "setpoints.csv", "npz": "setpoints.npz", "pvt": "pvt.csv",
-                "halstreamer": "halstreamer.txt", "ros": "trajectory.yaml",
-                "gcode": "motion.ngc"}
-"""``run --export`` formats and the files they write."""
 
 
 def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None:
     """The commanded setpoints of a run, in the path's own units (G-code: in mm)."""
-    from .export import (SetpointArrays, pvt_table, save_halstreamer, save_motion_gcode, save_pvt,
+    from ..export import (SetpointArrays, pvt_table, save_halstreamer, save_motion_gcode, save_pvt,
                          save_ros_trajectory, save_setpoints)
 
     scale = machine.pulses_per_unit(curve.units)
@@ -495,7 +470,7 @@ def _true_plant(plant_machine: Machine, machine: Machine):
     """The plant of ``plant_machine`` (tau, Kc, Ke per axis, and the effects of the
     machine as it is) with the drive limit and the sample period of ``machine``, the
     controller's."""
-    from .servo import ServoPlant
+    from ..servo import ServoPlant
 
     if plant_machine.n_axes != machine.n_axes:
         raise InvalidArgumentError(
@@ -508,7 +483,7 @@ def _true_plant(plant_machine: Machine, machine: Machine):
 
 
 def _cmd_reproduce(args) -> int:
-    from .study.reproduce import reproduce
+    from ..study.reproduce import reproduce
 
     t0 = time.perf_counter()
     with _outputs(args) as staged, _progress(args, unit="run") as bar:
@@ -526,8 +501,8 @@ def _cmd_reproduce(args) -> int:
 
 
 def _cmd_campaign(args) -> int:
-    from .study.run import run_study
-    from .study.spec import find_case, load_study
+    from ..study.run import run_study
+    from ..study.spec import find_case, load_study
 
     if args.out is not None and not args.out.strip():
         raise InvalidArgumentError(f"--out {args.out!r} is empty; name a folder ('.' for the "
@@ -555,9 +530,9 @@ def _cmd_campaign(args) -> int:
 
 def _campaign_case(case, out: Path, args) -> int:
     """``campaign --case ID``: one case's normal run output."""
-    from .study.case import case_trace
-    from .plots import TRACE_FIGURES
-    from .report import write_json, write_trace_csv
+    from ..study.case import case_trace
+    from ..plots import TRACE_FIGURES
+    from ..report import write_json, write_trace_csv
 
     names = ["trace.csv", "summary.json"] + ([] if args.no_figures else list(TRACE_FIGURES))
     with OutputFolder(out, names, overwrite=args.overwrite,  # checked first
@@ -585,8 +560,8 @@ def _parse_columns(text: str) -> dict:
 
 
 def _cmd_identify(args) -> int:
-    from ._identify_plot import IDENTIFY_FIGURE
-    from .identify import identify, read_log
+    from .._identify_plot import IDENTIFY_FIGURE
+    from ..identify import identify, read_log
 
     base = load_machine(args.machine)
     out = Path(args.out)
@@ -600,7 +575,7 @@ def _cmd_identify(args) -> int:
         (staged.staging / out.name).write_text(result.to_toml(), encoding="utf-8")
         import json
 
-        from ._io import json_safe
+        from .._io import json_safe
 
         (staged.staging / "identify.json").write_text(
             json.dumps(json_safe(result.to_dict()), indent=2), encoding="utf-8")
@@ -617,8 +592,8 @@ def _cmd_identify(args) -> int:
 
 
 def _cmd_excite(args) -> int:
-    from ._io import write_output
-    from .identify import excitation, excitation_gcode, write_excitation_csv
+    from .._io import write_output
+    from ..identify import excitation, excitation_gcode, write_excitation_csv
 
     machine = load_machine(args.machine)
     out = Path(args.out)
@@ -643,460 +618,3 @@ def _cmd_excite(args) -> int:
         raise InvalidArgumentError(f"--out must end in .csv (drive commands) or .ngc "
                                    f"(G-code moves), got {out.name!r}")
     return 0
-
-
-class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
-    """Shows ``(default: ...)`` for options that have a default worth showing (not for
-    required options, flags, or options without a default)."""
-
-    def _get_help_string(self, action):
-        if action.required or action.default in (None, False) or isinstance(
-                action, argparse._StoreTrueAction) or "(default:" in (action.help or ""):
-            return action.help  # (the help that states its default itself says it once)
-        return super()._get_help_string(action)
-
-
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("nurbsmotion")
-    except PackageNotFoundError:  # running from a source tree that is not installed
-        from . import __version__
-
-        return __version__
-
-
-def _outputs_of(args) -> list[str]:
-    """Every file name the command of ``args`` may write: the one list its guard checks."""
-    if args.command == "interpolate":
-        from .plots import SETPOINT_FIGURES
-
-        return ["setpoints.csv", *SETPOINT_FIGURES]
-    if args.command == "run":
-        from .plots import TRACE_FIGURES
-
-        from .report import TRACE_FILES
-
-        return (([] if args.no_trace else [TRACE_FILES[args.trace_format]]) + ["summary.json"]
-                + [EXPORT_FILES[f] for f in args.export or ()]
-                + ([] if args.no_figures else list(TRACE_FIGURES)))
-    if args.command == "reproduce":
-        from .study.reproduce import reproduce_outputs
-
-        return reproduce_outputs(figures=not args.no_figures)
-    return []
-
-
-def project_outputs() -> list[str]:
-    """Every file name ``interpolate``, ``run`` and ``reproduce`` may write into their
-    output folder (with any option): what ``--overwrite`` removes when this run does not
-    write it, and what refuses a folder without it. docs/cli.md lists them."""
-    from .study.reproduce import reproduce_outputs
-    from .plots import SETPOINT_FIGURES, TRACE_FIGURES
-    from .report import TRACE_FILES
-
-    names = ["setpoints.csv", *SETPOINT_FIGURES, *TRACE_FILES.values(), "summary.json",
-             *EXPORT_FILES.values(), *TRACE_FIGURES, *reproduce_outputs(figures=True)]
-    return list(dict.fromkeys(names))
-
-
-def _outputs(args) -> OutputFolder:
-    """The command's output folder: its files checked now, before any work, written
-    through a staging folder and moved into place only when all are complete; with
-    ``--overwrite`` an earlier run's outputs that this one does not write are removed
-    (:func:`project_outputs`), and without it they refuse the folder."""
-    return OutputFolder(args.out, _outputs_of(args), overwrite=args.overwrite,
-                        replaces=project_outputs())
-
-
-def _positive_float(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
-    return value
-
-
-def _sample_period(text: str) -> float:
-    """argparse type: a sample period [s] of at least the machines' minimum."""
-    value = _positive_float(text)
-    if value < MIN_SAMPLE_PERIOD:
-        raise argparse.ArgumentTypeError(
-            f"{text!r} s is below the minimum sample period of {MIN_SAMPLE_PERIOD:g} s "
-            "(machine.MIN_SAMPLE_PERIOD); is it in seconds?")
-    return value
-
-
-def _non_negative_float(text: str) -> float:
-    """argparse type: a finite number >= 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"must be finite and >= 0, got {text!r}")
-    return value
-
-
-def _positive_int(text: str) -> int:
-    """argparse type: an integer >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
-    return value
-
-
-class _Parser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line (no usage block)."""
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {_one_line(message)}{_did_you_mean(message)} "
-                     f"(see {self.prog} --help)\n")
-
-
-def _did_you_mean(message: str) -> str:
-    """``; did you mean 'run'?`` for argparse's invalid choice of a command or an option
-    value that is close to one of the choices (difflib's ratio), else ``""``."""
-    import difflib
-    import re
-
-    found = re.search(r"invalid choice: '([^']*)' \(choose from ([^)]*)\)", message)
-    if not found:
-        return ""
-    choices = re.findall(r"'([^']*)'", found.group(2))
-    close = difflib.get_close_matches(found.group(1), choices, n=1, cutoff=0.6)
-    return f"; did you mean '{close[0]}'?" if close else ""
-
-
-def _parser() -> argparse.ArgumentParser:
-    from .report import TRACE_FORMATS
-
-    p = _Parser(
-        prog="nurbsmotion",
-        description="NURBS interpolation for motion systems whose actuators saturate.",
-        epilog="Reference: docs/cli.md; file formats: docs/formats.md; the model and every "
-        "metric: docs/model.md.",
-        formatter_class=_HelpFormatter,
-    )
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
-    sub = p.add_subparsers(dest="command", required=True)
-    feed_help = ("commanded feed: a bare number in the path's units per second (pulse/s for "
-                 "a path in pulses), or a speed with a unit: 0.5m/s, 100mm/s, 600mm/min, "
-                 "2in/s, 1e6pulse/s; optional where the file gives a feed (G-code F), which "
-                 "it then caps piece by piece")
-    from .paths import PATH_UNITS
-
-    units_help = (f"read the path's numbers in this unit ({', '.join(PATH_UNITS)}), whatever "
-                  "the file says (default: the file's unit; mm, with a warning, if it has none)")
-    path_help = ("path: a built-in name (die-bonder-pi, butterfly) or a file .json, .toml, "
-                 ".ngc/.nc/.gcode, .dxf; FILE#k picks the k-th contour of a file")
-    machine_help = "built-in machine name (die-bonder) or a machine file (.toml/.json)"
-
-    def command(name: str, help: str) -> argparse.ArgumentParser:
-        return sub.add_parser(name, help=help, description=help,
-                              formatter_class=_HelpFormatter)
-
-    def common(c: argparse.ArgumentParser, out_default: str | None = None,
-               progress: bool = True) -> None:
-        if out_default is None:
-            c.add_argument("--out", required=True, help="output folder (created)")
-        else:
-            c.add_argument("--out", default=out_default, help="output folder (created)")
-        c.add_argument("--overwrite", action="store_true", help="replace existing output files")
-        if progress:
-            c.add_argument("--quiet", action="store_true",
-                           help="no progress bar (there is none either when stderr is not "
-                           "a terminal)")
-
-    i = command("interpolate", "open-loop setpoints of a path at a constant feed")
-    i.add_argument("path", help=path_help)
-    i.add_argument("--feed", type=parse_feed, help=feed_help)
-    i.add_argument("--units", choices=PATH_UNITS, help=units_help)
-    i.add_argument("--project", metavar="AXES",
-                   help="read a G-code file's moves as their projection on the machine's axes "
-                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
-                   "refusing moves that change other axes with them")
-    i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
-                   help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
-    i.add_argument("--sample-period", type=_sample_period, default=1e-3,
-                   help=f"Ts [s], at least {MIN_SAMPLE_PERIOD:g}")
-    i.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
-                   help="refuse, before any work, a move estimated to take more samples "
-                   "than this (about 2.8 h at 1 ms)")
-    common(i, progress=False)  # open loop: done in a moment
-    i.set_defaults(func=_cmd_interpolate)
-
-    r = command("run", "closed-loop servo simulation of a path on a machine")
-    r.add_argument("path", help=path_help)
-    r.add_argument("--machine", default="die-bonder", help=machine_help)
-    r.add_argument("--feed", type=parse_feed, help=feed_help)
-    r.add_argument("--units", choices=PATH_UNITS, help=units_help)
-    r.add_argument("--project", metavar="AXES",
-                   help="read a G-code file's moves as their projection on the machine's axes "
-                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
-                   "refusing moves that change other axes with them")
-    r.add_argument("--interpolator", choices=LOOP_METHODS, default=DEFAULT_INTERPOLATOR,
-                   help="planned: plans the actual motion within ±Umax and steers the plant "
-                   "along it; paper: Yeh & Sun (2008), saturation-aware one step ahead; "
-                   "taylor1/taylor2: constant feed")
-    r.add_argument("--plant", metavar="MACHINE",
-                   help="simulate a true plant whose tau, Kc, Ke per axis and effects "
-                   "(encoder counts, noise, delay, DAC, friction, load steps, a two-mass "
-                   "mode) come from this machine (its gains are ignored), while the "
-                   "controller and the planner use --machine (default: the --machine's "
-                   "own plant)")
-    r.add_argument("--hold", type=_non_negative_float, default=None, metavar="SECONDS",
-                   help="go on this long after the motion has settled, to see what it does "
-                   "at rest (default: 0.3 s where the true plant has any effect, else 0)")
-    r.add_argument("--corner-tolerance", default="0",
-                   help="planned: how far the motion may leave a sharp corner instead of "
-                   "stopping there, a length (0.5mm, 10um) or a number in the path's units")
-    r.add_argument("--path-tolerance",
-                   help="planned: how far from the path a short move (a plan of at most "
-                   f"{SHORT_MOVE_SAMPLES} samples; with stops, planned from stop to stop) "
-                   "may go where that lets "
-                   "it arrive sooner, a length (2um) or a number of pulses (default: "
-                   f"{DEFAULT_PATH_TOLERANCE:g} pulse)")
-    r.add_argument("--settle-window", default="1",
-                   help="the motion has settled once it stays within this distance of the "
-                   "end point: a length (1um, 0.001mm) or a number of pulses (default: 1 "
-                   "pulse)")
-    common(r)
-    r.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
-    r.add_argument("--no-trace", action="store_true",
-                   help="write no trace file (the summary and figures use every sample "
-                   "either way)")
-    r.add_argument("--trace-every", type=_positive_int, default=1, metavar="N",
-                   help="keep one trace row in N (and the rows where the end is reached and "
-                   "the last)")
-    r.add_argument("--trace-format", choices=TRACE_FORMATS, default="csv",
-                   help="trace.csv or trace.parquet (smaller, faster to read)")
-    r.add_argument("--export", action="append", choices=sorted(EXPORT_FILES),
-                   help="also write the commanded setpoints (up to the end point, in the "
-                   "path's units, to a thousandth of a pulse): csv, npz, pvt "
-                   "(position-velocity-time table), gcode (LinuxCNC G1 per sample, in mm), "
-                   "halstreamer (one line per servo period for LinuxCNC's halstreamer, in mm), "
-                   "ros (ROS 2 JointTrajectory YAML at --pvt-period, in m); repeat for several")
-    r.add_argument("--pvt-period", type=_positive_float, default=0.01,
-                   help="period of the PVT table [s]")
-    r.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
-                   help="refuse, before any work, a move estimated to take more samples "
-                   "than this (about 2.8 h at 1 ms)")
-    r.set_defaults(func=_cmd_run)
-
-    b = command("bound", "print the time-optimal bound of a path [s]: the least time at "
-                "rest at both ends within the drive limits and the feed")
-    b.add_argument("path", help=path_help)
-    b.add_argument("--machine", default="die-bonder", help=machine_help)
-    b.add_argument("--feed", type=parse_feed, help=feed_help)
-    b.add_argument("--units", choices=PATH_UNITS, help=units_help)
-    b.add_argument("--project", metavar="AXES",
-                   help="read a G-code file's moves as their projection on the machine's axes "
-                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
-                   "refusing moves that change other axes with them")
-    b.add_argument("--sampled", action="store_true",
-                   help="print instead a lower bound for any sampled motion that stops at "
-                   "every sharp corner [s]: whole samples per "
-                   "piece, each at least what the slowest axis needs from rest to rest "
-                   "(ignores the feed and the path's shape; within 1 pulse of the end)")
-    b.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
-                   help="refuse, as run does, a move estimated (or bounded) to take more "
-                   "samples than this")
-    b.set_defaults(func=_cmd_bound)
-
-    c = command("contours", "list the contours of a path file: index, pieces, length, "
-                "bounding box, units, programmed feed (pick one with FILE#k)")
-    c.add_argument("path", help="path file (.ngc, .dxf, .json, ...)")
-    c.add_argument("--axes", help="read G-code and DXF on these path axes, e.g. xy or xyz, as a "
-                   "machine with them would (default: every axis the file moves)")
-    c.add_argument("--units", choices=PATH_UNITS, help=units_help)
-    c.set_defaults(func=_cmd_contours)
-
-    e = command("reproduce", "the paper's experiment on built-in defaults: the Π and the "
-                "butterfly at three feeds each, taylor1 / paper / planned")
-    common(e, out_default="results")
-    e.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
-    e.set_defaults(func=_cmd_reproduce)
-
-    c = command("campaign", "run a study (paths x feeds x machines x plants x "
-                "interpolators) into a Parquet dataset and a digest")
-    c.add_argument("study", help="study file (.toml; see docs/campaign.md)")
-    c.add_argument("--out", help="output folder (default: the study file's name + "
-                   "'-campaign', beside it)")
-    c.add_argument("--workers", type=_positive_int,
-                   help="local worker processes (default: all cores)")
-    c.add_argument("--scheduler", help="address of a Dask scheduler (tcp://host:8786): run "
-                   "the cases on that cluster")
-    c.add_argument("--resume", action="store_true", help="keep the finished cases of an "
-                   "existing output folder and run the others")
-    c.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    c.add_argument("--case", help="re-run one case (e.g. c0000042) and write its run output "
-                   "(trace.csv, summary.json, figures) into OUT/ID")
-    c.add_argument("--no-figures", action="store_true", help="with --case: skip the figures")
-    c.add_argument("--no-progress", action="store_true", help="no progress bar")
-    c.set_defaults(func=_cmd_campaign)
-    d = command("identify", "fit a machine file (tau, Kc, delay, friction, a mode) to a "
-                "log of drive and encoder position; gains from --machine")
-    d.add_argument("log", help="log: CSV with a header (t, <axis>_drive [V], <axis>_pos) "
-                   "or a trace.csv / trace.parquet of nurbsmotion run")
-    d.add_argument("--out", required=True, help="machine file to write (.toml); "
-                   "identify.json and identify.png go beside it")
-    d.add_argument("--machine", default="die-bonder", help=machine_help + ": its axes, "
-                   "Ke, gains, drive limit and sample period")
-    d.add_argument("--columns", type=_parse_columns, help="the log's names for t, "
-                   "<axis>_drive, <axis>_pos: KEY=NAME,... (e.g. x_pos=enc0,t=time)")
-    d.add_argument("--sample-period", type=_positive_float,
-                   help="Ts [s] of a log without a t column")
-    d.add_argument("--units", default="pulse", help="unit of the log's positions "
-                   "(pulse, um, mm, cm, m, in)")
-    d.add_argument("--overwrite", action="store_true", help="replace existing output files")
-    d.add_argument("--no-figures", action="store_true", help="skip identify.png")
-    d.set_defaults(func=_cmd_identify)
-
-    x = command("excite", "a short test sequence that makes every parameter identifiable: "
-                "drive commands (.csv) or position moves (.ngc)")
-    x.add_argument("--machine", default="die-bonder", help=machine_help)
-    x.add_argument("--out", required=True, help="excitation.csv or excitation.ngc")
-    x.add_argument("--travel", help="bound of the excursion from the start, a length "
-                   "(20mm) or pulses (default: 20 mm)")
-    x.add_argument("--seed", type=int, default=0, help="seed of the random binary part")
-    x.add_argument("--overwrite", action="store_true", help="replace an existing file")
-    x.set_defaults(func=_cmd_excite)
-    return p
-
-
-def synopsis(width: int = 88) -> str:
-    """The command's synopsis, from the parser itself: the top-level usage, then each
-    command's, wrapped at ``width`` columns (docs/cli.md opens with it; a test checks
-    that it is this text)."""
-    parser = _parser()
-
-    def usage(p: argparse.ArgumentParser) -> str:
-        formatter = argparse.HelpFormatter(p.prog, width=width)
-        formatter.add_usage(p.usage, p._actions, p._mutually_exclusive_groups, prefix="")
-        return formatter.format_help().strip()
-
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    return "\n".join([usage(parser)] + [usage(c) for c in sub.choices.values()])
-
-
-def _one_line(text) -> str:
-    """``text`` on one line (a library's message may embed newlines)."""
-    return " ".join(str(text).split())
-
-
-def _message(exc: BaseException) -> str:
-    """What went wrong, for a user: the typed error's text, or a plain sentence."""
-    if isinstance(exc, KeyError) and exc.args:
-        return str(exc.args[0])
-    if isinstance(exc, OSError) and exc.strerror:
-        return f"{exc.strerror}: {exc.filename}" if exc.filename else exc.strerror
-    if isinstance(exc, MemoryError):
-        return "out of memory; lower --max-samples or use a higher feed"
-    if isinstance(exc, RecursionError):
-        return "input nested too deeply to process"
-    if isinstance(exc, OverflowError):
-        return f"a number is too large for double precision ({exc})"
-    return str(exc) or type(exc).__name__
-
-
-@contextlib.contextmanager
-def _one_line_warnings(command: str):
-    """Warnings and log records as one line each on stderr, without the source echo."""
-    def show(message, category, filename, lineno, file=None, line=None):
-        print(f"nurbsmotion {command}: warning: {_one_line(message)}", file=sys.stderr)
-
-    class _Stderr(logging.Handler):  # the stderr of the moment (tests swap it)
-        def emit(self, record):
-            print(f"nurbsmotion {command}: {record.levelname.lower()}: "
-                  f"{_one_line(record.getMessage())}", file=sys.stderr)
-
-    handler = _Stderr()
-    logger = logging.getLogger("nurbsmotion")
-    saved = warnings.showwarning
-    warnings.showwarning = show
-    logger.addHandler(handler)
-    try:
-        yield
-    finally:
-        warnings.showwarning = saved
-        logger.removeHandler(handler)
-
-
-INTERRUPT_RETRY = 0.02
-"""Seconds after which a Ctrl-C that arrived inside a callback of the compiler's native
-library is raised again (raised there, ctypes would print it and drop it)."""
-
-
-def _interrupt(signum, frame) -> None:
-    """SIGINT and SIGTERM (and the retry's SIGALRM): KeyboardInterrupt, except inside llvmlite's
-    callbacks (numba loading or compiling a kernel), where it is retried shortly."""
-    f = frame
-    while f is not None:
-        if f.f_globals.get("__name__", "").startswith("llvmlite"):
-            signal.setitimer(signal.ITIMER_REAL, INTERRUPT_RETRY)
-            return
-        f = f.f_back
-    raise KeyboardInterrupt
-
-
-@contextlib.contextmanager
-def _interruptible():
-    """Ctrl-C (and SIGTERM) raise KeyboardInterrupt wherever the command is (see
-    :func:`_interrupt`); the previous handlers are restored after. Only in the main thread
-    (where signals go)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    # SIGTERM (a machine shutting down, a job scheduler) stops the command like Ctrl-C:
-    # its staging folder and temporary files are removed on the way out.
-    saved = {s: signal.signal(s, _interrupt)
-             for s in (signal.SIGINT, signal.SIGALRM, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        for s, handler in saved.items():
-            signal.signal(s, handler)
-
-
-USER_ERRORS = (NurbsmotionError, OSError, KeyError, ValueError, ArithmeticError,
-               RecursionError, MemoryError)
-"""Errors reported as one line and exit code 2: the library's typed errors, and what
-the system, the parsers and the arithmetic raise on a bad file, folder or number."""
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``nurbsmotion`` command; returns the exit code.
-
-    0 on success; 2 with one line on stderr for a bad input (nothing is written); 130
-    when interrupted (Ctrl-C; nothing is written); 1 for an internal error.
-    """
-    parser = _parser()
-    args = parser.parse_args(argv)
-    with _one_line_warnings(args.command), _interruptible():
-        try:
-            return args.func(args)
-        except KeyboardInterrupt:
-            print(f"nurbsmotion {args.command}: interrupted; no output was written",
-                  file=sys.stderr)
-            return 130
-        except USER_ERRORS as exc:
-            print(f"nurbsmotion {args.command}: error: {_one_line(_message(exc))}",
-                  file=sys.stderr)
-            return 2
-        except Exception as exc:  # a bug: still one line, and a distinct exit code
-            print(f"nurbsmotion {args.command}: internal error: {type(exc).__name__}: "
-                  f"{_one_line(exc)}", file=sys.stderr)
-            return 1
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
