@@ -29,7 +29,8 @@ PACKAGE = "nurbsmotion"
 
 LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     # layer: (its modules, relative to the package; the lower layers it may import)
-    "base": (("errors", "_io", "_kernels", "_jit_cache", "_memory", "budget"), ()),
+    "base": (("errors", "_runtime", "_runtime.io", "_kernels", "_runtime.jit_cache",
+              "_runtime.memory", "budget"), ()),
     "geometry": (("nurbs", "geometry", "joining", "feed"), ("base",)),
     "paths": (("paths", "paths.files", "paths.dxf", "paths.gcode", "paths.ngc",
                "paths.pieces", "paths.random_paths"), ("base", "geometry")),
@@ -57,7 +58,7 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "study": (("run_input", "experiments", "campaign"),
               ("base", "geometry", "paths", "machine", "planning", "interpolators", "loop",
                "metrics", "output")),
-    "cli": (("cli", "__main__", "_precompile"),
+    "cli": (("cli", "__main__", "_runtime.precompile"),
             ("base", "geometry", "paths", "machine", "identification", "planning", "interpolators", "loop",
              "metrics", "output", "study")),
     # The package's façade loads its names on first use (PEP 562), from any stage.

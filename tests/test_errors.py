@@ -146,7 +146,7 @@ PLAIN_RAISES = {
     "nurbsmotion/plots.py": 3,
     "nurbsmotion/metrics.py": 3,
     # internal signals, caught within the module and re-raised typed:
-    "nurbsmotion/_io.py": 1,  # JSON's NaN/Infinity -> PathFileError
+    "nurbsmotion/_runtime/io.py": 1,  # JSON's NaN/Infinity -> PathFileError
     "nurbsmotion/nurbs.py": 1,  # a non-number coordinate -> InvalidCurveError
     "nurbsmotion/paths/ngc.py": 1,  # a G-code expression's domain error -> PathFileError
 }

@@ -37,7 +37,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from ._io import write_output
+from ._runtime.io import write_output
 from .errors import InvalidArgumentError, PathFileError
 from .interpolators import LOOP_METHODS
 from .machine import Machine, load_machine

@@ -19,7 +19,7 @@ from pathlib import Path
 
 
 from . import units
-from ._io import OutputFolder
+from ._runtime.io import OutputFolder
 from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .errors import InvalidArgumentError, NurbsmotionError, WorkLimitError
 from .interpolators import DEFAULT_INTERPOLATOR, LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
@@ -199,7 +199,7 @@ def _progress(args, **kwargs):
 
 
 def _cmd_run(args) -> int:
-    from ._precompile import Precompiler
+    from ._runtime.precompile import Precompiler
 
     # On an empty numba cache the closed loop compiles on the other core meanwhile.
     with Precompiler(args.interpolator) as precompiler:
@@ -599,7 +599,7 @@ def _cmd_identify(args) -> int:
         (staged.staging / out.name).write_text(result.to_toml(), encoding="utf-8")
         import json
 
-        from ._io import json_safe
+        from ._runtime.io import json_safe
 
         (staged.staging / "identify.json").write_text(
             json.dumps(json_safe(result.to_dict()), indent=2), encoding="utf-8")
@@ -616,7 +616,7 @@ def _cmd_identify(args) -> int:
 
 
 def _cmd_excite(args) -> int:
-    from ._io import write_output
+    from ._runtime.io import write_output
     from .identify import excitation, excitation_gcode, write_excitation_csv
 
     machine = load_machine(args.machine)

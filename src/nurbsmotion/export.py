@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from ._io import write_output
+from ._runtime.io import write_output
 from .errors import NurbsmotionError
 from .paths.gcode import decimals_for, format_number
 

@@ -39,7 +39,7 @@ from typing import Callable
 
 import numpy as np
 
-from ._io import write_output
+from ._runtime.io import write_output
 from .metrics import nearest_parameter
 from .units import report_unit
 

@@ -37,7 +37,7 @@ from typing import Callable, Iterable, NamedTuple
 
 import numpy as np
 
-from ._io import atomic_output, json_safe, write_output
+from ._runtime.io import atomic_output, json_safe, write_output
 from .errors import OutputExistsError
 
 __all__ = ["SUMMARY_KEYS", "SUMMARY_LENGTH_KEYS", "TRACE_FORMATS", "TRACE_FILES",
