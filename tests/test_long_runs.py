@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 import nurbsmotion as nm
-from nurbsmotion import cli, closed_loop
+from nurbsmotion import cli
+from nurbsmotion.loop import closed_loop
 from nurbsmotion.loop import run
 from nurbsmotion.machine import die_bonder
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from . import units
 from ._runtime.io import OutputFolder
-from .budget import MAX_SAMPLES, check_samples, estimate_samples
+from .loop.budget import MAX_SAMPLES, check_samples, estimate_samples
 from .errors import InvalidArgumentError, NurbsmotionError, WorkLimitError
 from .interpolators import DEFAULT_INTERPOLATOR, LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
 from .machine import MIN_SAMPLE_PERIOD, Machine, load_machine

@@ -366,7 +366,7 @@ class TraceWriter:
 
     def add(self, first: int, rows, finished: int, last: bool) -> None:
         """Write the kept ones of a block of samples ``first ..``: ``rows`` a
-        :class:`nurbsmotion.closed_loop.Rows`, ``finished`` the first sample at the
+        :class:`nurbsmotion.loop.closed_loop.Rows`, ``finished`` the first sample at the
         path's end (-1: none yet), ``last`` whether no rows follow (a sink of
         :func:`nurbsmotion.loop.simulate_streamed`)."""
         times = (first + np.arange(len(rows.u))) * self.machine.sample_period

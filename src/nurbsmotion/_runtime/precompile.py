@@ -42,10 +42,10 @@ def _zeros(*shape, writeable: bool = True) -> np.ndarray:
 
 
 def loop_example(interpolator: str) -> tuple | None:
-    """``(kernel, arguments)``: :func:`nurbsmotion.closed_loop.run_samples` and made-up
+    """``(kernel, arguments)``: :func:`nurbsmotion.loop.closed_loop.run_samples` and made-up
     arguments of the types a run with ``interpolator`` passes (kept equal by a test), or
     ``None`` for an interpolator without one."""
-    from ..closed_loop import AxisState, LoopState, Settling, new_rows, run_samples
+    from ..loop.closed_loop import AxisState, LoopState, Settling, new_rows, run_samples
     from ..control import PID_LAW, PID_STATE
     from ..interpolators.base import PathData
     from ..plant import inactive_stage, new_plant_state
