@@ -50,7 +50,8 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
              ("base", "geometry", "machine", "planning", "interpolators")),
     "metrics": (("metrics",),
                 ("base", "geometry", "machine", "planning", "interpolators", "loop")),
-    "output": (("plots", "report", "export", "_identify_plot"),
+    "output": (("plots", "report", "report.trace_file", "report.export", "export",
+                "_identify_plot"),
                ("base", "geometry", "paths", "machine", "identification", "planning",
                 "interpolators", "loop", "metrics")),
     # run_input: what a run of a named path reads (the contour and its feed), shared by

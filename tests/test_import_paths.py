@@ -17,3 +17,16 @@ def test_loop():
 
     _same("nurbsmotion.loop", "nurbsmotion.loop.trace", ["Trace", "RunOutcome", "SetpointSeries"])
     assert set(loop.__all__) <= set(dir(loop))
+
+
+def test_export():
+    from nurbsmotion.report import export
+
+    _same("nurbsmotion.export", "nurbsmotion.report.export", export.__all__)
+
+
+def test_report():
+    # the trace file's writer moved to report.trace_file; nurbsmotion.report keeps its names
+    from nurbsmotion.report import trace_file
+
+    _same("nurbsmotion.report", "nurbsmotion.report.trace_file", trace_file.__all__[:2] + trace_file.__all__[3:])

@@ -117,7 +117,7 @@ def _cmd_contours(args) -> int:
 
 
 def _cmd_interpolate(args) -> int:
-    from .export import SetpointArrays, save_setpoints
+    from .report.export import SetpointArrays, save_setpoints
     from .loop import interpolate
     from .plots import plot_setpoints
 
@@ -463,7 +463,7 @@ EXPORT_FILES = {"csv": "setpoints.csv", "npz": "setpoints.npz", "pvt": "pvt.csv"
 
 def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None:
     """The commanded setpoints of a run, in the path's own units (G-code: in mm)."""
-    from .export import (SetpointArrays, pvt_table, save_halstreamer, save_motion_gcode, save_pvt,
+    from .report.export import (SetpointArrays, pvt_table, save_halstreamer, save_motion_gcode, save_pvt,
                          save_ros_trajectory, save_setpoints)
 
     scale = machine.pulses_per_unit(curve.units)
