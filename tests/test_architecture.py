@@ -50,8 +50,8 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
              ("base", "geometry", "machine", "planning", "interpolators")),
     "metrics": (("metrics",),
                 ("base", "geometry", "machine", "planning", "interpolators", "loop")),
-    "output": (("plots", "report", "report.trace_file", "report.export", "export",
-                "_identify_plot"),
+    "output": (("plots", "plots._canvas", "plots.events", "plots.figures", "report",
+                "report.trace_file", "report.export", "export", "_identify_plot"),
                ("base", "geometry", "paths", "machine", "identification", "planning",
                 "interpolators", "loop", "metrics")),
     # run_input: what a run of a named path reads (the contour and its feed), shared by

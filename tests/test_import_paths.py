@@ -30,3 +30,12 @@ def test_report():
     from nurbsmotion.report import trace_file
 
     _same("nurbsmotion.report", "nurbsmotion.report.trace_file", trace_file.__all__[:2] + trace_file.__all__[3:])
+
+
+def test_plots():
+    # plots.py became a package (canvas, events, figures); its public names stay here
+    import nurbsmotion.plots as plots
+
+    _same("nurbsmotion.plots", "nurbsmotion.plots.figures",
+          set(plots.__all__) - {"settling_time", "MAX_EVENT_WINDOWS"})
+    _same("nurbsmotion.plots", "nurbsmotion.plots.events", ["settling_time", "MAX_EVENT_WINDOWS"])
