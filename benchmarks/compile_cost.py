@@ -5,7 +5,7 @@ a fresh process with ``NUMBA_CACHE_DIR`` pointing at an empty folder (cold: numb
 compiles and writes the cache), then again in a fresh process on the same folder (warm:
 numba loads the machine code); wall time and CPU time (user + system) of the whole
 command, for each interpolator. On a cold start the command compiles its closed loop in a
-second process on the other core (:mod:`nurbsmotion._precompile`): the CPU time counts
+second process on the other core (:mod:`nurbsmotion._runtime.precompile`): the CPU time counts
 both processes, and the command's own process is shown apart (on an idle 2-core machine
 its CPU time is about the wall time). On a machine shared with other work the CPU times
 are the figures to compare: the wall time then includes waiting for a core; the CPU time

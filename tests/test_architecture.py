@@ -29,7 +29,8 @@ PACKAGE = "nurbsmotion"
 
 LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     # layer: (its modules, relative to the package; the lower layers it may import)
-    "base": (("errors", "_io", "_kernels", "_jit_cache", "_memory", "budget"), ()),
+    "base": (("errors", "_runtime", "_runtime.io", "_kernels", "_runtime.jit_cache",
+              "_runtime.memory"), ()),
     "geometry": (("nurbs", "geometry", "joining", "feed"), ("base",)),
     "paths": (("paths", "paths.files", "paths.dxf", "paths.gcode", "paths.ngc",
                "paths.pieces", "paths.random_paths"), ("base", "geometry")),
@@ -45,11 +46,12 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                        "interpolators.taylor", "interpolators.paper",
                        "interpolators.planned", "interpolators.replay"),
                       ("base", "geometry", "machine", "planning")),
-    "loop": (("closed_loop", "loop"),
+    "loop": (("loop", "loop.trace", "loop.closed_loop", "loop.budget"),
              ("base", "geometry", "machine", "planning", "interpolators")),
     "metrics": (("metrics",),
                 ("base", "geometry", "machine", "planning", "interpolators", "loop")),
-    "output": (("plots", "report", "export", "_identify_plot"),
+    "output": (("plots", "plots._canvas", "plots.events", "plots.figures", "report",
+                "report.trace_file", "report.export", "export", "_identify_plot"),
                ("base", "geometry", "paths", "machine", "identification", "planning",
                 "interpolators", "loop", "metrics")),
     # study.run_input: what a run of a named path reads (the contour and its feed), shared
@@ -61,7 +63,7 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
               ("base", "geometry", "paths", "machine", "planning", "interpolators", "loop",
                "metrics", "output")),
     "cli": (("cli", "cli.__main__", "cli.parser", "cli.commands", "cli.console", "__main__",
-             "_precompile"),
+             "_runtime.precompile"),
             ("base", "geometry", "paths", "machine", "identification", "planning", "interpolators", "loop",
              "metrics", "output", "study")),
     # The package's façade loads its names on first use (PEP 562), from any stage.
@@ -73,8 +75,8 @@ check still applies)."""
 
 DELEGATIONS = {
     ("identify", "_identify_plot"): "Identification.plot()",
-    ("loop", "metrics"): "Trace.metrics() / SetpointSeries.feed_fluctuation()",
-    ("loop", "plots"): "Trace.plot() / SetpointSeries.plot()",
+    ("loop.trace", "metrics"): "Trace.metrics() / SetpointSeries.feed_fluctuation()",
+    ("loop.trace", "plots"): "Trace.plot() / SetpointSeries.plot()",
 }
 """(importer, imported) imports against the flow that are allowed inside a function:
 a result's method handing itself to the stage that owns that work."""
@@ -281,9 +283,10 @@ def test_the_reader_sees_lazy_and_relative_imports():
     """The scan finds what it must: a lazy delegation, a relative import two levels up,
     the façade's PEP 562 table, and no edge for an ancestor's ``__version__``."""
     modules = set(package_modules())
+    trace = {(e.imported, e.lazy) for e in imports_of("loop.trace", modules)}
+    assert ("plots", True) in trace and ("metrics", True) in trace
     loop = {(e.imported, e.lazy) for e in imports_of("loop", modules)}
-    assert ("plots", True) in loop and ("metrics", True) in loop
-    assert ("closed_loop", False) in loop and ("stepping", False) in loop
+    assert ("loop.closed_loop", False) in loop and ("stepping", False) in loop
     planned = {e.imported for e in imports_of("interpolators.planned", modules)}
     assert {"stepping", "motion_plan", "interpolators.base"} <= planned
     facade = {e.imported for e in imports_of("", modules)}

@@ -94,7 +94,7 @@ def test_reproduce_declares_every_figure(tmp_path):
 
 
 def test_an_undeclared_output_is_still_guarded(tmp_path):
-    from nurbsmotion._io import OutputFolder
+    from nurbsmotion._runtime.io import OutputFolder
 
     (tmp_path / "extra.txt").write_text("mine")
     with pytest.raises(OutputExistsError):

@@ -76,7 +76,7 @@ def test_run_streams_without_figures_to_the_same_files(tmp_path, monkeypatch, fm
     """Without figures or exports `run` streams its rows (blocks of 97 here) to the
     metrics and the trace file; summary and trace equal those of a run that holds the
     whole trace (an export makes it do so)."""
-    from nurbsmotion import closed_loop
+    from nurbsmotion.loop import closed_loop
 
     monkeypatch.setattr(closed_loop, "SINK_BLOCK_SAMPLES", 97)
     args = ["run", "die-bonder-pi", "--feed", "1m/s", "--interpolator", "paper",

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import nurbsmotion as nm
-from nurbsmotion import closed_loop
+from nurbsmotion.loop import closed_loop
 from nurbsmotion.control import pid_state
 from nurbsmotion.interpolators import (PaperInterpolator, PlannedInterpolator, Status,
                                        TaylorInterpolator)

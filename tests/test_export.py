@@ -11,7 +11,7 @@ from scipy.interpolate import CubicHermiteSpline
 
 from nurbsmotion import builtin_path
 from nurbsmotion.errors import OutputExistsError
-from nurbsmotion.export import (
+from nurbsmotion.report.export import (
     ExportError,
     SetpointArrays,
     pvt_table,
@@ -113,7 +113,7 @@ def test_motion_gcode_scales_pulses_and_rejects_bad_axes(tmp_path):
 
 # ---------------------------------------------------------------- halstreamer, ROS, resolution
 def test_halstreamer_one_line_per_period_in_machine_units(tmp_path):
-    from nurbsmotion.export import save_halstreamer
+    from nurbsmotion.report.export import save_halstreamer
 
     sp = circle_motion()  # [mm]
     file = save_halstreamer(sp, tmp_path / "halstreamer.txt", units="mm", scale=1.0, resolution=1e-6)
@@ -127,7 +127,7 @@ def test_halstreamer_one_line_per_period_in_machine_units(tmp_path):
 
 
 def test_halstreamer_needs_one_setpoint_per_period(tmp_path):
-    from nurbsmotion.export import save_halstreamer
+    from nurbsmotion.report.export import save_halstreamer
 
     sp = circle_motion()
     sp.t = sp.t.copy()
@@ -141,7 +141,7 @@ def test_ros_trajectory_follows_the_circle(tmp_path):
     """Positions, velocities and accelerations of the YAML against the analytic circle
     (radius 10 mm at 1 rev/s: speed 62.8 mm/s, centripetal 395 mm/s^2), in SI units."""
     yaml = pytest.importorskip("yaml")
-    from nurbsmotion.export import save_ros_trajectory
+    from nurbsmotion.report.export import save_ros_trajectory
 
     sp = circle_motion()
     file = save_ros_trajectory(sp, tmp_path / "trajectory.yaml", period=0.01, scale=1e-3, resolution=1e-9)

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 import nurbsmotion as nm
-from nurbsmotion import cli, closed_loop
+from nurbsmotion import cli
+from nurbsmotion.loop import closed_loop
 from nurbsmotion.loop import run
 from nurbsmotion.machine import die_bonder
 
@@ -241,7 +242,7 @@ def test_the_plans_freed_temporaries_go_back_to_the_system(monkeypatch):
     on glibc) once the plan is built, before the run. The effect on the resident set is
     measured by ``benchmarks/long_run.py`` (the 10-minute move's peak: 297 -> 275 MB),
     not here: it depends on the heap's history."""
-    from nurbsmotion import _memory
+    from nurbsmotion._runtime import memory as _memory
     from nurbsmotion.interpolators import planned
 
     assert _memory.release_freed_memory()

@@ -160,7 +160,7 @@ def test_overshoot_is_at_most_the_distance_off_the_path():
 def _metrics_of(curve, position, u, finished):
     """The running figures for made-up rows: actual ``position`` (n, 2) [pulse] and
     setpoint parameter ``u`` (n,), the setpoint at the end from sample ``finished``."""
-    from nurbsmotion.closed_loop import new_rows
+    from nurbsmotion.loop.closed_loop import new_rows
 
     n = len(u)
     rows = new_rows(n, 2, False)

@@ -56,14 +56,14 @@ def test_plot_trace_pi(pi_runs, tmp_path, algorithm, monkeypatch):
     from nurbsmotion import plots
 
     limits = []
-    save = plots._save
+    save = plots.figures._save
 
     def spy(fig, path, overwrite=True):
         if path.name.endswith("drive.png"):
             limits.extend(ax.get_ylim() for ax in fig.axes)
         return save(fig, path, overwrite)
 
-    monkeypatch.setattr(plots, "_save", spy)
+    monkeypatch.setattr(plots.figures, "_save", spy)
     trace = pi_runs[algorithm]
     out = tmp_path / "new" / "folder"  # created if missing
     paths = plot_trace(trace, out, prefix=f"{algorithm}_")
@@ -152,7 +152,7 @@ def test_settle_figure_measures_from_the_path_end_for_planned(machine, tmp_path,
     from nurbsmotion import plots
 
     seen = {}
-    save = plots._save
+    save = plots.figures._save
 
     def spy(fig, path, overwrite=True):
         if path.name == "settle.png":
@@ -160,7 +160,7 @@ def test_settle_figure_measures_from_the_path_end_for_planned(machine, tmp_path,
             seen["last"] = [ax.lines[0].get_ydata()[-1] for ax in fig.axes[::2]]
         return save(fig, path, overwrite)
 
-    monkeypatch.setattr(plots, "_save", spy)
+    monkeypatch.setattr(plots.figures, "_save", spy)
     path = nm.make_die_bonder_pi()
     trace = simulate(make_interpolator("planned", path, machine, 1e6), machine)
     assert trace.metrics().settled
@@ -183,7 +183,7 @@ def test_settle_figure_draws_the_runs_settle_window(machine, tmp_path, monkeypat
     from nurbsmotion import plots
 
     seen = {}
-    save = plots._save
+    save = plots.figures._save
 
     def spy(fig, path, overwrite=True):
         if path.name == "settle.png":
@@ -196,7 +196,7 @@ def test_settle_figure_draws_the_runs_settle_window(machine, tmp_path, monkeypat
             seen["titles"] = [ax.get_title(loc="left") for ax in fig.axes]
         return save(fig, path, overwrite)
 
-    monkeypatch.setattr(plots, "_save", spy)
+    monkeypatch.setattr(plots.figures, "_save", spy)
     path = nm.make_die_bonder_pi()
     trace = simulate(make_interpolator("planned", path, machine, 1e6), machine,
                      settle_window=window)

@@ -1,5 +1,5 @@
 """The first ``run`` on an empty numba cache compiles its closed loop in a second process
-(:mod:`nurbsmotion._precompile`, issue 9): the made-up arguments have the types a run
+(:mod:`nurbsmotion._runtime.precompile`, issue 9): the made-up arguments have the types a run
 passes, nothing starts when the loop is cached, and Ctrl-C ends both processes."""
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ GCODE = str(Path(__file__).resolve().parents[1] / "examples" / "butterfly.ngc") 
 
 _RUN_SCRIPT = r"""
 import sys
-from nurbsmotion import _precompile
+from nurbsmotion._runtime import precompile as _precompile
 from nurbsmotion.cli import main
 
 name, path, out = sys.argv[1:]
@@ -57,7 +57,7 @@ def _precompilers(cache: str) -> list[int]:
         if not proc.name.isdigit():
             continue
         try:
-            if (b"nurbsmotion._precompile" in (proc / "cmdline").read_bytes()
+            if (b"nurbsmotion._runtime.precompile" in (proc / "cmdline").read_bytes()
                     and f"NUMBA_CACHE_DIR={cache}".encode()
                     in (proc / "environ").read_bytes().split(b"\0")
                     and (proc / "stat").read_text().split()[2] not in "ZX"):

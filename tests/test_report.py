@@ -30,7 +30,7 @@ def read_back(path, fmt):
 @pytest.mark.parametrize("fmt", report.TRACE_FORMATS)
 @pytest.mark.parametrize("every", [1, 4])
 def test_streamed_trace_holds_the_trace_exactly(trace, tmp_path, monkeypatch, fmt, every):
-    monkeypatch.setattr(report, "TRACE_CHUNK_ROWS", 7)  # many chunks, a short last one
+    monkeypatch.setattr(report.trace_file, "TRACE_CHUNK_ROWS", 7)  # many chunks, a short last one
     written = []
     path = report.write_trace(trace, tmp_path / f"trace.{fmt}", fmt=fmt, every=every,
                               length_unit="mm", pulses_per_length_unit=1000.0,

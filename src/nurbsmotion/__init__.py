@@ -1,5 +1,5 @@
 """nurbsmotion: NURBS interpolation for motion systems whose actuators saturate."""
-from ._jit_cache import drop_stale_caches
+from ._runtime.jit_cache import drop_stale_caches
 
 drop_stale_caches()  # before any compiled function is loaded from disk
 

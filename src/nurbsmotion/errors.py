@@ -92,4 +92,4 @@ class InvalidFeedError(InvalidArgumentError):
     per-piece feed limit."""
 class WorkLimitError(NurbsmotionError, ValueError):
     """A command would compute more samples (or memory) than a documented limit allows
-    (:mod:`nurbsmotion.budget`)."""
+    (:mod:`nurbsmotion.loop.budget`)."""

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import check_input_file, json_safe, write_output
+from ._runtime.io import check_input_file, json_safe, write_output
 from .errors import InvalidArgumentError, PathFileError
 from .machine import LENGTH_UNITS_UM, Machine
 

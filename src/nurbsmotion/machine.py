@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from .control import PidGains, loop_poles, pid_law
-from ._io import parse_json_or_toml, read_text_file
+from ._runtime.io import parse_json_or_toml, read_text_file
 from .errors import InvalidMachineError, PathFileError
 from .plant import linear_loop_poles
 from .servo import ServoPlant, zoh_matrices

@@ -27,7 +27,7 @@ from ._kernels import horner, power_basis, rational_horner
 from .geometry import distances_to
 
 from .nurbs import NurbsCurve
-from .closed_loop import SETTLE_WINDOW
+from .loop.closed_loop import SETTLE_WINDOW
 from .stepping import Status
 
 __all__ = ["Metrics", "RunningMetrics", "trace_metrics", "AtRest", "RunningAtRest",
@@ -571,7 +571,7 @@ class RunningMetrics:
 
     def add(self, first: int, rows, finished: int, last: bool) -> None:
         """Take a block of samples ``first ..`` (``rows``: a
-        :class:`nurbsmotion.closed_loop.Rows`); ``finished`` is the first sample at the
+        :class:`nurbsmotion.loop.closed_loop.Rows`); ``finished`` is the first sample at the
         path's end (-1: none yet), ``last`` whether no rows follow (unused: the figures
         are complete after every block)."""
         if first != self.n:
@@ -777,7 +777,7 @@ class AtRest:
 
 class RunningAtRest:
     """:class:`AtRest` gathered block by block (rows of
-    :class:`nurbsmotion.closed_loop.Rows`, in order), keeping only the last ``window``
+    :class:`nurbsmotion.loop.closed_loop.Rows`, in order), keeping only the last ``window``
     samples.
 
     Parameters
@@ -863,6 +863,6 @@ def trace_at_rest(trace, window: int | None = None) -> AtRest:
 
 
 def _settling_samples(machine) -> int:
-    from .closed_loop import settle_hold_samples  # the loop's own rule
+    from .loop.closed_loop import settle_hold_samples  # the loop's own rule
 
     return settle_hold_samples(machine)

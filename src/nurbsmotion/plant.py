@@ -4,7 +4,7 @@ and a two-mass resonance, as data for the one compiled loop.
 An ideal machine's plant is the rigid axis of docs/model.md#servo-axis, read exactly, driven at
 once (:mod:`nurbsmotion.servo`). A machine with any of the keys of issue 32 (see
 :class:`nurbsmotion.machine.Machine` and :class:`~nurbsmotion.machine.Axis`) gets a plant
-*stage* (:class:`PlantStage`, numbers only) that :func:`nurbsmotion.closed_loop.run_samples`
+*stage* (:class:`PlantStage`, numbers only) that :func:`nurbsmotion.loop.closed_loop.run_samples`
 runs in place of :func:`nurbsmotion.servo.plant_step`. Everything in it is exact, never
 sub-stepped:
 

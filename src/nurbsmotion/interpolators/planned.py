@@ -72,7 +72,7 @@ import numpy as np
 from numba import njit
 
 from .. import stepping
-from .._memory import release_freed_memory
+from .._runtime.memory import release_freed_memory
 from ..control import pid_affine, pid_output
 from ..errors import InvalidArgumentError
 from ..feed import FeedLimit

@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import check_input_file, write_output
+from .._runtime.io import check_input_file, write_output
 from ..errors import InvalidCurveError, PathFileError
 from ..joining import DEFAULT_JOIN_TOLERANCE, join
 from ..nurbs import NurbsCurve, make_arc, make_line

@@ -40,7 +40,7 @@ import tomli_w
 
 from dataclasses import dataclass
 
-from .._io import parse_json_or_toml, read_text_file, write_output
+from .._runtime.io import parse_json_or_toml, read_text_file, write_output
 from ..feed import FeedLimit
 from ..errors import InvalidCurveError, PathFileError
 from ..nurbs import BUILTIN_PATHS, MAX_CONTROL_POINTS, NurbsCurve, builtin_path

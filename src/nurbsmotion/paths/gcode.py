@@ -95,7 +95,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import check_input_file, write_output
+from .._runtime.io import check_input_file, write_output
 from ..errors import InvalidCurveError, PathFileError
 from ..feed import FeedLimit
 from ..joining import bezier_segments, elevate_degree

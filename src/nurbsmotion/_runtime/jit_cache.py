@@ -14,7 +14,7 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-_PACKAGE = Path(__file__).resolve().parent
+_PACKAGE = Path(__file__).resolve().parents[1]
 _STAMP = _PACKAGE / "__pycache__" / "nurbsmotion-jit-sources.sha256"
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 from contextlib import contextmanager
 from typing import IO, Callable, Iterator
 
-from .errors import InvalidArgumentError, OutputExistsError, PathFileError
+from ..errors import InvalidArgumentError, OutputExistsError, PathFileError
 
 __all__ = ["json_safe", "check_input_file", "read_text_file", "parse_json_or_toml", "write_output",
            "atomic_output", "OutputFolder"]

@@ -42,16 +42,16 @@ def _zeros(*shape, writeable: bool = True) -> np.ndarray:
 
 
 def loop_example(interpolator: str) -> tuple | None:
-    """``(kernel, arguments)``: :func:`nurbsmotion.closed_loop.run_samples` and made-up
+    """``(kernel, arguments)``: :func:`nurbsmotion.loop.closed_loop.run_samples` and made-up
     arguments of the types a run with ``interpolator`` passes (kept equal by a test), or
     ``None`` for an interpolator without one."""
-    from .closed_loop import AxisState, LoopState, Settling, new_rows, run_samples
-    from .control import PID_LAW, PID_STATE
-    from .interpolators.base import PathData
-    from .plant import inactive_stage, new_plant_state
-    from .interpolators.paper import PaperPlan
-    from .interpolators.planned import SUPPORT_DIRECTIONS, PlannedPlan, PlannedState
-    from .interpolators.taylor import StepState, TaylorPlan
+    from ..loop.closed_loop import AxisState, LoopState, Settling, new_rows, run_samples
+    from ..control import PID_LAW, PID_STATE
+    from ..interpolators.base import PathData
+    from ..plant import inactive_stage, new_plant_state
+    from ..interpolators.paper import PaperPlan
+    from ..interpolators.planned import SUPPORT_DIRECTIONS, PlannedPlan, PlannedState
+    from ..interpolators.taylor import StepState, TaylorPlan
 
     f, n = _zeros, 2  # n_axes: any number gives the same types
     path = PathData(f(2, writeable=False), f(1, 2, n + 1, writeable=False), f(1),
@@ -88,9 +88,9 @@ def examples_here(interpolator: str) -> list[tuple]:
     process, which it would otherwise compile after the wait: the metrics' nearest-point
     search and, for ``planned``, its motion plan's kernels; made-up arguments of the types
     a run passes (kept equal by a test)."""
-    from . import motion_plan
-    from .interpolators import planned
-    from .metrics import _nearest_points
+    from .. import motion_plan
+    from ..interpolators import planned
+    from ..metrics import _nearest_points
 
     f = _zeros
     pairs = [(_nearest_points, (f(2), f(2, 1), f(2, 1), f(2, 1), f(1, 2, 2), f(1), f(2, 1),
@@ -135,9 +135,9 @@ class Precompiler:
         self.interpolator = interpolator
         if not _missing(interpolator):  # also None for an interpolator without example
             return
-        package_parent = str(Path(__file__).resolve().parents[1])
+        package_parent = str(Path(__file__).resolve().parents[2])
         code = ("import sys; sys.path.insert(0, sys.argv[1]); "
-                "from nurbsmotion._precompile import main; main(sys.argv[2])")
+                "from nurbsmotion._runtime.precompile import main; main(sys.argv[2])")
         try:
             self.process = subprocess.Popen(
                 [sys.executable, "-c", code, package_parent, interpolator],

@@ -39,10 +39,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from . import stepping
-from .control import pid_commit, pid_output
-from .plant import is_active, measure, new_plant_state, positions, sample_step
-from .servo import plant_step
+from .. import stepping
+from ..control import pid_commit, pid_output
+from ..plant import is_active, measure, new_plant_state, positions, sample_step
+from ..servo import plant_step
 
 __all__ = ["Rows", "Settling", "LoopState", "AxisState", "DONE", "FULL", "FAILED",
            "OUT_OF_SAMPLES", "PAUSED", "BLOCK_SAMPLES", "SINK_BLOCK_SAMPLES", "new_rows",

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 
-from .errors import WorkLimitError
+from ..errors import WorkLimitError
 
 __all__ = ["MAX_SAMPLES", "bytes_per_sample", "estimate_samples", "check_samples"]
 

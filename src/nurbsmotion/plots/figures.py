@@ -1,56 +1,35 @@
-"""Figures of a run, written as PNG files (docs/model.md#run-figures; Figs. 5-7 of Yeh & Sun (2008)).
-
-matplotlib is imported inside the functions, so ``import nurbsmotion`` never imports it.
-Figures are built as :class:`matplotlib.figure.Figure` objects on an Agg canvas, without
-pyplot: no global figure registry, no backend to select, nothing left open afterwards.
-Every file is written through a temporary name and renamed when complete.
-
-What every figure follows:
-
-- lengths in one report unit ``L`` (``"mm"`` or ``"in"``,
-  :func:`nurbsmotion.units.report_unit`), speeds in ``L/s``, time in s, drive in V;
-- every axis of the machine for drive and speed;
-- the drive axis is framed on ±Umax (:data:`DRIVE_FRAME` × Umax); what lies outside is
-  clipped, marked with triangles on the frame's edge, and its peak is written in the
-  panel's title, so one outlier never sets the range;
-- beside the whole run, time windows around the events that matter: the start, each
-  sharp corner (at most :data:`MAX_EVENT_WINDOWS` of them, those with the largest drive),
-  or, on a path without corners, the sample of largest drive, and the stop. A window spans
-  the slowest axis's 2 % settling time of the closed loop after the event and half of it
-  before (:func:`settling_time`, from the model: no tuned constant);
-- legends sit outside the data (below the panels or at their right).
-
-Glossary
---------
-thd, tha : commanded and actual axis positions [pulse]; wd : commanded axis speed [rad/s];
-wmin, wmax : speed bounds of eq. 3.6 [rad/s]; Ke : mechanical gain [pulse/rad];
-u : drive before clipping [V]; Umax : drive limit [V]; F : commanded feed [pulse/s];
-Ts : sample period [s]; k : pulses per report unit [pulse/L].
+"""The figures of :mod:`nurbsmotion.plots`: contour, following error, drive, speed and
+settle of a run (:func:`plot_trace`), the setpoints of an open-loop interpolation
+(:func:`plot_setpoints`) and the comparison of several runs (:func:`plot_comparison`,
+:func:`plot_comparisons` in forked workers), with the windowed figures (the whole run
+beside a window per event) reused between files of one layout.
 """
 
 from __future__ import annotations
 
 import contextlib
-import functools
 import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from ._io import write_output
-from .metrics import nearest_parameter
-from .units import report_unit
-
-__all__ = ["plot_trace", "plot_setpoints", "plot_comparison", "plot_comparisons",
-           "settling_time",
-           "TRACE_FIGURES", "SETPOINT_FIGURES", "DRIVE_FRAME", "MAX_EVENT_WINDOWS",
-           "comparison_figures"]
+from ..metrics import nearest_parameter
+from ..units import report_unit
+from ._canvas import (
+    _arrange, _axis_labels, _feed_text, _figure, _fit_in_view, _legend_below,
+    _output_dir, _save, _STYLES, _title,
+)
+from .events import (
+    _desired_in_window, _desired_parameters, _Event, _event_time, _events,
+    _label_corners, _make_run, _MIN_ZOOM_HALF_WIDTH_PULSES, _Run, _SETTLE_ZOOM,
+    settling_time, _window, _zoom_windows,
+)
 
 TRACE_FIGURES = ("contour.png", "following_error.png", "drive.png", "speed.png",
                  "settle.png")
 """Files :func:`plot_trace` writes (after its prefix)."""
+
 
 SETPOINT_FIGURES = ("setpoints.png",)
 """Files :func:`plot_setpoints` writes (after its ``prefix``)."""
@@ -61,337 +40,9 @@ def comparison_figures(name: str, axis_names) -> list[str]:
     return ([f"{name}_contour.png"] + [f"{name}_speed_{a}.png" for a in axis_names]
             + [f"{name}_drive_{a}.png" for a in axis_names])
 
+
 DRIVE_FRAME = 1.25
 """The drive axes span ±DRIVE_FRAME × Umax: the limit lines and a margin above them."""
-
-MAX_EVENT_WINDOWS = 3
-"""Corner windows shown at most (the corners with the largest drive), besides start and stop."""
-
-_DPI = 110
-_PNG_COMPRESSION = 1  # zlib level: level 6 (matplotlib's) took 1.5 x as long for 5 % less
-_STYLES = (("C0", "-"), ("C3", "--"), ("C2", "-."), ("C1", ":"), ("C4", "-"), ("C5", "--"))
-"""(colour, line style) per run, in order: solid first, as the paper draws its proposed
-algorithm solid and the uncompensated one dashed (Figs. 5 and 7)."""
-_MIN_ZOOM_HALF_WIDTH_PULSES = 50.0  # so a 10-pulse deviation spans a tenth of a zoom
-_ZOOM_MARGIN = 1.3  # the zoom holds the largest nearby contour error with this margin
-_CORNER_REACH = 0.05  # samples within this fraction of the length size a corner's zoom
-_CLOSE_ZOOM_RATIO = 3.0  # add a closer zoom when the runs' errors differ by this factor
-_MAX_ERROR_ZOOMS = 4  # zooms on the largest contour errors of a path without corners
-_SETTLE_ZOOM = 5.0  # the settle zoom spans ±5 settle windows: the band and what enters it
-
-
-@dataclass(frozen=True)
-class _Run:
-    """One run as a figure draws it, every length already in the report unit."""
-
-    label: str
-    trace: object  # the Trace (pulses); for its time, drive and bounds
-    position: np.ndarray  # (n_samples, n_axes) [L]
-    position_command: np.ndarray  # (n_samples, n_axes) [L]
-    speed_command: np.ndarray  # (n_samples, n_axes) [L/s]
-    speed_bounds: np.ndarray | None  # (n_samples, n_axes, 2) [L/s]
-    color: str
-    linestyle: str
-
-    @property
-    def t(self) -> np.ndarray:
-        return self.trace.t
-
-
-@dataclass(frozen=True)
-class _Zoom:
-    """A square window of the path plane, centred on ``center`` (2,) [L]."""
-
-    label: str
-    center: np.ndarray
-    half_width: float  # [L]
-    corner: int | None = None  # the sharp corner it shows (1, 2, ...), if any
-
-
-@dataclass(frozen=True)
-class _Event:
-    """A moment worth a time window: where on the path (``u``) and its name."""
-
-    label: str
-    u: float
-    kind: str  # "start", "corner", "peak" or "stop"
-
-
-def _output_dir(out_dir) -> Path:
-    path = Path(out_dir)
-    path.mkdir(parents=True, exist_ok=True)
-    return path
-
-
-def _figure(width: float, height: float):
-    """A Figure on its own Agg canvas (no pyplot state) [inch]; no layout engine: the
-    panels are placed once, by :func:`_arrange`, when the figure is saved."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), dpi=_DPI)
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig, path: Path, overwrite: bool = True) -> Path:
-    """Place the panels (:func:`_arrange`), draw ``fig`` and write it as an RGB PNG (the
-    figures are opaque: no alpha channel to encode)."""
-    from PIL import Image  # matplotlib's own dependency
-
-    _arrange(fig)
-    fig.canvas.draw()
-    image = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())).convert("RGB")
-    write_output(path, lambda h: image.save(h, format="png", dpi=(_DPI, _DPI),
-                                            compress_level=_PNG_COMPRESSION),
-                 overwrite=overwrite, binary=True)
-    return path  # the figure is in no registry: it is freed with its last reference
-
-
-def _title(ax, text: str, **kwargs) -> None:
-    """``ax.set_title`` at a fixed height: :func:`_arrange` makes room for it and lifts it
-    above an offset text, so matplotlib need not measure the axis at every draw."""
-    ax.set_title(text, y=1.0, **kwargs)
-
-
-_PAD = 0.08  # [inch] between a block of text and the figure's edge or the next block
-
-
-def _text_size(text, renderer) -> tuple[float, float]:
-    """Width and height [inch] of a Text artist as drawn (0, 0 when empty or hidden)."""
-    if not text.get_visible() or not text.get_text():
-        return 0.0, 0.0
-    box = text.get_window_extent(renderer)
-    return box.width / _DPI, box.height / _DPI
-
-
-def _tick_labels(axis) -> tuple[float, float, float]:
-    """Widest and tallest major tick label [inch] of ``axis`` as it will be drawn (0 when
-    its labels are hidden) and the height of its offset text ("1e-5", "+1000") [inch],
-    from its locator and formatter: no tick artists are made."""
-    import matplotlib as mpl
-    from matplotlib.font_manager import FontProperties
-
-    if not axis._major_tick_kw.get("label1On", True):
-        return 0.0, 0.0, 0.0
-    lo, hi = sorted(axis.get_view_interval())
-    locs = [x for x in axis.get_major_locator()() if lo - 1e-9 * (hi - lo) <= x
-            <= hi + 1e-9 * (hi - lo)]
-    if not locs:
-        return 0.0, 0.0, 0.0
-    formatter = axis.get_major_formatter()
-    labels = formatter.format_ticks(locs)
-    name = "xtick" if axis.axis_name == "x" else "ytick"
-    size = FontProperties(size=mpl.rcParams[f"{name}.labelsize"]).get_size_in_points()
-    width = max((_label_extent(label, size)[0] for label in labels if label), default=0.0)
-    # a line of text is as tall as "lp" (ascent and descent) whatever it holds
-    height = _label_extent("lp", size)[1] + 2.0 / 72
-    offset = formatter.get_offset() if hasattr(formatter, "get_offset") else ""
-    return width, height, (height if offset else 0.0)
-
-
-@functools.lru_cache(maxsize=4096)
-def _label_extent(label: str, size: float) -> tuple[float, float]:
-    """Width and height [inch] of one line of text (a tick label) of ``size`` [pt]; the
-    same labels recur on every panel, so each is measured once."""
-    from matplotlib.backends.backend_agg import RendererAgg
-    from matplotlib.cbook import is_math_text
-    from matplotlib.font_manager import FontProperties
-
-    renderer = RendererAgg(1, 1, _DPI)  # draws nothing: measures with the same fonts
-    w, h, _ = renderer.get_text_width_height_descent(label, FontProperties(size=size),
-                                                     ismath=is_math_text(label))
-    return w / _DPI, h / _DPI
-
-
-def _decorations(ax, renderer) -> tuple[float, float, float, float, float]:
-    """Room [inch] the text of a panel takes outside its frame: left, right, bottom, top,
-    and the height of the y offset text above it (which the titles must clear)."""
-    import matplotlib as mpl
-
-    if ax.name == "3d":  # its labels lie inside its square box
-        top = max(_text_size(t, renderer)[1] for t in (ax.title, ax._left_title))
-        return 0.2, 0.2, 0.2, top + 6 / 72, 0.0
-    pad = (mpl.rcParams["xtick.major.size"] + mpl.rcParams["xtick.major.pad"]) / 72
-    xw, xh, xoff = _tick_labels(ax.xaxis)
-    yw, _, yoff = _tick_labels(ax.yaxis)
-    labelpad = mpl.rcParams["axes.labelpad"] / 72
-    ylabel = _text_size(ax.yaxis.label, renderer)[0]
-    xlabel = _text_size(ax.xaxis.label, renderer)[1]
-    left = (yw + pad if yw else 0.0) + (ylabel + labelpad if ylabel else 0.0)
-    bottom = (xh + pad if xh else 0.0) + (xlabel + labelpad if xlabel else 0.0) + xoff
-    titles = max(_text_size(t, renderer)[1] for t in (ax.title, ax._left_title,
-                                                       ax._right_title))
-    top = max(titles + mpl.rcParams["axes.titlepad"] / 72 if titles else 0.0, yoff)
-    if titles and yoff:
-        top += yoff
-    right = 0.5 * xw  # the last x tick label reaches past the frame by half its width
-    return left, right, bottom, top, yoff
-
-
-def _arrange(fig) -> None:
-    """Place the panels of ``fig`` (one grid of subplots) so that their labels, titles,
-    the suptitle and the figure's legend fit, from the size of each text.
-
-    A fixed layout computed once: matplotlib's constrained layout measures every panel
-    with all its ticks at every draw, which was most of the time of a figure.
-    """
-    renderer = fig.canvas.get_renderer()
-    width, height = fig.get_size_inches()
-    axes = [ax for ax in fig.axes if ax.get_subplotspec() is not None]
-    if not axes:
-        return
-    grid = axes[0].get_subplotspec().get_gridspec()
-    n_rows, n_cols = grid.get_geometry()
-    top_text = 0.0
-    for t in fig.texts:  # the suptitle
-        t.set_y(1.0 - _PAD / height)
-        top_text = max(top_text, _text_size(t, renderer)[1] + _PAD)
-    legend = sum(_text_size_box(lg, renderer) + _PAD for lg in fig.legends)
-    for _ in range(2):  # the tick labels depend on the panel sizes: once more
-        deco = {ax: _decorations(ax, renderer) for ax in axes}
-
-        def most(index, keep):
-            return max([deco[ax][index] for ax in axes if keep(ax.get_subplotspec())],
-                       default=0.0)
-
-        left = most(0, lambda s: s.colspan.start == 0) + _PAD
-        right = most(1, lambda s: s.colspan.stop == n_cols) + _PAD
-        bottom = most(2, lambda s: s.rowspan.stop == n_rows) + _PAD + legend
-        top = most(3, lambda s: s.rowspan.start == 0) + _PAD + top_text
-        w_gap = (most(0, lambda s: s.colspan.start > 0)
-                 + most(1, lambda s: s.colspan.stop < n_cols) + _PAD)
-        h_gap = (most(2, lambda s: s.rowspan.stop < n_rows)
-                 + most(3, lambda s: s.rowspan.start > 0) + _PAD)
-        panel_w = max((width - left - right - (n_cols - 1) * w_gap) / n_cols, 0.3)
-        panel_h = max((height - top - bottom - (n_rows - 1) * h_gap) / n_rows, 0.3)
-        grid.update(left=min(left / width, 0.45), right=max(1 - right / width, 0.55),
-                    bottom=min(bottom / height, 0.45), top=max(1 - top / height, 0.55),
-                    wspace=w_gap / panel_w, hspace=h_gap / panel_h)
-        for ax in axes:  # GridSpec.update moves the panels of pyplot's figures only
-            ax.set_position(ax.get_subplotspec().get_position(fig))
-    for ax in axes:  # titles above an offset text ("1e-5") at the top of the y axis
-        lift = deco[ax][4] / (ax.get_position().height * height)
-        for t in (ax.title, ax._left_title, ax._right_title):
-            t.set_y(1.0 + lift)
-
-
-def _text_size_box(artist, renderer) -> float:
-    """Height [inch] of an artist's extent (a legend)."""
-    return artist.get_window_extent(renderer).height / _DPI
-
-
-def _axis_labels(n_axes: int, axis_names=None) -> tuple[str, ...]:
-    if axis_names is not None:
-        names = tuple(str(a) for a in axis_names)
-        if len(names) < n_axes:
-            raise ValueError(f"{n_axes} axes need {n_axes} axis_names, got {names}")
-        return names[:n_axes]
-    default = ("x", "y", "z")
-    return tuple(default[j] if j < 3 else f"axis {j}" for j in range(n_axes))
-
-
-def _feed_text(feed: float, per_unit: float, unit: str) -> str:
-    """``F = 1000 mm/s (1e+06 pulse/s)``."""
-    return f"F = {feed / per_unit:.4g} {unit}/s ({feed:.3g} pulse/s)"
-
-
-def _legend_below(fig, axes, ncol: int | None = None) -> None:
-    """One legend for the figure, below every panel, from the handles of ``axes``."""
-    handles, labels = [], []
-    for ax in np.atleast_1d(axes).ravel():
-        for h, lab in zip(*ax.get_legend_handles_labels()):
-            if lab not in labels and not lab.startswith("_"):
-                handles.append(h)
-                labels.append(lab)
-    if handles:
-        fig.legend(handles, labels, loc="lower center", fontsize="small",
-                   bbox_to_anchor=(0.5, _PAD / fig.get_figheight()),
-                   ncol=ncol or min(len(labels), 4))
-
-
-def settling_time(machine) -> float:
-    """2 % settling time of the slowest axis's closed position loop [s], at least 10 Ts.
-
-    Each axis's plant ``tau w' = -w + Kc u``, ``th' = Ke w`` under the PD law
-    ``u = Kp (thd - th) - Kd w`` (the feedforward of PD+ does not move the poles) has the
-    characteristic polynomial ``tau s^2 + (1 + Kc Kd) s + Kc Kp Ke``; the slowest decay
-    rate ``sigma = min |Re(s)|`` over the axes gives ``4 / sigma``.
-    """
-    rates = []
-    for tau, Kc, Ke, Kp, Kd in zip(machine.tau, machine.Kc, machine.Ke, machine.Kp,
-                                   machine.Kd):
-        roots = np.roots([tau, 1.0 + Kc * Kd, Kc * Kp * Ke])
-        rates.append(float(np.min(np.abs(roots.real))))
-    sigma = min(rates)
-    settle = 4.0 / sigma if sigma > 0 else math.inf
-    return max(min(settle, 1.0), 10.0 * machine.sample_period)
-
-
-def _make_run(trace, label: str, style: tuple[str, str], per_unit: float) -> _Run:
-    k = 1.0 / per_unit
-    Ke = trace.machine.Ke
-    bounds = None if trace.speed_bounds is None else trace.speed_bounds * Ke[None, :, None] * k
-    return _Run(label, trace, trace.position * k, trace.position_command * k,
-                trace.speed_command * Ke * k, bounds, *style)
-
-
-def _index_at(trace, u: float) -> int:
-    """First sample whose setpoint reaches path parameter ``u``."""
-    i = int(np.searchsorted(trace.u[: trace.finished_index + 1], u - 1e-12))
-    return min(i, trace.finished_index)
-
-
-def _drive_peaks(traces: list, settle: float) -> list[_Event]:
-    """On a path without corners: the places of the largest drive of the run that drives
-    hardest, at most :data:`MAX_EVENT_WINDOWS`, a settling time apart, in path order."""
-    worst = max(traces, key=lambda tr: float(np.max(np.abs(tr.drive))))
-    end = worst.finished_index
-    peak = np.max(np.abs(worst.drive[: end + 1]), axis=1)
-    chosen: list[int] = []
-    for k in np.argsort(peak)[::-1]:
-        t = worst.t[k]
-        if 0 < worst.u[k] < 1 and all(abs(t - worst.t[c]) > settle for c in chosen):
-            chosen.append(int(k))
-        if len(chosen) == MAX_EVENT_WINDOWS:
-            break
-    return [_Event(f"drive peak, t = {worst.t[k]:.3g} s", float(worst.u[k]), "peak")
-            for k in sorted(chosen)]
-
-
-def _events(curve, traces: list, settle: float) -> list[_Event]:
-    """Start, the sharp corners with the largest drive near them (or, without corners,
-    the places of the largest drive), and the stop."""
-    corners = curve.sharp_corners()
-    events = [_Event("start", 0.0, "start")]
-    if corners.size:
-        def drive_near(uc: float) -> float:
-            peak = 0.0
-            for tr in traces:
-                i = _index_at(tr, uc)
-                lo, hi = max(i - 20, 0), min(i + 40, len(tr.t))
-                peak = max(peak, float(np.max(np.abs(tr.drive[lo:hi]))))
-            return peak
-
-        chosen = sorted(sorted(corners, key=drive_near, reverse=True)[:MAX_EVENT_WINDOWS])
-        index = {float(c): n for n, c in enumerate(corners, start=1)}
-        events += [_Event(f"corner {index[float(c)]}", float(c), "corner") for c in chosen]
-    else:
-        events += _drive_peaks(traces, settle)
-    events.append(_Event("stop", 1.0, "stop"))
-    return events
-
-
-def _window(event: _Event, settle: float) -> tuple[float, float]:
-    """Time span [s] of an event's window, relative to the event."""
-    if event.kind == "start":
-        return -0.1 * settle, 1.4 * settle
-    return -0.5 * settle, settle
-
-
-def _event_time(run: _Run, event: _Event) -> float:
-    tr = run.trace
-    return float(tr.t[tr.finished_index if event.kind == "stop" else _index_at(tr, event.u)])
 
 
 def _window_columns(fig, n_rows: int, events: list[_Event]):
@@ -536,172 +187,6 @@ def _drive_title(runs: list[_Run], j: int, umax: float, fig, ax) -> str:
             lines.append(part)
     return "\n".join(textwrap.shorten(line, chars, placeholder="…") if len(line) > chars
                      else line for line in lines)
-
-
-def _desired_parameters(curve, n: int = 20000) -> np.ndarray:
-    """Parameters uniform in arc length plus every breakpoint (corners drawn sharp)."""
-    return np.union1d(curve.parameter_at(np.linspace(0.0, curve.length, n)),
-                      curve.breakpoints)
-
-
-def _desired_points(curve, n: int = 20000) -> np.ndarray:
-    """Curve points uniform in arc length plus every breakpoint, shape (m, n_axes) [L]."""
-    return curve(_desired_parameters(curve, n))
-
-
-_ZOOM_SUBDIVISION = 64
-"""Each segment of the desired polyline that crosses a zoom window is redrawn from this
-many curve points (a zoom of a few pulses on a long path would otherwise show the
-polyline's chords, not the curve)."""
-
-
-def _desired_in_window(curve, u: np.ndarray, points: np.ndarray, zoom: _Zoom) -> np.ndarray:
-    """The desired path inside ``zoom``, evaluated finely: shape (m, 2) [L], NaN rows
-    between separate passes through the window. ``u`` and ``points`` are
-    :func:`_desired_parameters` and the curve's points there."""
-    h = zoom.half_width
-    inside = np.all(np.abs(points[:, :2] - zoom.center) <= h, axis=1)
-    near = inside.copy()  # the segments that enter or leave the window too
-    near[:-1] |= inside[1:]
-    near[1:] |= inside[:-1]
-    starts = np.nonzero(near[:-1] & near[1:])[0]
-    if starts.size == 0:
-        return np.empty((0, 2))
-    t = np.linspace(0.0, 1.0, _ZOOM_SUBDIVISION + 1)
-    fine = u[starts, None] + (u[starts + 1] - u[starts])[:, None] * t[None, :]
-    xy = curve(fine.ravel())[:, :2].reshape(len(starts), -1, 2)
-    gap = np.append(np.diff(starts) > 1, True)  # a NaN row after each separate pass
-    rows = [np.vstack([seg, np.full((1, 2), np.nan)]) if g else seg
-            for seg, g in zip(xy, gap)]
-    return np.vstack(rows)
-
-
-def _error_peaks(curve, runs: list[_Run], nearest: list[tuple]) -> list[tuple]:
-    """On a path without corners: the places of the largest contour error, at most
-    :data:`_MAX_ERROR_ZOOMS`, at least ``2 * _CORNER_REACH`` of the length apart; each as
-    (label, points (2,) [L] to hold, error [L])."""
-    candidates = []  # (error, run index, sample)
-    for i, (_, d) in enumerate(nearest):
-        for k in np.argsort(d)[::-1][:2000]:
-            candidates.append((float(d[k]), i, int(k)))
-    candidates.sort(reverse=True)
-    chosen, places = [], []
-    for err, i, k in candidates:
-        s = float(curve.arc_length(nearest[i][0][k]))
-        if all(abs(s - q) > 2 * _CORNER_REACH * curve.length for q in places):
-            places.append(s)
-            run = runs[i]
-            chosen.append((f"{run.label}, t = {run.t[k]:.3f} s",
-                           [run.position[k, :2], curve(nearest[i][0][k])[:2]], err))
-        if len(chosen) == _MAX_ERROR_ZOOMS:
-            break
-    return chosen
-
-
-def _zoom_windows(curve, runs: list[_Run], nearest: list[tuple],
-                  min_half: float) -> list[_Zoom]:
-    """Where to zoom: every sharp corner, or the largest contour error if there is none.
-
-    A corner's window holds the corner and, for every run, its sample of largest contour
-    error near the corner (within ``_CORNER_REACH`` of the path length), with a margin.
-    When the runs' errors there differ by more than ``_CLOSE_ZOOM_RATIO``, a closer
-    window on the corner, sized to the smallest of them, is added so the better run's
-    deviation (often 10-100 pulses) stays visible.
-
-    ``nearest`` holds ``(u, distance)`` of :func:`~nurbsmotion.metrics.nearest_parameter`
-    per run.
-    """
-    cap = 0.5 * float(np.max(np.ptp(_desired_points(curve, 500)[:, :2], axis=0)))
-    cap = max(cap, min_half)
-
-    def window(label: str, points: list, err: float, corner: int | None = None) -> _Zoom:
-        """Square around ``points`` (each (2,) [L]) with room for ``err`` [L]."""
-        pts = np.array(points)
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
-        half = 0.5 * float(np.max(hi - lo)) + (_ZOOM_MARGIN - 1.0) * err
-        half = min(max(min_half, half, _ZOOM_MARGIN * err), cap)
-        return _Zoom(label, 0.5 * (lo + hi), half, corner)
-
-    corners = curve.sharp_corners()
-    if corners.size == 0:
-        return [window(label, points, err)
-                for label, points, err in _error_peaks(curve, runs, nearest)]
-    zooms = []
-    reach = _CORNER_REACH * curve.length
-    for n, uc in enumerate(corners, start=1):
-        corner = curve(uc)[:2]
-        s_corner = float(curve.arc_length(uc))
-        points, local = [corner], []
-        for r, (u, d) in zip(runs, nearest):
-            near = np.abs(curve.arc_length(u) - s_corner) <= reach
-            if np.any(near):
-                k = int(np.argmax(np.where(near, d, -1.0)))
-                # the worst sample is held in the window when it is a deviation at the
-                # corner (an overshoot), not a tiny error far along the next piece
-                if (np.linalg.norm(r.position[k, :2] - corner)
-                        <= 2.0 * _ZOOM_MARGIN * float(d[k]) + min_half):
-                    points.append(r.position[k, :2])
-                local.append(float(d[k]))
-            else:
-                local.append(0.0)
-        zooms.append(window(f"corner {n} (u = {uc:.3g})", points, max(local), n))
-        if max(local) > _CLOSE_ZOOM_RATIO * max(min(local), min_half / 2):
-            zooms.append(window(f"corner {n}, closer", [corner], min(local), n))
-    return zooms
-
-
-def _label_corners(ax, curve, zooms: list[_Zoom]) -> list:
-    """Zoom boxes, and one label per place beside (not on) the path with a leader line:
-    "corner n (A, B)" at a sharp corner, the zoom letters elsewhere; returns the labels
-    (for :func:`_fit_in_view` once the panels are placed)."""
-    from matplotlib.patches import Rectangle
-
-    pts = _desired_points(curve, 500)[:, :2]
-    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
-    size = float(np.max(np.ptp(pts, axis=0)))
-    lo = pts.min(axis=0) - 0.1 * size
-    hi = pts.max(axis=0) + 0.1 * size
-    box = dict(boxstyle="round,pad=0.25", facecolor="white", edgecolor="0.5", alpha=0.95)
-    places: dict = {}  # corner number or zoom index -> (anchor (2,) [L], letters)
-    corners = curve.sharp_corners()
-    for j, z in enumerate(zooms):
-        (cx, cy), h = z.center, z.half_width
-        ax.add_patch(Rectangle((cx - h, cy - h), 2 * h, 2 * h, fill=False, edgecolor="0.3",
-                               linewidth=0.9))
-        key = ("corner", z.corner) if z.corner is not None else ("zoom", j)
-        anchor = curve(corners[z.corner - 1])[:2] if z.corner is not None else z.center
-        places.setdefault(key, (anchor, []))[1].append(chr(65 + j))
-    labels = []
-    for (kind, n), (p, letters) in places.items():
-        away = p - centre
-        norm = float(np.linalg.norm(away))
-        away = away / norm if norm > 0 else np.array([0.0, 1.0])
-        # Outward from the path's centre, the text on the far side of its anchor (so that
-        # it runs away from the path, not across it).
-        text_at = np.clip(p + 0.12 * size * away, lo, hi)
-        ha = "right" if away[0] < -0.35 else "left" if away[0] > 0.35 else "center"
-        va = "top" if away[1] < -0.35 else "bottom" if away[1] > 0.35 else "center"
-        text = ", ".join(letters)
-        labels.append(ax.annotate(
-            f"corner {n} ({text})" if kind == "corner" else text, p, xytext=text_at,
-            fontsize="medium", ha=ha, va=va, bbox=box,
-            arrowprops=dict(arrowstyle="-", color="0.4", linewidth=0.8)))
-    return labels
-
-
-def _fit_in_view(ax, artists) -> None:
-    """Widen the data limits of ``ax`` so that ``artists`` (text boxes) lie inside the axes,
-    not over a neighbouring panel or its labels."""
-    if not artists:
-        return
-    renderer = ax.figure.canvas.get_renderer()
-    for _ in range(2):  # the limits change the scale: once more on the new scale
-        ax.apply_aspect()  # what a draw would do first (equal scales adjust the limits)
-        inverse = ax.transData.inverted()
-        for a in artists:
-            corners = inverse.transform(a.get_window_extent(renderer).get_points())
-            ax.update_datalim(corners)
-        ax.autoscale_view()
 
 
 def _path_panel(ax, desired, runs: list[_Run], i: int, j: int, names, unit: str) -> None:
@@ -1018,7 +503,6 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
     written.append(_settle_figure(run, title, out / f"{prefix}settle.png", unit, per_unit,
                                   settle, overwrite))
     return written
-
 
 
 def plot_setpoints(series, out_dir, axis_names=None, *, units: str | None = None,

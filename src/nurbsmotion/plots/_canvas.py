@@ -1,0 +1,232 @@
+"""The canvas every figure of :mod:`nurbsmotion.plots` is drawn on: a matplotlib Figure on
+an Agg canvas (no pyplot), saved as PNG through a temporary file; titles, axis labels,
+legends below the panels, the layout that keeps text inside the figure, and fitting a
+panel's view to what it must show. Nothing here knows of runs or paths.
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+import numpy as np
+
+from .._runtime.io import write_output
+
+_DPI = 110
+
+
+_PNG_COMPRESSION = 1  # zlib level: level 6 (matplotlib's) took 1.5 x as long for 5 % less
+
+
+_STYLES = (("C0", "-"), ("C3", "--"), ("C2", "-."), ("C1", ":"), ("C4", "-"), ("C5", "--"))
+"""(colour, line style) per run, in order: solid first, as the paper draws its proposed
+algorithm solid and the uncompensated one dashed (Figs. 5 and 7)."""
+
+
+def _output_dir(out_dir) -> Path:
+    path = Path(out_dir)
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _figure(width: float, height: float):
+    """A Figure on its own Agg canvas (no pyplot state) [inch]; no layout engine: the
+    panels are placed once, by :func:`_arrange`, when the figure is saved."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), dpi=_DPI)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig, path: Path, overwrite: bool = True) -> Path:
+    """Place the panels (:func:`_arrange`), draw ``fig`` and write it as an RGB PNG (the
+    figures are opaque: no alpha channel to encode)."""
+    from PIL import Image  # matplotlib's own dependency
+
+    _arrange(fig)
+    fig.canvas.draw()
+    image = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())).convert("RGB")
+    write_output(path, lambda h: image.save(h, format="png", dpi=(_DPI, _DPI),
+                                            compress_level=_PNG_COMPRESSION),
+                 overwrite=overwrite, binary=True)
+    return path  # the figure is in no registry: it is freed with its last reference
+
+
+def _title(ax, text: str, **kwargs) -> None:
+    """``ax.set_title`` at a fixed height: :func:`_arrange` makes room for it and lifts it
+    above an offset text, so matplotlib need not measure the axis at every draw."""
+    ax.set_title(text, y=1.0, **kwargs)
+
+
+_PAD = 0.08  # [inch] between a block of text and the figure's edge or the next block
+
+
+def _text_size(text, renderer) -> tuple[float, float]:
+    """Width and height [inch] of a Text artist as drawn (0, 0 when empty or hidden)."""
+    if not text.get_visible() or not text.get_text():
+        return 0.0, 0.0
+    box = text.get_window_extent(renderer)
+    return box.width / _DPI, box.height / _DPI
+
+
+def _tick_labels(axis) -> tuple[float, float, float]:
+    """Widest and tallest major tick label [inch] of ``axis`` as it will be drawn (0 when
+    its labels are hidden) and the height of its offset text ("1e-5", "+1000") [inch],
+    from its locator and formatter: no tick artists are made."""
+    import matplotlib as mpl
+    from matplotlib.font_manager import FontProperties
+
+    if not axis._major_tick_kw.get("label1On", True):
+        return 0.0, 0.0, 0.0
+    lo, hi = sorted(axis.get_view_interval())
+    locs = [x for x in axis.get_major_locator()() if lo - 1e-9 * (hi - lo) <= x
+            <= hi + 1e-9 * (hi - lo)]
+    if not locs:
+        return 0.0, 0.0, 0.0
+    formatter = axis.get_major_formatter()
+    labels = formatter.format_ticks(locs)
+    name = "xtick" if axis.axis_name == "x" else "ytick"
+    size = FontProperties(size=mpl.rcParams[f"{name}.labelsize"]).get_size_in_points()
+    width = max((_label_extent(label, size)[0] for label in labels if label), default=0.0)
+    # a line of text is as tall as "lp" (ascent and descent) whatever it holds
+    height = _label_extent("lp", size)[1] + 2.0 / 72
+    offset = formatter.get_offset() if hasattr(formatter, "get_offset") else ""
+    return width, height, (height if offset else 0.0)
+
+
+@functools.lru_cache(maxsize=4096)
+def _label_extent(label: str, size: float) -> tuple[float, float]:
+    """Width and height [inch] of one line of text (a tick label) of ``size`` [pt]; the
+    same labels recur on every panel, so each is measured once."""
+    from matplotlib.backends.backend_agg import RendererAgg
+    from matplotlib.cbook import is_math_text
+    from matplotlib.font_manager import FontProperties
+
+    renderer = RendererAgg(1, 1, _DPI)  # draws nothing: measures with the same fonts
+    w, h, _ = renderer.get_text_width_height_descent(label, FontProperties(size=size),
+                                                     ismath=is_math_text(label))
+    return w / _DPI, h / _DPI
+
+
+def _decorations(ax, renderer) -> tuple[float, float, float, float, float]:
+    """Room [inch] the text of a panel takes outside its frame: left, right, bottom, top,
+    and the height of the y offset text above it (which the titles must clear)."""
+    import matplotlib as mpl
+
+    if ax.name == "3d":  # its labels lie inside its square box
+        top = max(_text_size(t, renderer)[1] for t in (ax.title, ax._left_title))
+        return 0.2, 0.2, 0.2, top + 6 / 72, 0.0
+    pad = (mpl.rcParams["xtick.major.size"] + mpl.rcParams["xtick.major.pad"]) / 72
+    xw, xh, xoff = _tick_labels(ax.xaxis)
+    yw, _, yoff = _tick_labels(ax.yaxis)
+    labelpad = mpl.rcParams["axes.labelpad"] / 72
+    ylabel = _text_size(ax.yaxis.label, renderer)[0]
+    xlabel = _text_size(ax.xaxis.label, renderer)[1]
+    left = (yw + pad if yw else 0.0) + (ylabel + labelpad if ylabel else 0.0)
+    bottom = (xh + pad if xh else 0.0) + (xlabel + labelpad if xlabel else 0.0) + xoff
+    titles = max(_text_size(t, renderer)[1] for t in (ax.title, ax._left_title,
+                                                       ax._right_title))
+    top = max(titles + mpl.rcParams["axes.titlepad"] / 72 if titles else 0.0, yoff)
+    if titles and yoff:
+        top += yoff
+    right = 0.5 * xw  # the last x tick label reaches past the frame by half its width
+    return left, right, bottom, top, yoff
+
+
+def _arrange(fig) -> None:
+    """Place the panels of ``fig`` (one grid of subplots) so that their labels, titles,
+    the suptitle and the figure's legend fit, from the size of each text.
+
+    A fixed layout computed once: matplotlib's constrained layout measures every panel
+    with all its ticks at every draw, which was most of the time of a figure.
+    """
+    renderer = fig.canvas.get_renderer()
+    width, height = fig.get_size_inches()
+    axes = [ax for ax in fig.axes if ax.get_subplotspec() is not None]
+    if not axes:
+        return
+    grid = axes[0].get_subplotspec().get_gridspec()
+    n_rows, n_cols = grid.get_geometry()
+    top_text = 0.0
+    for t in fig.texts:  # the suptitle
+        t.set_y(1.0 - _PAD / height)
+        top_text = max(top_text, _text_size(t, renderer)[1] + _PAD)
+    legend = sum(_text_size_box(lg, renderer) + _PAD for lg in fig.legends)
+    for _ in range(2):  # the tick labels depend on the panel sizes: once more
+        deco = {ax: _decorations(ax, renderer) for ax in axes}
+
+        def most(index, keep):
+            return max([deco[ax][index] for ax in axes if keep(ax.get_subplotspec())],
+                       default=0.0)
+
+        left = most(0, lambda s: s.colspan.start == 0) + _PAD
+        right = most(1, lambda s: s.colspan.stop == n_cols) + _PAD
+        bottom = most(2, lambda s: s.rowspan.stop == n_rows) + _PAD + legend
+        top = most(3, lambda s: s.rowspan.start == 0) + _PAD + top_text
+        w_gap = (most(0, lambda s: s.colspan.start > 0)
+                 + most(1, lambda s: s.colspan.stop < n_cols) + _PAD)
+        h_gap = (most(2, lambda s: s.rowspan.stop < n_rows)
+                 + most(3, lambda s: s.rowspan.start > 0) + _PAD)
+        panel_w = max((width - left - right - (n_cols - 1) * w_gap) / n_cols, 0.3)
+        panel_h = max((height - top - bottom - (n_rows - 1) * h_gap) / n_rows, 0.3)
+        grid.update(left=min(left / width, 0.45), right=max(1 - right / width, 0.55),
+                    bottom=min(bottom / height, 0.45), top=max(1 - top / height, 0.55),
+                    wspace=w_gap / panel_w, hspace=h_gap / panel_h)
+        for ax in axes:  # GridSpec.update moves the panels of pyplot's figures only
+            ax.set_position(ax.get_subplotspec().get_position(fig))
+    for ax in axes:  # titles above an offset text ("1e-5") at the top of the y axis
+        lift = deco[ax][4] / (ax.get_position().height * height)
+        for t in (ax.title, ax._left_title, ax._right_title):
+            t.set_y(1.0 + lift)
+
+
+def _text_size_box(artist, renderer) -> float:
+    """Height [inch] of an artist's extent (a legend)."""
+    return artist.get_window_extent(renderer).height / _DPI
+
+
+def _axis_labels(n_axes: int, axis_names=None) -> tuple[str, ...]:
+    if axis_names is not None:
+        names = tuple(str(a) for a in axis_names)
+        if len(names) < n_axes:
+            raise ValueError(f"{n_axes} axes need {n_axes} axis_names, got {names}")
+        return names[:n_axes]
+    default = ("x", "y", "z")
+    return tuple(default[j] if j < 3 else f"axis {j}" for j in range(n_axes))
+
+
+def _feed_text(feed: float, per_unit: float, unit: str) -> str:
+    """``F = 1000 mm/s (1e+06 pulse/s)``."""
+    return f"F = {feed / per_unit:.4g} {unit}/s ({feed:.3g} pulse/s)"
+
+
+def _legend_below(fig, axes, ncol: int | None = None) -> None:
+    """One legend for the figure, below every panel, from the handles of ``axes``."""
+    handles, labels = [], []
+    for ax in np.atleast_1d(axes).ravel():
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels and not lab.startswith("_"):
+                handles.append(h)
+                labels.append(lab)
+    if handles:
+        fig.legend(handles, labels, loc="lower center", fontsize="small",
+                   bbox_to_anchor=(0.5, _PAD / fig.get_figheight()),
+                   ncol=ncol or min(len(labels), 4))
+
+
+def _fit_in_view(ax, artists) -> None:
+    """Widen the data limits of ``ax`` so that ``artists`` (text boxes) lie inside the axes,
+    not over a neighbouring panel or its labels."""
+    if not artists:
+        return
+    renderer = ax.figure.canvas.get_renderer()
+    for _ in range(2):  # the limits change the scale: once more on the new scale
+        ax.apply_aspect()  # what a draw would do first (equal scales adjust the limits)
+        inverse = ax.transData.inverted()
+        for a in artists:
+            corners = inverse.transform(a.get_window_extent(renderer).get_points())
+            ax.update_datalim(corners)
+        ax.autoscale_view()
