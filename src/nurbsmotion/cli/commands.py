@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 
 from .. import units
-from .._io import OutputFolder
-from ..budget import check_samples, estimate_samples
+from .._runtime.io import OutputFolder
+from ..loop.budget import check_samples, estimate_samples
 from ..errors import InvalidArgumentError, WorkLimitError
 from ..interpolators import make_open_loop
 from ..machine import Machine, load_machine
@@ -105,7 +105,7 @@ def _cmd_contours(args) -> int:
 
 
 def _cmd_interpolate(args) -> int:
-    from ..export import SetpointArrays, save_setpoints
+    from ..report.export import SetpointArrays, save_setpoints
     from ..loop import interpolate
     from ..plots import plot_setpoints
 
@@ -179,7 +179,7 @@ make it smaller (``--trace-every``, ``--no-trace``)."""
 
 
 def _cmd_run(args) -> int:
-    from .._precompile import Precompiler
+    from .._runtime.precompile import Precompiler
 
     # On an empty numba cache the closed loop compiles on the other core meanwhile.
     with Precompiler(args.interpolator) as precompiler:
@@ -438,7 +438,7 @@ EXPORT_PULSE_FRACTION = 1e-3
 
 def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None:
     """The commanded setpoints of a run, in the path's own units (G-code: in mm)."""
-    from ..export import (SetpointArrays, pvt_table, save_halstreamer, save_motion_gcode, save_pvt,
+    from ..report.export import (SetpointArrays, pvt_table, save_halstreamer, save_motion_gcode, save_pvt,
                          save_ros_trajectory, save_setpoints)
 
     scale = machine.pulses_per_unit(curve.units)
@@ -575,7 +575,7 @@ def _cmd_identify(args) -> int:
         (staged.staging / out.name).write_text(result.to_toml(), encoding="utf-8")
         import json
 
-        from .._io import json_safe
+        from .._runtime.io import json_safe
 
         (staged.staging / "identify.json").write_text(
             json.dumps(json_safe(result.to_dict()), indent=2), encoding="utf-8")
@@ -592,7 +592,7 @@ def _cmd_identify(args) -> int:
 
 
 def _cmd_excite(args) -> int:
-    from .._io import write_output
+    from .._runtime.io import write_output
     from ..identify import excitation, excitation_gcode, write_excitation_csv
 
     machine = load_machine(args.machine)

@@ -18,7 +18,7 @@ import sys
 import threading
 import warnings
 
-from .._io import OutputFolder
+from .._runtime.io import OutputFolder
 from ..errors import NurbsmotionError
 
 

@@ -11,7 +11,7 @@ import argparse
 import math
 
 from .. import units
-from ..budget import MAX_SAMPLES
+from ..loop.budget import MAX_SAMPLES
 from ..interpolators import DEFAULT_INTERPOLATOR, LOOP_METHODS, OPEN_LOOP_METHODS
 from ..machine import MIN_SAMPLE_PERIOD
 from ..motion_plan import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES

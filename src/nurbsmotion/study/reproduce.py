@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from .._io import write_output
+from .._runtime.io import write_output
 from ..loop import Trace, run, to_pulses
 from ..machine import Machine, die_bonder
 from ..nurbs import builtin_path

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from .._io import write_output
+from .._runtime.io import write_output
 from ..errors import PathFileError
 from .case import run_case
 from .dataset import _LOCK, _RowWriter, _finished_ids, _locked, _remove_outputs, _schema, read_rows
