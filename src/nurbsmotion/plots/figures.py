@@ -652,8 +652,16 @@ traces are inherited, not pickled)."""
 
 
 def _start_worker() -> None:
+    """A forked drawing worker: figures of its own, and the default signal behaviour. It
+    inherits the command's handlers, which raise KeyboardInterrupt; the pool ends its
+    workers with SIGTERM, and each printed that traceback (Ctrl-C reaches the command, which
+    ends the pool)."""
     global _reused
+    import signal
+
     _reused = {}  # each worker draws its comparisons on figures of its own
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _draw_job(index: int) -> list[Path]:
