@@ -23,8 +23,8 @@ from ._io import OutputFolder
 from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from .errors import InvalidArgumentError, NurbsmotionError, WorkLimitError
 from .interpolators import DEFAULT_INTERPOLATOR, LOOP_METHODS, OPEN_LOOP_METHODS, make_open_loop
+from .interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
 from .machine import MIN_SAMPLE_PERIOD, Machine, load_machine
-from .motion_plan import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
 from .planning import sampled_stop_bound, time_optimal_bound
 
 __all__ = ["main", "parse_feed", "synopsis", "project_outputs"]
