@@ -44,7 +44,12 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "planning": (("units", "planning"), ("base", "geometry", "machine")),
     "interpolators": (("stepping", "motion_plan", "interpolators", "interpolators.base",
                        "interpolators.taylor", "interpolators.paper",
-                       "interpolators.planned", "interpolators.replay"),
+                       "interpolators.planned", "interpolators.planned.plan",
+                       "interpolators.planned.blend", "interpolators.planned.inverse",
+                       "interpolators.planned.landing", "interpolators.planned.shorten",
+                       "interpolators.planned.identify", "interpolators.planned.governor",
+                       "interpolators.planned.guards", "interpolators.planned.step",
+                       "interpolators.planned.interpolator", "interpolators.replay"),
                       ("base", "geometry", "machine", "planning")),
     "loop": (("loop", "loop.trace", "loop.closed_loop", "loop.budget"),
              ("base", "geometry", "machine", "planning", "interpolators")),
@@ -287,8 +292,8 @@ def test_the_reader_sees_lazy_and_relative_imports():
     assert ("plots", True) in trace and ("metrics", True) in trace
     loop = {(e.imported, e.lazy) for e in imports_of("loop", modules)}
     assert ("loop.closed_loop", False) in loop and ("stepping", False) in loop
-    planned = {e.imported for e in imports_of("interpolators.planned", modules)}
-    assert {"stepping", "motion_plan", "interpolators.base"} <= planned
+    planned = {e.imported for e in imports_of("interpolators.planned.interpolator", modules)}
+    assert {"stepping", "interpolators.planned.plan", "interpolators.base"} <= planned
     facade = {e.imported for e in imports_of("", modules)}
     assert {"nurbs", "joining", "paths", "errors"} <= facade
     paths = {e.imported for e in imports_of("paths", modules)}

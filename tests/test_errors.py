@@ -23,10 +23,10 @@ from nurbsmotion.errors import (InfeasibleError, InvalidArgumentError, InvalidFe
 from nurbsmotion.interpolators import (DEFAULT_INTERPOLATOR, LOOP_METHODS, TaylorInterpolator,
                                        make_interpolator, make_open_loop)
 from nurbsmotion.interpolators.planned import PlannedInterpolator
+from nurbsmotion.interpolators.planned.plan import plan_motion
 from nurbsmotion.interpolators.replay import ReplayInterpolator
 from nurbsmotion.loop import run, simulate
 from nurbsmotion.machine import die_bonder
-from nurbsmotion.motion_plan import plan_motion
 from nurbsmotion.planning import sampled_stop_bound, speed_profile, time_optimal_bound
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "nurbsmotion"

@@ -243,10 +243,10 @@ def test_the_plans_freed_temporaries_go_back_to_the_system(monkeypatch):
     measured by ``benchmarks/long_run.py`` (the 10-minute move's peak: 297 -> 275 MB),
     not here: it depends on the heap's history."""
     from nurbsmotion._runtime import memory as _memory
-    from nurbsmotion.interpolators import planned
+    from nurbsmotion.interpolators.planned import interpolator
 
     assert _memory.release_freed_memory()
     calls = []
-    monkeypatch.setattr(planned, "release_freed_memory", lambda: calls.append(1) or True)
-    planned.PlannedInterpolator(nm.make_line([0.0, 0.0], [500.0, 0.0]), die_bonder(), 1e5)
+    monkeypatch.setattr(interpolator, "release_freed_memory", lambda: calls.append(1) or True)
+    interpolator.PlannedInterpolator(nm.make_line([0.0, 0.0], [500.0, 0.0]), die_bonder(), 1e5)
     assert calls == [1]

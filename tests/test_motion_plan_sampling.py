@@ -1,5 +1,5 @@
 """The planned motion's sampling (issue 13 item 4): the streamed, compiled time profile and
-arc-length inverse of :mod:`nurbsmotion.motion_plan` against the fine-grid numpy
+arc-length inverse of :mod:`nurbsmotion.interpolators.planned.blend` against the fine-grid numpy
 computation they replace and against the arc-length table."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from nurbsmotion import motion_plan as mp
+from nurbsmotion.interpolators.planned import blend as mp
 from nurbsmotion.loop import to_pulses
 from nurbsmotion.machine import die_bonder
 from nurbsmotion.nurbs import builtin_path
@@ -138,7 +138,7 @@ def test_a_thinned_path_overstates_the_deviation_by_at_most_its_step():
 def test_support_equals_running_maxima_by_numpy():
     """The planned step's support (running maxima back from each stop) equals numpy's
     accumulate over the reversed pieces, bit for bit."""
-    from nurbsmotion.interpolators.planned import SUPPORT_DIRECTIONS, _support
+    from nurbsmotion.interpolators.planned.governor import SUPPORT_DIRECTIONS, _support
 
     rng = np.random.default_rng(11)
     angles = np.linspace(0.0, 0.5 * np.pi, SUPPORT_DIRECTIONS)
@@ -160,8 +160,9 @@ def test_each_samples_support_from_the_stored_ones_equals_the_full_support():
     """The planned step's support of every sample, rebuilt from the plan's stored one at
     every SUPPORT_BLOCK-th sample and the samples before it, equals the support stored at
     every sample (stops inside, on and next to a block's start, and none)."""
-    from nurbsmotion.interpolators.planned import (SUPPORT_BLOCK, SUPPORT_DIRECTIONS,
-                                                   PlannedPlan, _support, _support_at)
+    from nurbsmotion.interpolators.planned import PlannedPlan
+    from nurbsmotion.interpolators.planned.governor import (SUPPORT_BLOCK, SUPPORT_DIRECTIONS,
+                                                            _support, _support_at)
 
     rng = np.random.default_rng(12)
     for n, stops in ((203, []), (203, [5, 8, 9, 16, 17, 100, 202]), (3, [1])):

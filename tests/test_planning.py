@@ -20,7 +20,7 @@ from nurbsmotion.interpolators import LOOP_METHODS, make_interpolator
 from nurbsmotion.interpolators.planned import PlannedInterpolator
 from nurbsmotion.loop import simulate, to_pulses
 from nurbsmotion.metrics import contour_error
-from nurbsmotion.motion_plan import plan_motion
+from nurbsmotion.interpolators.planned.plan import plan_motion
 from nurbsmotion.machine import Axis, die_bonder
 from nurbsmotion.nurbs import NurbsCurve
 from nurbsmotion.planning import speed_profile, time_optimal_bound
@@ -269,21 +269,22 @@ def test_plan_lands_before_the_desired_motion_creeps_in(monkeypatch):
     averaging halves its last braking); the plan lands exactly on the end up to
     INVERSE_REACH + 1 samples sooner, on the path (within a quarter pulse), within Umax,
     and still the model plant's response to its drive (ServoPlant)."""
-    from nurbsmotion import motion_plan as mp
+    from nurbsmotion.interpolators.planned import inverse, landing
+    from nurbsmotion.interpolators.planned import plan as mp
 
     arrivals = []
-    land = mp._land_on_end
+    land = landing._land_on_end
 
     def spy(y, *args):
-        arrivals.append(mp._arrival(y))
+        arrivals.append(landing._arrival(y))
         return land(y, *args)
 
     monkeypatch.setattr(mp, "_land_on_end", spy)
     plan = plan_motion(PI, MACHINE, 2e5)
-    assert arrivals[-1] - mp.INVERSE_REACH - 1 <= plan.arrival < arrivals[-1]
+    assert arrivals[-1] - inverse.INVERSE_REACH - 1 <= plan.arrival < arrivals[-1]
     np.testing.assert_array_equal(plan.position[plan.arrival:],
                                   np.broadcast_to(PI(1.0), plan.position[plan.arrival:].shape))
-    assert np.max(contour_error(PI, plan.position)) <= mp.PRECOMPENSATION_TOLERANCE
+    assert np.max(contour_error(PI, plan.position)) <= inverse.PRECOMPENSATION_TOLERANCE
     assert np.max(np.abs(plan.drive)) <= MACHINE.max_drive
     speed, position = ServoPlant.of_machine(MACHINE, PI(0.0)).response(plan.drive[:-1])
     np.testing.assert_allclose(position, plan.position, atol=1e-6)
@@ -311,7 +312,7 @@ def test_the_tool_keeps_the_feed(case, tmp_path):
     short move's nearest path points at most FEED_SLACK more). Before, the landing took
     the line's last 47 pulses in 2 samples: 26 mm/s at 10 mm/s, 0.998 x the bound. On a
     line the speed along the path is x's exactly; no run settles below the bound."""
-    from nurbsmotion.motion_plan import FEED_SLACK
+    from nurbsmotion.interpolators.planned.landing import FEED_SLACK
     from nurbsmotion.paths.files import load_path
     name, curve, feed = _feed_cases()[case]
     if curve is None:
@@ -355,9 +356,9 @@ def _continuous_positions(plan, machine, start, per_sample=8):
 
 def _without_and_with_step_6(monkeypatch, curve, machine, feed):
     """The plans of ``curve`` without step 6 (steps 1-5 alone) and with it."""
-    from nurbsmotion import motion_plan as mp
+    from nurbsmotion.interpolators.planned import shorten as step6
     with monkeypatch.context() as patch:
-        patch.setattr(mp, "_shorten", lambda *args: None)
+        patch.setattr(step6, "_shorten", lambda *args: None)
         before = plan_motion(curve, machine, feed)
     return before, plan_motion(curve, machine, feed)
 
@@ -383,7 +384,7 @@ def test_short_move_rests_as_soon_as_the_drive_allows(seed, feed, n_axes, monkey
     when its plan rests and passes the end by under 1 um. With 3 axes the program bounds
     the distance by a polygon around the path, and by a cut where a point is off the
     path between its normals."""
-    from nurbsmotion import motion_plan as mp
+    from nurbsmotion.interpolators.planned import shorten as step6
     from nurbsmotion.metrics import nearest_parameter, settle_time
     from nurbsmotion.paths.random_paths import random_path
     curve = random_path("short_moves", [10, seed], n_axes=n_axes)
@@ -397,7 +398,7 @@ def test_short_move_rests_as_soon_as_the_drive_allows(seed, feed, n_axes, monkey
     speed, position = ServoPlant.of_machine(machine, curve(0.0)).response(plan.drive[:-1])
     np.testing.assert_allclose(position, plan.position, atol=1e-6)
     np.testing.assert_allclose(speed, plan.speed, atol=1e-6, rtol=1e-9)
-    allowed = max(mp.DEFAULT_PATH_TOLERANCE, float(np.max(contour_error(curve,
+    allowed = max(step6.DEFAULT_PATH_TOLERANCE, float(np.max(contour_error(curve,
                                                                          before.position))))
     assert np.max(contour_error(curve, plan.position)) <= allowed * (1 + 1e-6)
     # between the points it holds (at least every half sample) the motion stays within
@@ -424,15 +425,15 @@ def test_a_plan_ringing_about_the_end_is_replaced_by_one_at_rest(monkeypatch, se
     that has one (the arrival itself; a sample later), before the ringing has died down:
     within Umax, the model plant's response to its drive, and a run on the nominal
     plant settles when the plan rests, sooner than the ringing plan's."""
-    from nurbsmotion import motion_plan as mp
+    from nurbsmotion.interpolators.planned import shorten as step6
     from nurbsmotion.metrics import settle_time
     from nurbsmotion.paths.random_paths import random_path
     curve = random_path("short_moves", [10, seed], n_axes=n_axes)
     machine, end = (_three_axes() if n_axes == 3 else MACHINE), curve(1.0)
     ringing, plan = _without_and_with_step_6(monkeypatch, curve, machine, feed)
     after = np.linalg.norm(ringing.position[ringing.arrival:] - end, axis=1)
-    assert np.max(after) > mp.DEFAULT_PATH_TOLERANCE
-    settled = ringing.arrival + np.flatnonzero(after > mp.DEFAULT_PATH_TOLERANCE)[-1] + 1
+    assert np.max(after) > step6.DEFAULT_PATH_TOLERANCE
+    settled = ringing.arrival + np.flatnonzero(after > step6.DEFAULT_PATH_TOLERANCE)[-1] + 1
     assert plan.arrival < settled
     np.testing.assert_array_equal(plan.position[plan.arrival:],
                                   np.broadcast_to(end, plan.position[plan.arrival:].shape))
@@ -440,9 +441,9 @@ def test_a_plan_ringing_about_the_end_is_replaced_by_one_at_rest(monkeypatch, se
     speed, position = ServoPlant.of_machine(machine, curve(0.0)).response(plan.drive[:-1])
     np.testing.assert_allclose(position, plan.position, atol=1e-6)
     settled = []
-    for shorten in (lambda *args: None, mp._shorten):
+    for shorten in (lambda *args: None, step6._shorten):
         with monkeypatch.context() as patch:
-            patch.setattr(mp, "_shorten", shorten)
+            patch.setattr(step6, "_shorten", shorten)
             tr = simulate(PlannedInterpolator(curve, machine, feed), machine,
                           settle_time=0.02)
         settled.append(settle_time(tr.t, tr.position, end))
@@ -458,7 +459,7 @@ def test_a_short_move_with_stops_is_planned_from_stop_to_stop(monkeypatch):
     path tolerance all along the continuous motion (RK45), never past a corner along
     the path's tangent into it; run on the nominal plant it settles when its plan rests
     and passes no stop by 1 um."""
-    from nurbsmotion import motion_plan as mp
+    from nurbsmotion.interpolators.planned import shorten as step6
     from nurbsmotion.metrics import settle_time
     corners = np.array([[0.0, 0.0], [6000.0, 4000.0], [12000.0, 0.0], [18000.0, 4000.0]])
     curve = nm.make_polyline(corners)
@@ -473,13 +474,13 @@ def test_a_short_move_with_stops_is_planned_from_stop_to_stop(monkeypatch):
     speed, position = ServoPlant.of_machine(MACHINE, curve(0.0)).response(plan.drive[:-1])
     np.testing.assert_allclose(position, plan.position, atol=1e-6)
     moving = _continuous_positions(plan, MACHINE, curve(0.0))
-    assert np.max(contour_error(curve, moving)) <= 1.1 * mp.DEFAULT_PATH_TOLERANCE
+    assert np.max(contour_error(curve, moving)) <= 1.1 * step6.DEFAULT_PATH_TOLERANCE
     # each piece's motion, up to its stop (a corner, the end), does not pass it
     bounds = [0, *at, len(plan.position) - 1]
     for j in range(len(corners) - 1):
         into = (corners[j + 1] - corners[j]) / np.linalg.norm(corners[j + 1] - corners[j])
         piece = moving[8 * bounds[j]:8 * bounds[j + 1]]
-        assert np.max((piece - corners[j + 1]) @ into) <= mp.PRECOMPENSATION_TOLERANCE
+        assert np.max((piece - corners[j + 1]) @ into) <= step6.PRECOMPENSATION_TOLERANCE
     tr = simulate(PlannedInterpolator(curve, MACHINE, feed), MACHINE, settle_time=0.02)
     assert settle_time(tr.t, tr.position, curve(1.0)) <= (
         plan.arrival * MACHINE.sample_period + 1e-12)
@@ -504,7 +505,7 @@ def test_a_short_closed_move_goes_all_the_way_round(monkeypatch):
     run from the start round to the end, no farther apart than the feed allows in a
     sample, and every sample is as near its point as the tolerance (or the plan of
     steps 1-5) is."""
-    from nurbsmotion import motion_plan as mp
+    from nurbsmotion.interpolators.planned import shorten as step6
     circle = nm.make_arc(np.zeros(2), 1000.0, 0.0, 2 * math.pi)
     feed = 5e5
     before, plan = _without_and_with_step_6(monkeypatch, circle, MACHINE, feed)
@@ -514,7 +515,7 @@ def test_a_short_closed_move_goes_all_the_way_round(monkeypatch):
     assert np.all(np.diff(s) >= 0)
     assert np.max(np.diff(s)) <= feed * MACHINE.sample_period * (1 + 1e-6)
     off = np.linalg.norm(plan.position - circle(plan.parameter), axis=1)
-    allowed = max(mp.DEFAULT_PATH_TOLERANCE,
+    allowed = max(step6.DEFAULT_PATH_TOLERANCE,
                   float(np.max(contour_error(circle, before.position))))
     assert np.max(off) <= allowed * (1 + 1e-6)
 
@@ -579,7 +580,7 @@ def test_stopping_travel_and_the_drive_that_stops_on_the_end(tau_scale, kc_scale
     end nothing stops before, and any drive that already stops short of it."""
     from scipy.integrate import solve_ivp
 
-    from nurbsmotion.interpolators.planned import _short_of_stop, _stopping_travel
+    from nurbsmotion.interpolators.planned.guards import _short_of_stop, _stopping_travel
 
     j, umax = 1, MACHINE.max_drive
     a, b0, c, b1 = _scipy_zoh(j, tau_scale, kc_scale)
@@ -613,7 +614,8 @@ def test_identification_finds_the_true_sampled_plant(tau_scale, kc_scale):
     """The recursive least squares of the online step, fed the positions of a plant
     whose tau and Kc differ from the model (ServoPlant, matrix exponential) under a
     random drive, converges to that plant's ZOH coefficients (scipy's expm)."""
-    from nurbsmotion.interpolators.planned import _identify, _prior_estimate
+    from nurbsmotion.interpolators.planned.identify import _identify
+    from nurbsmotion.interpolators.planned.interpolator import _prior_estimate
 
     it = PlannedInterpolator(PI, MACHINE, 1e6)
     plant = ServoPlant.of_machine(MACHINE, PI(0.0), time_constant_scale=tau_scale,
@@ -745,7 +747,7 @@ def test_the_guard_lookup_finds_every_guard_that_holds_a_sample():
     every other stop, guards overlapping) it finds, at every plan sample and on both
     sides, the nearest position of all the guards that hold that sample, counted one by
     one."""
-    from nurbsmotion.interpolators.planned import _guarded
+    from nurbsmotion.interpolators.planned.guards import _guarded
     from nurbsmotion.nurbs import make_polyline
     zigzag = [[4000.0 * (k % 2) + 100.0 * k, 3000.0 * ((k // 2) % 2)] for k in range(13)]
     it = PlannedInterpolator(make_polyline(zigzag), MACHINE, 1e6)
@@ -766,7 +768,7 @@ def test_feedback_gains_place_the_identified_plants_poles(tau_scale, kc_scale, p
     """The online feedback's gains for a plant's ZOH coefficients (scipy's expm of the
     continuous plant) put both eigenvalues of A - B K (numpy) at the tracking pole, and
     at 0 once the plan rests on the end (deadbeat: (A - B K)^2 = 0)."""
-    from nurbsmotion.interpolators.planned import _pole_gains
+    from nurbsmotion.interpolators.planned.identify import _pole_gains
 
     for j in range(2):
         a, b0, c, b1 = _scipy_zoh(j, tau_scale, kc_scale)
@@ -919,7 +921,7 @@ def test_a_refused_blend_falls_back_to_stopping_and_says_so(monkeypatch):
     """Where the blended plan is refused, the plan that stops at the corners is made
     (its corner_tolerance is 0); where that is refused too, the blended plan's reason
     is raised."""
-    import nurbsmotion.motion_plan as mp
+    import nurbsmotion.interpolators.planned.plan as mp
 
     real = mp._plan_motion
 
@@ -1184,7 +1186,7 @@ def test_warm_started_programs_match_scipy_linprog(seed):
     ``linprog`` finds cold, round after round; an infeasible program gives None."""
     from scipy import sparse
     from scipy.optimize import linprog
-    from nurbsmotion.motion_plan import _WarmProgram
+    from nurbsmotion.interpolators.planned.shorten import _WarmProgram
 
     rng = np.random.default_rng(seed)
     n, m_ub, m_eq = 40, 60, 8
@@ -1214,8 +1216,8 @@ def test_a_single_count_does_not_throw_the_identification():
     ... with no drive) leaves the estimate and its covariance as they were when the
     reading is in counts (its residual is within the dead zone of the reading), and
     moves it without one; an exact reading has no dead zone (today's step)."""
-    from nurbsmotion.interpolators.planned import (_identify, _prior_estimate,
-                                                   reading_knowledge)
+    from nurbsmotion.interpolators.planned.identify import _identify, reading_knowledge
+    from nurbsmotion.interpolators.planned.interpolator import _prior_estimate
 
     it = PlannedInterpolator(PI, MACHINE, 1e6)
     p = it.plan
@@ -1237,8 +1239,9 @@ def test_identification_on_counts_stays_near_the_true_plant():
     """Positions read in whole counts of a plant with tau x1.3, Kc x0.8 under a random
     drive: with the dead zone the estimated drive ratio ga (:func:`_gains`) ends within
     10 % of the true one (scipy's expm) and never reaches the clip GAIN_RANGE."""
-    from nurbsmotion.interpolators.planned import (GAIN_RANGE, _identify,
-                                                   _prior_estimate, reading_knowledge)
+    from nurbsmotion.interpolators.planned.identify import (GAIN_RANGE, _identify,
+                                                            reading_knowledge)
+    from nurbsmotion.interpolators.planned.interpolator import _prior_estimate
 
     it = PlannedInterpolator(PI, MACHINE, 1e6)
     p = it.plan

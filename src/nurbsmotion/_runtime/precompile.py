@@ -88,19 +88,18 @@ def examples_here(interpolator: str) -> list[tuple]:
     process, which it would otherwise compile after the wait: the metrics' nearest-point
     search and, for ``planned``, its motion plan's kernels; made-up arguments of the types
     a run passes (kept equal by a test)."""
-    from .. import motion_plan
-    from ..interpolators import planned
+    from ..interpolators.planned import blend, governor, inverse
     from ..metrics import _nearest_points
 
     f = _zeros
     pairs = [(_nearest_points, (f(2), f(2, 1), f(2, 1), f(2, 1), f(1, 2, 2), f(1), f(2, 1),
                                 f(2, 1), 1, 0.0, f(0, 1), f(0), f(0), np.zeros(1, np.int64)))]
     if interpolator == "planned":
-        pairs += [(motion_plan._averaged_arc, (f(2), f(2), f(2), 0.0, 0, 0, f(1), f(1))),
-                  (motion_plan._precompensate, (f(1, 1), f(1), f(1), f(1), f(1), 0, 0.0,
-                                                0.0, *(f(1, 1) for _ in range(7)), f(1))),
-                  (planned._support_into, (f(1, 1), f(1, 1), np.zeros(2, np.int64), 0,
-                                           f(1, 1, 1)))]
+        pairs += [(blend._averaged_arc, (f(2), f(2), f(2), 0.0, 0, 0, f(1), f(1))),
+                  (inverse._precompensate, (f(1, 1), f(1), f(1), f(1), f(1), 0, 0.0,
+                                            0.0, *(f(1, 1) for _ in range(7)), f(1))),
+                  (governor._support_into, (f(1, 1), f(1, 1), np.zeros(2, np.int64), 0,
+                                            f(1, 1, 1)))]
     return pairs
 
 

@@ -22,7 +22,7 @@ from ..loop.budget import check_samples, estimate_samples
 from ..errors import InvalidArgumentError, WorkLimitError
 from ..interpolators import make_open_loop
 from ..machine import Machine, load_machine
-from ..motion_plan import DEFAULT_PATH_TOLERANCE
+from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
 from ..planning import sampled_stop_bound, time_optimal_bound
 from .console import EXPORT_FILES, _outputs, _progress
 

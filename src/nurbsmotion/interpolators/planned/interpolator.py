@@ -1,0 +1,228 @@
+"""The ``planned`` interpolator's value objects: the plan the online step reads
+(:class:`PlannedPlan`), its state (:class:`PlannedState`), and :class:`PlannedInterpolator`,
+which builds both from the offline plan (:func:`.plan.plan_motion`) and registers the step
+(:func:`.step.planned_step`) with the loop.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ... import stepping
+from ..._memory import release_freed_memory
+from ...errors import InvalidArgumentError
+from ...feed import FeedLimit
+from ...machine import Machine
+from ...nurbs import NurbsCurve
+from ..base import Interpolator, positive_feed
+from .governor import SUPPORT_BLOCK, SUPPORT_DIRECTIONS, _support
+from .guards import _sample_extremes, _stop_guards
+from .identify import GAIN_RANGE, reading_knowledge
+from .inverse import axis_zoh
+from .plan import plan_motion
+from .shorten import DEFAULT_PATH_TOLERANCE
+from .step import planned_step
+
+__all__ = ["PlannedInterpolator", "PlannedPlan", "PlannedState", "DEFAULT_TRACKING_POLE",
+           "DEFAULT_DRIVE_HEADROOM"]
+
+
+DEFAULT_TRACKING_POLE = 0.7
+"""Both poles of the deviation dynamics under the online feedback, placed on the identified
+plant: a deviation from the plan decays by this factor per sample (a user parameter:
+closer to 0 follows the plan more tightly and leaves less drive to the governor's rate
+changes, closer to 1 the reverse)."""
+
+DEFAULT_DRIVE_HEADROOM = 0.1
+"""Fraction of Umax the governor keeps free for the feedback when it scales the plan's
+clock to the drive the (estimated) plant needs up to the next stop (a user parameter)."""
+
+
+class PlannedPlan(NamedTuple):
+    """What the online step reads (see :func:`online_step` for each array's meaning)."""
+
+    parameter: np.ndarray        # (n,) curve parameter of each sample's desired position
+    path_step: np.ndarray        # (n,) the desired position's step to the next [pulse]
+    position: np.ndarray         # (n, n_axes) theta_ff [pulse]
+    drive_speed: np.ndarray      # (n, n_axes) [V]
+    drive_accel: np.ndarray      # (n, n_axes) [V]
+    support: np.ndarray          # (ceil(n / SUPPORT_BLOCK), n_axes, SUPPORT_DIRECTIONS) [V]
+    bounds: np.ndarray           # (n_stops + 1,) the stops' first samples, then n
+    a: np.ndarray                # (n_axes,) the model's ZOH plant
+    b0: np.ndarray
+    c: np.ndarray
+    b1: np.ndarray
+    log_a: np.ndarray            # (n_axes,) log(a): a^f between samples
+    headroom: float
+    rate_gain: float
+    rest: int                    # the first sample of the plan's rest on the end
+    guards: np.ndarray           # (n_guards, 4) where the plant must be able to stop
+    guard_offsets: np.ndarray    # (n_axes + 1,) each axis' rows of guards
+    dead_zone: float = 0.0       # the identification's dead zone [pulse]
+
+
+class PlannedState(NamedTuple):
+    """The online state: the plan's clock [samples], its rate and the last excess
+    (shape (1,) each), the estimate and history arrays of :func:`online_step`,
+    and per-axis scratch (the law's slope and offset, the drive, the support, the
+    estimated plant's gains)."""
+
+    phi: np.ndarray
+    rate: np.ndarray
+    excess: np.ndarray
+    est: np.ndarray
+    hist: np.ndarray
+    slope: np.ndarray
+    offset: np.ndarray
+    drive: np.ndarray
+    support: np.ndarray
+    gains: np.ndarray
+
+
+class PlannedInterpolator(Interpolator):
+    """Plans the actual motion, then steers the plant along it (module docstring).
+
+    Parameters
+    ----------
+    curve : NurbsCurve
+        The path [pulse].
+    machine : Machine
+        The model the plan and the online step use (tau, Kc, Ke, Umax, Ts); the law is the
+        loop's own, read every sample.
+    feed : float or FeedLimit
+        Commanded feed F [pulse/s], the speed limit along the path (per piece: a
+        :class:`nurbsmotion.feed.FeedLimit`).
+    corner_tolerance : float
+        eps [pulse], >= 0: how far the motion may leave a sharp corner (0: exact stop).
+        Where rounding the corners would not arrive sooner, the motion stops at them, and
+        :attr:`notes` (so the run's message) says so.
+    path_tolerance : float
+        [pulse], >= 0: how far from the path a short move (a plan of at most
+        :data:`~.shorten.SHORT_MOVE_SAMPLES` samples; with stops, planned
+        from stop to stop) may go where that lets it arrive sooner, or as far as the
+        speed profile's plan does if
+        that is farther (:data:`~.shorten.DEFAULT_PATH_TOLERANCE`: one
+        pulse).
+    drive_fraction : float
+        Fraction of Umax, in (0, 1], the plan's feedforward may use; the rest is left to
+        the feedback on a plant that differs from the model.
+    tracking_pole : float
+        Pole of the online feedback's deviation dynamics, in [0, 1)
+        (:data:`DEFAULT_TRACKING_POLE`).
+    drive_headroom : float
+        Fraction of Umax, in [0, 1), the online governor keeps for the feedback
+        (:data:`DEFAULT_DRIVE_HEADROOM`).
+    grid_size : int
+        Arc-length grid of the offline speed profile.
+    max_samples : int
+        A plan longer than this many samples is refused.
+
+    Raises
+    ------
+    InvalidArgumentError
+        If the feed is not finite and > 0 (:class:`~nurbsmotion.errors.InvalidFeedError`),
+        or an option is out of range.
+    InfeasibleError
+        If the drive cannot move along the path, or the plan would take more than
+        ``max_samples`` samples.
+    """
+
+    name = "planned"
+    open_loop = False  # its setpoints invert the loop's law: none without a loop
+
+    def __init__(self, curve: NurbsCurve, machine: Machine, feed, *,
+                 corner_tolerance: float = 0.0,
+                 path_tolerance: float = DEFAULT_PATH_TOLERANCE,
+                 drive_fraction: float = 1.0,
+                 tracking_pole: float = DEFAULT_TRACKING_POLE,
+                 drive_headroom: float = DEFAULT_DRIVE_HEADROOM, grid_size: int = 4000,
+                 max_samples: int = 10_000_000):
+        machine.check_path(curve.n_axes)
+        super().__init__(curve, machine.sample_period)
+        feed = feed if isinstance(feed, FeedLimit) else positive_feed(feed)
+        for name, value, lo, hi in (("tracking_pole", tracking_pole, 0.0, 1.0),
+                                    ("drive_headroom", drive_headroom, 0.0, 1.0)):
+            if isinstance(value, bool) or not (isinstance(value, (int, float))
+                                               and lo <= value < hi):
+                raise InvalidArgumentError(f"{name} must lie in [{lo:g}, {hi:g}), got {value!r}")
+        self.feed = feed
+        self.machine = machine
+        self.tracking_pole = float(tracking_pole)
+        self.drive_headroom = float(drive_headroom)
+        # The motion's speed and drive are not kept: the plan's drive_speed and
+        # drive_accel hold them (u_ff = drive_speed + drive_accel), and a long move's
+        # memory is mostly these per-sample arrays.
+        p = plan_motion(curve, machine, feed, corner_tolerance=corner_tolerance,
+                        path_tolerance=path_tolerance, drive_fraction=drive_fraction,
+                        grid_size=grid_size, max_samples=max_samples)
+        self.duration = p.duration
+        if corner_tolerance > 0 and p.stop_times.size:  # asked to round, but stops
+            self.notes = ("the motion stops at the sharp corners: rounding them within the "
+                          "corner tolerance would not arrive sooner",)
+        a, b0, c, b1 = axis_zoh(machine)
+        drive_speed = p.speed / machine.Kc
+        drive_accel = np.zeros_like(p.speed)
+        np.subtract(p.speed[1:], p.speed[:-1], out=drive_accel[:-1])
+        drive_accel /= b0
+        rest = p.arrival
+        # at the stop corners, not at the middles of blends: a blend's superposed pieces
+        # do not brake into its middle, and guarding there kept the model's own plant
+        # from its plan (88 instead of 42 pulses from a spiral's path within eps = 50)
+        guards, guard_offsets = _stop_guards(
+            p.position, p.stop_times, rest, path_tolerance,
+            _sample_extremes(p.position, p.speed, p.drive, a, b0, c, b1))
+        path_step = _path_steps(p.desired)
+        parameter, position, stops, n = p.parameter, p.position, p.stop_indices, p.n_samples
+        del p  # its speed, drive and desired positions before the support is built
+        self.plan = PlannedPlan(
+            parameter=parameter, path_step=path_step, position=position,
+            drive_speed=drive_speed, drive_accel=drive_accel,
+            support=_support(drive_accel, drive_speed, stops, SUPPORT_BLOCK),
+            bounds=np.append(np.asarray(stops, dtype=np.int64), n),
+            a=a, b0=b0, c=c, b1=b1, log_a=np.log(a), headroom=self.drive_headroom,
+            # the clock's rate changes at most as fast as a deviation decays
+            rate_gain=1.0 - self.tracking_pole, rest=rest, guards=guards,
+            guard_offsets=guard_offsets, **reading_knowledge(machine, a, b0, c, b1))
+        release_freed_memory()  # the plan's temporaries, before a long run's peak
+
+    def nominal_duration(self) -> float:
+        return self.duration
+
+    def new_state(self) -> PlannedState:
+        n = self.machine.n_axes
+        # the clock starts at plan sample 0 with the loop: the step gives sample 0's
+        # setpoint too (registered below with first_sample=0)
+        return PlannedState(np.zeros(1), np.ones(1), np.zeros(1), _prior_estimate(self.plan),
+                            np.zeros((5, n)), np.empty(n), np.empty(n), np.empty(n),
+                            np.empty((n, SUPPORT_DIRECTIONS)), np.empty((2, n)))
+
+
+# from sample 0: the plan's first drive u[0] moves the plant (inverse.LEAD)
+stepping.register(PlannedPlan, planned_step, first_sample=0)
+
+
+def _path_steps(desired: np.ndarray) -> np.ndarray:
+    """``|desired[k + 1] - desired[k]|`` [pulse] for every sample k (0 at the last), shape
+    (n,), axis by axis (no temporary of the positions' size)."""
+    steps = np.zeros(len(desired))
+    for j in range(desired.shape[1]):
+        d = np.diff(desired[:, j])
+        steps[:-1] += np.square(d, out=d)
+    return np.sqrt(steps, out=steps)
+
+
+def _prior_estimate(plan: PlannedPlan) -> np.ndarray:
+    """The identification's start (:func:`_identify`): the model's (a, b1, beta), shape
+    (12, n_axes) with the covariance. Prior standard deviations: 1 - a for a (a plant
+    whose tau is half or twice the model's has 1 - a about twice or half the model's),
+    and GAIN_RANGE times b1 and beta (the drive's effect, proportional to Kc/tau)."""
+    a, b0, c, b1 = plan.a, plan.b0, plan.c, plan.b1
+    beta = c * b0 - a * b1
+    est = np.zeros((12, len(a)))
+    est[0], est[1], est[2] = a, b1, beta
+    est[3] = (1.0 - a) ** 2
+    est[7] = (GAIN_RANGE * b1) ** 2
+    est[11] = (GAIN_RANGE * beta) ** 2
+    return est

@@ -1,0 +1,562 @@
+"""Step 6 of the plan (:mod:`.plan`): short moves re-timed from stop to stop by sequential
+linear programming over the drives and the plant's sampled states (:func:`_shorten_pieces`,
+:func:`_shorten`, :func:`_shorten_at`; HiGHS warm-started through :class:`_WarmProgram`), and
+the path tolerance it may use (:data:`DEFAULT_PATH_TOLERANCE`, :func:`move_tolerance`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...feed import FeedLimit
+from ...machine import Machine
+from ...nurbs import NurbsCurve
+from ...servo import ServoPlant, zoh_coefficients
+from .inverse import END_REST, LEAD, PRECOMPENSATION_TOLERANCE
+from .landing import FEED_SLACK, _feed_at, _nearest_forward, _Span
+
+
+CHECK_POINTS = 32
+"""Most points per sample at which step 6 checks a move's distance to the path (as many
+as put the path's chord between two of them within the tolerance at the feed; the
+linear programs hold the samples, the half samples and the points found off the path)."""
+
+SHORTEN_ROUNDS = 24
+"""Most linear programs step 6 solves for one arrival sample (each re-linearises the path
+at the motion's nearest points)."""
+
+SHORTEN_STALL = 8
+"""Step 6 gives up an arrival sample when this many rounds in a row bring the motion's
+farthest point from the path no nearer than the nearest it has been."""
+
+SHORT_MOVE_SAMPLES = 128
+"""Step 6 plans the moves that rest on the end within this many samples. Its linear
+programs grow with the piece (0.05-0.5 s each at 50-120 samples cold, a tenth of that
+warm-started, and a move takes some tens of them): on the first 99 random paths of
+``benchmarks/planner_sweep.py`` (PLANNER_SWEEP_PLAN_ONLY=1) planning takes a median
+0.15 s of CPU, 1.5 s at the 95th percentile and 29 s at most (before the warm starts and
+the search from the estimate: 0.17, 2.6 and 19 s); the slow ones are 3-axis moves of
+60-120 samples whose programs grow by the points found off the path round after round
+and, at the earliest arrival, never come within the tolerance."""
+
+SHORTEN_START = 1
+"""Step 6 starts its search for a piece's arrival this many samples after the piece's
+continuous time-optimal duration (rounded up; :func:`planning.speed_profile` before any
+easing), not at the plan's arrival, and runs down from there: a short move's earliest
+arrival lies within a sample or two of that duration, and each sample it need not step
+down from costs one or more linear programs (on six 60-120 mm free-form moves at 1.7 m/s
+the plan arrived 1-10 samples later, and the search from there took 10-71 programs)."""
+
+DEFAULT_PATH_TOLERANCE = 1.0
+"""How far [pulse] from the path step 6 may take a short move's motion by default: one
+pulse, the encoder's resolution (the plan it replaces is held within a quarter of it,
+:data:`PRECOMPENSATION_TOLERANCE`, where the drive allows)."""
+
+
+def move_tolerance(path_tolerance: float) -> float:
+    """The least displacement [pulse] that counts as a move of an axis in a plan: the
+    pre-compensation's tolerance or ``path_tolerance``, whichever is larger (the plan's
+    position, inverted through the sampled plant's zero near -1, wavers by a fraction of
+    a pulse, and a short move's plan may leave the path, and pass its end, by the path
+    tolerance)."""
+    return max(PRECOMPENSATION_TOLERANCE, path_tolerance)
+
+
+def _normal_directions(tangent: np.ndarray) -> np.ndarray:
+    """Unit directions normal to each unit ``tangent`` (m, n_axes), shape (m, r, n_axes):
+    an orthonormal basis of the normal space (the other columns of the Householder
+    reflection that takes the first axis to the tangent) and, where it is a plane, its
+    two diagonals (a regular octagon: a point whose offsets along all of them are within
+    E lies within E/cos(pi/8) = 1.08 E of the path)."""
+    m, n_axes = tangent.shape
+    v = tangent.copy()
+    v[:, 0] += np.where(tangent[:, 0] >= 0, 1.0, -1.0)
+    scale = 1.0 / (1.0 + np.abs(tangent[:, 0]))
+    H = np.eye(n_axes)[None] - scale[:, None, None] * v[:, :, None] * v[:, None, :]
+    basis = np.swapaxes(H[:, :, 1:], 1, 2)
+    if n_axes != 3:
+        return basis
+    diagonals = np.stack([basis[:, 0] + basis[:, 1], basis[:, 0] - basis[:, 1]], axis=1)
+    return np.concatenate([basis, diagonals / math.sqrt(2.0)], axis=1)
+
+
+def _partial_zoh(machine: Machine, points: int):
+    """ZOH coefficients ``(a, b0, c, b1)`` over j/``points`` of a sample, j = 0 ..
+    ``points``: each shape (points + 1, n_axes) (j = 0: no time, the identity)."""
+    parts = [zoh_coefficients(machine.tau, machine.Kc, machine.Ke,
+                              machine.sample_period * j / points)
+             for j in range(1, points + 1)]
+    ident = (np.ones(len(machine.tau)), *(np.zeros(len(machine.tau)),) * 3)
+    return tuple(np.vstack([i, *(part[q] for part in parts)]) for q, i in enumerate(ident))
+
+
+def _fine_positions(plant: ServoPlant, zoh, u: np.ndarray):
+    """Speed [rad/s] and position [pulse] of the model's ``plant`` (at rest at its start)
+    at every sample, each shape (N + 1, n_axes) (:meth:`ServoPlant.response`), and its
+    position at every fine point (Q per sample, ``zoh`` from :func:`_partial_zoh`: each
+    sample's state advanced by part of a sample), shape (N*Q + 1, n_axes), under ``u``
+    (N, n_axes; u[k] held over sample k, within Umax)."""
+    w, theta = plant.response(u)
+    c, b1 = zoh[2], zoh[3]
+    fine = (theta[:-1, None] + c[None, :-1] * w[:-1, None]
+            + b1[None, :-1] * u[:, None]).reshape(-1, u.shape[1])
+    return w, theta, np.vstack([fine, theta[-1:]])
+
+
+def _highs():
+    """The HiGHS module and its solver class: ``highspy`` (a dependency), or the same
+    bindings that scipy carries for its ``linprog`` where highspy is not installed."""
+    try:
+        import highspy
+        return highspy, highspy.Highs
+    except ImportError:   # pragma: no cover - highspy is a dependency
+        from scipy.optimize._highspy import _core
+        return _core, _core._Highs
+
+
+def _silent(Highs):
+    """A HiGHS solver with its output off. HiGHS 1.16 prints its banner on the C level's
+    standard output when the process makes its first solver, before any option can be set
+    (it would land in the middle of a command's printed results); so the file descriptor
+    is pointed at the null device for that construction alone."""
+    import os
+    import sys
+
+    sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+    except OSError:  # no standard output to protect
+        highs = Highs()
+    else:
+        null = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(null, 1)
+            highs = Highs()
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+            os.close(null)
+    highs.setOptionValue("output_flag", False)
+    return highs
+
+
+class _WarmProgram:
+    """The linear programs of one arrival sample of step 6, solved by HiGHS' dual simplex
+    (Huangfu & Hall 2018, through ``highspy``), each from the last one's optimal basis
+    where it has the same rows and columns: a round re-linearises the path at new points,
+    which changes the numbers but not the shape, and the last basis is then a few tens of
+    pivots from the new optimum instead of about a thousand (10-30 x fewer iterations on
+    the rounds of a 78 mm move at 1.7 m/s, 85 samples)."""
+
+    def __init__(self):
+        self.highs = None
+        self.basis = None
+        self.shape = None
+
+    def solve(self, cost, A_ub, b_ub, A_eq, bounds):
+        """Minimise ``cost @ x`` subject to ``A_ub @ x <= b_ub``, ``A_eq @ x = 0`` and the
+        ``bounds`` (n, 2) of x; the optimal x, or None where there is none."""
+        from scipy import sparse
+
+        highspy, Highs = _highs()
+
+        A = sparse.vstack([A_ub, A_eq]).tocsc()
+        lp = highspy.HighsLp()
+        lp.num_col_, lp.num_row_ = A.shape[1], A.shape[0]
+        lp.col_cost_ = np.asarray(cost, dtype=float)
+        lp.col_lower_ = np.ascontiguousarray(bounds[:, 0])
+        lp.col_upper_ = np.ascontiguousarray(bounds[:, 1])
+        lp.row_lower_ = np.concatenate([np.full(A_ub.shape[0], -highspy.kHighsInf),
+                                        np.zeros(A_eq.shape[0])])
+        lp.row_upper_ = np.concatenate([b_ub, np.zeros(A_eq.shape[0])])
+        lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+        lp.a_matrix_.start_ = A.indptr
+        lp.a_matrix_.index_ = A.indices
+        lp.a_matrix_.value_ = A.data
+        lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = A.shape[1], A.shape[0]
+        if self.highs is None:
+            self.highs = _silent(Highs)
+        h = self.highs
+        h.passModel(lp)
+        warm = self.basis is not None and self.shape == A.shape
+        h.setOptionValue("presolve", "off" if warm else "choose")
+        if warm:
+            h.setBasis(self.basis)
+        h.run()
+        if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            self.basis = None
+            return None
+        self.basis, self.shape = h.getBasis(), A.shape
+        return np.array(h.getSolution().col_value)
+
+
+def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
+                s: np.ndarray, limit: float, tolerance: float, tangent: np.ndarray, feed,
+                Ts: float, wide: bool, most_rounds: int = SHORTEN_ROUNDS):
+    """One arrival sample N of step 6 (:func:`_shorten`) along the ``span`` of the curve
+    from stop to stop (the plant at rest on its start at sample 0): drives u[LEAD] .. u[N-1]
+    (|u| <= ``limit`` [V]) that keep the model's ``plant`` (at rest at the start) within
+    ``tolerance`` [pulse] of the curve at every fine point inside the move (``zoh`` from
+    :func:`_partial_zoh`: Q points per sample, fine points LEAD*Q + 1 .. N*Q - 1), their
+    nearest points moving forward no faster than ``feed`` and none past the end along
+    its unit ``tangent``, and put it at rest on the end at N; ``s`` (N*Q - LEAD*Q - 1,)
+    is the first guess of the nearest points' arc lengths. Returns ``(u, s)`` (u shape
+    (N, n_axes), 0 before :data:`LEAD`, and s at the fine points), or None if the
+    linearised programs find none.
+
+    The programs hold the samples, the half samples and every point that a round found
+    off the path (the worst of each sample interval); every fine point is checked.
+    Variables: the drives, the plant's state at every sample (the ZOH dynamics are
+    equality constraints; a held point's position is its sample's state advanced by its
+    part of the sample, three terms), each held point's |tangential step| and the
+    largest normal offset E, which is minimised (module docstring, step 6). E bounds the
+    offsets along the normal directions (:func:`_normal_directions`; from 3 axes on a
+    polygon around the path, which bounds the distance by ``spread*E`` only) and, for a
+    point a round found farther than the tolerance, along its own offset (a cut). The trust
+    region of the tangential steps is as wide as the linearisation stays within the
+    tolerance, or (``wide``) as the feed goes in a sample if that is wider. N is given up
+    when E cannot reach the tolerance at its pace in the rounds left, or when
+    :data:`SHORTEN_STALL` rounds in a row bring the farthest fine point no nearer (on a
+    random 3-axis machine, 24 rounds of E at 0.998 against held points at 1.07: 42 s
+    where this rule takes 14 s; on the sweep's 461 step-6 runs it changes no arrival)."""
+    from scipy import sparse
+
+    n_axes = curve.n_axes
+    Q = zoh[0].shape[0] - 1
+    s0, s1 = span.s0, span.s1
+    start, end = curve(span.u0), curve(span.u1)
+    a, b0, c, b1 = (x[-1] for x in zoh)
+    n_u = n_axes * (N - LEAD)
+    col_w = n_u + 2 * (np.arange(n_axes)[:, None] * (N + 1) + np.arange(N + 1))
+    col_theta = col_w + 1                                   # (n_axes, N + 1)
+    col_u = np.full((n_axes, N), -1)                        # before LEAD: 0, no variable
+    col_u[:, LEAD:] = np.arange(n_u).reshape(n_axes, N - LEAD)
+    # the ZOH dynamics from sample to sample, two rows per axis and sample
+    k = np.arange(N)
+    rows, cols, vals = [], [], []
+    for j in range(n_axes):
+        for q, (out, terms, drive) in enumerate((
+                (col_w[j, 1:], [(col_w[j, :-1], -a[j])], -b0[j]),
+                (col_theta[j, 1:], [(col_theta[j, :-1], -1.0), (col_w[j, :-1], -c[j])],
+                 -b1[j]))):
+            r = (2 * j + q) * N + k
+            rows += [r, r[LEAD:]] + [r] * len(terms)
+            cols += [out, col_u[j, LEAD:]] + [cc for cc, _ in terms]
+            vals += [np.ones(N), np.full(N - LEAD, drive)] + [np.full(N, v)
+                                                              for _, v in terms]
+    dynamics = (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols)))
+    n_fixed = col_theta[-1, -1] + 1
+    fine = np.arange(LEAD * Q + 1, N * Q)                   # the points inside the move
+    held = fine[fine % (Q // 2) == 0] - LEAD * Q - 1        # index into fine
+    spread = {2: 1.0, 3: 1.0 / math.cos(math.pi / 8)}.get(n_axes, math.sqrt(n_axes - 1))
+    # cuts: the unit normal offset of every point a round found farther than the
+    # tolerance (renewed every round; none with 2 axes, whose normal is exact)
+    cut = np.zeros((len(fine), n_axes))
+    has_cut = np.zeros(len(fine), bool)
+    reach, previous = 1.0, math.inf
+    closest, stalled = math.inf, 0  # the least of the farthest points so far; rounds since
+    program = _WarmProgram()
+    for rounds in range(most_rounds):
+        m = len(held)
+        col_step = n_fixed + np.arange(m)
+        col_E = n_fixed + m
+        n_var = col_E + 1
+        A_eq = sparse.csr_matrix(dynamics, shape=(2 * n_axes * N, n_var))
+        f = fine[held]
+        ks, js = f // Q, f % Q                              # sample, part of it
+        # position of axis j at held point i: theta[ks] + c_js*w[ks] + b1_js*u[ks]
+        pos_cols = np.stack([col_theta[:, ks], col_w[:, ks], col_u[:, ks]], axis=-1)
+        pos_vals = np.stack([np.ones((n_axes, m)), zoh[2][js].T, zoh[3][js].T], axis=-1)
+
+        def rows_along(directions):
+            """Rows (m*r, n_var) of ``directions`` (m, r, n_axes) . position."""
+            r = directions.shape[1]
+            v = directions[..., None] * pos_vals.transpose(1, 0, 2)[:, None]
+            cc = np.broadcast_to(pos_cols.transpose(1, 0, 2)[:, None], v.shape)
+            rr = np.broadcast_to(np.arange(m * r).reshape(m, r)[:, :, None, None], v.shape)
+            keep = cc >= 0
+            return sparse.csr_matrix((v[keep], (rr[keep], cc[keep])), shape=(m * r, n_var))
+
+        sh = s[held]
+        p = curve.parameter_at(sh)
+        point, T = curve(p), span.tangents(curve, p)
+        F = np.asarray(feed(p) if isinstance(feed, FeedLimit) else np.full(m, feed))
+        # the trust region: as far as the chord C(s) + T d stays within the tolerance of
+        # the curve (kappa d^2/2), or as far as the feed goes in a sample (a guess
+        # compressed by a sample is off by about that much), whichever is farther
+        # (fmax: a stop at a point where the curve's speed is zero has no curvature)
+        trust = np.minimum(reach * np.maximum(np.sqrt(2.0 * tolerance / np.fmax(
+            curve.curvature(p), 1e-300)), F * Ts * wide), s1 - s0)
+        normals = _normal_directions(T)                     # (m, r, n_axes)
+        if n_axes > 2:  # (m, r + 1, n_axes): the held points' cuts, and where a point
+            # has none its first normal again (a row that changes nothing), so that the
+            # program keeps its shape from round to round and is warm-started
+            normals = np.concatenate([normals, np.where(
+                has_cut[held][:, None], cut[held], normals[:, 0])[:, None]], axis=1)
+        A_t = rows_along(T[:, None, :])                     # d = A_t x - b_t
+        b_t = np.einsum("ij,ij->i", T, point)
+        A_n = rows_along(normals)
+        b_n = np.einsum("iqj,ij->iq", normals, point).ravel()
+        E = sparse.csr_matrix((np.ones(len(b_n)), (np.arange(len(b_n)),
+                                                   np.full(len(b_n), col_E))),
+                              shape=(len(b_n), n_var))
+        S = sparse.csr_matrix((np.ones(m), (np.arange(m), col_step)), shape=(m, n_var))
+        D = sparse.diags([np.ones(m - 1), -np.ones(m - 1)], [0, 1], shape=(m - 1, m))
+        Dt = D @ A_t
+        # the nearest points move forward, no faster than the feed, from the start
+        # (sample LEAD) through every held point to the end (sample N)
+        gap = np.diff(np.concatenate([[LEAD * Q], f, [N * Q]])) * Ts / Q
+        travel = np.maximum(F[1:], F[:-1]) * gap[1:-1]
+        ahead = sh[1:] - sh[:-1] + b_t[:-1] - b_t[1:]      # s + d nondecreasing
+        A_ub = sparse.vstack([A_n - E, -A_n - E, A_t - S, -A_t - S, A_t, -A_t, Dt, -Dt,
+                              A_t[:1], -A_t[-1:]]).tocsr()
+        b_ub = np.concatenate([b_n, -b_n, b_t, -b_t,
+                               np.minimum(trust, s1 - sh) + b_t,
+                               np.minimum(trust, sh - s0) - b_t,
+                               ahead, travel - ahead,
+                               [F[0] * gap[0] + s0 - sh[0] + b_t[0]],
+                               [F[-1] * gap[-1] - s1 + sh[-1] - b_t[-1]]])
+        bounds = np.empty((n_var, 2))
+        bounds[:, 0], bounds[:, 1] = -np.inf, np.inf
+        bounds[:n_u] = (-limit, limit)
+        bounds[col_w[:, 0]] = bounds[col_w[:, -1]] = 0.0
+        bounds[col_theta[:, 0], 0] = bounds[col_theta[:, 0], 1] = start
+        bounds[col_theta[:, -1], 0] = bounds[col_theta[:, -1], 1] = end
+        bounds[col_step] = (0.0, np.inf)
+        bounds[col_E] = (0.0, np.inf)
+        cost = np.zeros(n_var)
+        cost[col_E] = 1.0
+        # a tie-break: of the motions with the least E, the one whose nearest points
+        # move least (the chord is exact there); moving all by the trust costs E/16
+        cost[col_step] = tolerance / (16.0 * m * trust)
+        x = program.solve(cost, A_ub, b_ub, A_eq, bounds)
+        if x is None:
+            return None
+        u = np.zeros((N, n_axes))
+        u[LEAD:] = x[:n_u].reshape(n_axes, N - LEAD).T
+        positions = _fine_positions(plant, zoh, u)[2][LEAD * Q + 1:N * Q]
+        guess = s.copy()
+        guess[held] = np.clip(sh + np.einsum("ij,ij->i", T, positions[held] - point),
+                              s0, s1)
+        s_new = _nearest_forward(curve, positions, np.maximum.accumulate(guess), span)
+        p_new = curve.parameter_at(s_new)
+        offset = positions - curve(p_new)
+        off = np.linalg.norm(offset, axis=1)
+        at_end = s_new >= s1 - curve.length * 1e-12
+        past = float(np.max((positions[at_end] - end) @ tangent, initial=0.0))
+        # the nearest points of the samples (the start at LEAD, the end at N) move by at
+        # most F*Ts + FEED_SLACK a sample: the programs hold the linearised ones to F
+        at_samples = np.concatenate([[s0], s_new[Q - 1::Q], [s1]])
+        fast = np.any(np.diff(at_samples) > _feed_at(feed, np.concatenate(
+            [p_new[Q - 1::Q], [span.u1]])) * Ts + FEED_SLACK)
+        if np.max(off) <= tolerance and past <= PRECOMPENSATION_TOLERANCE and not fast:
+            return u, s_new
+        farthest = float(np.max(off))
+        stalled = 0 if farthest < closest else stalled + 1
+        closest = min(closest, farthest)
+        if stalled >= SHORTEN_STALL:
+            return None
+        worst = float(np.max(off[held]))
+        E_now = float(x[col_E])
+        left = most_rounds - 1 - rounds
+        if E_now > tolerance and E_now - tolerance > left * (previous - E_now):
+            return None    # at this pace the program will not come within the tolerance
+        if worst > E_now * spread + tolerance / 16:
+            reach *= 0.5   # the chord misled the program: a smaller step
+        elif np.any(np.abs(guess[held] - sh) >= trust * (1 - 1e-6)):
+            reach *= 2.0   # the chord was right, and the trust region held it back
+        previous = min(previous, E_now)
+        if n_axes > 2:
+            T_new = span.tangents(curve, p_new)
+            normal = offset - np.einsum("ij,ij->i", offset, T_new)[:, None] * T_new
+            size = np.linalg.norm(normal, axis=1)
+            renew = (has_cut | (off > tolerance)) & (size > 0.0)
+            cut[renew] = normal[renew] / size[renew, None]
+            has_cut |= renew
+        # once the held points are within the tolerance, hold the worst point of each
+        # sample interval that is not
+        loose = np.ones(len(fine), bool)
+        loose[held] = False
+        bad = np.flatnonzero(loose & (off > tolerance))
+        if E_now <= tolerance and bad.size:
+            interval = fine[bad] // Q
+            order = np.lexsort((-off[bad], interval))
+            first = np.unique(interval[order], return_index=True)[1]
+            held = np.union1d(held, bad[order][first])
+            previous = math.inf
+        s = s_new
+    return None
+
+
+def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarray,
+             arrival: int, machine: Machine, limit: float, tolerance: float,
+             tangent: np.ndarray, feed, earliest: int | None = None):
+    """Step 6 (module docstring): the plan ``theta`` (n, n_axes) of a move along the
+    ``span`` of the curve that does not stop on the way, from rest on its start at
+    sample 0 to rest on its end at ``arrival`` (<= :data:`SHORT_MOVE_SAMPLES`),
+    replaced by one at rest there at the earliest sample N at which a drive within
+    ``limit`` [V] keeps the plant within ``tolerance`` [pulse] of the curve all along its
+    motion (failing that, as near as ``theta`` is), its nearest path point moving forward
+    no faster than ``feed`` and not past the end along its unit ``tangent``
+    (:func:`_shorten_at`); None if none before ``arrival`` does (where the plan leaves
+    the end by more than ``tolerance`` after it: none before it has settled within
+    ``tolerance`` either).
+
+    N runs down from ``arrival - 1`` while one is found (where none is, and the plan so
+    leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one is);
+    given the ``earliest`` sample worth trying first (:data:`SHORTEN_START`), from there
+    if one is found there within :data:`SHORTEN_STALL` rounds, else from the top. The first guess of the nearest
+    points is the plan's (its parameters ``param``, shape (n,)), compressed in time to
+    arrive at N; each later N starts from the last motion found, compressed by a sample.
+    The programs of one N are warm-started (:class:`_WarmProgram`).
+    Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
+    y the nearest path points of the samples."""
+    Ts = machine.sample_period
+    start, end = curve(span.u0), curve(span.u1)
+    plant = ServoPlant.of_machine(machine, start)
+    grid = curve.geometry.uniform_parameters(8 * CHECK_POINTS)
+    inside = grid[(grid >= span.u0) & (grid <= span.u1)]
+    kappa = float(np.nanmax(curve.curvature(inside if inside.size else grid)))
+    fastest = feed.highest if isinstance(feed, FeedLimit) else feed
+    plan_s = np.clip(curve.arc_length(param[:arrival + 1]), span.s0, span.s1)
+    nearest = curve.parameter_at(_nearest_forward(curve, theta[:arrival + 1], plan_s,
+                                                  span))
+    # the plan's distance from the path, at most that to the nearest points found or to
+    # its desired points (on a tight curl a sample may move farther than the Newton steps
+    # of _nearest_forward reach: they then find a point far from the nearest)
+    to_nearest = np.linalg.norm(theta[:arrival + 1] - curve(nearest), axis=1)
+    to_desired = np.linalg.norm(theta[:arrival + 1] - curve(param[:arrival + 1]), axis=1)
+    own = float(np.max(np.minimum(to_nearest, to_desired)))
+    # Where the landing (step 5) could not put the plan at rest exactly, what the
+    # pre-compensation leaves rings about the end after the arrival: farther from it than
+    # the tolerance (a short 3-axis move: 2.6 pulses at Nyquist, settled within a pulse 4
+    # samples late), a plan at rest at the arrival itself, or at any sample before the
+    # ringing has died down to the tolerance, is worth finding.
+    off = np.flatnonzero(np.linalg.norm(theta[arrival:] - end, axis=1) > tolerance)
+    settled = arrival + (int(off[-1]) + 1 if off.size else 0)
+
+    def descend(tolerance, top):
+        # fine points: the path's chord between two within the tolerance at the feed
+        Q = 2 * math.ceil(fastest * Ts * math.sqrt(kappa / (8.0 * tolerance)) / 2)
+        zoh = _partial_zoh(machine, int(min(max(Q, 2), CHECK_POINTS)))
+        Q = zoh[0].shape[0] - 1
+        known = [np.arange(arrival + 1, dtype=float), plan_s]   # times, arc lengths
+        best = None
+
+        def found_at(N, most_rounds=SHORTEN_ROUNDS):
+            # the last motion found (first: the plan) compressed in time to arrive at N
+            nonlocal best
+            times, s_known = known
+            t = np.arange(LEAD * Q + 1, N * Q) / Q            # fine points [samples]
+            guess = np.interp(LEAD + (t - LEAD) * (times[-1] - LEAD) / (N - LEAD), times,
+                              s_known)
+            # a trust region as wide as the feed goes in a sample, failing that as wide
+            # as the linearisation stays within the tolerance
+            found = None
+            for wide in (True, False):
+                found = found or _shorten_at(curve, span, plant, zoh, N,
+                                             np.maximum.accumulate(guess),
+                                             limit, tolerance, tangent, feed, Ts, wide,
+                                             most_rounds)
+            if found is not None:
+                best = (N, *found, zoh)
+                known[:] = [np.concatenate([[float(LEAD)], t, [N]]),
+                            np.concatenate([[span.s0], found[1], [span.s1]])]
+            return found is not None
+
+        # from the estimate down while one is found; where none is found there within
+        # SHORTEN_STALL rounds (a probe: from the plan's guess, compressed by several
+        # samples, a program that does not converge soon seldom does), from the top down
+        # (each from the motion found a sample later)
+        N = top if earliest is None else min(max(earliest, LEAD + 2), top)
+        if N == top or not found_at(N, SHORTEN_STALL):
+            N = top + 1
+        while N > LEAD + 2 and found_at(N - 1):
+            N -= 1
+        return best
+
+    # within the path tolerance; failing that, no farther from the path than the plan;
+    # failing both, a plan at rest at the arrival or later, before this one settles, if
+    # this one rings about the end
+    tops = [arrival - 1] + list(range(arrival, settled))
+    tries = [(top, t) for top in tops
+             for t in dict.fromkeys([tolerance, max(tolerance, own)]) if t > 0]
+    for top, tolerance in tries:
+        best = descend(tolerance, top)
+        if best is not None:
+            break
+    else:
+        return None
+    N, u_moving, s_fine, zoh = best
+    Q = zoh[0].shape[0] - 1
+    n = N + 1 + END_REST
+    u = np.zeros((n, curve.n_axes))
+    u[:N] = u_moving
+    w, theta = (x[:-1] for x in _fine_positions(plant, zoh, u)[:2])
+    w[N:], theta[N:] = 0.0, end
+    y = np.broadcast_to(end, theta.shape).copy()
+    new_param = np.full(n, span.u1)
+    y[:LEAD + 1], new_param[:LEAD + 1] = start, span.u0
+    moving = slice(LEAD + 1, N)
+    new_param[moving] = curve.parameter_at(s_fine[Q - 1::Q])  # samples LEAD + 1 .. N - 1
+    y[moving] = curve(new_param[moving])
+    return N, y, new_param, w, theta, u
+
+
+def _shorten_pieces(curve: NurbsCurve, stops: np.ndarray, corner_times: np.ndarray,
+                    theta: np.ndarray, param: np.ndarray, arrival: int, machine: Machine,
+                    limit: float, tolerance: float, tangent: np.ndarray, feed,
+                    earliest=None):
+    """Step 6 from stop to stop: every piece of the plan ``theta`` (n, n_axes; its
+    parameters ``param`` (n,), at rest on the end at ``arrival``) between the stops at
+    the curve parameters ``stops`` (n_pieces + 1,: the start, the stop corners, the end),
+    where it stops at the fractional samples ``corner_times`` (n_pieces - 1,), replaced
+    by :func:`_shorten`'s (at rest at its stops at sample instants), the pieces one after
+    the other. None unless every piece is found and together they arrive before
+    ``arrival``, or if an axis first moves after a stop (by more than
+    :func:`move_tolerance` of ``tolerance``): a piece's plan drives every axis at the limit
+    from its first sample, and the online step knows an axis' plant only once it has
+    seen it move (on the die-bonder's Pi, whose x starts at the first corner, plants
+    with tau x0.8 and Kc x1.2 then went 71 um off the arch; the plan of the whole path
+    starts the x drive over the sample in which y still brakes). Returns
+    ``(N, y, param, w, theta, u, corner_times)``: the arrays as :func:`_shorten`'s, the
+    corner times whole samples."""
+    edges = np.concatenate([[0.0], corner_times, [float(arrival)]])
+    # the plan's samples around each piece: from the last before its first stop to the
+    # first after its next (the end: all, for the ringing after it)
+    first = np.floor(edges[:-1] + 1e-9).astype(int)
+    after = np.append(np.ceil(edges[1:-1] - 1e-9).astype(int), arrival)
+    moves = move_tolerance(tolerance)
+    for a, b in zip(first[1:], after[1:]):
+        before, moving = (np.ptp(theta[k:m], axis=0) > moves for k, m in ((0, a + 1),
+                                                                          (a, b + 1)))
+        if np.any(moving & ~before):
+            return None
+    parts = []
+    for i, (a, b) in enumerate(zip(first, after)):
+        last = i == len(stops) - 2
+        piece = _shorten(curve, _Span.of(curve, stops[i], stops[i + 1]),
+                         theta[a:] if last else theta[a:b + 1], param[a:b + 1], b - a,
+                         machine, limit, tolerance,
+                         tangent if last else _unit(curve(stops[i + 1], 1, "left")), feed,
+                         None if earliest is None else int(earliest[i]))
+        if piece is None:
+            return None
+        parts.append(piece)
+    if len(parts) == 1:
+        return parts[0] + (corner_times,)
+    N = sum(part[0] for part in parts)
+    if N >= arrival:
+        return None
+    # piece by piece, each up to its arrival; the last with its rest on the end
+    cut = [part[0] for part in parts[:-1]] + [len(parts[-1][1])]
+    y, param, w, theta, u = (np.concatenate([part[q][:k] for part, k in zip(parts, cut)])
+                             for q in range(1, 6))
+    return (N, y, param, w, theta, u,
+            np.cumsum([part[0] for part in parts[:-1]]).astype(float))
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / max(float(np.linalg.norm(v)), 1e-300)

@@ -1,0 +1,337 @@
+"""The online step of ``planned`` (the package docstring, steps 1-4): :func:`online_step`
+steers every axis along the plan with the identified plant, the governed clock and the stop
+guards, and :func:`planned_step` turns its drives into the loop law's setpoints
+(:func:`_setpoint_for`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ... import stepping
+from ...control import pid_affine, pid_output
+from .governor import (RATE_BISECTIONS, RATE_WINDOW, _demand, _rate_room, _support_at,
+                       _window_rate)
+from .guards import _guarded, _short_of_stop
+from .identify import _estimated_plant, _identify, _pole_gains
+
+__all__ = ["online_step", "planned_step"]
+
+
+@njit(cache=True)
+def _plan_speed_at(drive_speed, drive_accel, phi, j, a, log_a, b0):
+    """The plan's speed [rad/s] of axis j at clock ``phi`` [samples]: the model's plant
+    from the plan's speed at sample i = floor(phi) under its drive there, over the fraction
+    f = phi - i of a sample (ZOH, exact between samples: ``w(i + f) = a^f*w[i]
+    + b0*(1 - a^f)/(1 - a)*u[i]``, with ``w[i] = Kc*V[i]``, ``Kc = b0/(1 - a)`` and
+    ``u[i] = V[i] + A[i]``, the plan's drive parts; ``log_a = log(a)``)."""
+    n = drive_speed.shape[0]
+    i = min(int(phi), n - 1)
+    f = phi - i if i < n - 1 else 0.0
+    w_i = b0 / (1.0 - a) * drive_speed[i, j]
+    if f <= 0.0:
+        return w_i
+    g = -math.expm1(f * log_a)                   # 1 - a^f
+    return (1.0 - g) * w_i + b0 * g / (1.0 - a) * (drive_speed[i, j] + drive_accel[i, j])
+
+
+@njit(cache=True)
+def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
+                plan_drive_speed, plan_drive_accel, support, gains, a, b0, c, b1, log_a,
+                umax, headroom, rate_gain, rest, guards, guard_offsets, slope, offset,
+                out_setpoint, out_drive, dead_zone=0.0):
+    """One sample of the planned interpolator (module docstring, steps 1-4).
+
+    Plain loops over floats and float arrays, so that numba compiles it unchanged.
+
+    Parameters
+    ----------
+    phi : float
+        The plan's clock at this sample [samples].
+    rate : float
+        The clock's rate over the last sample, in (0, 1].
+    excess_prev : float
+        How far the last sample's drive demand exceeded Umax (relative; 0 if not).
+    est : ndarray, shape (12, n_axes)
+        In/out: the plant's identified sampled model and its covariance
+        (:func:`_identify`).
+    hist : ndarray, shape (5, n_axes)
+        In/out: the identification's memory (:func:`_identify`); row 0 is the drive
+        applied at the last sample, which the caller corrects if the law produced another.
+    position : ndarray, shape (n_axes,)
+        tha[k], measured [pulse].
+    plan_position : ndarray, shape (n, n_axes)
+        theta_ff [pulse].
+    plan_drive_speed, plan_drive_accel : ndarray, shape (n, n_axes)
+        The feedforward drive's speed part w_ff/Kc and acceleration part
+        (w_ff[k+1]-w_ff[k])/b0 [V] (u_ff is their sum at rate 1).
+    support : ndarray, shape (n_axes, SUPPORT_DIRECTIONS)
+        Per axis, the support function of the plan's drive parts from the window's end
+        (:data:`RATE_WINDOW` samples after the clock's) up to the next stop
+        (:func:`_support_at`; zero when the window reaches the plan's end).
+    gains : ndarray, shape (2, n_axes)
+        Scratch: the estimated plant's ga and gv (:func:`_gains`).
+    a, b0, c, b1 : ndarray, shape (n_axes,)
+        The model's ZOH plant (:func:`.inverse.axis_zoh`).
+    log_a : ndarray, shape (n_axes,)
+        log(a), for the plan's speed between samples (:func:`_plan_speed_at`).
+    umax : float
+        Umax [V].
+    headroom : float
+        Fraction of Umax the governor keeps for the feedback.
+    rate_gain : float
+        Largest change of the rate per sample; ``1 - rate_gain`` is the tracking pole.
+    rest : int
+        The plan sample from which the plan rests on the end: from there on the
+        feedback is deadbeat.
+    guards, guard_offsets : ndarray, shapes (n_guards, 4) and (n_axes + 1,)
+        Where the plant must be able to stop (:func:`_stop_guards`): while the clock
+        lies between two plan samples that a guard both holds, the drive keeps the plant
+        able to stop before its position (:func:`_short_of_stop`).
+    slope, offset : ndarray, shape (n_axes,)
+        The law's affine form at this sample: u[k] = slope*thd[k] + offset [V/pulse, V].
+    out_setpoint, out_drive : ndarray, shape (n_axes,)
+        Written: thd[k] [pulse] and the drive it produces [V].
+    dead_zone : float
+        The identification's dead zone [pulse] (:func:`_identify`,
+        :func:`reading_knowledge`).
+
+    Returns
+    -------
+    phi_next, rate, excess : float
+        The clock at the next sample, the rate used over this sample, and how far this
+        sample's drive demand exceeded Umax.
+    """
+    n = plan_position.shape[0]
+    n_axes = position.shape[0]
+    i0 = min(int(phi), n - 1)
+    i1 = min(i0 + 1, n - 1)
+    f = phi - i0 if i1 > i0 else 0.0
+    # 1a. identify the plant's exact sampled model from the measured positions and the
+    # drives applied (recursive least squares, see :func:`_identify`)
+    r_tail = 1.0
+    for j in range(n_axes):
+        ga, gv = _identify(est, hist, j, position[j], a[j], b0[j], c[j], b1[j],
+                           dead_zone)
+        gains[0, j] = ga
+        gains[1, j] = gv
+        # 2a. the largest uniform rate at which the estimated plant can follow the plan
+        # from the window's end to the next stop: |ga*A*r^2 + gv*V*r| <= (1 - headroom)*Umax
+        # at every sample there; the plan itself may use the full drive, the headroom
+        # applies beyond the model
+        limit = max((1.0 - headroom) * umax, _demand(support, j, 1.0, 1.0))
+        if _demand(support, j, ga, gv) > limit:
+            lo, hi = 0.0, 1.0
+            for _ in range(RATE_BISECTIONS):
+                mid = 0.5 * (lo + hi)
+                if _demand(support, j, ga * mid * mid, gv * mid) > limit:
+                    hi = mid
+                else:
+                    lo = mid
+            r_tail = min(r_tail, lo)
+    # 2b. sample by sample over the window, slowing down only as late as the drive can
+    target = _window_rate(i0, r_tail, gains, a, plan_drive_speed, plan_drive_accel,
+                          headroom, umax)
+    # 2c. governor: towards that rate, slower after a drive demand beyond Umax, changing
+    # no faster than the drive left at the clock can change the plant's speed
+    if excess_prev > 0.0:
+        target = min(target, rate * (1.0 - rate_gain * excess_prev))
+    down, up = rate_gain, rate_gain
+    for j in range(n_axes):
+        A = plan_drive_accel[i0, j] * (1.0 - f) + plan_drive_accel[i1, j] * f
+        V = plan_drive_speed[i0, j] * (1.0 - f) + plan_drive_speed[i1, j] * f
+        cost = gains[0, j] * abs(V) / (1.0 - a[j])
+        if cost > 0.0:
+            limit = max((1.0 - headroom) * umax, abs(A + V))
+            slow, fast = _rate_room(gains[0, j] * A * rate * rate + gains[1, j] * V * rate,
+                                    V, limit)
+            down = min(down, slow / cost)
+            up = min(up, fast / cost)
+    rate_old = rate
+    if target < rate:
+        rate = max(target, rate - down, rate_gain)
+    else:
+        rate = min(target, rate + up)
+    # the plant's speed moves from the old rate's to the new one over the sample: the
+    # clock advances by their mean
+    phi_next = min(phi + 0.5 * (rate_old + rate), n - 1.0)
+    excess = 0.0
+    for j in range(n_axes):
+        # 1b. deviation from the plan's state: position measured; the plant's speed from
+        # its last position increment and drive (hist rows 3 and 0, :func:`_identify`)
+        # through the identified plant (exact when it is the true one)
+        th = plan_position[i0, j] * (1.0 - f) + plan_position[i1, j] * f
+        e_th = th - position[j]
+        ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], gains[0, j])
+        w_last = (hist[3, j] - b1e * hist[0, j]) / ce
+        w_now = ae * w_last + b0e * hist[0, j]
+        w_ref = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi, j, a[j], log_a[j],
+                               b0[j])
+        e_w = w_ref * rate_old - w_now
+        # 3. drive: the estimated plant's drive from the plan's speed at the clock (at the
+        # rate it had) to its speed at the next clock (at the new rate), plus feedback;
+        # clipped
+        w_next = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi_next, j, a[j],
+                                log_a[j], b0[j])
+        uf = (w_next * rate - ae * w_ref * rate_old) / b0e
+        kpe, kde = _pole_gains(ae, b0e, ce, b1e, 0.0 if phi >= rest else 1.0 - rate_gain)
+        u = uf + kpe * e_th + kde * e_w
+        if abs(u) > umax:
+            excess = max(excess, abs(u) / umax - 1.0)
+            u = umax if u > 0 else -umax
+        # 3b. never past a stop: the drive leaves the plant able to stop before the
+        # positions the plan guards at both ends of the clock's sample, braking at Umax
+        # from the next sample on; the side the plant moves towards last
+        lo_g, hi_g = guard_offsets[j], guard_offsets[j + 1]
+        hi = max(_guarded(guards, lo_g, hi_g, i0, 1.0),
+                 _guarded(guards, lo_g, hi_g, i1, 1.0))
+        lo = min(_guarded(guards, lo_g, hi_g, i0, -1.0),
+                 _guarded(guards, lo_g, hi_g, i1, -1.0))
+        for side in (-1.0, 1.0) if w_now >= 0.0 else (1.0, -1.0):
+            target = hi if side > 0.0 else lo
+            if math.isfinite(target):
+                u = _short_of_stop(u, position[j], w_now, target, side, ae, b0e, ce, b1e,
+                                   umax)
+        hist[1, j] = hist[0, j]
+        hist[0, j] = u
+        # 4. the setpoint that produces exactly this drive
+        out_drive[j] = u
+        out_setpoint[j] = (u - offset[j]) / slope[j]
+    return phi_next, rate, excess
+
+
+@njit(cache=True)
+def _law_output(law, law_state, j, command, position, velocity):
+    """The law's output [V] for a candidate setpoint (:func:`nurbsmotion.control.pid_output`
+    compiled once here, not inlined at every call of :func:`_within_limit`)."""
+    return pid_output(law, law_state, j, command, position, velocity)[0]
+
+
+DRIVE_MATCH = 1e-6
+"""The law's output for a setpoint counts as the drive asked of it within this fraction
+of Umax: the affine form's rounding (its terms reach thousands of volts that cancel, as
+``FF2*command/Ts^2`` does) stays far below it, a deadband's or a clamp's effect far above;
+beyond it the setpoint is solved for on the law itself (:func:`_setpoint_for`)."""
+
+
+@njit(cache=True)
+def _setpoint_for(law, law_state, j, command, drive, position, velocity):
+    """The setpoint of axis ``j`` at which the law, as it computes (clamps, deadband and
+    frozen integrator included), outputs ``drive`` [V] (within +-Umax): ``command``, the
+    affine form's setpoint, where that is exact (always for PD and PD+). Otherwise the
+    law's output, continuous and nondecreasing in the setpoint (every gain >= 0, every
+    clamp and the deadband monotone), is bracketed away from ``command`` and bisected;
+    where no setpoint gives ``drive`` (a clamp flattens the output short of it), the
+    setpoint nearest ``command`` whose drive is within Umax (:func:`_within_limit`).
+    Returns ``(setpoint, found)``."""
+    umax = law[j]["maxoutput"]
+    out = _law_output(law, law_state, j, command, position, velocity)
+    if abs(out - drive) <= DRIVE_MATCH * umax:
+        if abs(out) <= umax:
+            return command, True
+        return _within_limit(law, law_state, j, command, position, velocity)
+    sign = 1.0 if out < drive else -1.0
+    step = abs(command - position) + 1.0
+    near, far = command, command + sign * step
+    tries = 0
+    while sign * (_law_output(law, law_state, j, far, position, velocity) - drive) < 0.0:
+        tries += 1
+        if tries > 60:
+            return _within_limit(law, law_state, j, command, position, velocity)
+        near = far
+        step *= 2.0
+        far = command + sign * step
+    for _ in range(60):
+        mid = 0.5 * (near + far)
+        if sign * (_law_output(law, law_state, j, mid, position, velocity) - drive) < 0.0:
+            near = mid
+        else:
+            far = mid
+    return _within_limit(law, law_state, j, near, position, velocity)
+
+
+@njit(cache=True)
+def _within_limit(law, law_state, j, command, position, velocity):
+    """The setpoint of axis ``j`` nearest to ``command`` whose drive, as the law computes
+    it (clamps included), is within Umax: ``command`` itself when the affine form was
+    exact (always for PD and PD+). The law's output rises with the command, so the
+    search widens away from the limit it exceeds, then bisects. Returns
+    ``(setpoint, found)``."""
+    umax = law[j]["maxoutput"]
+    out = _law_output(law, law_state, j, command, position, velocity)
+    if abs(out) <= umax:
+        return command, True
+    sign = 1.0 if out > 0 else -1.0
+    # widen until the output is no longer beyond the limit it exceeds (it may then lie
+    # anywhere below it, even beyond the other limit), then bisect to that limit
+    step = abs(command - position) + 1.0
+    good = command - sign * step
+    tries = 0
+    while sign * _law_output(law, law_state, j, good, position, velocity) > umax:
+        tries += 1
+        if tries > 60:
+            return command, False
+        step *= 2.0
+        good = command - sign * step
+    bad = command
+    for _ in range(60):
+        mid = 0.5 * (good + bad)
+        if sign * _law_output(law, law_state, j, mid, position, velocity) <= umax:
+            good = mid
+        else:
+            bad = mid
+    if abs(_law_output(law, law_state, j, good, position, velocity)) > umax:
+        return command, False  # the law jumps over the whole band: no admissible setpoint
+    return good, True
+
+
+@njit(cache=True)
+def planned_step(plan, state, law, law_state, position, velocity, command, bounds):
+    """One sample: the law's affine form from its memory and the measured state, then
+    :func:`online_step`; the contract of :mod:`nurbsmotion.stepping`."""
+    n_axes = command.shape[0]
+    for j in range(n_axes):
+        slope, offset = pid_affine(law, law_state, j, position[j], velocity[j])
+        state.slope[j] = slope
+        state.offset[j] = offset
+        bounds[j, 0] = np.nan
+        bounds[j, 1] = np.nan
+    phi = state.phi[0]
+    tail = int(phi) + RATE_WINDOW  # the window's end (:func:`_window_rate`)
+    if tail < plan.position.shape[0]:
+        _support_at(plan, tail, state.support)
+    else:
+        state.support[:] = 0.0
+    phi_next, rate, excess = online_step(
+        phi, state.rate[0], state.excess[0], state.est, state.hist, position,
+        plan.position, plan.drive_speed, plan.drive_accel, state.support, state.gains,
+        plan.a, plan.b0, plan.c, plan.b1, plan.log_a, law[0]["maxoutput"], plan.headroom,
+        plan.rate_gain, plan.rest, plan.guards, plan.guard_offsets, state.slope,
+        state.offset, command, state.drive, plan.dead_zone)
+    state.phi[0] = phi_next
+    state.rate[0] = rate
+    state.excess[0] = excess
+    status = stepping.WORKING
+    for j in range(n_axes):
+        setpoint, found = _setpoint_for(law, law_state, j, command[j], state.drive[j],
+                                        position[j], velocity[j])
+        if not found:
+            status = stepping.CORNERED
+        if setpoint != command[j]:
+            # a clamp of the law: the identification and the speed estimate see the drive
+            # the plant gets
+            umax = law[j]["maxoutput"]
+            out = _law_output(law, law_state, j, setpoint, position[j], velocity[j])
+            state.hist[0, j] = min(max(out, -umax), umax)
+        command[j] = setpoint
+    n = plan.parameter.shape[0]
+    i0 = min(int(phi), n - 1)
+    feed = rate * plan.path_step[i0] / law[0]["period"]  # the plan's path speed at its clock
+    if phi >= plan.rest:  # the plan rests on the end: the setpoint has arrived
+        return 1.0, 0.0, stepping.FINISHED
+    if status == stepping.WORKING and (excess > 0.0 or rate < 1.0):
+        status = stepping.LIMITED
+    return plan.parameter[i0], feed, status
