@@ -149,7 +149,7 @@ PLAIN_RAISES = {
     # internal signals, caught within the module and re-raised typed:
     "nurbsmotion/_runtime/io.py": 1,  # JSON's NaN/Infinity -> PathFileError
     "nurbsmotion/nurbs.py": 1,  # a non-number coordinate -> InvalidCurveError
-    "nurbsmotion/paths/ngc.py": 1,  # a G-code expression's domain error -> PathFileError
+    "nurbsmotion/paths/gcode/ngc.py": 1,  # a G-code expression's domain error -> PathFileError
 }
 """The plain ``raise ValueError``/``raise TypeError`` statements still allowed."""
 

@@ -1,4 +1,4 @@
-"""Plain G-code lines read in bulk (ngc.WordTable, gcode._Reader.read_rows) give what the
+"""Plain G-code lines read in bulk (ngc.WordTable, gcode.reader._Reader.read_rows) give what the
 line-by-line reader gives: the same blocks, curves, feeds, source lines, warnings and
 errors, bit for bit.
 
@@ -16,7 +16,7 @@ import pytest
 
 from conftest import RANDOM_SWEEPS
 from nurbsmotion.errors import PathFileError
-from nurbsmotion.paths import ngc
+from nurbsmotion.paths.gcode import ngc
 from nurbsmotion.paths.gcode import load_gcode
 
 CORPUS = Path(__file__).resolve().parent / "data" / "corpus"

@@ -45,7 +45,7 @@ from .._runtime.io import check_input_file, write_output
 from ..errors import InvalidCurveError, PathFileError
 from ..joining import DEFAULT_JOIN_TOLERANCE, join
 from ..nurbs import NurbsCurve, make_arc, make_line
-from .gcode import MAX_COORDINATE
+from .gcode.codes import MAX_COORDINATE
 from .pieces import arc_by_bulge
 
 __all__ = ["load_dxf", "save_dxf", "DxfWarning", "MAX_BULGE"]
