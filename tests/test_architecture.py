@@ -37,7 +37,9 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "machine": (("control", "servo", "plant", "machine", "random_machines"), ("base",)),
     # A machine from its own log (the fit's model is the plant of section 11, written for
     # the fit): it knows machines, nothing of paths.
-    "identification": (("identify", "_identify_fit", "_identify_model"), ("base", "machine")),
+    "identification": (("identify", "identify.log", "identify.identification",
+                        "identify.excite", "identify.fit", "identify.model"),
+                       ("base", "machine")),
     # Where a path meets a machine: units (a path's lengths and feeds in the machine's
     # pulses) and the drive-limited speed along the path.
     "planning": (("units", "planning"), ("base", "geometry", "machine")),
@@ -49,7 +51,7 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
              ("base", "geometry", "machine", "planning", "interpolators")),
     "metrics": (("metrics",),
                 ("base", "geometry", "machine", "planning", "interpolators", "loop")),
-    "output": (("plots", "report", "export", "_identify_plot"),
+    "output": (("plots", "report", "export", "identify.plot"),
                ("base", "geometry", "paths", "machine", "identification", "planning",
                 "interpolators", "loop", "metrics")),
     # run_input: what a run of a named path reads (the contour and its feed), shared by
@@ -68,7 +70,7 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 check still applies)."""
 
 DELEGATIONS = {
-    ("identify", "_identify_plot"): "Identification.plot()",
+    ("identify.identification", "identify.plot"): "Identification.plot()",
     ("loop", "metrics"): "Trace.metrics() / SetpointSeries.feed_fluctuation()",
     ("loop", "plots"): "Trace.plot() / SetpointSeries.plot()",
 }
