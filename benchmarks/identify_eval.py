@@ -124,7 +124,7 @@ def table(rows: list[dict]) -> str:
 def timing() -> dict:
     """identify on a 60 s log at 1 kHz (a two-mass axis with friction, delay, counts and
     noise; the log made with the fit's own model)."""
-    from nurbsmotion._identify_model import simulate
+    from nurbsmotion.identify.model import simulate
     from nurbsmotion.machine import die_bonder
 
     machine = die_bonder()

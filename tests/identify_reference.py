@@ -1,7 +1,7 @@
 """An independent simulator of issue 32's real machine, for the identification tests.
 
 Written from the physics with :func:`scipy.integrate.solve_ivp` (events at the stops),
-not from the project's loop or from :mod:`nurbsmotion._identify_model`: one axis, the
+not from the project's loop or from :mod:`nurbsmotion.identify.model`: one axis, the
 drive held over each sample and reaching the plant ``delay`` seconds later, Coulomb
 friction and stiction on the motor, and optionally a second mass (the load) on a spring
 and damper at ``resonance_frequency`` with ``resonance_damping``, the viscous damping split

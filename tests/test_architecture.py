@@ -40,7 +40,9 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "machine": (("control", "servo", "plant", "machine", "random_machines"), ("base",)),
     # A machine from its own log (the fit's model is the plant of section 11, written for
     # the fit): it knows machines, nothing of paths.
-    "identification": (("identify", "_identify_fit", "_identify_model"), ("base", "machine")),
+    "identification": (("identify", "identify.log", "identify.identification",
+                        "identify.excite", "identify.fit", "identify.model"),
+                       ("base", "machine")),
     # Where a path meets a machine: units (a path's lengths and feeds in the machine's
     # pulses) and the drive-limited speed along the path.
     "planning": (("units", "planning"), ("base", "geometry", "machine")),
@@ -58,7 +60,7 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "metrics": (("metrics",),
                 ("base", "geometry", "machine", "planning", "interpolators", "loop")),
     "output": (("plots", "plots._canvas", "plots.events", "plots.figures", "report",
-                "report.trace_file", "report.export", "export", "_identify_plot"),
+                "report.trace_file", "report.export", "export", "identify.plot"),
                ("base", "geometry", "paths", "machine", "identification", "planning",
                 "interpolators", "loop", "metrics")),
     # study.run_input: what a run of a named path reads (the contour and its feed), shared
@@ -81,7 +83,7 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 check still applies)."""
 
 DELEGATIONS = {
-    ("identify", "_identify_plot"): "Identification.plot()",
+    ("identify.identification", "identify.plot"): "Identification.plot()",
     ("loop.trace", "metrics"): "Trace.metrics() / SetpointSeries.feed_fluctuation()",
     ("loop.trace", "plots"): "Trace.plot() / SetpointSeries.plot()",
 }

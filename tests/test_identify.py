@@ -21,7 +21,7 @@ from nurbsmotion.errors import PathFileError
 from nurbsmotion.identify import (excitation, excitation_gcode, identify, log_from_arrays,
                                   read_log, write_excitation_csv)
 from nurbsmotion.machine import die_bonder, load_machine
-from nurbsmotion._identify_model import simulate
+from nurbsmotion.identify.model import simulate
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -560,7 +560,7 @@ def _parse_columns(text: str) -> dict:
 
 
 def _cmd_identify(args) -> int:
-    from .._identify_plot import IDENTIFY_FIGURE
+    from ..identify.plot import IDENTIFY_FIGURE
     from ..identify import identify, read_log
 
     base = load_machine(args.machine)

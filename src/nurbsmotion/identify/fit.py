@@ -1,4 +1,4 @@
-"""Fitting one axis of a log to the model of :mod:`nurbsmotion._identify_model` (private).
+"""Fitting one axis of a log to the model of :mod:`nurbsmotion.identify.model`.
 
 The steps (docs/identify.md):
 
@@ -26,7 +26,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ._identify_model import simulate
+from .model import simulate
 
 MODE_GAIN = 0.15
 """A mode is kept when it lowers the residual's sum of squares by at least this share."""

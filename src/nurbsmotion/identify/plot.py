@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._runtime.io import atomic_output
+from .._runtime.io import atomic_output
 
 IDENTIFY_FIGURE = "identify.png"
 """File name of the figure :meth:`nurbsmotion.identify.Identification.plot` writes."""
