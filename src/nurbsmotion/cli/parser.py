@@ -14,7 +14,7 @@ from .. import units
 from ..loop.budget import MAX_SAMPLES
 from ..interpolators import DEFAULT_INTERPOLATOR, LOOP_METHODS, OPEN_LOOP_METHODS
 from ..machine import MIN_SAMPLE_PERIOD
-from ..motion_plan import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
+from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
 from .commands import (_cmd_bound, _cmd_campaign, _cmd_contours, _cmd_excite, _cmd_identify,
                        _cmd_interpolate, _cmd_reproduce, _cmd_run, _parse_columns)
 from .console import EXPORT_FILES, _one_line

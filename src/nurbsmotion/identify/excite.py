@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import write_output
+from .._runtime.io import write_output
 from ..errors import InvalidArgumentError
 from ..machine import Machine
 

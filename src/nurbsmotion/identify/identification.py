@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import json_safe, write_output
+from .._runtime.io import json_safe, write_output
 from ..errors import InvalidArgumentError, PathFileError
 from ..machine import Machine
 from .log import Log, read_log

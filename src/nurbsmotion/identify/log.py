@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import check_input_file
+from .._runtime.io import check_input_file
 from ..errors import InvalidArgumentError, PathFileError
 from ..machine import LENGTH_UNITS_UM
 

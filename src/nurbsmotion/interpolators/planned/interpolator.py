@@ -11,7 +11,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ... import stepping
-from ..._memory import release_freed_memory
+from ..._runtime.memory import release_freed_memory
 from ...errors import InvalidArgumentError
 from ...feed import FeedLimit
 from ...machine import Machine

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..._io import check_input_file
+from ..._runtime.io import check_input_file
 from ...errors import InvalidCurveError, PathFileError
 from ...nurbs import NurbsCurve
 from ..pieces import PieceChain

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..._io import write_output
+from ..._runtime.io import write_output
 from ...errors import PathFileError
 from ...joining import bezier_segments, elevate_degree
 from ...nurbs import NurbsCurve
