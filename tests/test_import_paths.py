@@ -1,24 +1,24 @@
-"""Old import paths keep working after a module moved (issue 31): each old path gives
-the very objects of the new one."""
-
-import importlib
-
-import pytest
-
-"""Old import paths keep working after the layout moves of issue 31: each gives the same
-objects as the new path (one test per old module)."""
 """Old public import paths keep working after the layout moves of issue 31: each old path
-gives the very object its new home holds (one test per old module)."""
+gives the very objects its new home holds (one test per old module)."""
 
 from __future__ import annotations
 
 import importlib
 
+import pytest
+
 
 def _same(old: str, new: str, names) -> None:
     old_module, new_module = importlib.import_module(old), importlib.import_module(new)
     for name in names:
-        assert getattr(old_module, name) is getattr(new_module, name), name
+        assert getattr(old_module, name) is getattr(new_module, name), f"{old}.{name}"
+
+
+def _same_each(old: str, new: dict[str, str]) -> None:
+    """Every name of ``new`` (name -> new module) is the same object at ``old``."""
+    before = importlib.import_module(old)
+    for name, module in new.items():
+        assert getattr(before, name) is getattr(importlib.import_module(module), name), name
 
 
 def test_campaign():
@@ -57,6 +57,8 @@ def test_cli():
     _same("nurbsmotion.cli", "nurbsmotion.cli.console", ["project_outputs"])
     assert callable(cli.main) and cli.__all__ == ["main", "parse_feed", "synopsis",
                                                   "project_outputs"]
+
+
 def test_loop():
     # nurbsmotion.loop became a package: its results moved to loop.trace, and the run
     # functions stay in the package itself.
@@ -86,26 +88,13 @@ def test_plots():
     _same("nurbsmotion.plots", "nurbsmotion.plots.figures",
           set(plots.__all__) - {"settling_time", "MAX_EVENT_WINDOWS"})
     _same("nurbsmotion.plots", "nurbsmotion.plots.events", ["settling_time", "MAX_EVENT_WINDOWS"])
-"""Old import paths keep working after the modules moved (issue 31): each old path gives
-the very objects of the new one. One test per old module."""
-
-from __future__ import annotations
-
-import importlib
-
-
-def _same(old: str, new: dict[str, str]) -> None:
-    """Every name of ``new`` (name -> new module) is the same object at ``old``."""
-    before = importlib.import_module(old)
-    for name, module in new.items():
-        assert getattr(before, name) is getattr(importlib.import_module(module), name), name
 
 
 def test_motion_plan():
     """``nurbsmotion.motion_plan`` (now ``interpolators/planned/``): the plan, its
     functions and the constants the CLI and the benchmarks read."""
     p = "nurbsmotion.interpolators.planned."
-    _same("nurbsmotion.motion_plan", {
+    _same_each("nurbsmotion.motion_plan", {
         "plan_motion": p + "plan", "MotionPlan": p + "plan", "axis_zoh": p + "inverse",
         "move_tolerance": p + "shorten", "DEFAULT_PATH_TOLERANCE": p + "shorten",
         "SHORT_MOVE_SAMPLES": p + "shorten", "PRECOMPENSATION_TOLERANCE": p + "inverse",
@@ -117,12 +106,14 @@ def test_motion_plan():
 def test_interpolators_planned():
     """``nurbsmotion.interpolators.planned`` (a module, now a package): its public names."""
     p = "nurbsmotion.interpolators.planned."
-    _same("nurbsmotion.interpolators.planned", {
+    _same_each("nurbsmotion.interpolators.planned", {
         "PlannedInterpolator": p + "interpolator", "PlannedPlan": p + "interpolator",
         "PlannedState": p + "interpolator", "online_step": p + "step",
         "DEFAULT_TRACKING_POLE": p + "interpolator", "DEFAULT_DRIVE_HEADROOM": p + "interpolator",
         "reading_knowledge": p + "identify", "SUPPORT_DIRECTIONS": p + "governor",
         "GAIN_RANGE": p + "identify", "RATE_WINDOW": p + "governor"})
+
+
 def test_paths_ngc():
     from nurbsmotion.paths.gcode import ngc
 
@@ -139,7 +130,6 @@ def test_paths_gcode():
     _same("nurbsmotion.paths.gcode", "nurbsmotion.paths.gcode.curves", ["linuxcnc_knots"])
     _same("nurbsmotion.paths", "nurbsmotion.paths.gcode",
           ["GcodeContour", "GcodeProgram", "GcodeWarning", "load_gcode", "save_gcode"])
-        assert getattr(old_module, name) is getattr(new_module, name), f"{old}.{name}"
 
 
 def test_identify():
