@@ -99,17 +99,17 @@ class _InversePlant(NamedTuple):
 
 @njit(cache=True, fastmath={"nnan", "ninf", "nsz"})  # max in any order: exact
 def _precompensate(y, plant, rounds, limit, slack, y_cmd, sets, peaks):
-    """:func:`_drive_sequence`'s rounds, compiled: ``y_cmd`` (in: ``y``, C-contiguous,
-    shape (n, n_axes)) is corrected by the realised position's error each round, through
-    the ``plant`` (an :class:`_InversePlant`).
-    ``sets``, two ``(w, theta, u)`` (each shape (n, n_axes)), receive two rounds. Returned are a set (0 or 1) and whether it is accepted: the set holding the
-    round with the smallest error whose drive stays within ``limit``, accepted if that
-    error is within ``slack`` [pulse] of the smallest error of any round (-1 and not
+    """:func:`_drive_sequence`'s rounds, compiled: ``y_cmd`` (in: ``y``, C-contiguous, shape (n,
+    n_axes)) is corrected by the realised position's error each round, through the ``plant``
+    (an :class:`_InversePlant`). ``sets``, two ``(w, theta, u)`` (each shape (n, n_axes)),
+    receive two rounds. Returned are a set (0 or 1) and whether it is accepted: the set
+    holding the round with the smallest error whose drive stays within ``limit``, accepted
+    if that error is within ``slack`` [pulse] of the smallest error of any round (-1 and not
     accepted if no round is within the limit). The two sets take turns, so no round is
-    copied, and they are separate arrays, so the caller keeps the one it returns without
-    the other. ``peaks`` (n,) receives the largest |drive| of every sample [V] in the
-    round with the smallest error when that round's drive exceeds ``limit`` (where the
-    drive limit must be eased; the round is not accepted then)."""
+    copied, and they are separate arrays, so the caller keeps the one it returns without the
+    other. ``peaks`` (n,) receives the largest |drive| of every sample [V] in the round with
+    the smallest error when that round's drive exceeds ``limit`` (where the drive limit must
+    be eased; the round is not accepted then)."""
     n, n_axes = y.shape
     yf, cf = y.reshape(-1), y_cmd.reshape(-1)
     best_error = math.inf

@@ -13,8 +13,7 @@ from numba import njit
 
 from ... import stepping
 from ...control import pid_affine, pid_output
-from .governor import (RATE_BISECTIONS, RATE_WINDOW, _demand, _rate_room, _support_at,
-                       _window_rate)
+from .governor import _demand, _rate_room, _support_at, _window_rate
 from .guards import _guarded, _short_of_stop
 from .identify import _estimated_plant, _identify, _pole_gains
 
@@ -98,6 +97,7 @@ def online_step(plan, state, position, umax, out_setpoint):
     a, b0, c, b1, log_a = plan.a, plan.b0, plan.c, plan.b1, plan.log_a
     headroom, rate_gain, rest = plan.headroom, plan.rate_gain, plan.rest
     guards, guard_offsets, dead_zone = plan.guards, plan.guard_offsets, plan.dead_zone
+    bisections, gain_range = plan.rate_bisections, plan.gain_range
     n = plan_position.shape[0]
     n_axes = position.shape[0]
     i0 = min(int(phi), n - 1)
@@ -108,7 +108,7 @@ def online_step(plan, state, position, umax, out_setpoint):
     r_tail = 1.0
     for j in range(n_axes):
         ga, gv = _identify(est, hist, j, position[j], a[j], b0[j], c[j], b1[j],
-                           dead_zone)
+                           dead_zone, gain_range)
         gains[0, j] = ga
         gains[1, j] = gv
         # 2a. the largest uniform rate at which the estimated plant can follow the plan
@@ -118,7 +118,7 @@ def online_step(plan, state, position, umax, out_setpoint):
         limit = max((1.0 - headroom) * umax, _demand(support, j, 1.0, 1.0))
         if _demand(support, j, ga, gv) > limit:
             lo, hi = 0.0, 1.0
-            for _ in range(RATE_BISECTIONS):
+            for _ in range(bisections):
                 mid = 0.5 * (lo + hi)
                 if _demand(support, j, ga * mid * mid, gv * mid) > limit:
                     hi = mid
@@ -127,7 +127,7 @@ def online_step(plan, state, position, umax, out_setpoint):
             r_tail = min(r_tail, lo)
     # 2b. sample by sample over the window, slowing down only as late as the drive can
     target = _window_rate(i0, r_tail, gains, a, plan_drive_speed, plan_drive_accel,
-                          headroom, umax)
+                          headroom, umax, plan.rate_window)
     # 2c. governor: towards that rate, slower after a drive demand beyond Umax, changing
     # no faster than the drive left at the clock can change the plant's speed
     if excess_prev > 0.0:
@@ -187,7 +187,7 @@ def online_step(plan, state, position, umax, out_setpoint):
             target = hi if side > 0.0 else lo
             if math.isfinite(target):
                 u = _short_of_stop(u, position[j], w_now, target, side, ae, b0e, ce, b1e,
-                                   umax)
+                                   umax, bisections)
         hist[1, j] = hist[0, j]
         hist[0, j] = u
         # 4. the setpoint that produces exactly this drive
@@ -211,7 +211,7 @@ beyond it the setpoint is solved for on the law itself (:func:`_setpoint_for`)."
 
 
 @njit(cache=True)
-def _setpoint_for(law, law_state, j, command, drive, position, velocity):
+def _setpoint_for(law, law_state, j, command, drive, position, velocity, match=DRIVE_MATCH):
     """The setpoint of axis ``j`` at which the law, as it computes (clamps, deadband and
     frozen integrator included), outputs ``drive`` [V] (within +-Umax): ``command``, the
     affine form's setpoint, where that is exact (always for PD and PD+). Otherwise the
@@ -219,10 +219,11 @@ def _setpoint_for(law, law_state, j, command, drive, position, velocity):
     clamp and the deadband monotone), is bracketed away from ``command`` and bisected;
     where no setpoint gives ``drive`` (a clamp flattens the output short of it), the
     setpoint nearest ``command`` whose drive is within Umax (:func:`_within_limit`).
+    ``match``: :data:`DRIVE_MATCH` by default, the plan's ``drive_match``.
     Returns ``(setpoint, found)``."""
     umax = law[j]["maxoutput"]
     out = _law_output(law, law_state, j, command, position, velocity)
-    if abs(out - drive) <= DRIVE_MATCH * umax:
+    if abs(out - drive) <= match * umax:
         if abs(out) <= umax:
             return command, True
         return _within_limit(law, law_state, j, command, position, velocity)
@@ -293,7 +294,7 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
         bounds[j, 0] = np.nan
         bounds[j, 1] = np.nan
     phi = state.phi[0]
-    tail = int(phi) + RATE_WINDOW  # the window's end (:func:`_window_rate`)
+    tail = int(phi) + plan.rate_window  # the window's end (:func:`_window_rate`)
     if tail < plan.position.shape[0]:
         _support_at(plan, tail, state.support)
     else:
@@ -305,7 +306,7 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
     status = stepping.WORKING
     for j in range(n_axes):
         setpoint, found = _setpoint_for(law, law_state, j, command[j], state.drive[j],
-                                        position[j], velocity[j])
+                                        position[j], velocity[j], plan.drive_match)
         if not found:
             status = stepping.CORNERED
         if setpoint != command[j]:
