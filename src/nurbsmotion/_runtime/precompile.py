@@ -95,9 +95,10 @@ def examples_here(interpolator: str) -> list[tuple]:
     pairs = [(_nearest_points, (f(2), f(2, 1), f(2, 1), f(2, 1), f(1, 2, 2), f(1), f(2, 1),
                                 f(2, 1), 1, 0.0, f(0, 1), f(0), f(0), np.zeros(1, np.int64)))]
     if interpolator == "planned":
+        plant = inverse._InversePlant(f(1), f(1), f(1), f(1))
+        sets = tuple(tuple(f(1, 1) for _ in range(3)) for _ in range(2))  # two (w, theta, u)
         pairs += [(blend._averaged_arc, (f(2), f(2), f(2), 0.0, 0, 0, f(1), f(1))),
-                  (inverse._precompensate, (f(1, 1), f(1), f(1), f(1), f(1), 0, 0.0,
-                                            0.0, *(f(1, 1) for _ in range(7)), f(1))),
+                  (inverse._precompensate, (f(1, 1), plant, 0, 0.0, 0.0, f(1, 1), sets, f(1))),
                   (governor._support_into, (f(1, 1), f(1, 1), np.zeros(2, np.int64), 0,
                                             f(1, 1, 1)))]
     return pairs

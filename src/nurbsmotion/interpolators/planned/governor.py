@@ -90,10 +90,11 @@ def _rate_room(f, speed, limit):
 
 
 @njit(cache=True)
-def _window_rate(i0, r_tail, gains, a, drive_speed, drive_accel, headroom, umax):
+def _window_rate(i0, r_tail, gains, a, drive_speed, drive_accel, headroom, umax, window):
     """The largest clock rate at plan samples ``i0`` and ``i0 + 1`` (the clock passes
     both within the sample) from which the estimated plant can follow the plan: a
-    backward pass over the plan samples ``i0 .. i0 + RATE_WINDOW`` from ``r_tail`` (the
+    backward pass over the plan samples ``i0 .. i0 + window`` (:data:`RATE_WINDOW` by
+    default, the plan's ``rate_window``) from ``r_tail`` (the
     uniform rate that holds from there to the next stop; the window may cross stops: the
     plan is at rest there, and its rate may change freely). At sample k the rate r may be
     at most the static rate
@@ -103,7 +104,7 @@ def _window_rate(i0, r_tail, gains, a, drive_speed, drive_accel, headroom, umax)
     speed part of the plan's drive, ``w_ff/Kc``), over 1/r loop samples. ``gains`` (2,
     n_axes): ga, gv. Both sample k's and k + 1's drives bound the change (the clock may
     lie anywhere between them while the rate changes)."""
-    end = min(i0 + RATE_WINDOW, drive_speed.shape[0])
+    end = min(i0 + window, drive_speed.shape[0])
     r_next = r_tail
     r_after = r_next  # the rate at sample i0 + 1: the clock passes it within the sample
     static_next = 1.0  # sample k + 1's static rate (the window's end: the tail's)

@@ -31,12 +31,13 @@ def _stopping_travel(w, a, b0, c, b1, brake):
 
 
 @njit(cache=True)
-def _short_of_stop(u, x, w, stop, s, a, b0, c, b1, umax):
+def _short_of_stop(u, x, w, stop, s, a, b0, c, b1, umax, bisections=RATE_BISECTIONS):
     """The drive nearest ``u`` [V], within +-Umax, after which the ZOH plant ``(a, b0, c,
     b1)`` at position ``x`` [pulse] and speed ``w`` [rad/s], braking at Umax from the
     next sample on, stops before ``stop`` [pulse] (moving in direction ``s``, +-1): the
     travel grows with the drive, so it is ``u`` itself if that stops in time, the full
-    brake if nothing does, and else the bisected drive that stops on ``stop``."""
+    brake if nothing does, and else the drive that stops on ``stop``, bisected
+    ``bisections`` times."""
     brake = -s * umax
 
     def beyond(v):
@@ -48,7 +49,7 @@ def _short_of_stop(u, x, w, stop, s, a, b0, c, b1, umax):
     if beyond(brake) > 0.0:
         return brake
     good, bad = brake, u
-    for _ in range(RATE_BISECTIONS):
+    for _ in range(bisections):
         mid = 0.5 * (good + bad)
         if beyond(mid) > 0.0:
             bad = mid

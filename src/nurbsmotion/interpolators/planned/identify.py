@@ -20,17 +20,18 @@ for any tau, Kc within x[0.5, 2]: up to 4 times the acceleration drive)."""
 
 
 @njit(cache=True)
-def _gains(est, j, a, b0, c, b1):
-    """The estimated plant's drive over the model's for the plan's acceleration part
-    (``ga = b0/b0'``) and speed part (``gv = Kc/Kc'``), each within
-    [1/GAIN_RANGE, GAIN_RANGE]; ``est`` holds axis j's identified (a', b1', beta')
-    (:func:`_identify`), and ``b1 + beta = Ke*Ts*b0`` for every ZOH plant of this form."""
+def _gains(est, j, a, b0, c, b1, gain_range):
+    """The estimated plant's drive over the model's for the plan's acceleration part (``ga =
+    b0/b0'``) and speed part (``gv = Kc/Kc'``), each within [1/gain_range, gain_range] (the
+    plan's ``gain_range``, :data:`GAIN_RANGE` by default); ``est`` holds axis j's identified
+    (a', b1', beta') (:func:`_identify`), and ``b1 + beta = Ke*Ts*b0`` for every ZOH plant
+    of this form."""
     s_model = b1 + c * b0 - a * b1
     s_est = est[1, j] + est[2, j]
-    ga = s_model / s_est if s_est > s_model / GAIN_RANGE else GAIN_RANGE
-    ga = min(max(ga, 1.0 / GAIN_RANGE), GAIN_RANGE)
+    ga = s_model / s_est if s_est > s_model / gain_range else gain_range
+    ga = min(max(ga, 1.0 / gain_range), gain_range)
     gv = ga * (1.0 - est[0, j]) / (1.0 - a)
-    return ga, min(max(gv, 1.0 / GAIN_RANGE), GAIN_RANGE)
+    return ga, min(max(gv, 1.0 / gain_range), gain_range)
 
 
 @njit(cache=True)
@@ -54,7 +55,7 @@ def _pole_gains(a, b0, c, b1, pole):
 
 
 @njit(cache=True)
-def _identify(est, hist, j, position, a, b0, c, b1, dead_zone=0.0):
+def _identify(est, hist, j, position, a, b0, c, b1, dead_zone=0.0, gain_range=GAIN_RANGE):
     """Update axis j's estimate of its sampled plant from the position measured now.
 
     Every plant of the model's form (docs/model.md#servo-axis, ZOH) obeys, in measured positions
@@ -74,7 +75,7 @@ def _identify(est, hist, j, position, a, b0, c, b1, dead_zone=0.0):
     information on the plant and leaves the estimate and its covariance as they are, and
     a larger one updates them by its part beyond it (the dead-zone RLS of bounded noise:
     a single count cannot throw the estimate). 0 (an exact reading): every residual.
-    Returns :func:`_gains`."""
+    Returns :func:`_gains` (within ``gain_range``)."""
     if hist[4, j] > 0.0:
         y = position - hist[2, j]
         x0, x1, x2 = hist[3, j], hist[0, j], hist[1, j]
@@ -86,7 +87,7 @@ def _identify(est, hist, j, position, a, b0, c, b1, dead_zone=0.0):
             if abs(err) <= dead_zone:
                 hist[3, j] = y
                 hist[2, j] = position
-                return _gains(est, j, a, b0, c, b1)
+                return _gains(est, j, a, b0, c, b1, gain_range)
             err -= math.copysign(dead_zone, err)
         gain = 1.0 / (_position_noise(a) + x0 * p0 + x1 * p1 + x2 * p2)
         est[0, j] += p0 * gain * err
@@ -106,7 +107,7 @@ def _identify(est, hist, j, position, a, b0, c, b1, dead_zone=0.0):
         hist[3, j] = 0.0   # the loop starts at rest: th[0] = th[1]
         hist[4, j] = 1.0
     hist[2, j] = position
-    return _gains(est, j, a, b0, c, b1)
+    return _gains(est, j, a, b0, c, b1, gain_range)
 
 
 @njit(cache=True)

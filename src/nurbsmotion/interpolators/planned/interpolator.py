@@ -17,13 +17,13 @@ from ...feed import FeedLimit
 from ...machine import Machine
 from ...nurbs import NurbsCurve
 from ..base import Interpolator, positive_feed
-from .governor import SUPPORT_BLOCK, SUPPORT_DIRECTIONS, _support
+from .governor import RATE_BISECTIONS, RATE_WINDOW, SUPPORT_BLOCK, SUPPORT_DIRECTIONS, _support
 from .guards import _sample_extremes, _stop_guards
 from .identify import GAIN_RANGE, reading_knowledge
 from .inverse import axis_zoh
 from .plan import plan_motion
 from .shorten import DEFAULT_PATH_TOLERANCE
-from .step import planned_step
+from .step import DRIVE_MATCH, planned_step
 
 __all__ = ["PlannedInterpolator", "PlannedPlan", "PlannedState", "DEFAULT_TRACKING_POLE",
            "DEFAULT_DRIVE_HEADROOM"]
@@ -61,6 +61,13 @@ class PlannedPlan(NamedTuple):
     guards: np.ndarray           # (n_guards, 4) where the plant must be able to stop
     guard_offsets: np.ndarray    # (n_axes + 1,) each axis' rows of guards
     dead_zone: float = 0.0       # the identification's dead zone [pulse]
+    # the online step's tuning, each documented at the constant that is its default (data,
+    # not compiled in: ``plan._replace(rate_window=32)`` needs no new compilation); the
+    # support's SUPPORT_BLOCK and SUPPORT_DIRECTIONS fix array shapes and stay constants
+    rate_window: int = RATE_WINDOW          # plan samples the governor rates one by one
+    rate_bisections: int = RATE_BISECTIONS  # bisections of a largest rate or drive
+    gain_range: float = GAIN_RANGE          # the estimated plant's drive, model's x[1/g, g]
+    drive_match: float = DRIVE_MATCH        # the law's output matches a drive (x Umax)
 
 
 class PlannedState(NamedTuple):
@@ -217,12 +224,12 @@ def _prior_estimate(plan: PlannedPlan) -> np.ndarray:
     """The identification's start (:func:`_identify`): the model's (a, b1, beta), shape
     (12, n_axes) with the covariance. Prior standard deviations: 1 - a for a (a plant
     whose tau is half or twice the model's has 1 - a about twice or half the model's),
-    and GAIN_RANGE times b1 and beta (the drive's effect, proportional to Kc/tau)."""
+    and the plan's ``gain_range`` times b1 and beta (the drive's effect, proportional to Kc/tau)."""
     a, b0, c, b1 = plan.a, plan.b0, plan.c, plan.b1
     beta = c * b0 - a * b1
     est = np.zeros((12, len(a)))
     est[0], est[1], est[2] = a, b1, beta
     est[3] = (1.0 - a) ** 2
-    est[7] = (GAIN_RANGE * b1) ** 2
-    est[11] = (GAIN_RANGE * beta) ** 2
+    est[7] = (plan.gain_range * b1) ** 2
+    est[11] = (plan.gain_range * beta) ** 2
     return est

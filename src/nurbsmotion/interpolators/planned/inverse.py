@@ -7,6 +7,7 @@ that fix where the desired motion starts (:data:`LEAD`) and rests (:data:`END_RE
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -84,20 +85,31 @@ def _realise_into(y_cmd, alpha, beta, a, b0, w, theta, u):
         u[n - 1, j] = 0.0
 
 
+class _InversePlant(NamedTuple):
+    """The model plant as the zero-phase-error inverse reads it (:func:`_realise_into`),
+    each shape (n_axes,): ``alpha = c - a*beta`` and ``beta = b1/b0`` [pulse/(rad/s)] weigh
+    the speeds of two samples in a position increment, ``a`` and ``b0`` give the drive
+    [V] from two speeds (:func:`axis_zoh`)."""
+
+    alpha: np.ndarray
+    beta: np.ndarray
+    a: np.ndarray
+    b0: np.ndarray
+
+
 @njit(cache=True, fastmath={"nnan", "ninf", "nsz"})  # max in any order: exact
-def _precompensate(y, alpha, beta, a, b0, rounds, limit, slack, y_cmd, w0, theta0, u0, w1,
-                   theta1, u1, peaks):
-    """:func:`_drive_sequence`'s rounds, compiled: ``y_cmd`` (in: ``y``, C-contiguous,
-    shape (n, n_axes)) is corrected by the realised position's error each round.
-    ``(w0, theta0, u0)`` and ``(w1, theta1, u1)`` (each shape (n, n_axes)) receive two
-    rounds. Returned are a set (0 or 1) and whether it is accepted: the set holding the
-    round with the smallest error whose drive stays within ``limit``, accepted if that
-    error is within ``slack`` [pulse] of the smallest error of any round (-1 and not
+def _precompensate(y, plant, rounds, limit, slack, y_cmd, sets, peaks):
+    """:func:`_drive_sequence`'s rounds, compiled: ``y_cmd`` (in: ``y``, C-contiguous, shape (n,
+    n_axes)) is corrected by the realised position's error each round, through the ``plant``
+    (an :class:`_InversePlant`). ``sets``, two ``(w, theta, u)`` (each shape (n, n_axes)),
+    receive two rounds. Returned are a set (0 or 1) and whether it is accepted: the set
+    holding the round with the smallest error whose drive stays within ``limit``, accepted
+    if that error is within ``slack`` [pulse] of the smallest error of any round (-1 and not
     accepted if no round is within the limit). The two sets take turns, so no round is
-    copied, and they are separate arrays, so the caller keeps the one it returns without
-    the other. ``peaks`` (n,) receives the largest |drive| of every sample [V] in the
-    round with the smallest error when that round's drive exceeds ``limit`` (where the
-    drive limit must be eased; the round is not accepted then)."""
+    copied, and they are separate arrays, so the caller keeps the one it returns without the
+    other. ``peaks`` (n,) receives the largest |drive| of every sample [V] in the round with
+    the smallest error when that round's drive exceeds ``limit`` (where the drive limit must
+    be eased; the round is not accepted then)."""
     n, n_axes = y.shape
     yf, cf = y.reshape(-1), y_cmd.reshape(-1)
     best_error = math.inf
@@ -106,10 +118,10 @@ def _precompensate(y, alpha, beta, a, b0, rounds, limit, slack, y_cmd, w0, theta
     cur = 0
     for _ in range(rounds + 1):
         if cur == 0:
-            w, theta, u = w0, theta0, u0
+            w, theta, u = sets[0]
         else:
-            w, theta, u = w1, theta1, u1
-        _realise_into(y_cmd, alpha, beta, a, b0, w, theta, u)
+            w, theta, u = sets[1]
+        _realise_into(y_cmd, plant.alpha, plant.beta, plant.a, plant.b0, w, theta, u)
         tf, uf = theta.reshape(-1), u.reshape(-1)
         worst = 0.0
         peak = 0.0
@@ -161,6 +173,7 @@ def _drive_sequence(y: np.ndarray, machine: Machine, rounds: int,
     y = np.ascontiguousarray(y, dtype=float)
     sets = [tuple(np.empty_like(y) for _ in range(3)) for _ in range(2)]
     peaks = np.empty(len(y))
-    kept, accepted = _precompensate(y, alpha, beta, a, b0, rounds, float(limit),
-                                    float(slack), y.copy(), *sets[0], *sets[1], peaks)
+    kept, accepted = _precompensate(y, _InversePlant(alpha, beta, a, b0), rounds,
+                                    float(limit), float(slack), y.copy(),
+                                    (sets[0], sets[1]), peaks)
     return (sets[kept] if accepted else None), peaks

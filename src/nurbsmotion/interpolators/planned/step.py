@@ -13,8 +13,7 @@ from numba import njit
 
 from ... import stepping
 from ...control import pid_affine, pid_output
-from .governor import (RATE_BISECTIONS, RATE_WINDOW, _demand, _rate_room, _support_at,
-                       _window_rate)
+from .governor import _demand, _rate_room, _support_at, _window_rate
 from .guards import _guarded, _short_of_stop
 from .identify import _estimated_plant, _identify, _pole_gains
 
@@ -39,65 +38,50 @@ def _plan_speed_at(drive_speed, drive_accel, phi, j, a, log_a, b0):
 
 
 @njit(cache=True)
-def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
-                plan_drive_speed, plan_drive_accel, support, gains, a, b0, c, b1, log_a,
-                umax, headroom, rate_gain, rest, guards, guard_offsets, slope, offset,
-                out_setpoint, out_drive, dead_zone=0.0):
+def online_step(plan, state, position, umax, out_setpoint):
     """One sample of the planned interpolator (module docstring, steps 1-4).
 
     Plain loops over floats and float arrays, so that numba compiles it unchanged.
 
     Parameters
     ----------
-    phi : float
-        The plan's clock at this sample [samples].
-    rate : float
-        The clock's rate over the last sample, in (0, 1].
-    excess_prev : float
-        How far the last sample's drive demand exceeded Umax (relative; 0 if not).
-    est : ndarray, shape (12, n_axes)
-        In/out: the plant's identified sampled model and its covariance
-        (:func:`_identify`).
-    hist : ndarray, shape (5, n_axes)
-        In/out: the identification's memory (:func:`_identify`); row 0 is the drive
-        applied at the last sample, which the caller corrects if the law produced another.
+    plan : PlannedPlan
+        Read: ``position`` theta_ff, shape (n, n_axes) [pulse]; ``drive_speed`` and
+        ``drive_accel``, shape (n, n_axes), the feedforward drive's speed part w_ff/Kc and
+        acceleration part (w_ff[k+1]-w_ff[k])/b0 [V] (u_ff is their sum at rate 1);
+        ``a, b0, c, b1``, shape (n_axes,), the model's ZOH plant
+        (:func:`.inverse.axis_zoh`); ``log_a``, shape (n_axes,), log(a), for the plan's
+        speed between samples (:func:`_plan_speed_at`); ``headroom``, the fraction of
+        Umax the governor keeps for the feedback; ``rate_gain``, the largest change of
+        the rate per sample (``1 - rate_gain`` is the tracking pole); ``rest``, the plan
+        sample from which the plan rests on the end (from there on the feedback is
+        deadbeat); ``guards`` and ``guard_offsets``, shapes (n_guards, 4) and
+        (n_axes + 1,), where the plant must be able to stop (:func:`_stop_guards`: while
+        the clock lies between two plan samples that a guard both holds, the drive keeps
+        the plant able to stop before its position, :func:`_short_of_stop`);
+        ``dead_zone``, the identification's dead zone [pulse] (:func:`_identify`,
+        :func:`reading_knowledge`).
+    state : PlannedState
+        Read: ``phi[0]``, the plan's clock at this sample [samples]; ``rate[0]``, the
+        clock's rate over the last sample, in (0, 1]; ``excess[0]``, how far the last
+        sample's drive demand exceeded Umax (relative; 0 if not); ``support``, shape
+        (n_axes, SUPPORT_DIRECTIONS), per axis the support function of the plan's drive
+        parts from the window's end (:data:`RATE_WINDOW` samples after the clock's) up to
+        the next stop (:func:`_support_at`; zero when the window reaches the plan's end);
+        ``slope`` and ``offset``, shape (n_axes,), the law's affine form at this sample:
+        u[k] = slope*thd[k] + offset [V/pulse, V]. In/out: ``est``, shape (12, n_axes),
+        the plant's identified sampled model and its covariance (:func:`_identify`);
+        ``hist``, shape (5, n_axes), the identification's memory (:func:`_identify`; row
+        0 is the drive applied at the last sample, which the caller corrects if the law
+        produced another). Scratch: ``gains``, shape (2, n_axes), the estimated plant's
+        ga and gv (:func:`_gains`). Written: ``drive``, shape (n_axes,), the drive [V]
+        the setpoint produces.
     position : ndarray, shape (n_axes,)
         tha[k], measured [pulse].
-    plan_position : ndarray, shape (n, n_axes)
-        theta_ff [pulse].
-    plan_drive_speed, plan_drive_accel : ndarray, shape (n, n_axes)
-        The feedforward drive's speed part w_ff/Kc and acceleration part
-        (w_ff[k+1]-w_ff[k])/b0 [V] (u_ff is their sum at rate 1).
-    support : ndarray, shape (n_axes, SUPPORT_DIRECTIONS)
-        Per axis, the support function of the plan's drive parts from the window's end
-        (:data:`RATE_WINDOW` samples after the clock's) up to the next stop
-        (:func:`_support_at`; zero when the window reaches the plan's end).
-    gains : ndarray, shape (2, n_axes)
-        Scratch: the estimated plant's ga and gv (:func:`_gains`).
-    a, b0, c, b1 : ndarray, shape (n_axes,)
-        The model's ZOH plant (:func:`.inverse.axis_zoh`).
-    log_a : ndarray, shape (n_axes,)
-        log(a), for the plan's speed between samples (:func:`_plan_speed_at`).
     umax : float
         Umax [V].
-    headroom : float
-        Fraction of Umax the governor keeps for the feedback.
-    rate_gain : float
-        Largest change of the rate per sample; ``1 - rate_gain`` is the tracking pole.
-    rest : int
-        The plan sample from which the plan rests on the end: from there on the
-        feedback is deadbeat.
-    guards, guard_offsets : ndarray, shapes (n_guards, 4) and (n_axes + 1,)
-        Where the plant must be able to stop (:func:`_stop_guards`): while the clock
-        lies between two plan samples that a guard both holds, the drive keeps the plant
-        able to stop before its position (:func:`_short_of_stop`).
-    slope, offset : ndarray, shape (n_axes,)
-        The law's affine form at this sample: u[k] = slope*thd[k] + offset [V/pulse, V].
-    out_setpoint, out_drive : ndarray, shape (n_axes,)
-        Written: thd[k] [pulse] and the drive it produces [V].
-    dead_zone : float
-        The identification's dead zone [pulse] (:func:`_identify`,
-        :func:`reading_knowledge`).
+    out_setpoint : ndarray, shape (n_axes,)
+        Written: thd[k] [pulse].
 
     Returns
     -------
@@ -105,6 +89,15 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
         The clock at the next sample, the rate used over this sample, and how far this
         sample's drive demand exceeded Umax.
     """
+    phi, rate, excess_prev = state.phi[0], state.rate[0], state.excess[0]
+    est, hist, support, gains = state.est, state.hist, state.support, state.gains
+    slope, offset, out_drive = state.slope, state.offset, state.drive
+    plan_position, plan_drive_speed = plan.position, plan.drive_speed
+    plan_drive_accel = plan.drive_accel
+    a, b0, c, b1, log_a = plan.a, plan.b0, plan.c, plan.b1, plan.log_a
+    headroom, rate_gain, rest = plan.headroom, plan.rate_gain, plan.rest
+    guards, guard_offsets, dead_zone = plan.guards, plan.guard_offsets, plan.dead_zone
+    bisections, gain_range = plan.rate_bisections, plan.gain_range
     n = plan_position.shape[0]
     n_axes = position.shape[0]
     i0 = min(int(phi), n - 1)
@@ -115,7 +108,7 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
     r_tail = 1.0
     for j in range(n_axes):
         ga, gv = _identify(est, hist, j, position[j], a[j], b0[j], c[j], b1[j],
-                           dead_zone)
+                           dead_zone, gain_range)
         gains[0, j] = ga
         gains[1, j] = gv
         # 2a. the largest uniform rate at which the estimated plant can follow the plan
@@ -125,7 +118,7 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
         limit = max((1.0 - headroom) * umax, _demand(support, j, 1.0, 1.0))
         if _demand(support, j, ga, gv) > limit:
             lo, hi = 0.0, 1.0
-            for _ in range(RATE_BISECTIONS):
+            for _ in range(bisections):
                 mid = 0.5 * (lo + hi)
                 if _demand(support, j, ga * mid * mid, gv * mid) > limit:
                     hi = mid
@@ -134,7 +127,7 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
             r_tail = min(r_tail, lo)
     # 2b. sample by sample over the window, slowing down only as late as the drive can
     target = _window_rate(i0, r_tail, gains, a, plan_drive_speed, plan_drive_accel,
-                          headroom, umax)
+                          headroom, umax, plan.rate_window)
     # 2c. governor: towards that rate, slower after a drive demand beyond Umax, changing
     # no faster than the drive left at the clock can change the plant's speed
     if excess_prev > 0.0:
@@ -194,7 +187,7 @@ def online_step(phi, rate, excess_prev, est, hist, position, plan_position,
             target = hi if side > 0.0 else lo
             if math.isfinite(target):
                 u = _short_of_stop(u, position[j], w_now, target, side, ae, b0e, ce, b1e,
-                                   umax)
+                                   umax, bisections)
         hist[1, j] = hist[0, j]
         hist[0, j] = u
         # 4. the setpoint that produces exactly this drive
@@ -218,7 +211,7 @@ beyond it the setpoint is solved for on the law itself (:func:`_setpoint_for`)."
 
 
 @njit(cache=True)
-def _setpoint_for(law, law_state, j, command, drive, position, velocity):
+def _setpoint_for(law, law_state, j, command, drive, position, velocity, match=DRIVE_MATCH):
     """The setpoint of axis ``j`` at which the law, as it computes (clamps, deadband and
     frozen integrator included), outputs ``drive`` [V] (within +-Umax): ``command``, the
     affine form's setpoint, where that is exact (always for PD and PD+). Otherwise the
@@ -226,10 +219,11 @@ def _setpoint_for(law, law_state, j, command, drive, position, velocity):
     clamp and the deadband monotone), is bracketed away from ``command`` and bisected;
     where no setpoint gives ``drive`` (a clamp flattens the output short of it), the
     setpoint nearest ``command`` whose drive is within Umax (:func:`_within_limit`).
+    ``match``: :data:`DRIVE_MATCH` by default, the plan's ``drive_match``.
     Returns ``(setpoint, found)``."""
     umax = law[j]["maxoutput"]
     out = _law_output(law, law_state, j, command, position, velocity)
-    if abs(out - drive) <= DRIVE_MATCH * umax:
+    if abs(out - drive) <= match * umax:
         if abs(out) <= umax:
             return command, True
         return _within_limit(law, law_state, j, command, position, velocity)
@@ -300,24 +294,19 @@ def planned_step(plan, state, law, law_state, position, velocity, command, bound
         bounds[j, 0] = np.nan
         bounds[j, 1] = np.nan
     phi = state.phi[0]
-    tail = int(phi) + RATE_WINDOW  # the window's end (:func:`_window_rate`)
+    tail = int(phi) + plan.rate_window  # the window's end (:func:`_window_rate`)
     if tail < plan.position.shape[0]:
         _support_at(plan, tail, state.support)
     else:
         state.support[:] = 0.0
-    phi_next, rate, excess = online_step(
-        phi, state.rate[0], state.excess[0], state.est, state.hist, position,
-        plan.position, plan.drive_speed, plan.drive_accel, state.support, state.gains,
-        plan.a, plan.b0, plan.c, plan.b1, plan.log_a, law[0]["maxoutput"], plan.headroom,
-        plan.rate_gain, plan.rest, plan.guards, plan.guard_offsets, state.slope,
-        state.offset, command, state.drive, plan.dead_zone)
+    phi_next, rate, excess = online_step(plan, state, position, law[0]["maxoutput"], command)
     state.phi[0] = phi_next
     state.rate[0] = rate
     state.excess[0] = excess
     status = stepping.WORKING
     for j in range(n_axes):
         setpoint, found = _setpoint_for(law, law_state, j, command[j], state.drive[j],
-                                        position[j], velocity[j])
+                                        position[j], velocity[j], plan.drive_match)
         if not found:
             status = stepping.CORNERED
         if setpoint != command[j]:
