@@ -658,3 +658,76 @@ def test_bound_refuses_what_run_refuses(tmp_path, capsys):
         assert "--max-samples" in _one_error_line(capsys)
     assert main(["bound", long_line, "--feed", "1m/s"]) == 0
     capsys.readouterr()
+
+
+# ---------------------------------------------------------------- issue 37, item 6: messages
+@pytest.mark.parametrize("field, value", [("time_constant", 5e-324),
+                                          ("electrical_gain", 1e308),
+                                          ("mechanical_gain", 1e308)])
+def test_a_plant_beyond_double_precision_is_refused_naming_the_axis(tmp_path, capsys, field,
+                                                                    value):
+    """Regression (found by fuzzing machine files through run and bound): a subnormal time
+    constant, or gains whose product overflows, made the sampled plant's matrices inf/NaN
+    and the command said numpy's "Array must not contain infs or NaNs", naming nothing."""
+    data = die_bonder().to_dict()
+    data["axes"][1][field] = value
+    file = tmp_path / "m.json"
+    file.write_text(json.dumps(data))
+    with pytest.raises(PathFileError, match="axis 'y'.*double precision"):
+        load_machine(file)
+    assert main(["bound", "die-bonder-pi", "--feed", "1m/s", "--machine", str(file)]) == 2
+    line = _one_error_line(capsys)
+    assert str(file) in line and "NaN" not in line and "axis 'y'" in line
+
+
+def test_a_hold_beyond_any_run_is_refused_before_the_loop(tmp_path, capsys):
+    """Regression: --hold 1e300 reached the compiled loop as a Python integer of 300
+    digits ("internal error: TypingError ... non-precise type pyobject")."""
+    from nurbsmotion.errors import WorkLimitError
+    from nurbsmotion.loop import run
+
+    out = tmp_path / "o"
+    assert main(["run", "die-bonder-pi", "--feed", "1m/s", "--hold", "1e300", "--no-figures",
+                 "--out", str(out)]) == 2
+    line = _one_error_line(capsys)
+    assert "--hold" in line and "--max-samples" in line and "internal" not in line
+    assert not out.exists()
+    with pytest.raises(WorkLimitError, match="hold 1e\\+300 s"):
+        run(nm.make_die_bonder_pi(), die_bonder(), 1e6, "paper", hold=1e300)
+
+
+def test_a_tiny_drive_gives_its_top_speed_not_a_division_by_zero(capsys):
+    """Regression (fuzz of machine values): Umax = 1e-300 V made the top speed's squares
+    underflow to 0 and run/bound said "float division by zero"; the top speed is now the
+    scaled norm, sqrt(sum (Umax*Kc*Ke)^2) = Umax * |Kc*Ke| without underflow."""
+    from nurbsmotion.errors import InvalidFeedError
+    from nurbsmotion.planning import check_feed_reachable, top_speed
+
+    machine = die_bonder().with_options(max_drive=1e-300)
+    expected = 1e-300 * math.hypot(*(die_bonder().Kc * die_bonder().Ke))
+    assert top_speed(machine) == pytest.approx(expected, rel=1e-14)
+    assert top_speed(die_bonder()) == math.sqrt(np.sum((10.0 * die_bonder().Kc
+                                                       * die_bonder().Ke) ** 2))
+    with pytest.raises(InvalidFeedError, match="times the fastest"):
+        check_feed_reachable(1e6, machine)
+
+
+def test_a_drive_whose_acceleration_cannot_be_squared_is_refused():
+    """Regression: Umax = 1e300 V gave "the feed is too small" (the bound overflowed to
+    inf) or "cannot convert float infinity to integer"."""
+    from nurbsmotion.errors import InvalidMachineError
+
+    with pytest.raises(InvalidMachineError, match="axis 'x'.*MAX_DRIVE_ACCELERATION"):
+        die_bonder().with_options(max_drive=1e300)
+
+
+@pytest.mark.parametrize("interpolator", ["taylor1", "taylor2", "paper"])
+def test_a_path_starting_at_zero_speed_is_refused_by_the_taylor_steps(interpolator):
+    """Regression (fuzz of random NURBS through run): a repeated first control point makes
+    C'(0) = 0, and the Taylor step V*T/|C'| was a ZeroDivisionError inside the compiled
+    loop ("error: division by zero"); planned runs such a path."""
+    curve = NurbsCurve(3, [0, 0, 0, 0, 1, 1, 1, 1], [[0, 0], [0, 0], [1000, 2000], [3000, 0]])
+    assert np.linalg.norm(curve(0.0, 1)) == 0.0
+    with pytest.raises(InvalidCurveError, match="zero speed.*planned"):
+        run(curve, die_bonder(), 2e5, interpolator)
+    assert run(curve, die_bonder(), 2e5, "planned").success

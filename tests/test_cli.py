@@ -149,9 +149,6 @@ def test_outputs_are_not_overwritten_unless_asked(tmp_path, capsys):
           "{out}"], "--settle-window unit 'parsec' unknown"),
         (["run", "die-bonder-pi", "--feed", "1m/s", "--path-tolerance", "-1", "--out",
           "{out}"], "--path-tolerance '-1' is not a length >= 0"),
-        (["run", "die-bonder-pi", "--feed", "1m/s", "--interpolator", "paper",
-          "--path-tolerance", "2um", "--out", "{out}"],
-         "--path-tolerance applies to the planned interpolator, not paper"),
     ],
 )
 def test_errors_are_one_clear_line(tmp_path, capsys, args, message):

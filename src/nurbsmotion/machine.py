@@ -228,6 +228,11 @@ class Axis:
                 "load_fraction": self.load_fraction, "encoder_on": self.encoder_on}
 
 
+MAX_DRIVE_ACCELERATION = 1e150
+"""Largest full-drive acceleration of an axis, ``max_drive * Kc * Ke / tau`` [pulse/s^2]:
+the planner squares speeds and accelerations (1.8e308 is the largest double). Real
+machines are below 1e12."""
+
 MIN_SAMPLE_PERIOD = 1e-5
 """Shortest sample period Ts a machine may have [s] (100 kHz). Position loops of servo
 drives and motion controllers run at 1-32 kHz (LinuxCNC's servo thread at 1 kHz); a
@@ -308,6 +313,15 @@ class Machine:
         if self.max_drive != math.inf:  # an ideal drive (no saturation) is allowed
             object.__setattr__(self, "max_drive", _positive(self.max_drive, "max_drive"))
         object.__setattr__(self, "sample_period", _positive(self.sample_period, "sample_period"))
+        if self.max_drive != math.inf:
+            for a in axes:  # the planner squares speeds and accelerations
+                accel = self.max_drive * a.electrical_gain * a.mechanical_gain / a.time_constant
+                if not accel <= MAX_DRIVE_ACCELERATION:
+                    raise InvalidMachineError(
+                        f"axis {a.name!r}: max_drive * Kc * Ke / time constant = {accel:.3g} "
+                        f"pulse/s^2 (max_drive {self.max_drive:g} V) is beyond "
+                        f"{MAX_DRIVE_ACCELERATION:g} (machine.MAX_DRIVE_ACCELERATION): its "
+                        "square cannot be computed in double precision")
         if self.sample_period < MIN_SAMPLE_PERIOD:
             raise InvalidMachineError(
                 f"sample_period {self.sample_period:g} s is below the minimum of "
@@ -386,6 +400,16 @@ class Machine:
     def _check_stable(self) -> None:
         feedback_deriv = self.speed_measurement == "true"
         for a, gains in zip(self.axes, self.pid_gains):
+            Ad, Bd = zoh_matrices(a.time_constant, a.electrical_gain, a.mechanical_gain,
+                                  self.sample_period)
+            if not (np.all(np.isfinite(Ad)) and np.all(np.isfinite(Bd))):
+                # Ts / tau beyond double precision (a subnormal tau): numpy's eigvals
+                # would say "Array must not contain infs or NaNs"
+                raise InvalidMachineError(
+                    f"axis {a.name!r}: its sampled plant cannot be computed in double "
+                    f"precision (time constant {a.time_constant:g} s, Kc "
+                    f"{a.electrical_gain:g}, Ke {a.mechanical_gain:g} at Ts = "
+                    f"{self.sample_period:g} s): its zero-order-hold matrices overflow")
             # The delay is part of the loop the machine is refused for; a mode is not (it
             # may well destabilise the linear loop: the run shows what that does).
             if self.delay:
@@ -393,8 +417,6 @@ class Machine:
                     gains, a.time_constant, a.electrical_gain, a.mechanical_gain,
                     self.sample_period, feedback_deriv, self.delay)
             else:
-                Ad, Bd = zoh_matrices(a.time_constant, a.electrical_gain,
-                                      a.mechanical_gain, self.sample_period)
                 poles = loop_poles(gains, Ad, Bd, self.sample_period, a.mechanical_gain,
                                    feedback_deriv)
             radius = float(np.max(np.abs(poles)))

@@ -134,7 +134,13 @@ def top_speed(machine: Machine) -> float:
     so from rest ``|xd_j|`` never exceeds ``Umax*Kc_j*Ke_j``. ``inf`` for an ideal drive."""
     if machine.max_drive == math.inf:
         return math.inf
-    return float(np.sqrt(np.sum((machine.max_drive * machine.Kc * machine.Ke) ** 2)))
+    v = machine.max_drive * machine.Kc * machine.Ke
+    top = float(np.sqrt(np.sum(v ** 2)))
+    if top in (0.0, math.inf) and np.all(np.isfinite(v)) and np.any(v):
+        # the squares under- or overflowed (Umax = 1e-300 gave 0, and a division by it)
+        big = float(np.max(np.abs(v)))
+        top = big * float(np.sqrt(np.sum((v / big) ** 2)))
+    return top
 
 
 MAX_FEED_RATIO = 1000.0

@@ -34,7 +34,8 @@ def _contour(args, machine: Machine | None = None):
     from ..study.run_input import load_run_contour
 
     return load_run_contour(args.path, machine, units=args.units,
-                            project=getattr(args, "project", None))
+                            project=getattr(args, "project", None),
+                            path_tolerance=getattr(args, "path_tolerance", None))
 
 
 def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float = 1.0,
@@ -157,6 +158,7 @@ def _cmd_bound(args) -> int:
     machine.check_path(curve.n_axes)
     if args.sampled:
         print(f"{sampled_stop_bound(to_pulses(curve, machine), machine):.6g}")
+        _print_joined(contour, machine)
         return 0
     cap = None if args.feed is None else units.feed_in_pulses(args.feed, curve, machine)
     feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s",
@@ -171,7 +173,20 @@ def _cmd_bound(args) -> int:
     print(f"{bound:.6g}")
     if contour.feed is not None:
         print(f"feed: {note}", file=sys.stderr)
+    _print_joined(contour, machine)
     return 0
+
+
+def _print_joined(contour, machine: Machine) -> None:
+    """Say on stderr which chords the path's runs joined (nothing where none were)."""
+    joined = contour.joined
+    if joined is not None and joined.chords_joined:
+        curve = contour.curve
+        shown = machine.pulses_per_unit(curve.units) / units.pulses_per_report_unit(
+            curve.units, machine)  # report units per path unit
+        print("path: " + joined.describe(units.report_unit(curve.units), shown),
+              file=sys.stderr)
+
 
 TRACE_NOTICE_BYTES = 200e6
 """A trace file larger than this [byte] is announced with its size and the options to
@@ -208,18 +223,17 @@ def _run(args, precompiler) -> int:
         raise
     plant_machine = machine if args.plant is None else load_machine(args.plant)
     plant = None if args.plant is None else _true_plant(plant_machine, machine)
+    if args.hold is not None:  # 1e300 s was a numba typing error deep in the loop
+        check_samples(args.hold / plant_machine.sample_period, limit=args.max_samples,
+                      n_axes=curve.n_axes, what=f"--hold {args.hold:g} s at Ts = "
+                      f"{plant_machine.sample_period:g} s", option="--max-samples")
     eps = units.length_in_pulses(args.corner_tolerance, curve, machine, "--corner-tolerance")
     if eps and args.interpolator != "planned":
         raise InvalidArgumentError(
             f"--corner-tolerance applies to the planned interpolator, not {args.interpolator}")
     options = {"corner_tolerance": eps} if eps else {}
-    path_tolerance = DEFAULT_PATH_TOLERANCE
-    if args.path_tolerance is not None:
-        if args.interpolator != "planned":
-            raise InvalidArgumentError("--path-tolerance applies to the planned "
-                                       f"interpolator, not {args.interpolator}")
-        path_tolerance = units.length_in_pulses(args.path_tolerance, curve, machine,
-                                                "--path-tolerance", bare_unit="pulse")
+    path_tolerance = contour.joined.tolerance * machine.pulses_per_unit(curve.units)
+    if args.path_tolerance is not None and args.interpolator == "planned":
         options["path_tolerance"] = path_tolerance
     window = units.length_in_pulses(args.settle_window, curve, machine, "--settle-window",
                                     bare_unit="pulse")
@@ -281,9 +295,12 @@ def _run(args, precompiler) -> int:
                  "corner_tolerance": eps,
                  f"corner_tolerance_{unit}": eps / per_unit,
                  f"settle_window_{unit}": window / per_unit}
-        if args.interpolator == "planned":
+        if args.interpolator == "planned" or contour.joined.chords_joined:
             extra.update({"path_tolerance": path_tolerance,
                           f"path_tolerance_{unit}": path_tolerance / per_unit})
+        if contour.joined.chords_joined:  # what the path run is: said where it differs
+            extra.update({"chords_joined": contour.joined.chords_joined,
+                          "chord_runs": contour.joined.runs})
         extra.update(_at_rest_keys(at_rest, unit, per_unit))
         if machine.has_effects or plant_machine.has_effects:  # both, as they were read
             extra["machine_model"] = machine.to_dict()
@@ -311,13 +328,16 @@ def _run(args, precompiler) -> int:
                f"({metrics.settle_time_s / bound:.3f} x)" if metrics.settled
                else "not settled by the end of the run")
     source = f", {contour.units_source}" if contour.units_source else ""
+    joined = ("; path: " + contour.joined.describe(unit, machine.pulses_per_unit(curve.units)
+                                                  / per_unit)
+              if contour.joined.chords_joined else "")
     print(f"{args.interpolator} on {_machine_label(args.machine, machine)} at {at} (path in "
           f"{curve.units}{source}): cycle time {metrics.cycle_time_s:.4g} s "
           f"({metrics.cycle_time_s / bound:.3f} x the time-optimal bound), {settled}, "
           "max contour error "
           f"{metrics.max_contour_error / per_unit:.4g} {unit} "
           f"({metrics.max_contour_error:.4g} pulse), {sat} saturated "
-          f"sample{'s' if sat != 1 else ''} -> {out}")
+          f"sample{'s' if sat != 1 else ''}{joined} -> {out}")
     return 0
 
 

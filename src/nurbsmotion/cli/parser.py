@@ -139,6 +139,11 @@ def _parser() -> argparse.ArgumentParser:
     path_help = ("path: a built-in name (die-bonder-pi, butterfly) or a file .json, .toml, "
                  ".ngc/.nc/.gcode, .dxf; FILE#k picks the k-th contour of a file")
     machine_help = "built-in machine name (die-bonder) or a machine file (.toml/.json)"
+    path_tolerance_help = (
+        "how far the path run may leave the programmed one: runs of short chords (CAM "
+        "output) whose joints turn by small angles are joined into one smooth curve within "
+        "it, real corners kept (0: the chords as programmed); a length (2um) or a number of "
+        f"pulses (default: {DEFAULT_PATH_TOLERANCE:g} pulse)")
 
     def command(name: str, help: str) -> argparse.ArgumentParser:
         return sub.add_parser(name, help=help, description=help,
@@ -199,12 +204,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--corner-tolerance", default="0",
                    help="planned: how far the motion may leave a sharp corner instead of "
                    "stopping there, a length (0.5mm, 10um) or a number in the path's units")
-    r.add_argument("--path-tolerance",
-                   help="planned: how far from the path a short move (a plan of at most "
-                   f"{SHORT_MOVE_SAMPLES} samples; with stops, planned from stop to stop) "
-                   "may go where that lets "
-                   "it arrive sooner, a length (2um) or a number of pulses (default: "
-                   f"{DEFAULT_PATH_TOLERANCE:g} pulse)")
+    r.add_argument("--path-tolerance", help=path_tolerance_help + "; planned: also how far "
+                   f"from the path a short move (a plan of at most {SHORT_MOVE_SAMPLES} "
+                   "samples; with stops, planned from stop to stop) may go where that lets "
+                   "it arrive sooner")
     r.add_argument("--settle-window", default="1",
                    help="the motion has settled once it stays within this distance of the "
                    "end point: a length (1um, 0.001mm) or a number of pulses (default: 1 "
@@ -242,6 +245,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="read a G-code file's moves as their projection on the machine's axes "
                    "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
                    "refusing moves that change other axes with them")
+    b.add_argument("--path-tolerance", help=path_tolerance_help)
     b.add_argument("--sampled", action="store_true",
                    help="print instead a lower bound for any sampled motion that stops at "
                    "every sharp corner [s]: whole samples per "

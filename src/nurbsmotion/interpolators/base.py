@@ -31,13 +31,13 @@ from numba import njit
 from .. import stepping
 from .._kernels import horner
 from ..control import pid_affine
-from ..errors import InvalidArgumentError, InvalidFeedError
+from ..errors import InvalidArgumentError, InvalidCurveError, InvalidFeedError
 from ..nurbs import NurbsCurve
 from ..stepping import Status
 
 __all__ = ["Status", "Interpolator", "PathData", "path_data", "path_scratch",
            "taylor_increment", "advance", "land", "finish_step", "path_point", "path_derivatives",
-           "speed_bounds", "positive_feed"]
+           "speed_bounds", "positive_feed", "check_taylor_starts"]
 
 
 class PathData(NamedTuple):
@@ -64,6 +64,28 @@ def path_data(curve: NurbsCurve, order: int) -> PathData:
                          if curve.knot_multiplicity(b) >= p - order + 1] + [1.0])
     return PathData(spans, coefficients, restarts,
                     np.ascontiguousarray(curve.end_points[1], dtype=float))
+
+
+def check_taylor_starts(curve: NurbsCurve, path: PathData, name: str) -> None:
+    """Refuse a path whose Taylor step would start at a point of zero speed: ``u = 0`` or
+    a restart knot where ``C'(u) = 0`` from the right (a repeated control point there).
+    The step ``V*T/|C'(u)|`` (eq. 3.1 / 3.2) and the tangent cannot be taken there; it was
+    a ZeroDivisionError inside the compiled loop.
+
+    Raises
+    ------
+    InvalidCurveError
+        Naming the parameter and the point.
+    """
+    starts = np.concatenate([[0.0], path.restarts[:-1]])
+    speed = np.linalg.norm(curve(starts, 1), axis=1)
+    if np.any(speed == 0.0):
+        u = float(starts[int(np.argmax(speed == 0.0))])
+        where = "starts" if u == 0.0 else f"restarts its step at u = {u:.6g}"
+        raise InvalidCurveError(
+            f"the path {where} at a point of zero speed, C'(u) = 0 at {curve(u).tolist()} "
+            f"(a repeated control point): {name}'s Taylor step V*T/|C'(u)| cannot leave it; "
+            "run it with planned, or remove the repeated control point")
 
 
 def path_scratch(path: PathData) -> np.ndarray:

@@ -29,7 +29,8 @@ from numba import njit
 from .. import stepping
 from ..machine import Machine
 from ..nurbs import NurbsCurve
-from .base import PathData, advance, finish_step, path_data, path_derivatives, speed_bounds
+from .base import (PathData, advance, check_taylor_starts, finish_step, path_data,
+                   path_derivatives, speed_bounds)
 from .taylor import FeedTableInterpolator, feed_at, feed_table
 
 __all__ = ["PaperInterpolator"]
@@ -70,7 +71,9 @@ class PaperInterpolator(FeedTableInterpolator):
         machine.check_path(curve.n_axes)
         super().__init__(curve, machine.sample_period)
         self.order = self.taylor_order(order)
-        self.plan = PaperPlan(path_data(curve, self.order), self.order,
+        path = path_data(curve, self.order)
+        check_taylor_starts(curve, path, "paper")
+        self.plan = PaperPlan(path, self.order,
                               *feed_table(feed, curve), np.array(machine.Ke, dtype=float))
 
 

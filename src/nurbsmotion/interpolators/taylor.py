@@ -17,7 +17,7 @@ from .. import stepping
 from ..errors import InvalidArgumentError, InvalidFeedError
 from ..feed import FeedLimit
 from ..nurbs import NurbsCurve
-from .base import (Interpolator, PathData, advance, finish_step, land, path_data,
+from .base import (Interpolator, PathData, advance, check_taylor_starts, finish_step, land, path_data,
                    path_derivatives, path_scratch, positive_feed)
 
 __all__ = ["UniformInterpolator", "TaylorInterpolator", "FeedTableInterpolator", "feed_table"]
@@ -208,7 +208,9 @@ class TaylorInterpolator(FeedTableInterpolator):
         super().__init__(curve, sample_period)
         self.order = self.taylor_order(order)
         self.name = f"taylor{order}"
-        self.plan = TaylorPlan(path_data(curve, self.order), self.order,
+        path = path_data(curve, self.order)
+        check_taylor_starts(curve, path, self.name)
+        self.plan = TaylorPlan(path, self.order,
                                *feed_table(feed, curve))
 
 

@@ -29,7 +29,7 @@ from . import closed_loop
 from .closed_loop import settle_hold_samples
 from .budget import MAX_SAMPLES, check_samples, estimate_samples
 from ..control import PidGains, pid_law, pid_state
-from ..errors import InfeasibleError, InvalidArgumentError
+from ..errors import InfeasibleError, InvalidArgumentError, WorkLimitError
 from ..feed import FeedLimit
 from ..interpolators import DEFAULT_INTERPOLATOR, Interpolator, make_interpolator
 from ..machine import Machine
@@ -50,6 +50,10 @@ HOLD_TIME = 0.3
 """Default time a run on a true plant with any effect of the machine as it is
 (:mod:`nurbsmotion.plant`) goes on after it has settled, so that what happens at rest
 (hunting, a limit cycle, a stuck axis) is seen [s]; 0 on an ideal plant."""
+
+MAX_HOLD_SAMPLES = 2 ** 53
+"""Most samples a run may hold after it settles (the loop counts samples in int64, and a
+float holds every integer up to it); commands refuse far less, by ``--max-samples``."""
 
 __all__ = ["Trace", "RunOutcome", "SetpointSeries", "simulate", "simulate_streamed",
            "background_sink", "interpolate", "run", "run_streamed", "to_pulses",
@@ -308,7 +312,12 @@ def hold_samples_of(plant: ServoPlant, hold: float | None) -> int:
     if isinstance(hold, bool) or not (isinstance(hold, (int, float)) and math.isfinite(hold)
                                       and hold >= 0):
         raise InvalidArgumentError(f"hold must be a finite number >= 0 [s], got {hold!r}")
-    return int(round(hold / plant.sample_period))
+    samples = hold / plant.sample_period
+    if samples > MAX_HOLD_SAMPLES:  # beyond the loop's int64 counters
+        raise WorkLimitError(f"hold {hold:g} s is {samples:.3g} samples at Ts = "
+                             f"{plant.sample_period:g} s, more than any run "
+                             f"({MAX_HOLD_SAMPLES:.3g})")
+    return int(round(samples))
 
 
 def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=SETTLE_TIME,

@@ -93,6 +93,9 @@ class Contour:
     units_source : str or None
         Where ``curve.units`` came from: ``"G21 on line 3"``, ``"the DXF header
         ($INSUNITS)"``, ``"the file's units field"``, ``"--units"``, ``"assumed: ..."``.
+    joined : ChordJoin or None
+        Where the contour's chord runs were joined into smooth curves for a run
+        (:func:`nurbsmotion.run_input.load_run_contour`), what was joined; else None.
     """
 
     curve: NurbsCurve
@@ -100,6 +103,7 @@ class Contour:
     source: str
     axes: str | None = None
     units_source: str | None = None
+    joined: "ChordJoin | None" = None
 
 
 _REQUIRED = ("degree", "knots", "control_points")

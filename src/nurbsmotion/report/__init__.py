@@ -65,6 +65,7 @@ _SUMMARY_UNITS = {
     "length_unit": "name", "limited_samples": "samples", "cornered_samples": "samples",
     "success": "true or false", "message": "text", "plant": "name or file",
     "corner_tolerance": "pulse", "path_tolerance": "pulse", "feed_used": "text",
+    "chords_joined": "chords", "chord_runs": "curves",
     "settle_time_s": "s",
     "settled": "true or false", "settle_window": "pulse", "end_overshoot": "pulse",
     "corner_overshoot": "pulse", "move_and_settle_ratio": "1 (settle time / bound)",

@@ -12,12 +12,15 @@ F : commanded feed [pulse/s]; scale : pulses (or target units) per path unit.
 
 from __future__ import annotations
 
+import dataclasses
+
 from ..errors import InvalidArgumentError, InvalidFeedError
 from ..feed import FeedLimit
 from ..machine import Machine
 from .. import units
+from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
 
-__all__ = ["path_axes", "load_run_contour", "programmed_feed", "run_feed"]
+__all__ = ["path_axes", "load_run_contour", "join_run_chords", "programmed_feed", "run_feed"]
 
 
 def path_axes(machine: Machine | None) -> str:
@@ -29,17 +32,30 @@ def path_axes(machine: Machine | None) -> str:
 
 
 def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | None = None,
-                     project: str | None = None):
+                     project: str | None = None, path_tolerance=None):
     """The path ``spec`` names (a built-in name or a file, ``FILE#k`` for a contour) with
     its programmed feed, read on ``machine``'s axes (:func:`path_axes`).
 
     ``project`` (``--project``), if given, must name those axes: a G-code file's moves are
     then read as their projection on them instead of refused where they change other axes.
 
+    With a machine, every run of short chords (CAM output) is joined into one smooth curve
+    within ``path_tolerance`` of the chords (:func:`nurbsmotion.chords.join_chords`); real
+    corners stay. This is where a path file enters a run, so ``run``, ``bound`` and
+    ``bound --sampled`` plan the same path.
+
+    Parameters
+    ----------
+    path_tolerance : str or float, optional
+        ``--path-tolerance`` as given: a length (``"2um"``) or a bare number of pulses;
+        default :data:`nurbsmotion.motion_plan.DEFAULT_PATH_TOLERANCE` (one
+        pulse); 0 joins nothing.
+
     Returns
     -------
     Contour
-        :class:`nurbsmotion.paths.Contour`.
+        :class:`nurbsmotion.paths.Contour`; its ``joined`` says what was joined (None
+        without a machine).
 
     Raises
     ------
@@ -61,7 +77,27 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
             f"the path moves the rotary axis {', '.join(rotary)} [deg]; running rotary axes is "
             "not supported yet (a machine has one pulse length, no pulses per degree): list "
             f"the contours with 'nurbsmotion contours {spec}'")
-    return contour
+    if machine is None:
+        return contour
+    return join_run_chords(contour, machine, path_tolerance)
+
+
+def join_run_chords(contour, machine: Machine, path_tolerance=None):
+    """``contour`` with its chord runs joined within ``path_tolerance`` (as
+    :func:`load_run_contour`), its ``joined`` set.
+
+    Raises
+    ------
+    InvalidArgumentError
+        If ``path_tolerance`` is not a length >= 0.
+    """
+    from ..chords import join_chords
+
+    curve = contour.curve
+    tol = DEFAULT_PATH_TOLERANCE if path_tolerance is None else units.length_in_pulses(
+        path_tolerance, curve, machine, "--path-tolerance", bare_unit="pulse")
+    joined = join_chords(curve, tol / machine.pulses_per_unit(curve.units), contour.feed)
+    return dataclasses.replace(contour, curve=joined.curve, feed=joined.feed, joined=joined)
 
 
 def programmed_feed(cap, programmed: FeedLimit | None, scale: float, source: str = "the path"):

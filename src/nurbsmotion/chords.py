@@ -1,0 +1,357 @@
+"""Runs of short chords joined into smooth curves within a path tolerance (CAM programs).
+
+CAM systems write a smooth curve as thousands of short G1 chords (0.01 mm is ordinary).
+Taken literally, every joint of two chords is a corner, and a planner that respects the
+drive limits must nearly stop at each: a few per cent of the feed. LinuxCNC follows such
+programs with ``G64 P<tol>``, blending within ``tol`` of the programmed chords.
+:func:`join_chords` does it as a geometry operation: every run of chords whose joints turn
+by small angles is replaced by one smooth cubic B-spline within the tolerance of the
+chords; real corners stay corners, and every other piece (arcs, splines, long lines) is
+kept as it is.
+
+Which joints are chord joints
+-----------------------------
+Two consecutive line pieces of lengths a and b, turning by theta at their joint. The
+circular arc tangent to both at a distance ``l = min(a, b) / 2`` from the joint (at the
+shorter one's midpoint) passes ``l tan(theta / 4)`` from the joint: where that is within the
+tolerance e, a smooth curve through that joint is within e of the chords, so the joint is a
+chord joint (for chords of length L that a CAM system wrote within e of a curve of radius
+R, theta = L / R and ``l tan(theta / 4)`` is about ``L^2 / (8 R)``, the chord's own sag).
+A turn of a right angle or more is always a corner, whatever the chords' lengths; so is a
+joint where the programmed feed changes. A run is a maximal sequence of at least two line
+pieces joined by chord joints.
+
+Fit
+---
+A cubic least-squares B-spline in the chords' arc length s (``scipy.interpolate.
+make_lsq_spline``) of points on the chords (each chord's start and at least three more, a
+quarter of the median chord apart), with knots at every :data:`START_SPAN_CHORDS`-th
+vertex; its end control points are then set to the run's end points, so the path stays
+continuous with its neighbours. Its distance from the chords is bounded by that of the point
+of equal arc length: ``e(s) = C(s) - P(s)``, with P the chords at s. Between two
+consecutive points (the knots are among them) P is linear, so ``|e|`` is at most its
+larger end value plus ``delta^2 / 8`` times the larger ``|C''|`` at the two ends (``C''``
+is linear on a knot span). Where that bound exceeds the tolerance, the knot spans there are
+halved (a knot at their middle vertex) and the spline fitted again. Where a span of one
+chord still exceeds it, the run is split at that chord's start, which becomes a corner, and
+each part fitted again (a part of one chord stays a chord). The bound holds both ways:
+every point of the curve is within e of a chord point, and every chord point within e of
+the curve.
+
+Glossary
+--------
+e : tolerance [path units]; s : arc length along a run's chords [path units];
+P(s) : the chords at s; C(s) : the fitted spline; theta : turn at a joint [rad].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InvalidArgumentError
+from .feed import FeedLimit
+from .joining import join_with_edges
+from .nurbs import NurbsCurve
+
+__all__ = ["ChordJoin", "join_chords", "START_SPAN_CHORDS", "MAX_TURN", "CHECKS_PER_CHORD"]
+
+MAX_TURN = 0.5 * np.pi
+"""A joint turning by this much or more [rad] is a corner, however short its chords."""
+
+START_SPAN_CHORDS = 32
+"""Chords per knot span of a run's first fit; spans are halved where the fit leaves the
+chords by more than the tolerance, so this sets how much of the chords' rounding noise the
+spline may average away where the tolerance allows, not how close it stays."""
+
+CHECKS_PER_CHORD = 256
+"""Most points a chord is sampled at for the fit and its check (a long chord among short
+ones): beyond it the points are farther apart, which only makes the bound looser."""
+
+_MAX_REFINEMENTS = 40
+"""Rounds of halving a run's knot spans in vertices (each halves every span where the fit
+leaves the chords: 2^40 chords, never the limit)."""
+
+
+@dataclass(frozen=True)
+class ChordJoin:
+    """A path with its chord runs joined (:func:`join_chords`).
+
+    Attributes
+    ----------
+    curve : NurbsCurve
+        The path [its units]; the input itself where nothing was joined.
+    feed : FeedLimit or None
+        The programmed feed along the new curve's parameter [path units / s].
+    tolerance : float
+        The tolerance the runs were fitted within [path units].
+    chords_joined : int
+        Chords replaced by smooth curves.
+    runs : int
+        Smooth curves they became.
+    max_deviation : float
+        The largest bound of the distance between a fitted curve and its chords
+        [path units], at most ``tolerance``; 0 where nothing was joined.
+    """
+
+    curve: NurbsCurve
+    feed: FeedLimit | None
+    tolerance: float
+    chords_joined: int = 0
+    runs: int = 0
+    max_deviation: float = 0.0
+
+    def describe(self, unit: str | None = None, per_unit: float = 1.0) -> str:
+        """One sentence for a console: ``"99,999 chords joined into 1 smooth curve within
+        0.001 mm"``; the tolerance is shown in ``unit`` (``per_unit`` of them per path
+        unit) where given."""
+        tol = (f"{self.tolerance * per_unit:.4g} {unit}" if unit
+               else f"{self.tolerance:.4g} {self.curve.units or 'path units'}")
+        if not self.chords_joined:
+            return f"no chords joined (tolerance {tol})"
+        return (f"{self.chords_joined:,} chords joined into {self.runs:,} smooth "
+                f"curve{'s' if self.runs != 1 else ''} within {tol}")
+
+
+def join_chords(curve: NurbsCurve, tolerance: float, feed: FeedLimit | None = None) -> ChordJoin:
+    """``curve`` with each run of short chords replaced by a smooth cubic B-spline within
+    ``tolerance`` of them (see the module docstring).
+
+    Parameters
+    ----------
+    curve : NurbsCurve
+        A path whose pieces (between knots of full multiplicity) may be straight lines
+        [path units], e.g. a G-code program or a polyline joined into one curve.
+    tolerance : float
+        Largest distance of a fitted curve from the chords it replaces [path units],
+        ``>= 0``; 0 joins nothing.
+    feed : FeedLimit, optional
+        The programmed feed along ``curve`` [path units / s]: a joint where it changes
+        is kept as a corner, and the result carries it along the new curve.
+
+    Returns
+    -------
+    ChordJoin
+
+    Raises
+    ------
+    InvalidArgumentError
+        If ``tolerance`` is negative or not finite.
+    """
+    e = float(tolerance)
+    if not (np.isfinite(e) and e >= 0):
+        raise InvalidArgumentError(f"the chord tolerance must be finite and >= 0, got {tolerance!r}")
+    bounds, first = _pieces(curve)            # piece k: u in bounds[k:k+2], points first[k:k+2]
+    P = curve.control_points
+    if e == 0 or bounds.size < 3:
+        return ChordJoin(curve, feed, e)
+    line = _is_line(P, first)
+    speed = _piece_speeds(feed, bounds)
+    ends = P[first]
+    d = np.diff(ends, axis=0)
+    length = np.linalg.norm(d, axis=1)
+    joint = _chord_joints(d, length, line, speed, e)
+    runs = _runs(joint)
+    if not runs:
+        return ChordJoin(curve, feed, e)
+    segments, parts, joined, fitted, worst = [], [], 0, 0, 0.0
+    start = 0                                  # first piece not yet in a segment
+    for k0, k1 in runs:                        # pieces k0 .. k1 - 1 form the run
+        for a, b, spline, dev in _fit_run(ends[k0:k1 + 1], e, k0):
+            if spline is None:
+                continue                       # chords kept: left in the block around them
+            if a > start:
+                segments.append(_sub_curve(curve, bounds, first, start, a))
+                parts.append((start, a))
+            segments.append(spline)
+            parts.append((a, b))
+            joined += b - a
+            fitted += 1
+            worst = max(worst, dev)
+            start = b
+    if not fitted:
+        return ChordJoin(curve, feed, e)
+    if start < bounds.size - 1:
+        segments.append(_sub_curve(curve, bounds, first, start, bounds.size - 1))
+        parts.append((start, bounds.size - 1))
+    new, edges = join_with_edges(segments, name=curve.name, units=curve.units)
+    new_feed = None if feed is None else _mapped_feed(feed, bounds, parts, edges)
+    return ChordJoin(new, new_feed, e, joined, fitted, worst)
+
+
+def _pieces(curve: NurbsCurve):
+    """The curve's pieces between its C0 joints (interior knots of multiplicity p):
+    their parameter bounds, shape (n_pieces + 1,), and the index of the control point at
+    each bound (the curve passes through it there)."""
+    t, p = curve.knots, curve.degree
+    values, counts = np.unique(t, return_counts=True)
+    joints = values[1:-1][counts[1:-1] >= p]
+    bounds = np.concatenate([[0.0], joints, [1.0]])
+    first = np.searchsorted(t, joints, side="left") - 1
+    first = np.concatenate([[0], first, [curve.n_control_points - 1]]).astype(np.intp)
+    return bounds, first
+
+
+def _is_line(P: np.ndarray, first: np.ndarray) -> np.ndarray:
+    """Whether each piece is a straight line traversed forward: all its control points on
+    the segment between its end points (to 1e-12 of the path's size), in order, so that
+    the curve (within their convex hull, variation diminishing) runs along it."""
+    size = float(np.max(np.ptp(P, axis=0))) or 1.0
+    A, B = P[first[:-1]], P[first[1:]]
+    d = B - A
+    L = np.linalg.norm(d, axis=1)
+    line = L > 1e-12 * size
+    if np.all(np.diff(first) == 1):            # degree 1: every piece is its chord
+        return line
+    piece = np.repeat(np.arange(first.size - 1), np.diff(first))   # of points first[k] ..
+    idx = np.arange(first[0], first[-1])
+    u = np.where(line, L, 1.0)
+    tangent = d / u[:, None]
+    rel = P[idx] - A[piece]
+    along = np.einsum("ij,ij->i", rel, tangent[piece])
+    off = np.linalg.norm(rel - along[:, None] * tangent[piece], axis=1)
+    ok = off <= 1e-12 * size
+    # in order: along rises (weakly) through each piece's points and its end
+    nxt = np.concatenate([along[1:], [0.0]])
+    last = np.zeros(idx.size, dtype=bool)
+    last[np.cumsum(np.diff(first)) - 1] = True
+    nxt[last] = L[piece[last]]
+    ok &= nxt >= along - 1e-12 * size
+    bad = np.zeros(first.size - 1, dtype=bool)
+    np.logical_or.at(bad, piece, ~ok)
+    return line & ~bad
+
+
+def _piece_speeds(feed: FeedLimit | None, bounds: np.ndarray) -> np.ndarray:
+    """The lowest programmed feed on each piece (all equal without a feed)."""
+    n = bounds.size - 1
+    if feed is None:
+        return np.ones(n)
+    bp, v = feed.breakpoints, feed.speeds
+    lo = np.clip(np.searchsorted(bp, bounds[:-1], side="right") - 1, 0, v.size - 1)
+    hi = np.clip(np.searchsorted(bp, bounds[1:], side="left") - 1, 0, v.size - 1)
+    out = v[lo].copy()
+    for k in np.flatnonzero(hi > lo):           # a feed change inside a piece
+        out[k] = v[lo[k]:hi[k] + 1].min()
+    return out
+
+
+def _chord_joints(d, length, line, speed, e) -> np.ndarray:
+    """For each joint of pieces k and k + 1, whether it is a chord joint (module
+    docstring)."""
+    a, b = length[:-1], length[1:]
+    safe = np.maximum(a * b, np.finfo(float).tiny)
+    cos = np.clip(np.einsum("ij,ij->i", d[:-1], d[1:]) / safe, -1.0, 1.0)
+    theta = np.arccos(cos)
+    sag = 0.5 * np.minimum(a, b) * np.tan(0.25 * theta)
+    return (line[:-1] & line[1:] & (speed[:-1] == speed[1:]) & (theta < MAX_TURN)
+            & (sag <= e))
+
+
+def _runs(joint: np.ndarray) -> list[tuple[int, int]]:
+    """Maximal runs of pieces ``k0 .. k1 - 1`` linked by chord joints, as (k0, k1)."""
+    j = np.concatenate([[False], joint, [False]]).astype(np.int8)
+    edge = np.diff(j)
+    starts, stops = np.flatnonzero(edge == 1), np.flatnonzero(edge == -1)
+    return [(int(a), int(b) + 1) for a, b in zip(starts, stops)]
+
+
+def _fit_run(V: np.ndarray, e: float, offset: int):
+    """Fit the chords through vertices ``V`` (shape (m + 1, n_axes)); yield (first piece,
+    end piece, NurbsCurve or None for chords kept, deviation bound), splitting at the
+    worst vertex where one spline cannot stay within ``e``."""
+    stack = [(0, V.shape[0] - 1)]
+    out = []
+    while stack:
+        i, j = stack.pop()
+        if j - i < 2:
+            out.append((offset + i, offset + j, None, 0.0))
+            continue
+        spline, dev, worst = _fit(V[i:j + 1], e)
+        if spline is not None:
+            out.append((offset + i, offset + j, spline, dev))
+            continue
+        k = i + int(np.clip(worst, 1, j - i - 1))
+        stack.append((k, j))
+        stack.append((i, k))
+    out.sort(key=lambda r: r[0])
+    return out
+
+
+def _fit(V: np.ndarray, e: float):
+    """One cubic spline within ``e`` of the chords through ``V``: (NurbsCurve, its
+    deviation bound, None), or (None, None, the vertex where it fails) when no spline
+    with knots at the vertices does (module docstring)."""
+    from scipy.interpolate import make_lsq_spline
+
+    c = np.linalg.norm(np.diff(V, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(c)])
+    L, m = s[-1], c.size
+    # points of each chord: its start and at least 3 more, no farther apart than a quarter
+    # of the median chord (up to CHECKS_PER_CHORD: fewer only loosen the bound)
+    q = np.clip(np.ceil(4.0 * c / np.median(c)), 4, CHECKS_PER_CHORD).astype(np.intp)
+    owner = np.repeat(np.arange(m), q)
+    frac = (np.arange(owner.size) - np.repeat(np.cumsum(q) - q, q)) / q[owner]
+    x = np.append(s[owner] + frac * c[owner], L)          # rising: vertices included
+    D = _polyline(s, V, x)
+    vertex = np.arange(0, m + 1, START_SPAN_CHORDS)
+    inner = np.unique(np.append(vertex, m))[1:-1]         # knots at these vertices
+    worst = m // 2
+    for _ in range(_MAX_REFINEMENTS):
+        t = np.concatenate([[0.0] * 4, s[inner], [L] * 4])
+        try:
+            spl = make_lsq_spline(x, D, t, k=3)
+        except (ValueError, np.linalg.LinAlgError):
+            break
+        coef = np.array(spl.c)
+        coef[0], coef[-1] = V[0], V[-1]                   # the run's ends, exactly
+        spl.c = coef
+        err = np.linalg.norm(spl(x) - D, axis=1)
+        curv = np.linalg.norm(spl(x, 2), axis=1)
+        if not (np.all(np.isfinite(err)) and np.all(np.isfinite(curv))):
+            break
+        delta = np.diff(x)
+        bound = np.maximum(err[:-1], err[1:]) + delta ** 2 / 8.0 * np.maximum(curv[:-1],
+                                                                             curv[1:])
+        over = bound > e
+        if not np.any(over):
+            return NurbsCurve(3, t / L, coef, np.ones(coef.shape[0])), float(np.max(bound)), None
+        worst = int(owner[int(np.argmax(bound))])           # its chord's start vertex
+        knots = np.concatenate([[0], inner, [m]])             # as vertex indices
+        span = np.unique(np.searchsorted(knots, owner[over], side="right") - 1)
+        span = span[knots[span + 1] - knots[span] > 1]       # spans of one chord: no knot
+        if span.size == 0:
+            break
+        inner = np.union1d(inner, (knots[span] + knots[span + 1]) // 2)
+    return None, None, worst
+
+
+def _polyline(s: np.ndarray, V: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The chords through ``V`` at arc lengths ``x``, shape (len(x), n_axes)."""
+    return np.column_stack([np.interp(x, s, V[:, j]) for j in range(V.shape[1])])
+
+
+def _sub_curve(curve: NurbsCurve, bounds, first, k0: int, k1: int) -> NurbsCurve:
+    """Pieces ``k0 .. k1 - 1`` of ``curve`` as a curve of their own (same degree, its
+    parameter a linear map of the original's)."""
+    p, t = curve.degree, curve.knots
+    a, b = int(first[k0]), int(first[k1])
+    knots = np.array(t[a:b + p + 2])
+    knots[0], knots[-1] = bounds[k0], bounds[k1]
+    return NurbsCurve(p, knots, curve.control_points[a:b + 1], curve.weights[a:b + 1],
+                      units=curve.units)
+
+
+def _mapped_feed(feed: FeedLimit, bounds, parts, edges) -> FeedLimit:
+    """``feed`` along the joined curve: each part's old parameter range maps linearly onto
+    its new one (exact for kept pieces; a fitted run has one feed, joints where it changes
+    being corners)."""
+    old = np.array([bounds[parts[0][0]]] + [bounds[b] for _, b in parts])
+    bp = np.interp(feed.breakpoints, old, edges)
+    bp[0], bp[-1] = 0.0, 1.0
+    keep = np.concatenate([[True], np.diff(bp) > 0])
+    v = feed.speeds[keep[1:]]
+    bp = bp[keep]
+    same = np.concatenate([[False], v[1:] == v[:-1]])      # merge equal neighbours
+    return FeedLimit(np.concatenate([bp[:-1][~same], [1.0]]), v[~same])
