@@ -25,6 +25,15 @@ piece) no sampled motion comes near it (``nurbsmotion bound --sampled``).
 Run: python benchmarks/file_sweep.py (``FILE_SWEEP_DRAWS=n``: each contour on n machines,
 the first one always the same; ``FILE_SWEEP_FILES=corpus|linuxcnc_tp|all``: which files,
 LinuxCNC's trajectory-planner test programs being ``corpus/linuxcnc_tp``)
+
+The commands as a user types them (``FILE_SWEEP_MODE=commands``, issue 36): every file
+through ``nurbsmotion contours FILE`` with no flag, then ``bound FILE#1`` (and, with
+``FILE_SWEEP_RUN=1``, ``run FILE#1 --no-figures --no-trace``) on a machine with the axes the
+file moves (``die-bonder`` for XY, ``examples/gantry3.toml`` for XYZ,
+``examples/gantry4a.toml`` for XYZA, else the die-bonder's X axis under each name, a
+rotary one with 1,000 pulses per degree), at the file's own F words (``--feed 50mm/s``
+where it has none). Tabulated per file: listed, bound or ran, or the one-line refusal;
+the table goes to ``benchmarks/file_sweep_commands.md``.
 """
 
 from __future__ import annotations
@@ -182,6 +191,138 @@ def report(rows: list[dict]) -> None:
               f"{r['contour_um']:.3g} um (eps {r['eps_um']:g} um)")
 
 
+MACHINES = {"XY": None, "XYZ": _common.ROOT / "examples" / "gantry3.toml",
+            "XYZA": _common.ROOT / "examples" / "gantry4a.toml"}
+"""The machine each file's axes run on in the commands sweep (None: the default)."""
+
+COMMANDS_TABLE = Path(__file__).resolve().parent / "file_sweep_commands.md"
+
+
+def _machine_for(axes: str, folder: Path) -> Path | None:
+    """A machine file with one axis per letter of ``axes`` (see the module docstring)."""
+    if axes in MACHINES:
+        return MACHINES[axes]
+    from nurbsmotion.machine import die_bonder
+
+    data = die_bonder().to_dict()
+    x = data["axes"][0]
+    data["name"] = f"sweep-{axes.lower()}"
+    data["axes"] = [dict(x, name=a.lower(), **({"pulses_per_degree": 1000.0} if a in "ABC" else {}))
+                    for a in axes]
+    path = folder / f"{axes.lower()}.json"
+    import json
+
+    path.write_text(json.dumps(data))
+    return path
+
+
+def _command(argv: list) -> tuple[int, str, str]:
+    """``nurbsmotion ARGV`` in this process: exit code, stdout, stderr."""
+    import contextlib
+    import io
+
+    from nurbsmotion.cli import main as cli
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = cli([str(a) for a in argv])
+        except SystemExit as exc:  # argparse
+            code = exc.code if isinstance(exc.code, int) else 2
+    return code, out.getvalue(), err.getvalue()
+
+
+def _reason(err: str) -> str:
+    lines = [ln for ln in err.strip().splitlines() if ln.strip() and "Warning" not in ln]
+    text = lines[-1] if lines else "no message"
+    return text.replace(f"{_common.ROOT}/", "").replace("|", "/")[:240]
+
+
+def one_file_commands(file: Path) -> dict:
+    """``contours`` then ``bound`` (and ``run``) of contour 1 of one file."""
+    import re
+    import signal
+    import tempfile
+
+    warnings.simplefilter("ignore")
+    signal.signal(signal.SIGALRM, _alarm)
+    row = dict(file=file.relative_to(CORPUS).as_posix(), listed="", axes="", contours=0,
+               bound="", ran="", reason="")
+    t0 = time.process_time()
+    code, out, err = _command(["contours", file])
+    if code != 0:
+        row.update(listed="refused", reason=_reason(err))
+        return row
+    match = re.search(r"^axes: ([A-Z]+)", out, flags=re.MULTILINE)
+    row.update(listed="yes", axes=match.group(1) if match else "XY",
+               contours=int(re.search(r": (\d+) contour", out).group(1)))
+    programmed = "| none |" not in out.splitlines()[4] if len(out.splitlines()) > 4 else False
+    with tempfile.TemporaryDirectory() as tmp:
+        machine = _machine_for(row["axes"], Path(tmp))
+        common = [f"{file}#1"] + (["--machine", machine] if machine else []) \
+            + ([] if programmed else ["--feed", "50mm/s"])
+        for command, key, extra in (("bound", "bound", []),
+                                    ("run", "ran", ["--no-figures", "--no-trace", "--out",
+                                                    Path(tmp) / "out", "--quiet"])):
+            if command == "run" and not (RUN and row["bound"] == "yes"):
+                continue
+            signal.alarm(CASE_SECONDS)
+            started = time.perf_counter()
+            try:
+                code, out, err = _command([command] + common + extra)
+            except _TimedOut:
+                code, err = 1, f"still running after {CASE_SECONDS} s"
+            except Exception:  # noqa: BLE001 - a crash is what the sweep is for
+                code, err = 1, "CRASH " + traceback.format_exc(limit=2).strip().splitlines()[-1]
+            finally:
+                signal.alarm(0)
+            row[key] = "yes" if code == 0 else "refused"
+            if code != 0 and time.perf_counter() - started >= CASE_SECONDS:
+                # the alarm stopped the command (which reports an interruption): not a refusal
+                row[key], err = "timed out", f"still running after {CASE_SECONDS} s (CASE_SECONDS)"
+            if code != 0:
+                row["reason"] = f"{command}: {_reason(err)}"
+                break
+    row["cpu_s"] = time.process_time() - t0
+    return row
+
+
+RUN = os.environ.get("FILE_SWEEP_RUN", "0") == "1"
+
+
+def commands_main() -> None:
+    from multiprocessing import Pool
+
+    folders = {"corpus": [CORPUS], "linuxcnc_tp": [CORPUS / "linuxcnc_tp"],
+               "all": [CORPUS, CORPUS / "linuxcnc_tp"]}[FILES]
+    files = sorted(f for folder in folders for f in folder.iterdir()
+                   if f.is_file() and f.suffix.lower() != ".md")
+    t0 = time.perf_counter()
+    with Pool(int(os.environ.get("FILE_SWEEP_PROCESSES", "2"))) as pool:
+        rows = pool.map(one_file_commands, files, chunksize=1)
+    listed = sum(r["listed"] == "yes" for r in rows)
+    bound = sum(r["bound"] == "yes" for r in rows)
+    ran = sum(r["ran"] == "yes" for r in rows)
+    timed_out = sum("timed out" in (r["bound"], r["ran"]) for r in rows)
+    lines = [
+        "# The file sweep as a user types the commands (benchmarks/file_sweep.py, "
+        "FILE_SWEEP_MODE=commands)", "",
+        f"Files: {len(rows)} (`tests/data/corpus`, its `linuxcnc_tp` folder: LinuxCNC's "
+        f"trajectory-planner test programs); listed by `contours` with no flag: {listed}; "
+        f"`bound` of contour 1 on a machine with the file's axes: {bound}"
+        + (f"; `run` of contour 1: {ran}" if RUN else " (`run` not asked: FILE_SWEEP_RUN=1)")
+        + f"; stopped at the sweep's {CASE_SECONDS} s limit: {timed_out}"
+        + f". CPU time {sum(r.get('cpu_s', 0.0) for r in rows):.0f} s.", "",
+        "| file | listed | axes | contours | bound | run | refusal |",
+        "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['file']} | {r['listed']} | {r['axes']} | {r['contours'] or ''} | "
+                     f"{r['bound']} | {r['ran']} | {r['reason']} |")
+    COMMANDS_TABLE.write_text("\n".join(lines) + "\n")
+    print("\n".join(lines[:3]))
+    print(f"{len(rows)} files in {time.perf_counter() - t0:.0f} s -> {COMMANDS_TABLE}")
+
+
 def main():
     from multiprocessing import Pool
 
@@ -193,4 +334,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    commands_main() if os.environ.get("FILE_SWEEP_MODE") == "commands" else main()

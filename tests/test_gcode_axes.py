@@ -113,9 +113,9 @@ def test_corpus_files_list_without_flags(path, capsys):
     assert (code == 0) == (path.name not in NOT_LISTED), capsys.readouterr().err
 
 
-def test_a_rotary_path_is_refused_on_a_machine_that_has_the_axis(tmp_path, capsys):
+def test_a_rotary_path_is_refused_on_a_machine_without_pulses_per_degree(tmp_path, capsys):
     """Degrees would be scaled by the pulse length as if they were lengths: refused,
-    naming the axis, until machines have pulses per degree."""
+    naming the axis and the machine-file key that runs it (tests/test_rotary_axes.py)."""
     import json
 
     from nurbsmotion.machine import die_bonder
@@ -128,5 +128,20 @@ def test_a_rotary_path_is_refused_on_a_machine_that_has_the_axis(tmp_path, capsy
     path = tmp_path / "rot.ngc"
     path.write_text(ROTARY)
     assert main(["bound", str(path), "--machine", str(machine), "--feed", "10mm/s"]) != 0
-    assert "the path moves the rotary axis C [deg]; running rotary axes is not supported yet" in \
-        capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "the path moves the rotary axis C [deg], but machine 'die-bonder' gives no " \
+        "pulses_per_degree for it" in err
+
+
+@pytest.mark.parametrize("bulk", [True, False])
+def test_a_move_shorter_than_linuxcncs_epsilon_is_dropped(tmp_path, bulk):
+    """LinuxCNC's planner drops a segment under TP_POS_EPSILON = 1e-12 (tp.c,
+    TP_ERR_ZERO_LENGTH); cone.ngc's 100*sin[-180] = -1.2e-14 mm made a piece with no
+    direction, whose bound was an infinite time. Read in bulk (plain lines) and line by
+    line (an expression on each line), the same."""
+    y = "-0.0000000000000122" if bulk else "[100 * SIN[-180]]"
+    program, _ = load(tmp_path, f"G21 G90 F600\nG0 X0 Y0\nG1 X10\nG1 X10 Y{y}\nG1 Y10\nM2\n",
+                      axes="xy")
+    contour = program.contours[0]
+    assert len(contour.programmed_feed) == 2 and contour.lines == (3, 5)
+    np.testing.assert_allclose(contour.curve(np.array([0.0, 1.0])), [[0, 0], [10, 10]], atol=1e-12)

@@ -34,7 +34,7 @@ from .servo import ServoPlant, zoh_matrices
 MAX_MACHINE_FILE_BYTES = 1_000_000
 """Largest machine file read [byte] (a machine of 6 axes takes about 1 kB)."""
 
-__all__ = ["Axis", "Disturbance", "Machine", "CONTROLLERS", "ENCODERS", "ENCODER_MASSES",
+__all__ = ["Axis", "Disturbance", "Machine", "CONTROLLERS", "ENCODERS", "ENCODER_MASSES", "ROTARY_AXIS_NAMES",
            "SPEED_MEASUREMENTS", "LENGTH_UNITS_UM", "die_bonder", "die_bonder_real",
            "builtin_machine", "BUILTIN_MACHINES", "load_machine"]
 
@@ -55,6 +55,10 @@ MAX_DELAY_SAMPLES = 1000
 AXIS_EFFECT_KEYS = ("coulomb_friction", "stiction", "disturbance", "resonance_frequency",
                     "resonance_damping", "load_fraction", "encoder_on")
 """Optional per-axis keys of the machine as it is (issue 32)."""
+
+ROTARY_AXIS_NAMES = ("a", "b", "c")
+"""Axis names of rotary axes (G-code's A, B, C, in degrees): such an axis may carry
+``pulses_per_degree`` and a path that moves it runs on it in degrees (issue 36)."""
 
 MACHINE_EFFECT_KEYS = ("encoder", "measurement_noise", "seed", "delay", "dac_bits")
 """Optional machine-level keys of the machine as it is (issue 32)."""
@@ -156,6 +160,11 @@ class Axis:
         The load's share of the axis's inertia, in (0, 1) (two-mass axes).
     encoder_on : {"motor", "load"}
         Which mass the encoder reads (two-mass axes; the tool is the load).
+    pulses_per_degree : float, optional
+        Encoder pulses per degree of a rotary axis [pulse/deg], > 0; only on an axis named
+        ``a``, ``b`` or ``c`` (:data:`ROTARY_AXIS_NAMES`). A path's rotary coordinate
+        [deg] runs on the axis at this scale, its linear ones at ``pulse_length_um``.
+        None: the axis is linear (or a rotary axis no path moves).
     """
 
     name: str
@@ -172,6 +181,7 @@ class Axis:
     resonance_damping: float = 0.0
     load_fraction: float = 0.5
     encoder_on: str = "motor"
+    pulses_per_degree: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.isidentifier():
@@ -204,6 +214,13 @@ class Axis:
                     f"{self.resonance_frequency:g} Hz mode with tau = "
                     f"{self.time_constant:g} s (the axis's own viscous damping is part "
                     f"of it), got {self.resonance_damping!r}")
+        if self.pulses_per_degree is not None:
+            if self.name.lower() not in ROTARY_AXIS_NAMES:
+                raise InvalidMachineError(
+                    f"{where}pulses_per_degree is for a rotary axis, named a, b or c (as "
+                    f"G-code names them), not {self.name!r}")
+            object.__setattr__(self, "pulses_per_degree",
+                               _positive(self.pulses_per_degree, where + "pulses_per_degree"))
         steps = self.disturbance
         if isinstance(steps, (Disturbance, dict)) or not isinstance(steps, (tuple, list)):
             raise InvalidMachineError(
@@ -531,6 +548,19 @@ class Machine:
             )
         return LENGTH_UNITS_UM[units] / self.pulse_length_um
 
+    def pulses_per_axis_unit(self, units: str | None) -> np.ndarray:
+        """Pulses per unit of each axis, shape (n_axes,): ``pulses_per_degree`` [pulse/deg]
+        for a rotary axis that has it, :meth:`pulses_per_unit` of the path's ``units``
+        for the others."""
+        per_unit = self.pulses_per_unit(units)
+        return np.array([per_unit if a.pulses_per_degree is None else a.pulses_per_degree
+                         for a in self.axes])
+
+    @property
+    def rotary_axes(self) -> tuple[str, ...]:
+        """Names of the axes that have ``pulses_per_degree`` (run in degrees)."""
+        return tuple(a.name for a in self.axes if a.pulses_per_degree is not None)
+
     def check_path(self, n_axes: int) -> None:
         """Raise :class:`InvalidMachineError` unless the path has one column per axis."""
         if n_axes != self.n_axes:
@@ -579,12 +609,12 @@ class Machine:
         axes = []
         for i, entry in enumerate(data["axes"]):
             if (not isinstance(entry, dict) or not axis_fields <= set(entry)
-                    or set(entry) - axis_fields - set(AXIS_EFFECT_KEYS)):
+                    or set(entry) - axis_fields - set(AXIS_EFFECT_KEYS) - {"pulses_per_degree"}):
                 got = sorted(entry) if isinstance(entry, dict) else entry
                 raise PathFileError(
                     f"axes[{i}] must have exactly the fields {sorted(axis_fields)} "
                     f"(controller {data.get('controller', 'pd+')!r}), and optionally "
-                    f"{list(AXIS_EFFECT_KEYS)}, got {got}",
+                    f"{list(AXIS_EFFECT_KEYS)} and pulses_per_degree (a rotary axis), got {got}",
                     source,
                 )
             try:
@@ -617,6 +647,8 @@ def _axis_dict(axis: Axis, controller: str) -> dict:
         out["pid"] = axis.pid.to_dict()
     else:
         out["position_gain"], out["speed_gain"] = axis.position_gain, axis.speed_gain
+    if axis.pulses_per_degree is not None:
+        out["pulses_per_degree"] = axis.pulses_per_degree
     for k in AXIS_EFFECT_KEYS:  # only those set: an ideal machine's file is unchanged
         value = getattr(axis, k)
         if value != _AXIS_DEFAULTS[k]:

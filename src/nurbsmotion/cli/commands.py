@@ -65,15 +65,20 @@ def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float 
 
     from ..study.run_input import programmed_feed
 
-    feed = programmed_feed(cap, contour.feed, scale, args.path)  # campaigns' rule too
+    feed = programmed_feed(cap, contour.feed, scale, args.path,  # campaigns' rule too
+                           contour.feed_ratio)
     if contour.feed is None:
         return feed, f"--feed {speed(cap)}"
     limit = contour.feed.scaled(scale)
     span = speed(limit.lowest, limit.highest)
+    rule = ""
+    if contour.feed_ratio is not None:  # a path with rotary axes: LinuxCNC's feed rule
+        rule = (", F the speed of X, Y, Z where they move, else of the rotary axes "
+                "[deg/min] (LinuxCNC's rule)")
     if cap is None:
-        return feed, f"the file's programmed feed ({span})"
+        return feed, f"the file's programmed feed ({span}){rule}"
     return feed, (f"the lower of the file's programmed feed ({span}) and --feed "
-                    f"{speed(cap)} per piece")
+                    f"{speed(cap)} per piece{rule}")
 
 
 def _cmd_contours(args) -> int:
@@ -309,6 +314,9 @@ def _run(args, precompiler) -> int:
             extra["feed_used"] = note
         extra["notes"] = list(notes)
         extra["path_unit"] = curve.units
+        if machine.rotary_axes:  # their trace columns are in degrees
+            extra["rotary_axes"] = {a.name: {"unit": "deg", "pulses_per_degree": a.pulses_per_degree}
+                                    for a in machine.axes if a.pulses_per_degree is not None}
         if contour.units_source:
             extra["path_unit_source"] = contour.units_source
         data = summary(metrics, interpolator=args.interpolator, feed=feed_number,
@@ -468,22 +476,44 @@ def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None
     # Values to a thousandth of a pulse: finer digits are below what the encoder resolves.
     per_mm = machine.pulses_per_unit("mm")
     resolution = EXPORT_PULSE_FRACTION / scale  # [path units]
+    rotary = [j for j, a in enumerate(machine.axes) if a.pulses_per_degree is not None]
+    if rotary:  # a rotary axis in degrees (radians for ROS), its CSV/PVT column named so
+        sp = _rotary_setpoints(sp, trace.position_command[:end], machine, rotary)
     for fmt, file in files.items():
+        out = sp
+        if rotary and fmt in ("halstreamer", "ros", "gcode"):  # written times a length scale:
+            ros = fmt == "ros"  # the rotary columns so that they come out in deg (rad for ROS)
+            position = sp.position.copy()
+            position[:, rotary] *= (math.pi / 180.0 if ros else 1.0) / (
+                scale / per_mm * (1e-3 if ros else 1.0))
+            out = SetpointArrays(sp.t, sp.u, position, sp.feed, machine.axis_names)
         if fmt in ("csv", "npz"):
-            save_setpoints(sp, file, resolution=resolution, overwrite=args.overwrite)
+            save_setpoints(out, file, resolution=resolution, overwrite=args.overwrite)
         elif fmt == "pvt":
-            save_pvt(pvt_table(sp, args.pvt_period), file, resolution=resolution,
+            save_pvt(pvt_table(out, args.pvt_period), file, resolution=resolution,
                      overwrite=args.overwrite)
         elif fmt == "halstreamer":  # LinuxCNC's machine unit: mm
-            save_halstreamer(sp, file, units="mm", scale=scale / per_mm,
+            save_halstreamer(out, file, units="mm", scale=scale / per_mm,
                              resolution=EXPORT_PULSE_FRACTION / per_mm, overwrite=args.overwrite)
         elif fmt == "ros":  # ROS joint values are SI: m
-            save_ros_trajectory(sp, file, period=args.pvt_period, scale=scale / per_mm * 1e-3,
+            save_ros_trajectory(out, file, period=args.pvt_period, scale=scale / per_mm * 1e-3,
                                 resolution=EXPORT_PULSE_FRACTION / per_mm * 1e-3,
                                 overwrite=args.overwrite)
         else:  # G-code is in mm whatever the path's units
-            save_motion_gcode(sp, file, units="mm", overwrite=args.overwrite,
+            save_motion_gcode(out, file, units="mm", overwrite=args.overwrite,
                               scale=scale / machine.pulses_per_unit("mm"))
+
+
+def _rotary_setpoints(sp, pulses, machine: Machine, rotary: list):
+    """``sp`` with each rotary axis's column in degrees (pulses / pulses_per_degree) and,
+    for the CSV and PVT headers, named ``<axis>_deg``."""
+    from .export import SetpointArrays
+
+    position = sp.position.copy()
+    for j in rotary:
+        position[:, j] = pulses[:, j] / machine.axes[j].pulses_per_degree
+    names = tuple(f"{a}_deg" if j in rotary else a for j, a in enumerate(machine.axis_names))
+    return SetpointArrays(sp.t, sp.u, position, sp.feed, names)
 
 
 def _true_plant(plant_machine: Machine, machine: Machine):

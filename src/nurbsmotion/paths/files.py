@@ -96,6 +96,10 @@ class Contour:
     joined : ChordJoin or None
         Where the contour's chord runs were joined into smooth curves for a run
         (:func:`nurbsmotion.run_input.load_run_contour`), what was joined; else None.
+    feed_ratio : ndarray, shape (n_pieces,), or None
+        Per piece of ``feed``, the speed along ``curve`` per unit of F, where they differ:
+        a path whose rotary axes were rescaled to run on a machine
+        (:func:`nurbsmotion.run_input.load_run_contour`, LinuxCNC's feed rule); None: 1.
     """
 
     curve: NurbsCurve
@@ -104,6 +108,7 @@ class Contour:
     axes: str | None = None
     units_source: str | None = None
     joined: "ChordJoin | None" = None
+    feed_ratio: Any = None
 
 
 _REQUIRED = ("degree", "knots", "control_points")

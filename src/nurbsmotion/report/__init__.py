@@ -11,7 +11,8 @@ rename.
   ``a_meas`` for each axis, what the controller read (``a_act`` is the tool's true
   position); then the same lengths in the report unit ``L``
   (:func:`nurbsmotion.units.report_unit`, ``mm`` or ``in``): for each axis
-  ``a_cmd_L,a_act_L`` and ``a_speed_min_L_per_s,a_speed_max_L_per_s``. Row k is sample k:
+  ``a_cmd_L,a_act_L`` and ``a_speed_min_L_per_s,a_speed_max_L_per_s`` (``L`` = ``deg`` for a
+  rotary axis, one with ``pulses_per_degree``). Row k is sample k:
   thd[k], tha[k] measured before u[k] is applied, u[k] before and after clipping [V].
   ``--trace-every N`` keeps one row in N (and the row where the end is reached and the
   last row).

@@ -79,20 +79,24 @@ def _columns(machine, with_bounds: bool, length_unit: str | None,
                  for j, a in enumerate(machine.axis_names)]
     if length_unit is None:
         return cols
-    L, k = length_unit, 1.0 / pulses_per_length_unit
     for j, a in enumerate(machine.axis_names):
-        cols += [_Column(f"{a}_cmd_{L}", lambda b, i, j=j: b.position_command[i, j] * k),
-                 _Column(f"{a}_act_{L}", lambda b, i, j=j: b.position[i, j] * k)]
+        # a rotary axis (pulses_per_degree) in degrees, the others in the path's unit
+        ppd = machine.axes[j].pulses_per_degree
+        L, k = (length_unit, 1.0 / pulses_per_length_unit) if ppd is None else ("deg", 1.0 / ppd)
+        cols += [_Column(f"{a}_cmd_{L}", lambda b, i, j=j, k=k: b.position_command[i, j] * k),
+                 _Column(f"{a}_act_{L}", lambda b, i, j=j, k=k: b.position[i, j] * k)]
         if with_bounds:
             cols += [
                 _Column(f"{a}_speed_min_{L}_per_s",
-                        lambda b, i, j=j: b.speed_bounds[i, j, 0] * Ke[j] * k),
+                        lambda b, i, j=j, k=k: b.speed_bounds[i, j, 0] * Ke[j] * k),
                 _Column(f"{a}_speed_max_{L}_per_s",
-                        lambda b, i, j=j: b.speed_bounds[i, j, 1] * Ke[j] * k),
+                        lambda b, i, j=j, k=k: b.speed_bounds[i, j, 1] * Ke[j] * k),
             ]
     if with_measured:
-        cols += [_Column(f"{a}_meas_{L}", lambda b, i, j=j: b.position_measured[i, j] * k)
-                 for j, a in enumerate(machine.axis_names)]
+        for j, a in enumerate(machine.axis_names):
+            ppd = machine.axes[j].pulses_per_degree
+            L, k = (length_unit, 1.0 / pulses_per_length_unit) if ppd is None else ("deg", 1.0 / ppd)
+            cols.append(_Column(f"{a}_meas_{L}", lambda b, i, j=j, k=k: b.position_measured[i, j] * k))
     return cols
 
 

@@ -5,14 +5,30 @@ functions, so a path in mm, inches or pulses, a G-code program with its F words 
 drawing are read, and their feeds converted to the machine's pulse/s, the same way
 whichever of the two runs them.
 
+Rotary axes
+    A path that moves a rotary axis (G-code A, B, C, in degrees) runs on a machine whose
+    axis of that name gives ``pulses_per_degree`` (:class:`nurbsmotion.machine.Axis`):
+    :func:`load_run_contour` rescales the rotary columns so that one pulse is the same
+    step on every axis (a degree becomes ``pulses_per_degree / pulses per path unit``
+    path units) and the whole run, which has one scale, runs the machine's own pulses.
+    The programmed feed follows LinuxCNC's rule (:data:`FEED_GROUPS`): on each piece F is
+    the speed of the X, Y, Z axes if any of them moves, else of U, V, W, else of the
+    rotary axes [deg/s]; the others start and stop with them. So the feed along the
+    rescaled path is F times the ratio of the piece's length on the rescaled path to its
+    length in the group F applies to (:func:`feed_ratio`), and ``--feed`` caps F the same
+    way. Inverse-time feed (G93) gives the move's duration, which no rescaling changes.
+
 Glossary
 --------
-F : commanded feed [pulse/s]; scale : pulses (or target units) per path unit.
+F : commanded feed [pulse/s]; scale : pulses (or target units) per path unit;
+r : feed ratio, path length per length of the feed's axis group [1].
 """
 
 from __future__ import annotations
 
-import dataclasses
+from dataclasses import replace
+
+import numpy as np
 
 from ..errors import InvalidArgumentError, InvalidFeedError
 from ..feed import FeedLimit
@@ -20,7 +36,19 @@ from ..machine import Machine
 from .. import units
 from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
 
-__all__ = ["path_axes", "load_run_contour", "join_run_chords", "programmed_feed", "run_feed"]
+__all__ = ["path_axes", "load_run_contour", "join_run_chords", "programmed_feed", "run_feed",
+           "feed_ratio", "FEED_GROUPS"]
+
+FEED_GROUPS = ("XYZ", "UVW", "ABC")
+"""LinuxCNC's feed rule (G-code manual, "Machining center", section Feed Rate): if any of
+XYZ moves, F is in units per minute in the XYZ system and every other axis moves so as to
+start and stop with them; otherwise if any of UVW moves, in the UVW system; otherwise the
+move is purely rotary and F is in degrees per minute in the ABC 'pseudo-cartesian' system."""
+
+_GAUSS_POINTS = 16
+"""Gauss-Legendre points per knot span of a piece for :func:`feed_ratio` (a span of the
+joined path is one polynomial or rational piece of low degree: exact to rounding for
+lines, below 1e-12 relative for arcs and the cubic helix segments)."""
 
 
 def path_axes(machine: Machine | None) -> str:
@@ -62,7 +90,8 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
     PathFileError
         Naming the file, if it cannot be read.
     InvalidArgumentError
-        If ``project`` does not name the machine's axes, or the path moves a rotary axis.
+        If ``project`` does not name the machine's axes, or the path moves a rotary axis
+        the machine gives no ``pulses_per_degree`` for.
     """
     from ..paths import resolve_contour
 
@@ -71,12 +100,14 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
         raise InvalidArgumentError(f"--project {project} must name the machine's axes ({axes}): "
                                    "the path is read as its projection on them")
     contour = resolve_contour(spec, axes=axes, units=units, project=project is not None)
-    rotary = sorted(set(contour.axes or "") & set("ABC"))
-    if rotary:  # degrees would be scaled by the pulse length as if they were lengths
-        raise InvalidArgumentError(
-            f"the path moves the rotary axis {', '.join(rotary)} [deg]; running rotary axes is "
-            "not supported yet (a machine has one pulse length, no pulses per degree): list "
-            f"the contours with 'nurbsmotion contours {spec}'")
+    rotary = [j for j, a in enumerate(contour.axes or "") if a in "ABC"]
+    if rotary:
+        contour = _on_rotary_axes(contour, machine, rotary, spec)
+    elif contour.feed is not None and sum(
+            any(a in g for a in contour.axes or "") for g in FEED_GROUPS) > 1:
+        # XYZ with UVW: F is the speed of XYZ where they move (LinuxCNC's rule)
+        contour = replace(contour, feed_ratio=feed_ratio(
+            contour.curve, np.ones(contour.curve.n_axes), contour.axes, contour.feed.breakpoints))
     if machine is None:
         return contour
     return join_run_chords(contour, machine, path_tolerance)
@@ -91,16 +122,91 @@ def join_run_chords(contour, machine: Machine, path_tolerance=None):
     InvalidArgumentError
         If ``path_tolerance`` is not a length >= 0.
     """
-    from ..chords import join_chords
+    from ..chords import ChordJoin, join_chords
 
     curve = contour.curve
     tol = DEFAULT_PATH_TOLERANCE if path_tolerance is None else units.length_in_pulses(
         path_tolerance, curve, machine, "--path-tolerance", bare_unit="pulse")
-    joined = join_chords(curve, tol / machine.pulses_per_unit(curve.units), contour.feed)
-    return dataclasses.replace(contour, curve=joined.curve, feed=joined.feed, joined=joined)
+    tol /= machine.pulses_per_unit(curve.units)  # [path units]
+    if contour.feed_ratio is not None:  # LinuxCNC's feed rule is per programmed piece: kept
+        return replace(contour, joined=ChordJoin(curve, contour.feed, tol))
+    joined = join_chords(curve, tol, contour.feed)
+    return replace(contour, curve=joined.curve, feed=joined.feed, joined=joined)
 
 
-def programmed_feed(cap, programmed: FeedLimit | None, scale: float, source: str = "the path"):
+def _on_rotary_axes(contour, machine: Machine | None, rotary: list, spec: str):
+    """``contour`` with its rotary columns [deg] rescaled to the machine's pulses per
+    degree (in path units, see the module docstring) and its programmed feed along the
+    rescaled path by LinuxCNC's rule (``feed_ratio`` of the result: None where there is no
+    programmed feed)."""
+    from ..nurbs import NurbsCurve
+
+    names = [contour.axes[j] for j in rotary]
+    missing = [n for j, n in zip(rotary, names)
+               if machine is None or machine.axes[j].pulses_per_degree is None]
+    if missing:
+        on = "the default machine" if machine is None else f"machine {machine.name!r}"
+        raise InvalidArgumentError(
+            f"the path moves the rotary axis {', '.join(missing)} [deg], but {on} gives no "
+            f"pulses_per_degree for it: give its [[axes]] table 'pulses_per_degree' [pulse/deg] "
+            f"(docs/formats.md), or list the contours with 'nurbsmotion contours {spec}'")
+    curve = contour.curve
+    factor = np.ones(curve.n_axes)  # path units per file unit of each column
+    factor[rotary] = [machine.axes[j].pulses_per_degree for j in rotary]
+    factor[rotary] /= machine.pulses_per_unit(curve.units)
+    scaled = NurbsCurve(curve.degree, curve.knots, curve.control_points * factor, curve.weights,
+                        name=curve.name, units=curve.units)
+    ratio = None if contour.feed is None else feed_ratio(
+        scaled, factor, contour.axes, contour.feed.breakpoints)
+    return replace(contour, curve=scaled, feed_ratio=ratio)
+
+
+def feed_ratio(curve, factor, axes: str, breakpoints) -> np.ndarray:
+    """Per piece, the length of ``curve`` over it divided by the length of the axis group
+    the programmed feed applies to (:data:`FEED_GROUPS`), in the file's units.
+
+    Parameters
+    ----------
+    curve : NurbsCurve
+        The path as it runs, each column the file's times ``factor``.
+    factor : ndarray, shape (n_axes,)
+        Path units per file unit of each column (1 for a length, path units per degree
+        for a rotary axis).
+    axes : str
+        The file's axis letter of each column (``"XYZA"``).
+    breakpoints : ndarray, shape (n_pieces + 1,)
+        Where each piece starts in the curve parameter; the last entry is 1.
+
+    Returns
+    -------
+    ndarray, shape (n_pieces,)
+        r >= 1 [1]: the feed along ``curve`` is F r, so that each piece takes as long as
+        it takes LinuxCNC.
+    """
+    axes = axes.upper()
+    b = np.asarray(breakpoints, dtype=float)
+    knots = np.unique(curve.knots)
+    x, w = np.polynomial.legendre.leggauss(_GAUSS_POINTS)
+    groups = [[j for j, a in enumerate(axes) if a in g] for g in FEED_GROUPS]
+    ratio = np.empty(len(b) - 1)
+    for k in range(len(b) - 1):
+        edges = np.concatenate([[b[k]], knots[(knots > b[k]) & (knots < b[k + 1])], [b[k + 1]]])
+        mid, half = (edges[1:] + edges[:-1]) / 2, (edges[1:] - edges[:-1]) / 2
+        u = (mid[:, None] + half[:, None] * x[None, :]).ravel()
+        weight = (half[:, None] * w[None, :]).ravel()
+        derivative = curve(u, 1)
+        total = weight @ np.linalg.norm(derivative, axis=1)
+        d = derivative / factor  # in the file's units (mm, deg) per column
+        for cols in groups:
+            length = weight @ np.linalg.norm(d[:, cols], axis=1) if cols else 0.0
+            if length > 1e-12 * total:
+                break
+        ratio[k] = total / length if length > 0 else 1.0
+    return ratio
+
+
+def programmed_feed(cap, programmed: FeedLimit | None, scale: float, source: str = "the path",
+                    ratio=None):
     """The feed a command runs at, from the user's feed and the file's programmed one.
 
     Where the file gives a feed (G-code F), it is the limit along the path and ``cap``
@@ -116,6 +222,9 @@ def programmed_feed(cap, programmed: FeedLimit | None, scale: float, source: str
         Target units per path unit (e.g. pulses per mm).
     source : str
         The path, for the message.
+    ratio : ndarray, shape (n_pieces,), optional
+        Per piece of ``programmed``, the feed along the path per F (a path that moves a
+        rotary axis, :func:`feed_ratio`); applied after ``cap``, which caps F.
 
     Returns
     -------
@@ -132,7 +241,8 @@ def programmed_feed(cap, programmed: FeedLimit | None, scale: float, source: str
             raise InvalidFeedError(f"--feed is required: {source} gives no programmed feed")
         return cap
     limit = programmed.scaled(scale)
-    return limit if cap is None else limit.capped(cap)
+    limit = limit if cap is None else limit.capped(cap)
+    return limit if ratio is None else FeedLimit(limit.breakpoints, limit.speeds * ratio)
 
 
 def run_feed(feed, contour, machine: Machine):
@@ -156,4 +266,4 @@ def run_feed(feed, contour, machine: Machine):
     curve = contour.curve
     cap = None if feed is None else units.feed_in_pulses(feed, curve, machine)
     return programmed_feed(cap, contour.feed, machine.pulses_per_unit(curve.units),
-                           contour.source)
+                           contour.source, contour.feed_ratio)

@@ -48,7 +48,11 @@ Contours
     move of an axis outside the path, ends it. A feed move of an outside axis together with
     path axes (a helix on a 2-axis machine, a rotary axis) is refused, naming the machine
     that could follow it. :func:`nurbsmotion.paths.resolve_path` asks the user to pick one
-    contour (``file.ngc#k``) when there are several, rather than guessing.
+    contour (``file.ngc#k``) when there are several, rather than guessing. A G0/G1 move of
+    the path axes shorter than :data:`~nurbsmotion.paths.gcode.codes.MIN_MOVE` (1e-12) is
+    dropped, as LinuxCNC's planner drops it; the position still moves. Rotary axes A, B, C
+    are read in degrees; a run on a machine that has them scales them by its pulses per
+    degree, with LinuxCNC's feed rule (:mod:`nurbsmotion.run_input`).
 
 LinuxCNC G5.2 (2.9, read from ``interp_convert.cc`` and ``nurbs_additional_functions.cc``)
     The current position is the first control point; ``G5.2 P-`` without X/Y sets its

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..pieces import PieceChain
-from .codes import _AXES, _MOTION, MAX_COORDINATE
+from .codes import _AXES, _MOTION, MAX_COORDINATE, MIN_MOVE
 from .ngc import Rows
 
 
@@ -187,12 +187,15 @@ class _RunState:
         self.feed = _forward_fill(run.feed[s:e] * self.scale, reader.feed)
         self._columns = {i: _forward_fill(col[s:e] * self.k[i], self.start[i]) for i, col in run.axis.items()}
         moves_path, moves_other = np.zeros(e - s, dtype=bool), np.zeros(e - s, dtype=bool)
+        squared = np.zeros(e - s)  # [output units^2]
         for i, col in self._columns.items():
             moved = col[1:] != col[:-1]
             if i in reader.axes:
                 moves_path |= moved
+                squared += (col[1:] - col[:-1]) ** 2
             else:
                 moves_other |= moved
+        moves_path &= ~(squared < MIN_MOVE ** 2)  # as _Reader.travel: LinuxCNC drops it
         travel, motion = run.has_axis[s:e], self.motion[1:]
         g0, g1 = travel & (motion == 0.0), travel & (motion == 1.0)
         stop = ~run.ok[s:e] | (travel & ~(g0 | g1)) | (g1 & moves_path & (moves_other | (self.feed[1:] <= 0)))

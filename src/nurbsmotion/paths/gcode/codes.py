@@ -59,6 +59,11 @@ _MOTION_WORDS = {kind: frozenset(_AXES + words) for kind, words in (
 MAX_COORDINATE = 1e9
 """Largest coordinate, centre offset or radius read [program units]: beyond it a path of
 ordinary size cannot be computed to 1e-9 of its size in double precision."""
+MIN_MOVE = 1e-12
+"""Shortest G0/G1 move of the path axes kept [output units]: LinuxCNC's trajectory planner
+drops a shorter segment (``TP_POS_EPSILON``, ``TP_ERR_ZERO_LENGTH`` in ``tp.c``), and a
+piece far below the rounding of its coordinates has no direction to plan a speed along
+(LinuxCNC's ``nc_files/cone.ngc``'s ``100*sin[-180]`` = -1.2e-14 mm)."""
 MAX_ARC_TURNS = 100
 """Most turns (``P``) a G2/G3 arc may have."""
 

@@ -21,7 +21,7 @@ from ..pieces import PieceChain
 from .bulk import _Bulk
 from .codes import (_AXES, _AXIS_INDEX, _COORD_SYSTEMS, _CYCLES, _END_M, _INCH, _MOTION,
                     _MOTION_WORDS, _PLAIN_G, _PLAIN_WORDS, _REFUSED_G, _SKIPPED_G, _SKIPPED_WORDS,
-                    MAX_COORDINATE, _g_name, _NeedAxes, _picker, _skipped_m)
+                    MAX_COORDINATE, MIN_MOVE, _g_name, _NeedAxes, _picker, _skipped_m)
 from .curves import _Curves
 from .cycles import _Cycles
 from .frames import _Frames
@@ -65,6 +65,10 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
         others = [i for i in range(9) if i not in self.axes]
         self.path_of = _picker(self.axes)  # X..W -> tuple of the path coordinates
         self.others_of = _picker(others)
+        # LinuxCNC's feed groups (XYZ, UVW, ABC) among the path's columns, where it has
+        # more than one: F is the speed of the first group that moves (inverse_time_length)
+        groups = [[c for c, i in enumerate(self.axes) if _AXES[i] in g] for g in ("XYZ", "UVW", "ABC")]
+        self.feed_groups = [g for g in groups if g] if sum(1 for g in groups if g) > 1 else None
         self._k = None  # lengths(), until G20/G21 changes the input units
         self.project = False  # feed moves of other axes with the path axes: keep their projection
         self.auto = False  # no axes given: a feed move of other axes with the path axes is _NeedAxes
@@ -203,9 +207,23 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
         if self.rapid:  # a rapid read as the path: no programmed feed
             feed = math.nan
         elif not (feed > 0 and not self.inverse_time):
-            feed = self.piece_feed(length, self.line)
+            feed = self.piece_feed(self.inverse_time_length(path_end, length), self.line)
         self.piece_feeds.append(feed)
         self.piece_lines.append(self.line)
+
+    def inverse_time_length(self, path_end: tuple, length: float) -> float:
+        """The length of a line piece to ``path_end`` that a G93 feed is taken along: on a
+        path with axes of several of LinuxCNC's feed groups, the first of XYZ, UVW, ABC
+        that moves (so that the feed, like a G94 one, is that group's speed and the
+        move takes 1 / F); else ``length``."""
+        if self.feed_groups is None or not self.inverse_time:
+            return length
+        start = self.path_of(self.pos)
+        for group in self.feed_groups:
+            d = math.sqrt(sum((path_end[c] - start[c]) ** 2 for c in group))
+            if d > 0:
+                return d
+        return length
 
     def add_length(self, length: float, line: int) -> None:
         """Record the feed and line of the piece of ``length`` just added to the chain."""
@@ -488,9 +506,11 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
             kind = "G1"
         start = self.pos
         path_end = self.path_of(end)
-        moves_path = path_end != self.path_of(start)
+        changes_path = moves_path = path_end != self.path_of(start)
+        if moves_path and kind in ("G0", "G1") and math.dist(path_end, self.path_of(start)) < MIN_MOVE:
+            moves_path = False  # LinuxCNC drops it (TP_ERR_ZERO_LENGTH); the position moves
         moves_other = self.others_of(end) != self.others_of(start)
-        if moves_other or moves_path:
+        if moves_other or changes_path:
             self.note_moved(kind, start, end)
         if kind == "G0":
             if moves_path or moves_other:
