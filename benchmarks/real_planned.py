@@ -291,9 +291,10 @@ def item4_report(rows, methods):
              f"({cases[0] if cases else 0}-{cases[-1] if cases else 0}, seed {ITEM4_SEED})\n",
              "| interpolator | ran | refused | crashed | saturated runs (cornered only) "
              "| limit cycles | not settled | NaN | settle / bound median / 95 % / max "
-             "| within max(5 %, 3 ms) | max contour [pulse] median / 95 % / max "
+             "| the same, settled runs | within max(5 %, 3 ms) "
+             "| max contour [pulse] median / 95 % / max "
              "| max contour [um] median / 95 % / max | CPU [s] |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for method in methods:
         mine = [r for r in rows if r["method"] == method]
         ran = [r for r in mine if r["status"] == "ran"]
@@ -301,21 +302,50 @@ def item4_report(rows, methods):
         sat = [r for r in ran if r["saturated"]]
         only_cornered = [r for r in sat if r["saturated"] <= r["cornered"]]
 
-        def spread(key):
-            v = np.array([r[key] for r in ran], dtype=float)
+        def spread(key, runs=ran):
+            v = np.sort(np.array([r[key] for r in runs], dtype=float))
             if not len(v):
                 return "-"
-            return " / ".join("∞" if not np.isfinite(x) else f"{x:.3g}"
-                              for x in np.percentile(v, [50, 95, 100]))
+            # nearest rank: an infinite value (not settled) is a value, not a NaN
+            at = [v[min(len(v) - 1, int(np.ceil(q * len(v))) - 1)] for q in (0.5, 0.95, 1)]
+            return " / ".join("∞" if not np.isfinite(x) else f"{x:.3g}" for x in at)
 
         lines.append(
             f"| {method} | {len(ran)} | {status['refused']} | {status['crashed']} "
             f"| {len(sat)} ({len(only_cornered)}) | {sum(r['cycle'] for r in ran)} "
             f"| {sum(not r['settled'] for r in ran)} | {sum(r['nan'] for r in ran)} "
-            f"| {spread('ratio')} "
+            f"| {spread('ratio')} | {spread('ratio', [r for r in ran if r['settled']])} "
             f"| {100 * np.mean([r['within'] for r in ran]) if ran else 0:.1f} % "
             f"| {spread('contour')} | {spread('contour_um')} "
             f"| {sum(r.get('cpu', 0.0) for r in mine):.0f} |")
+    lines += ["\nBy the machine's modes (runs: limit cycles / not settled / within "
+              "max(5 %, 3 ms)):\n",
+              "| interpolator | no mode | every mode known (+-10 %) | a mode unknown |",
+              "|---|---|---|---|"]
+
+    def kind(r):
+        if not any(r["modes"]):
+            return 0
+        return 1 if all(bool(k) == bool(f) for f, k in zip(r["modes"], r["known_modes"])) \
+            else 2
+
+    for method in methods:
+        ran = [r for r in rows if r["method"] == method and r["status"] == "ran"]
+        cells = []
+        for k in range(3):
+            sub = [r for r in ran if kind(r) == k]
+            cells.append(f"{len(sub)}: {sum(r['cycle'] for r in sub)} / "
+                         f"{sum(not r['settled'] for r in sub)} / "
+                         f"{sum(r['within'] for r in sub)}")
+        lines.append(f"| {method} | " + " | ".join(cells) + " |")
+    for method in methods:
+        ran = [r for r in rows if r["method"] == method and r["status"] == "ran"]
+        top = sorted(ran, key=lambda r: -r["contour"])[:3]
+        if top:
+            lines.append(f"\n{method}'s largest contour errors: " + "; ".join(
+                f"case {r['case']} ({r['family']}, {r['controller']}, Ts {r['Ts'] * 1e3:g} ms, "
+                f"{r['feed_per_steady']:.2f}x steady): {r['contour']:.3g} pulse"
+                for r in top))
     other = collections.Counter(r["status"] for r in rows
                                 if r["status"] in ("invalid path", "no bound"))
     if other:
