@@ -34,7 +34,7 @@ import os
 import re
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import tomli_w
 
@@ -44,6 +44,9 @@ from .._runtime.io import parse_json_or_toml, read_text_file, write_output
 from ..feed import FeedLimit
 from ..errors import InvalidCurveError, PathFileError
 from ..nurbs import BUILTIN_PATHS, MAX_CONTROL_POINTS, NurbsCurve, builtin_path
+
+if TYPE_CHECKING:  # (annotation only)
+    from ..chords import ChordJoin
 
 __all__ = [
     "Contour",
