@@ -108,7 +108,7 @@ def test_a_machine_without_pulses_per_degree_is_refused():
 
 
 def test_a_rotary_axis_trace_columns_are_in_degrees():
-    from nurbsmotion.report import _columns
+    from nurbsmotion.report.trace_file import _columns
 
     names = [c.name for c in _columns(load_machine(GANTRY4A), True, "in", PULSES_PER_INCH)]
     assert {"x_cmd_in", "a_cmd_deg", "a_act_deg", "a_speed_max_deg_per_s"} <= set(names)

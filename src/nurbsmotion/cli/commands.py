@@ -507,7 +507,7 @@ def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None
 def _rotary_setpoints(sp, pulses, machine: Machine, rotary: list):
     """``sp`` with each rotary axis's column in degrees (pulses / pulses_per_degree) and,
     for the CSV and PVT headers, named ``<axis>_deg``."""
-    from .export import SetpointArrays
+    from ..report.export import SetpointArrays
 
     position = sp.position.copy()
     for j in rotary:
