@@ -731,3 +731,29 @@ def test_a_path_starting_at_zero_speed_is_refused_by_the_taylor_steps(interpolat
     with pytest.raises(InvalidCurveError, match="zero speed.*planned"):
         run(curve, die_bonder(), 2e5, interpolator)
     assert run(curve, die_bonder(), 2e5, "planned").success
+
+
+def test_the_sampled_bound_of_an_axis_that_barely_moves_is_refused_not_a_hang(capsys):
+    """Regression (fuzz of machine values): Ke = 1e-300 on one axis made `bound --sampled`
+    double its sample count to 2^40 with O(n) arrays, a hang; it stops at --max-samples."""
+    from nurbsmotion.errors import WorkLimitError
+    from nurbsmotion.planning import sampled_stop_bound
+
+    machine = die_bonder()
+    data = machine.to_dict()
+    data["axes"][1]["mechanical_gain"] = 1e-300
+    slow = _machine_from(data)
+    path = to_pulses(nm.make_die_bonder_pi(), machine)
+    with pytest.raises(WorkLimitError, match="barely moves"):
+        sampled_stop_bound(path, slow, max_samples=10**7)
+    assert sampled_stop_bound(path, machine, max_samples=10**7) == sampled_stop_bound(path,
+                                                                                   machine)
+
+
+def _machine_from(data):
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        file = Path(tmp) / "m.json"
+        file.write_text(json.dumps(data))
+        return load_machine(file)

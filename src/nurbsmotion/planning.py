@@ -663,16 +663,19 @@ def _rest_to_rest_reach(a: float, b0: float, c: float, b1: float, n: int,
     return float(np.sum(np.abs(G - median * Gw)) + speed_slack * abs(median))
 
 
-def _least_samples(reach, distance: float) -> int:
+def _least_samples(reach, distance: float, max_samples: int = 1 << 40) -> int:
     """The least n >= 0 with ``reach(n) >= distance`` (``reach`` nondecreasing, 0 at 0):
-    doubling, then bisection."""
+    doubling, then bisection; refused beyond ``max_samples`` (``reach(n)`` costs O(n):
+    a drive that barely moves an axis made 2^40-element arrays, a hang)."""
     if distance <= 0:
         return 0
     hi = 1
     while reach(hi) < distance:
         hi *= 2
-        if hi > 1 << 40:
-            raise InfeasibleError(f"the drive cannot move {distance:g} pulse")
+        if hi > 2 * max_samples:
+            raise WorkLimitError(
+                f"the drive moves {distance:g} pulse in no fewer than {max_samples:.3g} "
+                "samples (the sample limit, --max-samples): it barely moves that axis")
     lo = hi // 2
     while hi - lo > 1:
         mid = (lo + hi) // 2
@@ -684,7 +687,7 @@ def _least_samples(reach, distance: float) -> int:
 
 
 def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
-                       settle_window: float = 1.0) -> float:
+                       settle_window: float = 1.0, max_samples: int = 1 << 40) -> float:
     """A lower bound [s] on the move-and-settle time of any motion of the sampled loop along
     ``curve`` that stops at every sharp corner.
 
@@ -712,6 +715,8 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
         tau, Kc, Ke, Umax, Ts.
     settle_window : float
         Radius [pulse] of the settle window (as :func:`nurbsmotion.metrics.settle_time`).
+    max_samples : int
+        A piece needing more samples than this is refused (:class:`WorkLimitError`).
 
     Returns
     -------
@@ -736,7 +741,8 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
                 continue
             slack = (2.0 * settle_window / umax + b1) / c if last else 0.0
             need = max(need, _least_samples(
-                lambda n: umax * _rest_to_rest_reach(a, b0, c, b1, n, slack), distance))
+                lambda n: umax * _rest_to_rest_reach(a, b0, c, b1, n, slack), distance,
+                max_samples))
         samples += need
     return samples * Ts
 

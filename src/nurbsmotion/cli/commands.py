@@ -162,7 +162,9 @@ def _cmd_bound(args) -> int:
     curve = contour.curve
     machine.check_path(curve.n_axes)
     if args.sampled:
-        print(f"{sampled_stop_bound(to_pulses(curve, machine), machine):.6g}")
+        bound = sampled_stop_bound(to_pulses(curve, machine), machine,
+                                   max_samples=args.max_samples)
+        print(f"{bound:.6g}")
         _print_joined(contour, machine)
         return 0
     cap = None if args.feed is None else units.feed_in_pulses(args.feed, curve, machine)
