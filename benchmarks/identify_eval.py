@@ -4,8 +4,8 @@ machines, and the run time on a 60 s log at 1 kHz.
 For each of N random one-axis machines (tests/identify_reference.py ``random_axis``: tau
 0.05-0.5 s, Ke*Kc over a factor 5, Coulomb friction 0.05-0.6 V with stiction 1-1.6 times
 it, half of them with a mode at 40-250 Hz, damping 0.01-0.1, load share 0.2-0.7, encoder on
-the motor (70 %) or the load; two-mass axes have friction on half of them), a delay of 0-2
-samples, 1-pulse encoder counts and Gaussian reading noise of 0-0.5 pulse:
+the motor (70 %) or the load; two-mass axes have friction, on the motor, on half of them),
+a delay of 0-2 samples, 1-pulse encoder counts and Gaussian reading noise of 0-0.5 pulse:
 
 1. ``nurbsmotion excite`` of a base machine whose tau and Kc are off by up to +-30 % (what
    a user knows before identifying);
@@ -20,7 +20,8 @@ issue's targets (tau and Kc 2 %, delay 0.1 Ts, Coulomb 10 %, mode frequency 2 %,
 own model, which only sets what the log holds).
 
 Run: python benchmarks/identify_eval.py [N] (default 200; NURBSMOTION_IDENTIFY_WORKERS
-processes, default 2). Writes benchmarks/identify_eval.json.
+processes, default 2). Writes benchmarks/identify_eval.json (every row) and
+benchmarks/identify_eval.md (the table).
 """
 
 from __future__ import annotations
@@ -167,6 +168,36 @@ def main() -> None:
           "(median of 3)")
     out = Path(__file__).with_suffix(".json")
     out.write_text(json.dumps({"rows": rows, "timing": t}, indent=1, default=float))
+    write_markdown(rows, t, time.perf_counter() - started)
+
+
+def write_markdown(rows: list[dict], t: dict, seconds: float) -> Path:
+    """benchmarks/identify_eval.md: the table and the timing, with how they were made."""
+    import subprocess
+
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, cwd=Path(__file__).parent).stdout.strip()
+    except OSError:
+        commit = "unknown"
+    cpu = np.median([r["cpu_s"] for r in rows])
+    text = "\n".join([
+        "# `nurbsmotion identify` on random machines (generated)",
+        "",
+        f"`python benchmarks/identify_eval.py {len(rows)}` on commit {commit} (plus the "
+        f"working tree), {time.strftime('%Y-%m-%d', time.gmtime())}: {len(rows)} random "
+        f"one-axis machines in {seconds:.0f} s; identify a median {cpu:.2f} s of CPU per "
+        f"{rows[0]['samples']}-sample log. Logs from the tests' independent solve_ivp "
+        "simulator (tests/identify_reference.py); targets of issue 34.",
+        "",
+        table(rows),
+        "",
+        f"identify on a 60 s log at 1 kHz ({t['samples']} samples, {t['axes']} axes, one "
+        f"with a mode): {t['wall_s']:.2f} s wall, {t['cpu_s']:.2f} s CPU (median of 3).",
+        ""])
+    out = Path(__file__).with_suffix(".md")
+    out.write_text(text)
+    return out
 
 
 if __name__ == "__main__":

@@ -15,7 +15,10 @@ Two-mass equations (total inertia 1, ``r`` the load's share, ``G = Ke*Kc``)::
         r al =     -r vl / tau                          + k (pm - pl) + c (vm - vl)
 
 with ``k = omega^2 r (1-r)`` and ``c = 2 zeta omega r (1-r)``. A motor at rest stays at
-rest (vm = 0) while ``|u| <= S``; the load then rings on the held motor.
+rest (vm = 0) while the drive on it, ``u`` less the spring and damper
+(``(k (pm - pl) + c (vm - vl)) tau / G`` [V]), is within ``S`` (docs/model.md#real-machine);
+the load then rings on the held motor, and the instant that drive leaves ``+-S`` is an
+event.
 """
 
 from __future__ import annotations
@@ -51,6 +54,19 @@ def _rhs(axis, u, sgn, stuck):
         am = (-(1 - r) * vm / tau + G / tau * (u - F * sgn) - spring) / (1 - r)
         return [vm, am, vl, al]
     return two_mass
+
+
+def _held_drive(axis, state, u):
+    """The drive on a motor held at rest [V]: ``u`` less the spring and damper (the
+    plant's, docs/model.md#real-machine: the motor breaks away when it exceeds ``S``)."""
+    if len(state) == 2:
+        return u
+    r = axis.get("load_fraction", 0.5)
+    om = 2 * math.pi * axis["resonance_frequency"]
+    k = om * om * r * (1 - r)
+    c = 2 * axis["resonance_damping"] * om * r * (1 - r)
+    pm, vm, pl, vl = state
+    return u - (k * (pm - pl) + c * (vm - vl)) * axis["time_constant"] / axis["gain"]
 
 
 def _motor_accel(axis, state, u, sgn):
@@ -116,16 +132,30 @@ def simulate_log(axis: dict, drive: np.ndarray, sample_period: float, delay: flo
             if stuck:
                 choices = [s for s in (1.0, -1.0)
                            if _motor_accel(axis, state, u, s) * s > 0]
-                if (S > 0 and abs(u) <= S) or not choices:
-                    if two:
-                        sol = solve_ivp(_rhs(axis, u, 0.0, True), (t, b), state, rtol=rtol,
-                                        atol=1e-9, method="DOP853", dense_output=True)
-                        record(lambda ts: sol.sol(ts)[out], t, b, b >= t_end)
-                        state = sol.y[:, -1]
-                    else:
+                if (S > 0 and abs(_held_drive(axis, state, u)) <= S) or not choices:
+                    if not two:
                         held = state[0]
                         record(lambda ts: np.full(len(ts), held), t, b, b >= t_end)
-                    break
+                        break
+
+                    def breakaway(tt, s):
+                        return S - abs(_held_drive(axis, s, u))
+                    breakaway.terminal = True
+                    breakaway.direction = -1
+                    sol = solve_ivp(_rhs(axis, u, 0.0, True), (t, b), state, rtol=rtol,
+                                    atol=1e-9, method="DOP853",
+                                    events=breakaway if S > 0 else None, dense_output=True)
+                    if sol.status != 1:
+                        record(lambda ts: sol.sol(ts)[out], t, b, b >= t_end)
+                        state = sol.y[:, -1]
+                        break
+                    # the spring and damper broke the held motor away inside
+                    te = sol.t_events[0][0]
+                    record(lambda ts: sol.sol(ts)[out], t, te, False)
+                    state = sol.y_events[0][0].copy()
+                    state[1] = 0.0
+                    t = te
+                    choices = [math.copysign(1.0, _held_drive(axis, state, u))]
                 stuck, sgn = False, choices[0]
 
             def stop(tt, s):

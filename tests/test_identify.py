@@ -66,6 +66,71 @@ def test_model_matches_the_solve_ivp_reference():
             assert np.max(np.abs(ours - ref)) <= 1e-8 * np.max(np.abs(ref)) + 1e-6
 
 
+FRICTION = {"coulomb_friction": 0.3, "stiction": 0.4}
+
+
+def _plant_positions(axis, u, delay):
+    """The encoder's reading under the project's plant (nurbsmotion.plant), at the
+    sample instants [pulse]."""
+    from nurbsmotion.plant import make_stage, stage_response
+
+    lam = axis["load_fraction"]
+    wn = 2 * math.pi * axis["resonance_frequency"]
+    effects = {"encoder": "exact", "measurement_noise": 0.0, "seed": 0, "delay": delay,
+               "dac_bits": None, "axes": [{
+                   "coulomb_friction": axis["coulomb_friction"],
+                   "stiction": axis["stiction"], "disturbance": [],
+                   "resonance_frequency": axis["resonance_frequency"],
+                   # the plant's damping ratio is the twist's whole one (docs/model.md)
+                   "resonance_damping": axis["resonance_damping"]
+                   + 1 / (2 * wn * axis["time_constant"]),
+                   "load_fraction": lam, "encoder_on": axis["encoder_on"]}]}
+    stage = make_stage(effects, [axis["time_constant"]], [axis["gain"] / KE], [KE], 10.0, TS)
+    x, _ = stage_response(stage, u[:, None])
+    reads = lam if axis["encoder_on"] == "motor" else -(1 - lam)
+    return (x[:, 0, 1] + reads * x[:, 0, 2])[:-1]
+
+
+@pytest.mark.parametrize("encoder_on", ["motor", "load"])
+def test_friction_acts_on_the_motor_as_in_the_plant(encoder_on):
+    """A two-mass axis with friction: the fit's model against the project's plant (the
+    motor sticks, its load swings on it, the spring breaks it away) and against the
+    solve_ivp reference, under the die-bonder's excitation and a fractional delay."""
+    axis = dict(TWO_MASS, **FRICTION, encoder_on=encoder_on)
+    lam = axis["load_fraction"]
+    coupling = lam / (1 - lam) if encoder_on == "motor" else -1.0
+    _, drive = excitation(die_bonder())
+    u = drive[:, 1]
+    for delay in (0.0, 0.37e-3, 1.6e-3):
+        ours = simulate(u, TS, dict(axis, delay=delay, coupling=coupling))
+        plant = _plant_positions(axis, u, delay)
+        assert np.max(np.abs(ours - plant)) <= 1e-9 * np.max(np.abs(plant)) + 1e-6
+    ref = simulate_log(axis, u, TS, delay=0.37e-3)
+    ours = simulate(u, TS, dict(axis, delay=0.37e-3, coupling=coupling))
+    # The reference finds every stop; the model (as the plant) checks every eighth of the
+    # mode's period, so a graze shorter than that is missed: RMS per sample, not a max.
+    assert np.sqrt(np.mean(np.square(np.diff(ours) - np.diff(ref)))) <= 0.1
+
+
+def test_two_mass_axis_with_friction_within_the_targets():
+    """Friction on the motor of a two-mass axis read on the motor: every target of
+    issue 34 on the independent simulator's log. (The same axis read on the load is not
+    identified from this excitation: docs/identify.md, known limits.)"""
+    machine = die_bonder()
+    _, drive = excitation(machine)
+    truth = dict(TWO_MASS, **FRICTION)
+    result = identify(_log([RIGID, truth], drive), machine)
+    ax = result.axes[1]
+    est = ax.estimates
+    assert est["time_constant"].value == pytest.approx(truth["time_constant"], rel=0.02)
+    assert est["electrical_gain"].value * KE == pytest.approx(truth["gain"], rel=0.02)
+    assert abs(est["delay"].value - DELAY) <= 0.1 * TS
+    assert est["coulomb_friction"].value == pytest.approx(0.3, rel=0.10)
+    assert est["resonance_frequency"].value == pytest.approx(100.0, rel=0.02)
+    assert est["resonance_damping"].value == pytest.approx(0.02, rel=0.30)
+    assert est["load_fraction"].value == pytest.approx(0.3, abs=0.05)
+    assert ax.encoder_on == "motor"
+
 def test_rigid_axis_within_the_targets(excited):
     _, _, _, result = excited
     est = result.axes[0].estimates

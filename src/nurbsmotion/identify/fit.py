@@ -31,6 +31,10 @@ from .model import simulate
 MODE_GAIN = 0.15
 """A mode is kept when it lowers the residual's sum of squares by at least this share."""
 
+LOAD_FRACTION_RANGE = (0.05, 0.95)
+"""Bounds of the load's share of the inertia where the fit takes it as a parameter (the
+encoder on the load, friction on the motor)."""
+
 MAX_DELAY_SAMPLES = 8.0
 """Largest delay searched [sample periods]."""
 
@@ -177,6 +181,27 @@ def _real_mode(mode, rigid, lower, upper) -> bool:
                 and abs(coupling) > 0.02 and inside)
 
 
+REST_SAMPLES = 10
+"""Readings at the head of a log that :func:`_starts_at_rest` looks at."""
+
+
+def _starts_at_rest(y) -> bool:
+    """Whether the log starts at rest: its first :data:`REST_SAMPLES` readings move less
+    than a count plus 4 standard deviations of the difference of two readings (the
+    noise estimated from the scatter of their increments)."""
+    head = np.asarray(y[:REST_SAMPLES + 1], dtype=float)
+    if head.size < 3:
+        return False
+    return abs(head[-1] - head[0]) <= 1.0 + 4.0 * math.sqrt(2.0) * _head_noise(y)
+
+
+def _head_noise(y) -> float:
+    """The reading noise [pulse] estimated from the scatter of the increments of the
+    first :data:`REST_SAMPLES` readings (of a log that starts at rest)."""
+    head = np.asarray(y[:REST_SAMPLES + 1], dtype=float)
+    return float(np.std(np.diff(head))) / math.sqrt(2.0) if head.size >= 3 else 0.0
+
+
 SCREEN_SAMPLES = 6_000
 """The structure of the model (delay start, friction, mode, stiction) is chosen on the
 log's first this many samples; a longer log then refines the parameters in a few
@@ -237,6 +262,11 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
     x0 = [math.log(tau0), math.log(gain0), 0.0, speed0]
     lower = [math.log(Ts), -np.inf, 0.0, -np.inf]
     upper = [math.log(1e6 * Ts), np.inf, MAX_DELAY_SAMPLES, np.inf]
+    if _starts_at_rest(y):
+        # A log that starts at rest has no initial speed to fit: free, speed0 jumps the
+        # model between stuck and sliding at 0 (with friction), and its finite-difference
+        # derivative misleads the fit into a valley of its own.
+        lower[3] = upper[3] = 0.0
     fixed = {"stiction": 0.0}  # the stiction is scanned once the rest is fitted
     if friction_ok:
         names.append("coulomb_friction")
@@ -276,6 +306,11 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
         tries = [least_squares(fn, list(sol.x) + [f], bounds=(lower, upper))
                  for f in sorted({0.0, x0[4]})]
+        # and from the delay search's start itself (the ARX's tau, gain and friction):
+        # on an axis whose friction holds it at rest for long, the frictionless fit
+        # bends tau to mimic the rests, and the fit from there can run off to the
+        # integrator (tau at its bound, only gain/tau sharp).
+        tries.append(least_squares(fn, x0, bounds=(lower, upper)))
         sol = min(tries, key=lambda t: t.cost)
 
     # A mode: started at the residual spectrum's peak above the rigid body's band.
@@ -289,12 +324,24 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
             freqs < 0.45 / Ts)
         if np.any(band):
             f0 = float(freqs[band][np.argmax(spectrum[band])])
-            m_names = names + ["log_omega", "resonance_damping", "coupling"]
             best_mode = None
-            for coupling0 in (1.0, -1.0):
-                mx0 = list(sol.x) + [math.log(2 * math.pi * f0), 0.05, coupling0]
-                m_lower = lower + [math.log(2 * math.pi * 2.0), 1e-3, -1.5]
-                m_upper = upper + [math.log(2 * math.pi * 0.5 / Ts), 0.5, 20.0]
+            # With friction, the rigid part starts from the rigid fit and from the delay
+            # search's start: a strong mode misleads the rigid fit with friction (tau
+            # run off to its bound), less the ARX's start.
+            rigid_starts = [list(sol.x)] + ([list(x0)] if friction_ok else [])
+            for rigid0, coupling0 in [(r0, c0) for r0 in rigid_starts for c0 in (1.0, -1.0)]:
+                # The friction acts on the motor: with the encoder on the load (coupling
+                # about -1) the motor's share of the twist, hence the load fraction, is a
+                # parameter of its own (on the motor it is the coupling's c / (1 + c)).
+                share = friction_ok and coupling0 < 0
+                m_names = names + (["load_fraction"] if share else []) + [
+                    "log_omega", "resonance_damping", "coupling"]
+                mx0 = rigid0 + ([0.5] if share else []) + [
+                    math.log(2 * math.pi * f0), 0.05, coupling0]
+                m_lower = lower + ([LOAD_FRACTION_RANGE[0]] if share else []) + [
+                    math.log(2 * math.pi * 2.0), 1e-3, -1.5]
+                m_upper = upper + ([LOAD_FRACTION_RANGE[1]] if share else []) + [
+                    math.log(2 * math.pi * 0.5 / Ts), 0.5, 20.0]
                 m_fn = _residual_fn(u, dy, Ts, speed0, fixed, m_names)
                 try:
                     m_sol = least_squares(m_fn, mx0, bounds=(m_lower, m_upper),
@@ -302,12 +349,14 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
                 except ValueError:
                     continue
                 if best_mode is None or m_sol.cost < best_mode[0].cost:
-                    best_mode = (m_sol, m_names)
+                    best_mode = (m_sol, m_names, m_lower, m_upper)
             if best_mode is not None:  # the better start, on to convergence
+                m_sol, m_names, m_lower, m_upper = best_mode
                 m_fn = _residual_fn(u, dy, Ts, speed0, fixed, m_names)
-                best_mode = (least_squares(m_fn, best_mode[0].x, bounds=(m_lower, m_upper),
-                                           max_iterations=40), m_names)
-            if best_mode is not None and _real_mode(best_mode[0], sol, m_lower, m_upper):
+                best_mode = (least_squares(m_fn, m_sol.x, bounds=(m_lower, m_upper),
+                                           max_iterations=40), m_names, m_lower, m_upper)
+            if best_mode is not None and _real_mode(best_mode[0], sol, best_mode[2],
+                                                    best_mode[3]):
                 mode_sol = best_mode
             else:
                 gain_share = 0.0 if best_mode is None else 1 - best_mode[0].cost / sol.cost
@@ -317,7 +366,7 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
                     "is rigid in this band, or the log did not excite its mode")
     bounds = (lower, upper)
     if mode_sol is not None:
-        sol, names = mode_sol
+        sol, names, m_lower, m_upper = mode_sol
         bounds = (m_lower, m_upper)
         fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
 
@@ -331,9 +380,11 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         if sol.x[i] <= max(3.0 * sigma_f, 1e-3 * max_drive):
             notes.append(f"coulomb_friction: none found ({sol.x[i]:.3g} +- {sigma_f:.2g} V, "
                          "not above its noise); written as 0")
-            x = np.delete(sol.x, i)
-            names = names[:i] + names[i + 1:]
-            lo, hi = (np.delete(np.asarray(b, dtype=float), i) for b in bounds)
+            # (and the load fraction, which only the friction on the motor shows)
+            drop = [i] + ([names.index("load_fraction")] if "load_fraction" in names else [])
+            x = np.delete(sol.x, drop)
+            names = [name for k, name in enumerate(names) if k not in drop]
+            lo, hi = (np.delete(np.asarray(b, dtype=float), drop) for b in bounds)
             bounds = (list(lo), list(hi))
             fixed = dict(fixed, coulomb_friction=0.0, stiction=0.0)
             fn = _residual_fn(u, dy, Ts, speed0, fixed, names)

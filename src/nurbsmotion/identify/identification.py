@@ -307,6 +307,9 @@ def identify(log, base: Machine | None = None, *, max_drive: float | None = None
                 encoder_on = "motor"
                 share = c / (1 + c)
                 est["load_fraction"] = Estimate(share, sc / (1 + c) ** 2, "")
+            elif "load_fraction" in v:  # from the motor's stops (friction on the motor)
+                encoder_on = "load"
+                est["load_fraction"] = Estimate(v["load_fraction"], s["load_fraction"], "")
             else:
                 encoder_on = "load"
                 axis_notes.append(f"load_fraction: not identifiable with the encoder on the "

@@ -14,22 +14,30 @@ load)``), driven by the same net drive::
     d2x/dt2 = -(1/tau + 2*zeta*omega) * dx/dt - omega**2 * x + (G / tau) * (u - F*sign(v))
 
 and the encoder reads ``y = p + c * x``: ``c = r / (1 - r)`` with the encoder on the motor
-(``r`` the load's share of the inertia), ``c = -1`` on the load. While the rigid body is
-stuck, the net drive on it is zero and the mode rings freely. (That the rigid body, not
-the motor alone, sticks is the fit's simplification of a two-mass axis with friction on
-its motor.)
+(``r`` the load's share of the inertia), ``c = -1`` on the load.
+
+The friction acts where the plant puts it (docs/model.md#real-machine,
+:mod:`nurbsmotion.plant`): on a rigid axis on the whole body, which sticks while
+``|u| <= S``; on a two-mass axis on the **motor**, whose speed is ``v + m * x'`` with
+``m = r / (1 - r)`` (the coupling with the encoder on the motor; from the load fraction
+with it on the load). The motor sticks when that speed reaches zero and stays while the
+drive on it, ``u`` less the spring and damper, is within ``S``; meanwhile the load swings
+on the held motor and the rigid body follows it (:func:`_two_mass_friction`).
 
 Each sample is integrated in closed form, piece by piece: the rigid part as a first-order
 lag to the instant its speed reaches zero (``t = tau * log((v0 - vinf) / -vinf)``), where
-it sticks or reverses; the mode as a damped oscillator with a constant input. No
-sub-steps, no ODE solver: the same numbers at any sample period.
+it sticks or reverses; the mode as a damped oscillator with a constant input. A two-mass
+axis with friction is checked every eighth of the mode's period (of the held motor's,
+stuck) and its stops and breakaways found by regula falsi on the closed form, as the
+plant does. No ODE solver: the same numbers at any sample period.
 
 Glossary
 --------
 u : drive [V]; p, y : position [pulse]; v : speed [pulse/s]; tau : time constant [s];
 G : Ke*Kc, speed per volt [pulse/s/V]; F : Coulomb friction [V]; S : stiction [V];
 omega : mode's angular frequency [rad/s]; zeta : its damping ratio; c : its coupling into
-the encoder; Ts : sample period [s]; d : delay [s].
+the encoder; r : the load's share of the inertia; m = r/(1 - r); Ts : sample period [s];
+d : delay [s].
 """
 
 from __future__ import annotations
@@ -62,8 +70,217 @@ def _mode_step(x, xd, dt, force, omega, half_damping, damped, table):
 
 
 @njit(cache=True)
+def _oscillator(a1, a0, h):
+    """``exp(-m h)*C`` and ``exp(-m h)*S`` of ``z'' + a1 z' + a0 z = 0`` over ``h``
+    (``m = a1/2``, any sign of ``m^2 - a0``): ``z(h) = eC*z0 + eS*(z0' + m*z0)``,
+    ``z'(h) = eC*z0' - eS*(m*z0' + a0*z0)`` (as :func:`nurbsmotion.plant._oscillator`)."""
+    m = 0.5 * a1
+    q2 = m * m - a0
+    e = math.exp(-m * h)
+    if q2 < 0.0:
+        wd = math.sqrt(-q2)
+        return e * math.cos(wd * h), e * math.sin(wd * h) / wd
+    if q2 > 0.0:
+        q = math.sqrt(q2)
+        return e * math.cosh(q * h), e * math.sinh(q * h) / q
+    return e, e * h
+
+
+@njit(cache=True)
+def _coefficients(h, tau, a1, a0, cache):
+    """``(exp(-h/tau), -expm1(-h/tau), eC, eS)`` of an interval ``h`` [s]; ``cache`` rows
+    ``(h, ...)`` hold the few lengths a log repeats (the check steps of the two pieces)."""
+    for i in range(cache.shape[0]):
+        if cache[i, 0] == h:
+            return cache[i, 1], cache[i, 2], cache[i, 3], cache[i, 4]
+        if cache[i, 0] < 0.0:
+            break
+    g = -math.expm1(-h / tau)
+    ec, es = _oscillator(a1, a0, h)
+    for i in range(cache.shape[0]):
+        if cache[i, 0] < 0.0:
+            cache[i, 0] = h
+            cache[i, 1] = 1.0 - g
+            cache[i, 2] = g
+            cache[i, 3] = ec
+            cache[i, 4] = es
+            break
+    return 1.0 - g, g, ec, es
+
+
+@njit(cache=True, inline="always")
+def _oscillate(x, xd, ec, es, a1, a0, force):
+    """The mode ``x'' + a1 x' + a0 x = force`` (constant) advanced by the interval whose
+    :func:`_oscillator` values are ``ec``, ``es``."""
+    xp = force / a0
+    z0 = x - xp
+    m = 0.5 * a1
+    return ec * z0 + es * (xd + m * z0) + xp, ec * xd - es * (m * xd + a0 * z0)
+
+
+MAX_EVENTS = 64
+"""Friction events (stops, breakaways) one piece of a sample may hold at most: beyond, the
+motor is held for the rest of it (as :data:`nurbsmotion.plant.MAX_EVENTS`)."""
+
+
+@njit(cache=True)
+def _two_mass_friction(drive, Ts, lag, frac, tau, gain, coulomb, S, omega, zeta, coupling,
+                       motor_share, speed0, out):
+    """:func:`simulate_axis` of a two-mass axis with friction, which acts on the motor (as
+    the plant's, docs/model.md#real-machine): sliding, the net drive is ``u - F*sign(w_m)``
+    with the motor's speed ``w_m = v + m*x'`` (``m = lam/(1 - lam)``); the instant it
+    reaches zero is found by checks every eighth of the mode's period and Illinois regula
+    falsi between. There the motor sticks while the drive on it, ``u`` less the spring
+    and damper (``lam*tau/G * (omega^2*x + 2*zeta*omega*x')`` [V]), is within ``S``; stuck,
+    the load swings on the held motor (``x'' + sa1*x' + sa0*x = 0``, ``sa0 =
+    (1 - lam)*omega^2``, ``sa1 = 1/tau + (1 - lam)*2*zeta*omega``) and the rigid body
+    follows it (``p = theta_m - m*x``), until that drive leaves ``+-S`` (found the same
+    way)."""
+    n = drive.shape[0]
+    m = motor_share
+    lam = m / (1.0 + m)
+    a1 = 1.0 / tau + 2.0 * zeta * omega
+    a0 = omega * omega
+    sa1 = 1.0 / tau + (1.0 - lam) * 2.0 * zeta * omega
+    sa0 = (1.0 - lam) * a0
+    spring = lam * tau / gain  # [V per pulse/s^2]
+    accel = gain / tau
+    check_slide = 2.0 * math.pi / omega / 8.0
+    check_stuck = 2.0 * math.pi / math.sqrt(sa0) / 8.0
+    slide_cache = np.full((6, 5), -1.0)
+    stuck_cache = np.full((6, 5), -1.0)
+    p = 0.0
+    v = speed0
+    x = 0.0
+    xd = 0.0
+    stuck = speed0 == 0.0
+    sgn = 1.0 if speed0 > 0.0 else -1.0
+    out[0] = 0.0
+    for k in range(n - 1):
+        for piece in range(2):
+            if piece == 0:
+                j = k - lag - 1
+                h = frac * Ts
+            else:
+                j = k - lag
+                h = (1.0 - frac) * Ts
+            if h <= 0.0:
+                continue
+            u = drive[j] if j >= 0 else 0.0
+            events = 0
+            left = h
+            # equal check steps over the piece, so that their coefficients repeat
+            n_slide = max(int(math.ceil(h / check_slide - 1e-9)), 1)
+            n_stuck = max(int(math.ceil(h / check_stuck - 1e-9)), 1)
+            step_slide = h / n_slide
+            step_stuck = h / n_stuck
+            while left > 1e-15 * Ts:
+                if stuck:
+                    fm = u - spring * (a0 * x + 2.0 * zeta * omega * xd)
+                    if abs(fm) > S and events < MAX_EVENTS:
+                        stuck = False
+                        sgn = 1.0 if fm > 0.0 else -1.0
+                        continue
+                    theta = p + m * x
+                    dt = min(left, step_stuck) if events < MAX_EVENTS else left
+                    if dt == step_stuck:
+                        _, _, ec, es = _coefficients(dt, tau, sa1, sa0, stuck_cache)
+                    else:
+                        ec, es = _oscillator(sa1, sa0, dt)
+                    x1, xd1 = _oscillate(x, xd, ec, es, sa1, sa0, 0.0)
+                    fm1 = u - spring * (a0 * x1 + 2.0 * zeta * omega * xd1)
+                    if abs(fm1) > S and events < MAX_EVENTS:
+                        # the breakaway inside: |fm(t)| - S from <= 0 to > 0
+                        lo, hi = 0.0, dt
+                        glo, ghi = abs(fm) - S, abs(fm1) - S
+                        side = 0
+                        for _ in range(80):
+                            t = (lo * ghi - hi * glo) / (ghi - glo) if ghi != glo else lo
+                            if not (lo < t < hi):
+                                t = 0.5 * (lo + hi)
+                            ec, es = _oscillator(sa1, sa0, t)
+                            xt, xdt = _oscillate(x, xd, ec, es, sa1, sa0, 0.0)
+                            gt = abs(u - spring * (a0 * xt + 2.0 * zeta * omega * xdt)) - S
+                            if gt > 0.0:
+                                hi, ghi = t, gt
+                                if side == 1:
+                                    glo *= 0.5
+                                side = 1
+                            else:
+                                lo, glo = t, gt
+                                if side == -1:
+                                    ghi *= 0.5
+                                side = -1
+                            if hi - lo <= 1e-13 * Ts:
+                                break
+                        dt = hi
+                        ec, es = _oscillator(sa1, sa0, dt)
+                        x1, xd1 = _oscillate(x, xd, ec, es, sa1, sa0, 0.0)
+                        events += 1
+                    x, xd = x1, xd1
+                    p = theta - m * x
+                    v = -m * xd
+                    left -= dt
+                    continue
+                net = u - coulomb * sgn
+                vinf = gain * net
+                force = accel * net
+                dt = min(left, step_slide)
+                if dt == step_slide:
+                    e, g, ec, es = _coefficients(dt, tau, a1, a0, slide_cache)
+                else:
+                    g = -math.expm1(-dt / tau)
+                    e = 1.0 - g
+                    ec, es = _oscillator(a1, a0, dt)
+                v1 = vinf + (v - vinf) * e
+                x1, xd1 = _oscillate(x, xd, ec, es, a1, a0, force)
+                if (v1 + m * xd1) * sgn <= 0.0:
+                    # the motor stops inside: w_m(t) from sgn-signed to 0
+                    lo, hi = 0.0, dt
+                    wlo, whi = (v + m * xd) * sgn, (v1 + m * xd1) * sgn
+                    side = 0
+                    for _ in range(80):
+                        t = (lo * whi - hi * wlo) / (whi - wlo) if whi != wlo else lo
+                        if not (lo < t < hi):
+                            t = 0.5 * (lo + hi)
+                        et = math.exp(-t / tau)
+                        ec, es = _oscillator(a1, a0, t)
+                        _, xdt = _oscillate(x, xd, ec, es, a1, a0, force)
+                        wt = (vinf + (v - vinf) * et + m * xdt) * sgn
+                        if wt <= 0.0:
+                            hi, whi = t, wt
+                            if side == 1:
+                                wlo *= 0.5
+                            side = 1
+                        else:
+                            lo, wlo = t, wt
+                            if side == -1:
+                                whi *= 0.5
+                            side = -1
+                        if hi - lo <= 1e-13 * Ts:
+                            break
+                    dt = hi
+                    g = -math.expm1(-dt / tau)
+                    e = 1.0 - g
+                    ec, es = _oscillator(a1, a0, dt)
+                    x1, xd1 = _oscillate(x, xd, ec, es, a1, a0, force)
+                    p += vinf * dt + (v - vinf) * tau * g
+                    x, xd = x1, xd1
+                    v = -m * xd  # the motor at rest
+                    stuck = True  # released at once if the drive on it exceeds S
+                    events += 1
+                else:
+                    p += vinf * dt + (v - vinf) * tau * g
+                    v = v1
+                    x, xd = x1, xd1
+                left -= dt
+        out[k + 1] = p + coupling * x
+    return out
+
+
+@njit(cache=True)
 def simulate_axis(drive, sample_period, delay, tau, gain, coulomb, stiction, omega, zeta,
-                  coupling, speed0, out):
+                  coupling, load_fraction, speed0, out):
     """Encoder positions of the model, relative to the first, into ``out``.
 
     Parameters
@@ -76,6 +293,10 @@ def simulate_axis(drive, sample_period, delay, tau, gain, coulomb, stiction, ome
         tau [s], G = Ke*Kc [pulse/s/V], F and S [V] (S < F is read as S = F).
     omega, zeta, coupling : float
         The mode [rad/s] (0 for a rigid axis), its damping ratio and c.
+    load_fraction : float
+        lam, the load's share of the inertia, where the encoder is on the load
+        (``coupling <= 0``); on the motor it is ``c / (1 + c)``. Read only by a two-mass
+        axis with friction (:func:`_two_mass_friction`).
     speed0 : float
         Speed at sample 0 [pulse/s]; 0 starts the axis at rest (stuck).
     out : ndarray, shape (n_samples,)
@@ -90,6 +311,10 @@ def simulate_axis(drive, sample_period, delay, tau, gain, coulomb, stiction, ome
         frac = 0.0
     S = max(stiction, coulomb)
     modal = omega > 0.0
+    if modal and S > 0.0:
+        share = coupling if coupling > 0.0 else load_fraction / (1.0 - load_fraction)
+        return _two_mass_friction(drive, Ts, lag, frac, tau, gain, coulomb, S, omega, zeta,
+                                  coupling, share, speed0, out)
     half_damping = 0.5 * (1.0 / tau + 2.0 * zeta * omega)
     damped = math.sqrt(max(omega * omega - half_damping * half_damping, 1e-300))
     accel = gain / tau
@@ -165,4 +390,5 @@ def simulate(drive: np.ndarray, sample_period: float, params: dict,
                          float(params["gain"]), float(params.get("coulomb_friction", 0.0)),
                          float(params.get("stiction", 0.0)), omega,
                          float(params.get("resonance_damping", 0.0)),
-                         float(params.get("coupling", 0.0)), float(speed0), out)
+                         float(params.get("coupling", 0.0)),
+                         float(params.get("load_fraction", 0.5)), float(speed0), out)
