@@ -129,7 +129,7 @@ class PlantState(NamedTuple):
     or 0 stuck; ``line`` (n_axes, n + 2): the drives on their way (ring buffer by
     sample); ``next_disturbance`` (n_axes,) int64: the next load step's index;
     ``origin`` (n_axes,): where the run started [pulse] (the counts' zero); and scratch:
-    ``tool`` (n_axes,), ``scratch`` (N_COEF,), ``y`` (4,)."""
+    ``tool`` (n_axes,), ``scratch`` (SCRATCH,), ``y`` (4,)."""
 
     x: np.ndarray
     direction: np.ndarray
@@ -282,24 +282,165 @@ def _slide_for(p, x, v, h, c, y):
 
 
 @njit(cache=True, inline="always")
-def _motor_speed_after(p, x, v, h):
-    """The sliding motor's speed [rad/s] ``h`` [s] after ``x`` under the constant net
-    drive ``v`` [V] of a two-mass axis: :func:`_slide_for` then :func:`_motor_speed`,
-    the same operations on the same numbers (so the same bits) without the positions'
-    coefficients (the root find's function)."""
+def _motor_accel(p, x, v):
+    """The sliding motor's acceleration [rad/s^2] in the state ``x`` of a two-mass axis
+    under the constant net drive ``v`` [V]: ``w_cm' = (Kc*v - w_cm)/tau`` plus ``lam/Ke``
+    times ``delta'' = -2*zeta*wn*delta' - wn^2*(delta - GAIN*v/wn^2)`` (the module
+    docstring's equations). No transcendental: the derivative of the root find's
+    function comes free with the function."""
+    wdot = (p[KC] * v - x[0]) / p[TAU]
+    z = x[2] - p[GAIN] * v / p[W2]
+    ddot = -2.0 * p[SIG] * x[3] - p[W2] * z
+    return wdot + p[LAM] * ddot / p[KE]
+
+
+@njit(cache=True, inline="always")
+def _speed_accel_after(p, x, v, h, c):
+    """The sliding motor's speed [rad/s] and acceleration [rad/s^2] ``h`` [s] after
+    ``x`` under the constant net drive ``v`` [V] of a two-mass axis, and in ``c`` the
+    sliding coefficients of ``h`` but ``CB1`` (:func:`_complete_coefficients` adds it):
+    the operations of :func:`_coefficients`, :func:`_slide` and :func:`_motor_speed` on
+    the same numbers (so the same bits), without the positions'."""
     g = -math.expm1(-(h / p[TAU]))
-    w = (1.0 - g) * x[0] + (p[KC] * g) * v
+    c[CA] = 1.0 - g
+    c[CKT] = p[KE] * p[TAU] * g
+    c[CB0] = p[KC] * g
     ec, es = _oscillator(2.0 * p[SIG], p[W2], h)
-    z0 = x[2] - p[GAIN] * v / p[W2]
-    d = ec * x[3] - es * (p[SIG] * x[3] + p[W2] * z0)
-    return w + p[LAM] * d / p[KE]
+    c[CEC] = ec
+    c[CES] = es
+    w = c[CA] * x[0] + c[CB0] * v
+    m = p[SIG]
+    ys = p[GAIN] * v / p[W2]
+    z0 = x[2] - ys
+    z = ec * z0 + es * (x[3] + m * z0)
+    d = ec * x[3] - es * (m * x[3] + p[W2] * z0)
+    speed = w + p[LAM] * d / p[KE]
+    accel = (p[KC] * v - w) / p[TAU] + p[LAM] * (-2.0 * m * d - p[W2] * z) / p[KE]
+    return speed, accel
+
+
+@njit(cache=True, inline="always")
+def _complete_coefficients(p, h, c):
+    """Add ``CB1`` of ``h`` [s] to the coefficients :func:`_speed_accel_after` left in
+    ``c`` (the position's series: no transcendental below x = 0.5)."""
+    c[CB1] = p[KE] * p[KC] * p[TAU] * _x_minus_g(h / p[TAU])
+
+
+@njit(cache=True, inline="always")
+def _hermite_root(lo, hi, f_lo, a_lo, f_hi, a_hi):
+    """The root in ``[lo, hi]`` [s] of the cubic Hermite interpolant of a function with
+    values ``f_lo > 0 >= f_hi`` and derivatives ``a_lo``, ``a_hi`` at the ends (a few
+    Newton steps on the cubic from the secant's root): the first guess of
+    :func:`_stop_time`'s Newton iteration, within the bracket."""
+    H = hi - lo
+    s = f_lo / (f_lo - f_hi)
+    b_lo = H * a_lo
+    b_hi = H * a_hi
+    for _ in range(4):
+        s2 = s * s
+        s3 = s2 * s
+        val = (f_lo * (2.0 * s3 - 3.0 * s2 + 1.0) + b_lo * (s3 - 2.0 * s2 + s)
+               + f_hi * (3.0 * s2 - 2.0 * s3) + b_hi * (s3 - s2))
+        der = (6.0 * (f_lo - f_hi) * (s2 - s) + b_lo * (3.0 * s2 - 4.0 * s + 1.0)
+               + b_hi * (3.0 * s2 - 2.0 * s))
+        if not der < 0.0:
+            break
+        sn = s - val / der
+        if not 0.0 < sn < 1.0:
+            break
+        s = sn
+    return lo + s * H
+
+
+TAYLOR_TERMS = 20
+"""Terms of the motor speed's Taylor series :func:`_taylor_root` sums at most: the
+20th is ``(wn*h)**20/20!`` of the oscillation's amplitude, 1e-20 for an interval of
+an eighth of the mode's period (the checks' step)."""
+
+
+@njit(cache=True, inline="always")
+def _taylor_root(p, x, v, direction, hi, f_hi, t, series):
+    """The root in ``(0, hi]`` [s] of the motor speed's Taylor series about the state
+    ``x`` at 0 (``series``: room for :data:`TAYLOR_TERMS` coefficients), by Newton
+    steps on the polynomial from ``t`` (kept if a step leaves the bracket): the guess
+    of :func:`_stop_time`'s exact Newton iteration, without a transcendental. The
+    derivatives come from the axis's equations: ``w_cm^(n) = w_cm'*(-1/tau)^(n-1)``,
+    ``z^(n+2) = -2*zeta*wn*z^(n+1) - wn^2*z^(n)`` for ``z = delta - GAIN*v/wn^2``; the
+    series stops where two terms in a row are below 1e-17 of the largest at ``hi``."""
+    tau = p[TAU]
+    m2 = 2.0 * p[SIG]
+    w2 = p[W2]
+    r = p[LAM] / p[KE]
+    dw = (p[KC] * v - x[0]) / tau  # w_cm'
+    z_prev = x[2] - p[GAIN] * v / w2  # z
+    z_cur = x[3]  # z'
+    series[0] = direction * (x[0] + r * z_cur)
+    largest = abs(series[0])
+    power = 1.0
+    inv_fact = direction  # direction/n!: no division in the loop
+    decay = -1.0 / tau
+    small = 0
+    n_terms = TAYLOR_TERMS
+    for n in range(1, TAYLOR_TERMS):
+        z_next = -m2 * z_cur - w2 * z_prev  # z^(n+1)
+        inv_fact *= INVERSE[n]
+        series[n] = (dw + r * z_next) * inv_fact
+        dw *= decay
+        z_prev = z_cur
+        z_cur = z_next
+        power *= hi
+        size = abs(series[n]) * power
+        largest = max(largest, size)
+        small = small + 1 if size <= 1e-17 * largest else 0
+        if small == 2:
+            n_terms = n + 1
+            break
+    for _ in range(8):
+        val = series[n_terms - 1]
+        der = 0.0
+        for n in range(n_terms - 2, -1, -1):
+            der = der * t + val
+            val = val * t + series[n]
+        if not der < 0.0:
+            break
+        tn = t - val / der
+        if not 0.0 < tn <= hi:
+            break
+        if abs(tn - t) <= 1e-16 * hi:
+            return tn
+        t = tn
+    return t
+
+
+INVERSE = np.array([0.0] + [1.0 / n for n in range(1, TAYLOR_TERMS)])
+"""1/n, n < TAYLOR_TERMS (entry 0 unused), for the series' 1/n!."""
+INVERSE.flags.writeable = False
+
+SCRATCH = 2 * N_COEF + TAYLOR_TERMS
+"""Length of :class:`PlantState`'s ``scratch``: two sets of coefficients and a Taylor
+series (:func:`_advance_events`)."""
+
+NEWTON_STEPS = 8
+"""Newton steps :func:`_stop_time` takes at most before it falls back on regula falsi
+(from the Hermite guess it converges in two or three)."""
+
+NEWTON_TOLERANCE = 1e-14
+"""A Newton step below this fraction of the interval ends :func:`_stop_time`'s root
+find (the step estimates the iterate's error; it is far below the rounding of the
+stage's state over an interval)."""
 
 
 @njit(cache=True)
-def _stop_time(p, x, v, h, direction, c, y, cf, fixed):
+def _stop_time(p, x, v, h, direction, c, y, cf, fixed, series):
     """The first instant in (0, h] [s] at which the sliding motor's speed reaches zero
-    (``direction*w_motor <= 0``), or -1 if none. Rigid: closed form; two-mass: checks
-    every eighth of the mode's period, then Illinois regula falsi on the bracket.
+    (``direction*w_motor <= 0``), or -1 if none; at a stop, ``c`` holds the sliding
+    coefficients of that instant. Rigid: closed form. Two-mass: checks every eighth of
+    the mode's period bracket the first stop; then a safeguarded Newton iteration on the
+    exact motor speed, whose derivative (the motor's acceleration,
+    :func:`_motor_accel`) costs no transcendental beyond the speed's, started from the
+    cubic Hermite interpolant of the bracket's ends (speed and acceleration known there
+    from the checks); a step out of the bracket is replaced by the bracket's secant,
+    and Illinois regula falsi finishes if Newton does not converge.
     ``cf``: the coefficients of ``h`` when ``fixed`` (a precomputed interval: the check
     at ``h`` costs no transcendental). Returns ``(t, at_end)``: ``at_end`` when there
     is no stop and ``y`` holds the state at ``h`` (exactly as sliding over ``h`` gives)."""
@@ -309,32 +450,62 @@ def _stop_time(p, x, v, h, direction, c, y, cf, fixed):
         if direction * wss >= 0.0:  # monotone towards wss: no reversal
             return -1.0, False
         if direction * w0 <= 0.0:
+            _coefficients(p, 0.0, c)
             return 0.0, False
         t = p[TAU] * math.log1p(-w0 / wss)
-        return (t, False) if t <= h else (-1.0, False)
+        if t <= h:
+            _coefficients(p, t, c)
+            return t, False
+        return -1.0, False
     n = max(1, int(math.ceil(h / p[CHECK_SLIDE])))
     lo = 0.0
     hi = -1.0
     f_lo = direction * _motor_speed(p, x)
+    a_lo = direction * _motor_accel(p, x, v)
     f_hi = 0.0
+    a_hi = 0.0
     for i in range(1, n + 1):
         t = h * i / n
         if fixed and t == h:
             _slide(p, cf, x, v, y)
-            f = direction * _motor_speed(p, y)
-        elif t == h:
-            _slide_for(p, x, v, t, c, y)
-            f = direction * _motor_speed(p, y)
         else:
-            f = direction * _motor_speed_after(p, x, v, t)
+            _slide_for(p, x, v, t, c, y)
+        f = direction * _motor_speed(p, y)
+        a = direction * _motor_accel(p, y, v)
         if f <= 0.0:
             hi = t
             f_hi = f
+            a_hi = a
             break
         lo = t
         f_lo = f
+        a_lo = a
     if hi < 0.0:
         return -1.0, lo == h
+    if f_lo > 0.0:
+        t = _hermite_root(lo, hi, f_lo, a_lo, f_hi, a_hi)
+        if lo == 0.0:
+            t = _taylor_root(p, x, v, direction, hi, f_hi, t, series)
+        for _ in range(NEWTON_STEPS):
+            f, a = _speed_accel_after(p, x, v, t, c)
+            f *= direction
+            a *= direction
+            if f > 0.0:
+                lo, f_lo = t, f
+            else:
+                hi, f_hi = t, f
+            if f == 0.0:
+                _complete_coefficients(p, t, c)
+                return t, False
+            step = f / a if a != 0.0 else math.inf
+            if abs(step) <= NEWTON_TOLERANCE * h:
+                _complete_coefficients(p, t, c)
+                return t, False
+            t = t - step
+            if not lo < t < hi:  # out of the bracket: its secant instead
+                t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+                if not lo < t < hi:
+                    t = 0.5 * (lo + hi)
     side = 0
     for _ in range(100):
         if hi - lo <= 1e-15 * h + 1e-300:
@@ -345,7 +516,8 @@ def _stop_time(p, x, v, h, direction, c, y, cf, fixed):
             t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
             if not (lo < t < hi):
                 t = 0.5 * (lo + hi)
-        f = direction * _motor_speed_after(p, x, v, t)
+        f, _ = _speed_accel_after(p, x, v, t, c)
+        f *= direction
         if f > 0.0:
             lo, f_lo = t, f
             if side == -1:
@@ -356,6 +528,7 @@ def _stop_time(p, x, v, h, direction, c, y, cf, fixed):
             if side == 1:
                 f_lo *= 0.5
             side = 1
+    _coefficients(p, hi, c)
     return hi, False
 
 
@@ -419,7 +592,7 @@ def advance(P, C, F, X, D, j, v, h, which, c, y):
     """Advance axis ``j`` by ``h`` [s] under the constant drive ``v`` [V] (applied drive
     plus load steps); ``which`` (0 or 1) names the precomputed interval ``h`` is, or -1.
     ``P``, ``C``, ``F``: the stage's ``param``, ``coef``, ``friction``; ``X``, ``D``: the
-    state's ``x`` and ``direction`` (changed); ``c`` (N_COEF,) and ``y`` (4,) scratch.
+    state's ``x`` and ``direction`` (changed); ``c`` (SCRATCH,) and ``y`` (4,) scratch.
     Arrays, never the NamedTuples: a tuple of arrays passed to a function costs a
     reference count of each of them at every call (several times the step itself).
     Inlined into the loop, whose locals are set up once per block; the events' function
@@ -488,6 +661,34 @@ def _friction_quiet(P, C, X, D, j, v, h, which):
 
 
 @njit(cache=True)
+def _rest_coefficients(p, ch, ct, r, out):
+    """``out`` = the sliding coefficients of ``r = h - t`` [s] from those of ``h``
+    (``ch``) and of ``t`` (``ct``): the interval's rest after a stop. The first-order
+    block by its own formulas (one ``expm1``); the mode's ``exp(-m r)*C`` and
+    ``exp(-m r)*S`` by the angle-difference formulas (no transcendental):
+    with ``E = ec_t^2 + wd^2*es_t^2 = exp(-2*m*t)`` (``wd^2 = wn^2 - m^2``, of either
+    sign), ``ec_r = (ec_h*ec_t + wd^2*es_h*es_t)/E``, ``es_r = (es_h*ec_t -
+    ec_h*es_t)/E``. Not the stuck coefficients (CSC, CSS). ``out`` may be ``ch``."""
+    x = r / p[TAU]
+    g = -math.expm1(-x)
+    if p[W2] > 0.0:
+        wd2 = p[W2] - p[SIG] * p[SIG]
+        ec_h, es_h, ec_t, es_t = ch[CEC], ch[CES], ct[CEC], ct[CES]
+        e2 = ec_t * ec_t + wd2 * es_t * es_t
+        ec = (ec_h * ec_t + wd2 * es_h * es_t) / e2
+        es = (es_h * ec_t - ec_h * es_t) / e2
+    else:
+        ec = 0.0
+        es = 0.0
+    out[CA] = 1.0 - g
+    out[CKT] = p[KE] * p[TAU] * g
+    out[CB0] = p[KC] * g
+    out[CB1] = p[KE] * p[KC] * p[TAU] * _x_minus_g(x)
+    out[CEC] = ec
+    out[CES] = es
+
+
+@njit(cache=True)
 def _advance_events(p, coef, friction, x, directions, j, v, h, which, c, y):
     """:func:`advance` for an interval of its own length or an axis with friction:
     ``p`` the axis's ``param`` row, ``coef`` its (2, N_COEF) coefficients, ``x`` its
@@ -500,13 +701,16 @@ def _advance_events(p, coef, friction, x, directions, j, v, h, which, c, y):
         for i in range(4):
             x[i] = y[i]
         return
+    c2 = c[N_COEF:2 * N_COEF]  # the rest's coefficients after a stop
+    series = c[2 * N_COEF:]  # _taylor_root's
+    c = c[:N_COEF]  # the coefficients of a stop
     remaining = h
+    fixed = which >= 0  # cf holds the coefficients of remaining
+    cf = coef[which] if fixed else c2
     for _ in range(MAX_EVENTS):
         if remaining <= 0.0:
             return
         direction = directions[j]
-        fixed = which >= 0 and remaining == h
-        cf = coef[which] if fixed else c
         if direction == 0.0:
             t, at_end = _breakaway_time(p, x, v, remaining, y, cf, fixed)
             if t < 0.0:
@@ -521,9 +725,10 @@ def _advance_events(p, coef, friction, x, directions, j, v, h, which, c, y):
                     x[i] = y[i]
             directions[j] = 1.0 if _net_drive(p, x, v) > 0.0 else -1.0
             remaining -= t
+            fixed = fixed and t == 0.0
             continue
         veff = v - p[FC] * direction
-        t, at_end = _stop_time(p, x, veff, remaining, direction, c, y, cf, fixed)
+        t, at_end = _stop_time(p, x, veff, remaining, direction, c, y, cf, fixed, series)
         if t < 0.0:
             if at_end:
                 pass  # y is already the state at the interval's end
@@ -534,16 +739,20 @@ def _advance_events(p, coef, friction, x, directions, j, v, h, which, c, y):
             for i in range(4):
                 x[i] = y[i]
             return
-        _slide_for(p, x, veff, t, c, y)
+        _slide(p, c, x, veff, y)  # c: the coefficients of t (_stop_time)
         for i in range(4):
             x[i] = y[i]
         x[0] = -p[LAM] * x[3] / p[KE]  # the motor at rest exactly (root's rounding)
-        remaining -= t
         net = _net_drive(p, x, v)
         if abs(net) <= p[FS]:
             directions[j] = 0.0
+            fixed = False  # a stuck motor's checks need CSC, CSS
         else:
             directions[j] = 1.0 if net > 0.0 else -1.0
+            if fixed:  # the rest's coefficients without a transcendental but one
+                _rest_coefficients(p, cf, c, remaining - t, c2)
+                cf = c2
+        remaining -= t
     # MAX_EVENTS reached: the motor is held for the rest of the interval
     directions[j] = 0.0
     x[0] = -p[LAM] * x[3] / p[KE]
@@ -564,10 +773,17 @@ def sample_step(P, C, F, DT, DD, dac_step, dac_levels, delay_samples, split, Ts,
         level = math.floor(applied / q + 0.5)
         level = min(max(level, -dac_levels), dac_levels - 1.0)
         applied = level * q
-    length = LINE.shape[1]
-    LINE[j, k % length] = applied
-    new = LINE[j, (k - delay_samples) % length]
-    old = LINE[j, (k - delay_samples - 1) % length]
+    length = LINE.shape[1]  # delay_samples + 2: one wrap of an index suffices
+    now = k % length  # one division per sample (an integer division costs tens of cycles)
+    LINE[j, now] = applied
+    i_new = now - delay_samples
+    if i_new < 0:
+        i_new += length
+    i_old = i_new - 1
+    if i_old < 0:
+        i_old += length
+    new = LINE[j, i_new]
+    old = LINE[j, i_old]
     t0 = k * Ts
     t = 0.0
     while t < Ts:
@@ -746,7 +962,7 @@ def new_plant_state(stage: PlantStage, position) -> PlantState:
     direction = np.where(stage.friction, 0.0, 1.0)
     return PlantState(x, direction, np.zeros((n, stage.delay_samples + 2)),
                       np.zeros(n, np.int64), np.array(position, dtype=float),
-                      np.zeros(n), np.zeros(N_COEF), np.zeros(4))
+                      np.zeros(n), np.zeros(SCRATCH), np.zeros(4))
 
 
 def stage_response(stage: PlantStage, drive, position=None):

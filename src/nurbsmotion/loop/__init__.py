@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 from contextlib import contextmanager
-from dataclasses import fields
 
 import numpy as np
 
@@ -215,7 +214,7 @@ def simulate(
 def _trace(outcome: RunOutcome, rows: closed_loop.Rows, with_bounds: bool) -> Trace:
     return Trace(
         position_measured=rows.measured if rows.measured.shape[0] else None,
-        **{f.name: getattr(outcome, f.name) for f in fields(RunOutcome)},
+        **outcome.__dict__,  # RunOutcome's fields (a plain dataclass: no slots)
         t=np.arange(outcome.n_samples) * outcome.machine.sample_period, u=rows.u,
         position_command=rows.command, position=rows.position,
         speed_command=rows.speed_command, speed=rows.speed, drive=rows.drive,
@@ -295,13 +294,30 @@ class _Tally:
         self.finite = True
 
     def add(self, rows: closed_loop.Rows) -> None:
-        beyond = np.zeros(len(rows.u), dtype=bool)
-        for j in range(rows.drive.shape[1]):  # axis by axis: no temporary of the full rows
-            beyond |= np.abs(rows.drive[:, j]) > self.max_drive
-        self.beyond += int(np.count_nonzero(beyond))
-        self.status += np.bincount(rows.status, minlength=len(Status))
-        self.finite = self.finite and bool(np.all(np.isfinite(rows.position))
-                                           and np.all(np.isfinite(rows.drive)))
+        beyond, finite = _tally_rows(rows.drive, rows.position, rows.status,
+                                     float(self.max_drive), self.status)
+        self.beyond += int(beyond)
+        self.finite = self.finite and bool(finite)
+
+
+@njit(cache=True, nogil=True)
+def _tally_rows(drive, position, status, max_drive, counts):
+    """One pass over a block's rows, no temporaries (a short run's fixed cost was a dozen
+    NumPy calls): ``(beyond, finite)``, the samples with a drive beyond ``max_drive``
+    [V] on any axis and whether every position and drive is finite; ``counts[s]`` (one
+    per :class:`~nurbsmotion.stepping.Status`) is raised by the samples of status s."""
+    beyond = 0
+    finite = True
+    for i in range(drive.shape[0]):
+        over = False
+        for j in range(drive.shape[1]):
+            d = drive[i, j]
+            over = over or abs(d) > max_drive
+            finite = finite and math.isfinite(d) and math.isfinite(position[i, j])
+        if over:
+            beyond += 1
+        counts[status[i]] += 1
+    return beyond, finite
 
 
 def hold_samples_of(plant: ServoPlant, hold: float | None) -> int:
