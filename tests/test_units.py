@@ -76,3 +76,65 @@ def test_markdown_table_gives_each_axis_its_own_column():
                         "saturated samples x | saturated samples y | max contour [mm] | "
                         "max contour [pulse] |")
     assert lines[2] == "| p | a | 1.9 | 1.01 | 2 | 1 | 0.25 | 250 |"
+
+
+# --- units.Scale: a path in any unit at the library's entry points -------------------
+
+def _mm_line():
+    return nm.make_line([0.0, 0.0], [20.0, 10.0], units="mm")
+
+
+def test_scale_holds_a_factor_per_axis():
+    from nurbsmotion.units import Scale
+
+    scale = Scale.of(nm.make_butterfly(), MACHINE)  # drawn in mm; 0.5-um pulses
+    np.testing.assert_array_equal(scale.pulses_per_path_unit, [2000.0, 2000.0])
+    assert scale.factor == 2000.0 and scale.report_unit == "mm"
+    assert scale.feed("6m/min") == pytest.approx(100 * 2000, rel=1e-15)
+    assert scale.length("10um") == 20.0 and scale.length("0.5") == 1000.0
+    np.testing.assert_array_equal(scale.to_report([[2000.0, 4000.0]]), [[1.0, 2.0]])
+    assert scale.path(nm.make_die_bonder_pi().scaled(1.0, units="pulse")).units == "pulse"
+
+
+def test_scale_refuses_a_length_along_axes_of_different_units():
+    """A rotary axis beside linear ones (pulses per degree vs per mm): the curve scales
+    axis by axis, but a feed along the path has no one factor and is refused, named."""
+    from nurbsmotion.errors import InvalidArgumentError
+    from nurbsmotion.units import Scale
+
+    mixed = Scale("mm", np.array([1000.0, 1000.0, 50.0]), np.array([1.0, 1.0, 1.0]), "mm",
+                  np.array([1000.0, 1000.0, 50.0]))
+    with pytest.raises(InvalidArgumentError, match=r"1000.0, 1000.0, 50.0"):
+        mixed.feed(100.0)
+    np.testing.assert_array_equal(mixed.to_report([[1000.0, 2000.0, 50.0]]), [[1, 2, 1]])
+
+
+def test_time_optimal_bound_takes_a_path_in_mm():
+    """The bound of a path drawn in mm, with a bare feed in mm/s or a feed text, is the
+    bound of the same path scaled to pulses by hand at the feed in pulse/s."""
+    from nurbsmotion.planning import time_optimal_bound
+
+    m = die_bonder()
+    by_hand = time_optimal_bound(_mm_line().scaled(1000.0, units="pulse"), m, 1e5)
+    assert time_optimal_bound(_mm_line(), m, 100.0) == pytest.approx(by_hand, rel=1e-12)
+    assert time_optimal_bound(_mm_line(), m, "0.1m/s") == pytest.approx(by_hand, rel=1e-12)
+    assert by_hand > 22.36 / 100.0  # the length over the feed: a lower bound [s]
+
+
+def test_make_interpolator_simulate_and_running_metrics_take_a_path_in_mm():
+    """simulate(make_interpolator(path in mm, feed in mm/s)) is the run of the path in
+    pulses, and RunningMetrics of the mm path gives the figures of the pulse path."""
+    from nurbsmotion.interpolators import make_interpolator
+    from nurbsmotion.loop import simulate
+    from nurbsmotion.metrics import RunningMetrics
+
+    m = die_bonder()
+    pulses = _mm_line().scaled(1000.0, units="pulse")
+    a = simulate(make_interpolator("paper", _mm_line(), m, 100.0), m, settle_time=0.0)
+    b = simulate(make_interpolator("paper", pulses, m, 1e5), m, settle_time=0.0)
+    np.testing.assert_allclose(a.position, b.position, rtol=1e-12, atol=1e-9)
+    step = np.linalg.norm(np.diff(a.position_command[: a.finished_index], axis=0), axis=1)
+    assert np.median(step) == pytest.approx(100.0)  # 1e5 pulse/s * 1 ms [pulse]
+    mm_metrics = RunningMetrics(_mm_line(), m, 1.0)
+    assert mm_metrics.curve.units == "pulse"
+    np.testing.assert_allclose(mm_metrics.end, RunningMetrics(pulses, m, 1.0).end, rtol=1e-12)

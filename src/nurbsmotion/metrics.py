@@ -29,6 +29,7 @@ from .geometry import distances_to
 from .nurbs import NurbsCurve
 from .loop.closed_loop import SETTLE_WINDOW
 from .stepping import Status
+from .units import in_pulses
 
 __all__ = ["Metrics", "RunningMetrics", "trace_metrics", "AtRest", "RunningAtRest",
            "trace_at_rest", "feed_fluctuation", "contour_error",
@@ -518,7 +519,8 @@ class RunningMetrics:
     Parameters
     ----------
     curve : NurbsCurve
-        The path [pulse].
+        The path, in any unit the machine knows (converted to pulses by
+        :class:`nurbsmotion.units.Scale`; the rows and the figures are in pulses).
     machine : Machine
     settle_window : float
         Radius of the settling window around the end point [pulse], > 0.
@@ -529,6 +531,7 @@ class RunningMetrics:
 
     def __init__(self, curve: NurbsCurve, machine, settle_window: float):
         _check_window(settle_window)
+        curve, _ = in_pulses(curve, machine)
         self.curve, self.machine, self.window = curve, machine, float(settle_window)
         n_axes = curve.n_axes
         self.n = 0

@@ -48,6 +48,7 @@ from .feed import FeedLimit
 from .machine import Machine
 from .nurbs import NurbsCurve
 from .servo import zoh_coefficients
+from .units import in_pulses
 
 __all__ = ["SpeedProfile", "speed_profile", "time_optimal_bound", "sampled_stop_bound",
            "check_path_size", "top_speed", "check_feed_reachable", "MAX_FEED_RATIO"]
@@ -760,10 +761,14 @@ def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,
     Parameters
     ----------
     curve : NurbsCurve
-        The path [pulse] (see :func:`nurbsmotion.loop.to_pulses`).
+        The path, in any unit the machine knows (one drawn in a length unit is converted
+        to pulses by :class:`nurbsmotion.units.Scale`, as :func:`nurbsmotion.loop.run`
+        does).
     machine : Machine
-    feed : float or FeedLimit
-        F [pulse/s], or a piecewise limit ``V <= F(u)`` [pulse/s].
+    feed : float or str or FeedLimit
+        F: a bare number in the path's units per second ([pulse/s] for a path in pulses),
+        a text with a unit (``"0.5m/s"``), or a piecewise limit ``V <= F(u)`` [path
+        units/s].
     grid_size : int
         Arc-length grid points over the path (refined in short knot spans, see
         :func:`speed_profile`).
@@ -777,6 +782,7 @@ def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,
         :data:`MAX_GRID_POINTS` grid points, or the bound is not a finite time (a feed of
         1e-320).
     """
+    curve, feed = in_pulses(curve, machine, feed)
     F = _check_feed(feed)
     check_path_size(curve)  # before the arc-length tables
     if machine.max_drive == math.inf or not math.isfinite(curve.length / F):

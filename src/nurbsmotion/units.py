@@ -8,20 +8,27 @@ mm), or a text with a unit, ``"0.5m/s"``, ``"100mm/s"``, ``"600mm/min"``, ``"2e5
 Results are computed in pulses and reported in pulses *and* in a length unit a user reads
 (:func:`report_unit`): inches for a path drawn in inches, millimetres otherwise (a path in
 pulses is converted through the machine's pulse length).
+
+:class:`Scale` is the one boundary: built once per path and machine, it holds the pulses
+per path unit of every axis and converts the path, a feed and a length into the machine's
+pulses where a run enters, and pulses back into the report unit on the way out. The
+functions below are its one-call forms.
 """
 
 from __future__ import annotations
 
 import math
 import re
+from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import InvalidArgumentError, InvalidFeedError
 from .feed import FeedLimit
 from .machine import LENGTH_UNITS_UM, Machine
+from .nurbs import NurbsCurve
 
-__all__ = ["InvalidFeedError", "parse_feed", "feed_in_pulses", "feed_in_path_units",
+__all__ = ["Scale", "in_pulses", "curve_in_pulses", "InvalidFeedError", "parse_feed", "feed_in_pulses", "feed_in_path_units",
            "length_in_pulses",
            "report_unit", "pulses_per_report_unit"]
 
@@ -93,39 +100,192 @@ def _parsed(feed) -> tuple[float, str | None]:
 _LENGTH = re.compile(r"^\s*([0-9.eE+-]+)\s*([a-z]*)\s*$")
 
 
+@dataclass(frozen=True, eq=False)
+class Scale:
+    """Where a path meets a machine: its units and the machine's pulses, once per run.
+
+    Built by :meth:`of` from the path as the user gave it and the machine; every
+    conversion of a run goes through it: :meth:`path` (the curve in pulses), :meth:`feed`
+    (pulse/s), :meth:`length` (pulses) on the way in, :meth:`to_report` (pulses to the
+    report unit) on the way out.
+
+    Each axis has its own factor, so a machine whose axes differ in kind (a rotary axis
+    in degrees beside linear ones in mm) fits the same object; a feed or a length along
+    the path needs one factor, which is only defined while every axis has the same
+    (:attr:`factor`), and a curve is scaled axis by axis.
+
+    Attributes
+    ----------
+    path_units : str or None
+        The units the path is drawn in (``None`` or ``"pulse"``: pulses).
+    pulses_per_path_unit : ndarray, shape (n_axes,)
+        Pulses per path unit, per axis [pulse/path unit].
+    pulse_length_um : ndarray, shape (n_axes,)
+        The length of one pulse, per axis [um] (feeds and lengths with a length unit).
+    report_unit : str
+        The length unit results are reported in besides pulses (:func:`report_unit`).
+    pulses_per_report_unit : ndarray, shape (n_axes,)
+        Pulses per report unit, per axis [pulse/mm or pulse/in].
+    """
+
+    path_units: str | None
+    pulses_per_path_unit: np.ndarray
+    pulse_length_um: np.ndarray
+    report_unit: str
+    pulses_per_report_unit: np.ndarray
+
+    @classmethod
+    def of(cls, curve: NurbsCurve | None, machine: Machine) -> "Scale":
+        """The scale of ``curve`` (its ``units``) on ``machine`` (its pulse length);
+        ``curve`` None: a move without a path, in pulses, on the machine's axes.
+
+        Raises
+        ------
+        InvalidArgumentError
+            If ``curve`` is not a :class:`NurbsCurve` or ``machine`` not a :class:`Machine`.
+        InvalidMachineError
+            If the path's unit is unknown.
+        """
+        if not isinstance(machine, Machine):
+            raise InvalidArgumentError(f"machine must be a Machine, got {machine!r:.60}")
+        if curve is None:
+            path_units, n_axes = None, machine.n_axes
+        elif isinstance(curve, NurbsCurve):
+            path_units, n_axes = curve.units, curve.n_axes
+        else:
+            raise InvalidArgumentError(f"curve must be a NurbsCurve, got {curve!r:.60}")
+        unit = report_unit(path_units)
+
+        def per_axis(units):
+            # one linear pulse length today; a per-axis (rotary) factor replaces this line
+            return np.full(n_axes, machine.pulses_per_unit(units))
+
+        return cls(path_units, per_axis(path_units),
+                   np.full(n_axes, float(machine.pulse_length_um)), unit, per_axis(unit))
+
+    @staticmethod
+    def _common(per_axis: np.ndarray, what: str) -> float:
+        """The one factor of ``per_axis`` [pulse/unit], if every axis has it."""
+        first = float(per_axis[0])
+        if np.any(per_axis != first):
+            raise InvalidArgumentError(
+                f"{what} along the path needs one pulses-per-unit factor, but the axes have "
+                f"{per_axis.tolist()}: convert it per axis")
+        return first
+
+    def _pulses_per(self, unit: str, what: str) -> float:
+        """Pulses per ``unit`` of :data:`LENGTH_UNITS_UM`, the same on every axis."""
+        return LENGTH_UNITS_UM[unit] / self._common(self.pulse_length_um, what)
+
+    @property
+    def factor(self) -> float:
+        """Pulses per path unit, the same on every axis [pulse/path unit]."""
+        return self._common(self.pulses_per_path_unit, "a length")
+
+    def path(self, curve: NurbsCurve) -> NurbsCurve:
+        """``curve`` (drawn in :attr:`path_units`) in the machine's pulses; the same object
+        when it is already in pulses."""
+        factor = self.factor
+        if factor == 1.0:
+            return curve
+        return curve.scaled(factor, units="pulse")
+
+    def feed(self, feed):
+        """A feed in the machine's pulse/s.
+
+        Parameters
+        ----------
+        feed : float or str or tuple or FeedLimit
+            A bare number [path units/s], a text with a unit (``"100mm/s"``), the pair
+            :func:`parse_feed` returns, or a per-piece limit
+            (:class:`nurbsmotion.feed.FeedLimit`, in path units/s; returned scaled).
+
+        Returns
+        -------
+        float or FeedLimit
+            Commanded feed F [pulse/s].
+        """
+        if isinstance(feed, FeedLimit):
+            return feed.scaled(self.factor)
+        value, unit = _parsed(feed)
+        if unit == "pulse":
+            return value
+        if unit == "um":
+            return value * self._pulses_per("um", "a feed")
+        return value * self.factor
+
+    def length(self, text, what: str = "length", bare_unit: str | None = None) -> float:
+        """A length text in the machine's pulses: ``"0.5mm"``, ``"10um"``, ``"200pulse"``,
+        or a bare number in ``bare_unit`` (default: the path's units, like a bare feed).
+        Must be finite and >= 0.
+
+        Raises
+        ------
+        InvalidArgumentError
+            Naming ``what`` and the text.
+        """
+        m = _LENGTH.match(str(text))
+        value = None
+        if m:
+            try:
+                value = float(m.group(1))
+            except ValueError:
+                value = None
+        if value is None or not (math.isfinite(value) and value >= 0):
+            raise InvalidArgumentError(
+                f"{what} {text!r} is not a length >= 0 such as 0.5mm, 10um or a number in "
+                + ("the path's units" if bare_unit is None else f"{bare_unit}s"))
+        unit = m.group(2) or bare_unit
+        if unit == "pulse":
+            return value
+        if unit is not None and unit not in LENGTH_UNITS_UM:
+            raise InvalidArgumentError(f"{what} unit {unit!r} unknown; use pulse or one of "
+                                       f"{sorted(LENGTH_UNITS_UM)}")
+        if unit is None or unit == self.path_units:
+            return value * self._common(self.pulses_per_path_unit, what)
+        return value * self._pulses_per(unit, what)
+
+    def to_report(self, pulses):
+        """Lengths [pulse] in :attr:`report_unit`: a scalar or an array along the path
+        by the common factor, an array of shape (..., n_axes) axis by axis."""
+        pulses = np.asarray(pulses, dtype=float)
+        if pulses.ndim and pulses.shape[-1] == len(self.pulses_per_report_unit):
+            return pulses / self.pulses_per_report_unit
+        return pulses / self._common(self.pulses_per_report_unit, "a length")
+
+
+def in_pulses(curve: NurbsCurve, machine: Machine, feed=None):
+    """``(curve, feed)`` in the machine's pulses and pulse/s, for the library's entry
+    points that plan or step in pulses (:func:`~nurbsmotion.planning.time_optimal_bound`,
+    :func:`~nurbsmotion.interpolators.make_interpolator`,
+    :class:`~nurbsmotion.metrics.RunningMetrics`).
+
+    A path in pulses with a feed that is a number or a
+    :class:`~nurbsmotion.feed.FeedLimit` comes back as it was given (the same objects),
+    so those entry points keep their own checks of it; any other path or feed goes
+    through :class:`Scale` (a bare number is then in the path's units per second).
+    """
+    if curve_in_pulses(curve) and not isinstance(feed, (str, tuple)):
+        return curve, feed
+    scale = Scale.of(curve, machine)
+    return scale.path(curve), (None if feed is None else scale.feed(feed))
+
+
+def curve_in_pulses(curve) -> bool:
+    """Whether ``curve`` is drawn in pulses (``units`` None or ``"pulse"``); anything
+    that is not a curve counts as in pulses, for its own entry point to refuse."""
+    return getattr(curve, "units", None) in (None, "pulse")
+
+
 def length_in_pulses(text: str, curve, machine: Machine, what: str = "length",
                      bare_unit: str | None = None) -> float:
-    """A length text in the machine's pulses: ``"0.5mm"``, ``"10um"``, ``"200pulse"``, or
-    a bare number in ``bare_unit`` (default: the path's units, like a bare feed). Must be
-    finite and >= 0.
-
-    Raises
-    ------
-    InvalidArgumentError
-        Naming ``what`` and the text.
-    """
-    m = _LENGTH.match(str(text))
-    value = None
-    if m:
-        try:
-            value = float(m.group(1))
-        except ValueError:
-            value = None
-    if value is None or not (math.isfinite(value) and value >= 0):
-        raise InvalidArgumentError(
-            f"{what} {text!r} is not a length >= 0 such as 0.5mm, 10um or a number in "
-            + ("the path's units" if bare_unit is None else f"{bare_unit}s"))
-    unit = m.group(2) or bare_unit
-    if unit == "pulse":
-        return value
-    if unit is not None and unit not in LENGTH_UNITS_UM:
-        raise InvalidArgumentError(f"{what} unit {unit!r} unknown; use pulse or one of "
-                                   f"{sorted(LENGTH_UNITS_UM)}")
-    return value * machine.pulses_per_unit(unit or curve.units)
+    """A length text in the machine's pulses (:meth:`Scale.length` of ``curve``, or of no
+    path when None, on ``machine``)."""
+    return Scale.of(curve, machine).length(text, what, bare_unit)
 
 
 def feed_in_pulses(feed, curve, machine: Machine):
-    """A feed in the machine's pulse/s.
+    """A feed in the machine's pulse/s (:meth:`Scale.feed` of ``curve`` on ``machine``).
 
     Parameters
     ----------
@@ -143,14 +303,7 @@ def feed_in_pulses(feed, curve, machine: Machine):
     float or FeedLimit
         Commanded feed F [pulse/s].
     """
-    if isinstance(feed, FeedLimit):
-        return feed.scaled(machine.pulses_per_unit(curve.units))
-    value, unit = _parsed(feed)
-    if unit == "pulse":
-        return value
-    if unit == "um":
-        return value * machine.pulses_per_unit("um")
-    return value * machine.pulses_per_unit(curve.units)
+    return Scale.of(curve, machine).feed(feed)
 
 
 def feed_in_path_units(feed, curve) -> float:

@@ -10,6 +10,7 @@
 """
 
 from ..errors import InvalidArgumentError
+from ..units import in_pulses
 from .base import Interpolator, Status, taylor_increment
 from .paper import PaperInterpolator
 from .replay import ReplayInterpolator
@@ -48,10 +49,14 @@ def make_open_loop(method: str, curve, sample_period: float, feed) -> Interpolat
 def make_interpolator(method: str, curve, machine, feed, **options) -> Interpolator:
     """A servo-loop interpolator by name (one of :data:`LOOP_METHODS`).
 
-    ``curve`` is in pulses and ``feed`` in pulse/s (or a per-piece ``FeedLimit``); the
-    sample period is the machine's. ``options`` go to the interpolator's constructor
-    (``planned``: ``corner_tolerance`` [pulse], ``tracking_pole``, ...).
+    ``curve`` is in any unit the machine knows and ``feed`` a bare number in the path's
+    units per second, a text with a unit (``"0.5m/s"``) or a per-piece ``FeedLimit``
+    (converted to pulses and pulse/s by :class:`nurbsmotion.units.Scale`; the
+    interpolator steps in pulses); the sample period is the machine's. ``options`` go to
+    the interpolator's constructor (``planned``: ``corner_tolerance`` [pulse],
+    ``tracking_pole``, ...).
     """
+    curve, feed = in_pulses(curve, machine, feed)
     if method == "planned":
         return PlannedInterpolator(curve, machine, feed, **options)
     if method not in LOOP_METHODS:

@@ -36,7 +36,7 @@ from ..nurbs import NurbsCurve
 from ..planning import check_feed_reachable, check_path_size
 from ..servo import ServoPlant
 from ..stepping import Status
-from ..units import feed_in_pulses
+from ..units import Scale, feed_in_pulses
 from .trace import RunOutcome, SetpointSeries, Trace
 
 SETTLE_TIME = 0.05
@@ -60,11 +60,9 @@ __all__ = ["Trace", "RunOutcome", "SetpointSeries", "simulate", "simulate_stream
 
 
 def to_pulses(curve: NurbsCurve, machine: Machine) -> NurbsCurve:
-    """The path in the machine's pulses (a path in ``"mm"`` is scaled by pulses per mm)."""
-    factor = machine.pulses_per_unit(curve.units)
-    if factor == 1.0:
-        return curve
-    return curve.scaled(factor, units="pulse")
+    """The path in the machine's pulses (a path in ``"mm"`` is scaled by pulses per mm;
+    :meth:`nurbsmotion.units.Scale.path`)."""
+    return Scale.of(curve, machine).path(curve)
 
 
 
