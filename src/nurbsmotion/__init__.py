@@ -3,6 +3,7 @@ from ._runtime.jit_cache import drop_stale_caches
 
 drop_stale_caches()  # before any compiled function is loaded from disk
 
+from ._runtime.lazy import lazy_names  # noqa: E402
 from .errors import (  # noqa: E402
     InfeasibleError,
     InvalidCurveError,
@@ -22,16 +23,7 @@ __all__ = ["InfeasibleError", "InvalidCurveError", "InvalidMachineError", "Nurbs
            "PathFileError", *_LAZY]
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        from importlib import import_module
-
-        return getattr(import_module(f".{_LAZY[name]}", __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY)
 
 
 __version__ = "0.1.0"

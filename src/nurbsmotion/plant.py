@@ -68,7 +68,7 @@ from numba.extending import overload
 
 from .errors import InvalidMachineError
 
-__all__ = ["PlantStage", "IdleStage", "is_active", "PlantState", "make_stage", "inactive_stage",
+__all__ = ["oscillator", "PlantStage", "IdleStage", "is_active", "PlantState", "make_stage", "inactive_stage",
            "new_plant_state",
            "linear_loop_poles", "continuous_model", "stage_response", "stage_arrays"]
 
@@ -77,7 +77,7 @@ TAU, KC, KE, LAM, SIG, W2, GAIN, SA1, SA0, KSPR, CDMP, FC, FS, ENC, TOOL, CHECK_
     CHECK_STUCK, N_PARAM = range(18)
 # Columns of the coefficients of one interval
 CA, CKT, CB0, CB1, CEC, CES, CSC, CSS, N_COEF = range(9)
-# (CSC, CSS: the stuck motor's load oscillator, ``_oscillator(SA1, SA0, h)``, set by
+# (CSC, CSS: the stuck motor's load oscillator, ``oscillator(SA1, SA0, h)``, set by
 # :func:`make_stage` for the two fixed intervals only)
 
 MAX_EVENTS = 64
@@ -186,7 +186,7 @@ _x_minus_g = njit(cache=True)(x_minus_one_minus_exp)
 
 
 @njit(cache=True)
-def _oscillator(a1, a0, h):
+def oscillator(a1, a0, h):
     """``exp(-m h)*C`` and ``exp(-m h)*S`` of ``y'' + a1 y' + a0 y = 0`` over ``h``:
     ``y(h) = eC*y0 + eS*(y0' + m*y0)``, ``y'(h) = eC*y0' - eS*(m*y0' + a0*y0)``,
     ``m = a1/2``, for any sign of ``m^2 - a0``."""
@@ -212,7 +212,7 @@ def _coefficients(p, h, out):
     out[CB0] = p[KC] * g
     out[CB1] = p[KE] * p[KC] * p[TAU] * _x_minus_g(x)
     if p[W2] > 0.0:
-        ec, es = _oscillator(2.0 * p[SIG], p[W2], h)
+        ec, es = oscillator(2.0 * p[SIG], p[W2], h)
         out[CEC] = ec
         out[CES] = es
     else:
@@ -240,7 +240,7 @@ def _slide(p, c, x, v, y):
 def _stuck(p, x, h, y):
     """``y`` = the state ``h`` [s] after ``x`` with the motor held at rest (a two-mass
     load swings on the spring about it; a rigid axis does not move)."""
-    ec, es = _oscillator(p[SA1], p[SA0], h) if p[W2] > 0.0 else (0.0, 0.0)
+    ec, es = oscillator(p[SA1], p[SA0], h) if p[W2] > 0.0 else (0.0, 0.0)
     _stuck_with(p, x, ec, es, y)
 
 
@@ -305,7 +305,7 @@ def _speed_accel_after(p, x, v, h, c):
     c[CA] = 1.0 - g
     c[CKT] = p[KE] * p[TAU] * g
     c[CB0] = p[KC] * g
-    ec, es = _oscillator(2.0 * p[SIG], p[W2], h)
+    ec, es = oscillator(2.0 * p[SIG], p[W2], h)
     c[CEC] = ec
     c[CES] = es
     w = c[CA] * x[0] + c[CB0] * v
@@ -929,7 +929,7 @@ def make_stage(effects, tau, Kc, Ke, max_drive: float, sample_period: float) -> 
         for i, h in enumerate(intervals):
             _coefficients(param[j], h, coef[j, i])
             if two[j]:
-                coef[j, i, CSC], coef[j, i, CSS] = _oscillator(param[j, SA1], param[j, SA0], h)
+                coef[j, i, CSC], coef[j, i, CSS] = oscillator(param[j, SA1], param[j, SA0], h)
     bits = effects["dac_bits"]
     if bits is not None and not math.isfinite(max_drive):
         raise InvalidMachineError(f"dac_bits = {bits} needs a finite max_drive, got "

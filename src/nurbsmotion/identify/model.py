@@ -47,6 +47,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..plant import oscillator
+
 __all__ = ["simulate_axis"]
 
 
@@ -70,23 +72,6 @@ def _mode_step(x, xd, dt, force, omega, half_damping, damped, table):
 
 
 @njit(cache=True)
-def _oscillator(a1, a0, h):
-    """``exp(-m h)*C`` and ``exp(-m h)*S`` of ``z'' + a1 z' + a0 z = 0`` over ``h``
-    (``m = a1/2``, any sign of ``m^2 - a0``): ``z(h) = eC*z0 + eS*(z0' + m*z0)``,
-    ``z'(h) = eC*z0' - eS*(m*z0' + a0*z0)`` (as :func:`nurbsmotion.plant._oscillator`)."""
-    m = 0.5 * a1
-    q2 = m * m - a0
-    e = math.exp(-m * h)
-    if q2 < 0.0:
-        wd = math.sqrt(-q2)
-        return e * math.cos(wd * h), e * math.sin(wd * h) / wd
-    if q2 > 0.0:
-        q = math.sqrt(q2)
-        return e * math.cosh(q * h), e * math.sinh(q * h) / q
-    return e, e * h
-
-
-@njit(cache=True)
 def _coefficients(h, tau, a1, a0, cache):
     """``(exp(-h/tau), -expm1(-h/tau), eC, eS)`` of an interval ``h`` [s]; ``cache`` rows
     ``(h, ...)`` hold the few lengths a log repeats (the check steps of the two pieces)."""
@@ -96,7 +81,7 @@ def _coefficients(h, tau, a1, a0, cache):
         if cache[i, 0] < 0.0:
             break
     g = -math.expm1(-h / tau)
-    ec, es = _oscillator(a1, a0, h)
+    ec, es = oscillator(a1, a0, h)
     for i in range(cache.shape[0]):
         if cache[i, 0] < 0.0:
             cache[i, 0] = h
@@ -111,7 +96,7 @@ def _coefficients(h, tau, a1, a0, cache):
 @njit(cache=True, inline="always")
 def _oscillate(x, xd, ec, es, a1, a0, force):
     """The mode ``x'' + a1 x' + a0 x = force`` (constant) advanced by the interval whose
-    :func:`_oscillator` values are ``ec``, ``es``."""
+    :func:`nurbsmotion.plant.oscillator` values are ``ec``, ``es``."""
     xp = force / a0
     z0 = x - xp
     m = 0.5 * a1
@@ -186,7 +171,7 @@ def _two_mass_friction(drive, Ts, lag, frac, tau, gain, coulomb, S, omega, zeta,
                     if dt == step_stuck:
                         _, _, ec, es = _coefficients(dt, tau, sa1, sa0, stuck_cache)
                     else:
-                        ec, es = _oscillator(sa1, sa0, dt)
+                        ec, es = oscillator(sa1, sa0, dt)
                     x1, xd1 = _oscillate(x, xd, ec, es, sa1, sa0, 0.0)
                     fm1 = u - spring * (a0 * x1 + 2.0 * zeta * omega * xd1)
                     if abs(fm1) > S and events < MAX_EVENTS:
@@ -198,7 +183,7 @@ def _two_mass_friction(drive, Ts, lag, frac, tau, gain, coulomb, S, omega, zeta,
                             t = (lo * ghi - hi * glo) / (ghi - glo) if ghi != glo else lo
                             if not (lo < t < hi):
                                 t = 0.5 * (lo + hi)
-                            ec, es = _oscillator(sa1, sa0, t)
+                            ec, es = oscillator(sa1, sa0, t)
                             xt, xdt = _oscillate(x, xd, ec, es, sa1, sa0, 0.0)
                             gt = abs(u - spring * (a0 * xt + 2.0 * zeta * omega * xdt)) - S
                             if gt > 0.0:
@@ -214,7 +199,7 @@ def _two_mass_friction(drive, Ts, lag, frac, tau, gain, coulomb, S, omega, zeta,
                             if hi - lo <= 1e-13 * Ts:
                                 break
                         dt = hi
-                        ec, es = _oscillator(sa1, sa0, dt)
+                        ec, es = oscillator(sa1, sa0, dt)
                         x1, xd1 = _oscillate(x, xd, ec, es, sa1, sa0, 0.0)
                         events += 1
                     x, xd = x1, xd1
@@ -231,7 +216,7 @@ def _two_mass_friction(drive, Ts, lag, frac, tau, gain, coulomb, S, omega, zeta,
                 else:
                     g = -math.expm1(-dt / tau)
                     e = 1.0 - g
-                    ec, es = _oscillator(a1, a0, dt)
+                    ec, es = oscillator(a1, a0, dt)
                 v1 = vinf + (v - vinf) * e
                 x1, xd1 = _oscillate(x, xd, ec, es, a1, a0, force)
                 if (v1 + m * xd1) * sgn <= 0.0:
@@ -244,7 +229,7 @@ def _two_mass_friction(drive, Ts, lag, frac, tau, gain, coulomb, S, omega, zeta,
                         if not (lo < t < hi):
                             t = 0.5 * (lo + hi)
                         et = math.exp(-t / tau)
-                        ec, es = _oscillator(a1, a0, t)
+                        ec, es = oscillator(a1, a0, t)
                         _, xdt = _oscillate(x, xd, ec, es, a1, a0, force)
                         wt = (vinf + (v - vinf) * et + m * xdt) * sgn
                         if wt <= 0.0:
@@ -262,7 +247,7 @@ def _two_mass_friction(drive, Ts, lag, frac, tau, gain, coulomb, S, omega, zeta,
                     dt = hi
                     g = -math.expm1(-dt / tau)
                     e = 1.0 - g
-                    ec, es = _oscillator(a1, a0, dt)
+                    ec, es = oscillator(a1, a0, dt)
                     x1, xd1 = _oscillate(x, xd, ec, es, a1, a0, force)
                     p += vinf * dt + (v - vinf) * tau * g
                     x, xd = x1, xd1

@@ -24,6 +24,8 @@ Names load with their module on first use (PEP 562); pyarrow, dask and tqdm are 
 only when used.
 """
 
+from .._runtime.lazy import lazy_names
+
 _LAZY = {
     "Study": "spec", "Case": "spec", "PlantGroup": "spec", "RandomPaths": "spec",
     "load_study": "spec", "study_cases": "spec", "find_case": "spec", "STATUS_OK": "spec",
@@ -45,13 +47,4 @@ module is loaded: they are :func:`nurbsmotion.study.digest.digest` and
 __all__ = list(_LAZY)
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        from importlib import import_module
-
-        return getattr(import_module(f".{_LAZY[name]}", __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY)
