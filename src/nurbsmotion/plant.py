@@ -129,7 +129,7 @@ class PlantState(NamedTuple):
     or 0 stuck; ``line`` (n_axes, n + 2): the drives on their way (ring buffer by
     sample); ``next_disturbance`` (n_axes,) int64: the next load step's index;
     ``origin`` (n_axes,): where the run started [pulse] (the counts' zero); and scratch:
-    ``tool`` (n_axes,), ``scratch`` (SCRATCH,), ``y`` (4,)."""
+    ``tool`` (n_axes,), ``scratch`` (SCRATCH,)."""
 
     x: np.ndarray
     direction: np.ndarray
@@ -138,7 +138,6 @@ class PlantState(NamedTuple):
     origin: np.ndarray
     tool: np.ndarray
     scratch: np.ndarray
-    y: np.ndarray
 
 
 IdleStage = NamedTuple("IdleStage", list(PlantStage.__annotations__.items()))
@@ -203,64 +202,78 @@ def oscillator(a1, a0, h):
 
 
 @njit(cache=True)
-def _coefficients(p, h, out):
-    """The sliding coefficients of one axis (its ``param`` row ``p``) over ``h`` [s]."""
+def _coefficients(p, h):
+    """The sliding coefficients of one axis (its parameters ``p``: a ``param`` row or
+    :func:`_params`) over ``h`` [s]: a tuple indexed CA ... CSS (CSC, CSS: 0)."""
     x = h / p[TAU]
     g = -math.expm1(-x)
-    out[CA] = 1.0 - g
-    out[CKT] = p[KE] * p[TAU] * g
-    out[CB0] = p[KC] * g
-    out[CB1] = p[KE] * p[KC] * p[TAU] * _x_minus_g(x)
     if p[W2] > 0.0:
         ec, es = oscillator(2.0 * p[SIG], p[W2], h)
-        out[CEC] = ec
-        out[CES] = es
     else:
-        out[CEC] = 0.0
-        out[CES] = 0.0
+        ec = 0.0
+        es = 0.0
+    return (1.0 - g, p[KE] * p[TAU] * g, p[KC] * g,
+            p[KE] * p[KC] * p[TAU] * _x_minus_g(x), ec, es, 0.0, 0.0)
+
+
+NO_COEFFICIENTS = (0.0,) * N_COEF
+"""A coefficient tuple never read (where the type needs one)."""
 
 
 @njit(cache=True, inline="always")
-def _slide(p, c, x, v, y):
-    """``y`` = the sliding state one interval (coefficients ``c``) after ``x`` under the
+def _params(P, j):
+    """Axis ``j``'s row of the stage's ``param``, as a tuple: the event functions below
+    take numbers and tuples, never arrays (an array passed to a compiled function costs
+    an atomic reference count at the call and at the return)."""
+    return (P[j, 0], P[j, 1], P[j, 2], P[j, 3], P[j, 4], P[j, 5], P[j, 6], P[j, 7],
+            P[j, 8], P[j, 9], P[j, 10], P[j, 11], P[j, 12], P[j, 13], P[j, 14], P[j, 15],
+            P[j, 16])
+
+
+@njit(cache=True, inline="always")
+def _coefficient_row(C, j, which):
+    """The precomputed coefficients ``C[j, which]``, as a tuple."""
+    return (C[j, which, 0], C[j, which, 1], C[j, which, 2], C[j, which, 3],
+            C[j, which, 4], C[j, which, 5], C[j, which, 6], C[j, which, 7])
+
+
+@njit(cache=True, inline="always")
+def _slide(p, c, x, v):
+    """The sliding state one interval (coefficients ``c``) after ``x`` under the
     constant net drive ``v`` [V]."""
-    y[0] = c[CA] * x[0] + c[CB0] * v
-    y[1] = x[1] + c[CKT] * x[0] + c[CB1] * v
+    y0 = c[CA] * x[0] + c[CB0] * v
+    y1 = x[1] + c[CKT] * x[0] + c[CB1] * v
     if p[W2] > 0.0:
         m = p[SIG]
         z0 = x[2] - p[GAIN] * v / p[W2]
-        y[2] = c[CEC] * z0 + c[CES] * (x[3] + m * z0) + p[GAIN] * v / p[W2]
-        y[3] = c[CEC] * x[3] - c[CES] * (m * x[3] + p[W2] * z0)
+        y2 = c[CEC] * z0 + c[CES] * (x[3] + m * z0) + p[GAIN] * v / p[W2]
+        y3 = c[CEC] * x[3] - c[CES] * (m * x[3] + p[W2] * z0)
     else:
-        y[2] = 0.0
-        y[3] = 0.0
+        y2 = 0.0
+        y3 = 0.0
+    return (y0, y1, y2, y3)
 
 
 @njit(cache=True)
-def _stuck(p, x, h, y):
-    """``y`` = the state ``h`` [s] after ``x`` with the motor held at rest (a two-mass
-    load swings on the spring about it; a rigid axis does not move)."""
+def _stuck(p, x, h):
+    """The state ``h`` [s] after ``x`` with the motor held at rest (a two-mass load
+    swings on the spring about it; a rigid axis does not move)."""
     ec, es = oscillator(p[SA1], p[SA0], h) if p[W2] > 0.0 else (0.0, 0.0)
-    _stuck_with(p, x, ec, es, y)
+    return _stuck_with(p, x, ec, es)
 
 
 @njit(cache=True, inline="always")
-def _stuck_with(p, x, ec, es, y):
+def _stuck_with(p, x, ec, es):
     """:func:`_stuck` of a two-mass axis given the load oscillator's ``ec``, ``es`` of
     the interval (precomputed for the two fixed intervals of a sample)."""
     if p[W2] > 0.0:
         lam = p[LAM]
         motor = x[1] + lam * x[2]
         m = 0.5 * p[SA1]
-        y[2] = ec * x[2] + es * (x[3] + m * x[2])
-        y[3] = ec * x[3] - es * (m * x[3] + p[SA0] * x[2])
-        y[1] = motor - lam * y[2]
-        y[0] = -lam * y[3] / p[KE]
-    else:
-        y[0] = 0.0
-        y[1] = x[1]
-        y[2] = 0.0
-        y[3] = 0.0
+        y2 = ec * x[2] + es * (x[3] + m * x[2])
+        y3 = ec * x[3] - es * (m * x[3] + p[SA0] * x[2])
+        return (-lam * y3 / p[KE], motor - lam * y2, y2, y3)
+    return (0.0, x[1], 0.0, 0.0)
 
 
 @njit(cache=True, inline="always")
@@ -276,9 +289,10 @@ def _net_drive(p, x, v):
 
 
 @njit(cache=True)
-def _slide_for(p, x, v, h, c, y):
-    _coefficients(p, h, c)
-    _slide(p, c, x, v, y)
+def _slide_for(p, x, v, h):
+    """``(c, y)``: the coefficients of ``h`` [s] and :func:`_slide` over it."""
+    c = _coefficients(p, h)
+    return c, _slide(p, c, x, v)
 
 
 @njit(cache=True, inline="always")
@@ -295,20 +309,17 @@ def _motor_accel(p, x, v):
 
 
 @njit(cache=True, inline="always")
-def _speed_accel_after(p, x, v, h, c):
+def _speed_accel_after(p, x, v, h):
     """The sliding motor's speed [rad/s] and acceleration [rad/s^2] ``h`` [s] after
-    ``x`` under the constant net drive ``v`` [V] of a two-mass axis, and in ``c`` the
-    sliding coefficients of ``h`` but ``CB1`` (:func:`_complete_coefficients` adds it):
-    the operations of :func:`_coefficients`, :func:`_slide` and :func:`_motor_speed` on
-    the same numbers (so the same bits), without the positions'."""
+    ``x`` under the constant net drive ``v`` [V] of a two-mass axis, and the sliding
+    coefficients of ``h`` but ``CB1`` (:func:`_complete_coefficients` adds it): the
+    operations of :func:`_coefficients`, :func:`_slide` and :func:`_motor_speed` on the
+    same numbers (so the same bits), without the positions'."""
     g = -math.expm1(-(h / p[TAU]))
-    c[CA] = 1.0 - g
-    c[CKT] = p[KE] * p[TAU] * g
-    c[CB0] = p[KC] * g
+    ca = 1.0 - g
+    cb0 = p[KC] * g
     ec, es = oscillator(2.0 * p[SIG], p[W2], h)
-    c[CEC] = ec
-    c[CES] = es
-    w = c[CA] * x[0] + c[CB0] * v
+    w = ca * x[0] + cb0 * v
     m = p[SIG]
     ys = p[GAIN] * v / p[W2]
     z0 = x[2] - ys
@@ -316,14 +327,15 @@ def _speed_accel_after(p, x, v, h, c):
     d = ec * x[3] - es * (m * x[3] + p[W2] * z0)
     speed = w + p[LAM] * d / p[KE]
     accel = (p[KC] * v - w) / p[TAU] + p[LAM] * (-2.0 * m * d - p[W2] * z) / p[KE]
-    return speed, accel
+    return speed, accel, (ca, p[KE] * p[TAU] * g, cb0, 0.0, ec, es, 0.0, 0.0)
 
 
 @njit(cache=True, inline="always")
 def _complete_coefficients(p, h, c):
-    """Add ``CB1`` of ``h`` [s] to the coefficients :func:`_speed_accel_after` left in
-    ``c`` (the position's series: no transcendental below x = 0.5)."""
-    c[CB1] = p[KE] * p[KC] * p[TAU] * _x_minus_g(h / p[TAU])
+    """The coefficients :func:`_speed_accel_after` gave for ``h`` [s], with ``CB1``
+    (the position's series: no transcendental below x = 0.5)."""
+    return (c[CA], c[CKT], c[CB0], p[KE] * p[KC] * p[TAU] * _x_minus_g(h / p[TAU]),
+            c[CEC], c[CES], c[CSC], c[CSS])
 
 
 @njit(cache=True, inline="always")
@@ -416,9 +428,8 @@ INVERSE = np.array([0.0] + [1.0 / n for n in range(1, TAYLOR_TERMS)])
 """1/n, n < TAYLOR_TERMS (entry 0 unused), for the series' 1/n!."""
 INVERSE.flags.writeable = False
 
-SCRATCH = 2 * N_COEF + TAYLOR_TERMS
-"""Length of :class:`PlantState`'s ``scratch``: two sets of coefficients and a Taylor
-series (:func:`_advance_events`)."""
+SCRATCH = TAYLOR_TERMS
+"""Length of :class:`PlantState`'s ``scratch``: a Taylor series (:func:`_taylor_root`)."""
 
 NEWTON_STEPS = 8
 """Newton steps :func:`_stop_time` takes at most before it falls back on regula falsi
@@ -431,32 +442,33 @@ stage's state over an interval)."""
 
 
 @njit(cache=True)
-def _stop_time(p, x, v, h, direction, c, y, cf, fixed, series):
+def _stop_time(p, x, v, h, direction, cf, fixed, series):
     """The first instant in (0, h] [s] at which the sliding motor's speed reaches zero
-    (``direction*w_motor <= 0``), or -1 if none; at a stop, ``c`` holds the sliding
-    coefficients of that instant. Rigid: closed form. Two-mass: checks every eighth of
-    the mode's period bracket the first stop; then a safeguarded Newton iteration on the
-    exact motor speed, whose derivative (the motor's acceleration,
+    (``direction*w_motor <= 0``), or -1 if none. Rigid: closed form. Two-mass: checks
+    every eighth of the mode's period bracket the first stop; then a safeguarded Newton
+    iteration on the exact motor speed, whose derivative (the motor's acceleration,
     :func:`_motor_accel`) costs no transcendental beyond the speed's, started from the
     cubic Hermite interpolant of the bracket's ends (speed and acceleration known there
     from the checks); a step out of the bracket is replaced by the bracket's secant,
     and Illinois regula falsi finishes if Newton does not converge.
     ``cf``: the coefficients of ``h`` when ``fixed`` (a precomputed interval: the check
-    at ``h`` costs no transcendental). Returns ``(t, at_end)``: ``at_end`` when there
-    is no stop and ``y`` holds the state at ``h`` (exactly as sliding over ``h`` gives)."""
+    at ``h`` costs no transcendental); ``series``: :func:`_taylor_root`'s room.
+    Returns ``(t, at_end, c, y)``: at a stop, ``c`` the sliding coefficients of ``t``;
+    ``at_end`` when there is no stop and ``y`` is the state at ``h`` (exactly as sliding
+    over ``h`` gives)."""
+    c = NO_COEFFICIENTS
+    y = x
     if p[W2] == 0.0:
         wss = p[KC] * v
         w0 = x[0]
         if direction * wss >= 0.0:  # monotone towards wss: no reversal
-            return -1.0, False
+            return -1.0, False, c, y
         if direction * w0 <= 0.0:
-            _coefficients(p, 0.0, c)
-            return 0.0, False
+            return 0.0, False, _coefficients(p, 0.0), y
         t = p[TAU] * math.log1p(-w0 / wss)
         if t <= h:
-            _coefficients(p, t, c)
-            return t, False
-        return -1.0, False
+            return t, False, _coefficients(p, t), y
+        return -1.0, False, c, y
     n = max(1, int(math.ceil(h / p[CHECK_SLIDE])))
     lo = 0.0
     hi = -1.0
@@ -467,9 +479,9 @@ def _stop_time(p, x, v, h, direction, c, y, cf, fixed, series):
     for i in range(1, n + 1):
         t = h * i / n
         if fixed and t == h:
-            _slide(p, cf, x, v, y)
+            y = _slide(p, cf, x, v)
         else:
-            _slide_for(p, x, v, t, c, y)
+            c, y = _slide_for(p, x, v, t)
         f = direction * _motor_speed(p, y)
         a = direction * _motor_accel(p, y, v)
         if f <= 0.0:
@@ -481,13 +493,13 @@ def _stop_time(p, x, v, h, direction, c, y, cf, fixed, series):
         f_lo = f
         a_lo = a
     if hi < 0.0:
-        return -1.0, lo == h
+        return -1.0, lo == h, c, y
     if f_lo > 0.0:
         t = _hermite_root(lo, hi, f_lo, a_lo, f_hi, a_hi)
         if lo == 0.0:
             t = _taylor_root(p, x, v, direction, hi, f_hi, t, series)
         for _ in range(NEWTON_STEPS):
-            f, a = _speed_accel_after(p, x, v, t, c)
+            f, a, c = _speed_accel_after(p, x, v, t)
             f *= direction
             a *= direction
             if f > 0.0:
@@ -495,12 +507,10 @@ def _stop_time(p, x, v, h, direction, c, y, cf, fixed, series):
             else:
                 hi, f_hi = t, f
             if f == 0.0:
-                _complete_coefficients(p, t, c)
-                return t, False
+                return t, False, _complete_coefficients(p, t, c), y
             step = f / a if a != 0.0 else math.inf
             if abs(step) <= NEWTON_TOLERANCE * h:
-                _complete_coefficients(p, t, c)
-                return t, False
+                return t, False, _complete_coefficients(p, t, c), y
             t = t - step
             if not lo < t < hi:  # out of the bracket: its secant instead
                 t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
@@ -516,7 +526,7 @@ def _stop_time(p, x, v, h, direction, c, y, cf, fixed, series):
             t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
             if not (lo < t < hi):
                 t = 0.5 * (lo + hi)
-        f, _ = _speed_accel_after(p, x, v, t, c)
+        f, _, c = _speed_accel_after(p, x, v, t)
         f *= direction
         if f > 0.0:
             lo, f_lo = t, f
@@ -528,147 +538,101 @@ def _stop_time(p, x, v, h, direction, c, y, cf, fixed, series):
             if side == 1:
                 f_lo *= 0.5
             side = 1
-    _coefficients(p, hi, c)
-    return hi, False
+    return hi, False, _coefficients(p, hi), y
 
 
 @njit(cache=True)
-def _breakaway_time(p, x, v, h, y, cf, fixed):
+def _breakaway_time(p, x, v, h, cf, fixed):
     """The first instant in [0, h] [s] at which the net drive on a stuck motor exceeds
-    the breakaway drive, or -1. Rigid: constant over the interval. ``cf``, ``fixed`` and
-    the returned ``(t, at_end)`` as :func:`_stop_time`'s (``y`` the stuck state at
-    ``h``)."""
+    the breakaway drive, or -1. Rigid: constant over the interval. ``cf``, ``fixed`` as
+    :func:`_stop_time`'s; returns ``(t, at_end, y)``, ``y`` the stuck state at ``h``
+    when ``at_end``."""
     limit = p[FS]
     if abs(_net_drive(p, x, v)) > limit:
-        return 0.0, False
+        return 0.0, False, x
     if p[W2] == 0.0:
-        return -1.0, False
+        return -1.0, False, x
     n = max(1, int(math.ceil(h / p[CHECK_STUCK])))
     lo = 0.0
     hi = -1.0
+    y = x
     for i in range(1, n + 1):
         t = h * i / n
         if fixed and t == h:
-            _stuck_with(p, x, cf[CSC], cf[CSS], y)
+            y = _stuck_with(p, x, cf[CSC], cf[CSS])
         else:
-            _stuck(p, x, t, y)
+            y = _stuck(p, x, t)
         if abs(_net_drive(p, y, v)) > limit:
             hi = t
             break
         lo = t
     if hi < 0.0:
-        return -1.0, lo == h
+        return -1.0, lo == h, y
     for _ in range(80):  # bisection: a breakaway is rare
         if hi - lo <= 1e-15 * h + 1e-300:
             break
         t = 0.5 * (lo + hi)
-        _stuck(p, x, t, y)
-        if abs(_net_drive(p, y, v)) > limit:
+        if abs(_net_drive(p, _stuck(p, x, t), v)) > limit:
             hi = t
         else:
             lo = t
-    return hi, False
+    return hi, False, y
 
 
 @njit(cache=True, inline="always")
-def _slide_at(P, C, X, j, which, v):
-    """:func:`_slide` of axis ``j`` over the precomputed interval ``which``, in place on
-    ``X[j]``, by index (no array views: the loop's hot path)."""
-    x0 = X[j, 0]
-    x2 = X[j, 2]
-    x3 = X[j, 3]
-    X[j, 0] = C[j, which, CA] * x0 + C[j, which, CB0] * v
-    X[j, 1] = X[j, 1] + C[j, which, CKT] * x0 + C[j, which, CB1] * v
-    if P[j, W2] > 0.0:
-        m = P[j, SIG]
-        ys = P[j, GAIN] * v / P[j, W2]
-        z0 = x2 - ys
-        X[j, 2] = C[j, which, CEC] * z0 + C[j, which, CES] * (x3 + m * z0) + ys
-        X[j, 3] = C[j, which, CEC] * x3 - C[j, which, CES] * (m * x3 + P[j, W2] * z0)
-
-
-@njit(cache=True, inline="always")
-def advance(P, C, F, X, D, j, v, h, which, c, y):
-    """Advance axis ``j`` by ``h`` [s] under the constant drive ``v`` [V] (applied drive
-    plus load steps); ``which`` (0 or 1) names the precomputed interval ``h`` is, or -1.
-    ``P``, ``C``, ``F``: the stage's ``param``, ``coef``, ``friction``; ``X``, ``D``: the
-    state's ``x`` and ``direction`` (changed); ``c`` (SCRATCH,) and ``y`` (4,) scratch.
-    Arrays, never the NamedTuples: a tuple of arrays passed to a function costs a
-    reference count of each of them at every call (several times the step itself).
-    Inlined into the loop, whose locals are set up once per block; the events' function
-    (large, rare) is a call of its own."""
-    if which >= 0:
-        if not F[j]:  # the common case
-            _slide_at(P, C, X, j, which, v)
-            return
-        if _friction_quiet(P, C, X, D, j, v, h, which):
-            return
-    _advance_events(P[j], C[j], F[j], X[j], D, j, v, h, which, c, y)
-
-
-@njit(cache=True, inline="always")
-def _friction_quiet(P, C, X, D, j, v, h, which):
-    """A friction axis over a precomputed interval with no event, done in place by index
-    (no call, no array views), if it is one: sliding with no stop, or stuck with no
-    breakaway, decided by the very tests :func:`_advance_events` makes first (the
-    single check at the interval's end when the interval is within one check step), so
-    the state is the same to the bit. Returns False (nothing changed) otherwise."""
-    d = D[j]
+def _friction_quiet(p, c, x, d, v, h):
+    """A friction axis over a precomputed interval (coefficients ``c``) with no event,
+    if it is one: sliding with no stop, or stuck with no breakaway, decided by the very
+    tests :func:`_advance_events` makes first (the single check at the interval's end
+    when the interval is within one check step), so the state is the same to the bit.
+    ``d``: the motor's direction. Returns ``(True, the state at the interval's end)``,
+    or ``(False, x)`` when there is an event."""
     if d != 0.0:
-        veff = v - P[j, FC] * d
-        if P[j, W2] == 0.0:
-            if d * (P[j, KC] * veff) >= 0.0:  # monotone towards a speed in d's sense
-                _slide_at(P, C, X, j, which, veff)
-                return True
-            return False
-        if h / P[j, CHECK_SLIDE] > 1.0:
-            return False
-        w = C[j, which, CA] * X[j, 0] + C[j, which, CB0] * veff
-        ys = P[j, GAIN] * veff / P[j, W2]
-        z0 = X[j, 2] - ys
-        x3 = X[j, 3]
-        d3 = C[j, which, CEC] * x3 - C[j, which, CES] * (P[j, SIG] * x3 + P[j, W2] * z0)
-        if d * (w + P[j, LAM] * d3 / P[j, KE]) <= 0.0:
-            return False
-        _slide_at(P, C, X, j, which, veff)
-        return True
-    limit = P[j, FS]
-    if abs(v - P[j, KSPR] * X[j, 2] - P[j, CDMP] * X[j, 3]) > limit:
-        return False
-    if P[j, W2] == 0.0:
-        X[j, 0] = 0.0
-        X[j, 2] = 0.0
-        X[j, 3] = 0.0
-        return True
-    if h / P[j, CHECK_STUCK] > 1.0:
-        return False
-    lam = P[j, LAM]
-    x2 = X[j, 2]
-    x3 = X[j, 3]
-    motor = X[j, 1] + lam * x2
-    ec = C[j, which, CSC]
-    es = C[j, which, CSS]
-    m = 0.5 * P[j, SA1]
+        veff = v - p[FC] * d
+        if p[W2] == 0.0:
+            if d * (p[KC] * veff) >= 0.0:  # monotone towards a speed in d's sense
+                return True, _slide(p, c, x, veff)
+            return False, x
+        if h / p[CHECK_SLIDE] > 1.0:
+            return False, x
+        w = c[CA] * x[0] + c[CB0] * veff
+        ys = p[GAIN] * veff / p[W2]
+        z0 = x[2] - ys
+        x3 = x[3]
+        d3 = c[CEC] * x3 - c[CES] * (p[SIG] * x3 + p[W2] * z0)
+        if d * (w + p[LAM] * d3 / p[KE]) <= 0.0:
+            return False, x
+        return True, _slide(p, c, x, veff)
+    limit = p[FS]
+    if abs(v - p[KSPR] * x[2] - p[CDMP] * x[3]) > limit:
+        return False, x
+    if p[W2] == 0.0:
+        return True, (0.0, x[1], 0.0, 0.0)
+    if h / p[CHECK_STUCK] > 1.0:
+        return False, x
+    lam = p[LAM]
+    x2 = x[2]
+    x3 = x[3]
+    motor = x[1] + lam * x2
+    ec = c[CSC]
+    es = c[CSS]
+    m = 0.5 * p[SA1]
     y2 = ec * x2 + es * (x3 + m * x2)
-    y3 = ec * x3 - es * (m * x3 + P[j, SA0] * x2)
-    if abs(v - P[j, KSPR] * y2 - P[j, CDMP] * y3) > limit:
-        return False
-    X[j, 0] = -lam * y3 / P[j, KE]
-    X[j, 1] = motor - lam * y2
-    X[j, 2] = y2
-    X[j, 3] = y3
-    return True
+    y3 = ec * x3 - es * (m * x3 + p[SA0] * x2)
+    if abs(v - p[KSPR] * y2 - p[CDMP] * y3) > limit:
+        return False, x
+    return True, (-lam * y3 / p[KE], motor - lam * y2, y2, y3)
 
 
 @njit(cache=True)
-def _rest_coefficients(p, ch, ct, r, out):
-    """``out`` = the sliding coefficients of ``r = h - t`` [s] from those of ``h``
-    (``ch``) and of ``t`` (``ct``): the interval's rest after a stop. The first-order
-    block by its own formulas (one ``expm1``); the mode's ``exp(-m r)*C`` and
-    ``exp(-m r)*S`` by the angle-difference formulas (no transcendental):
-    with ``E = ec_t^2 + wd^2*es_t^2 = exp(-2*m*t)`` (``wd^2 = wn^2 - m^2``, of either
-    sign), ``ec_r = (ec_h*ec_t + wd^2*es_h*es_t)/E``, ``es_r = (es_h*ec_t -
-    ec_h*es_t)/E``. Not the stuck coefficients (CSC, CSS). ``out`` may be ``ch``."""
+def _rest_coefficients(p, ch, ct, r):
+    """The sliding coefficients of ``r = h - t`` [s] from those of ``h`` (``ch``) and of
+    ``t`` (``ct``): the interval's rest after a stop. The first-order block by its own
+    formulas (one ``expm1``); the mode's ``exp(-m r)*C`` and ``exp(-m r)*S`` by the
+    angle-difference formulas (no transcendental): with ``E = ec_t^2 + wd^2*es_t^2 =
+    exp(-2*m*t)`` (``wd^2 = wn^2 - m^2``, of either sign), ``ec_r = (ec_h*ec_t +
+    wd^2*es_h*es_t)/E``, ``es_r = (es_h*ec_t - ec_h*es_t)/E``. Not the stuck
+    coefficients (CSC, CSS: 0)."""
     x = r / p[TAU]
     g = -math.expm1(-x)
     if p[W2] > 0.0:
@@ -680,128 +644,132 @@ def _rest_coefficients(p, ch, ct, r, out):
     else:
         ec = 0.0
         es = 0.0
-    out[CA] = 1.0 - g
-    out[CKT] = p[KE] * p[TAU] * g
-    out[CB0] = p[KC] * g
-    out[CB1] = p[KE] * p[KC] * p[TAU] * _x_minus_g(x)
-    out[CEC] = ec
-    out[CES] = es
+    return (1.0 - g, p[KE] * p[TAU] * g, p[KC] * g,
+            p[KE] * p[KC] * p[TAU] * _x_minus_g(x), ec, es, 0.0, 0.0)
 
 
 @njit(cache=True)
-def _advance_events(p, coef, friction, x, directions, j, v, h, which, c, y):
-    """:func:`advance` for an interval of its own length or an axis with friction:
-    ``p`` the axis's ``param`` row, ``coef`` its (2, N_COEF) coefficients, ``x`` its
-    state (changed), ``directions`` every axis's motor direction (entry j changed)."""
-    if not friction:
-        if which >= 0:
-            _slide(p, coef[which], x, v, y)
-        else:
-            _slide_for(p, x, v, h, c, y)
-        for i in range(4):
-            x[i] = y[i]
-        return
-    c2 = c[N_COEF:2 * N_COEF]  # the rest's coefficients after a stop
-    series = c[2 * N_COEF:]  # _taylor_root's
-    c = c[:N_COEF]  # the coefficients of a stop
-    remaining = h
+def _advance_events(p, cf, friction, x, d, v, h, which, series):
+    """The state ``x`` of an axis (parameters ``p``) advanced by ``h`` [s] under the
+    constant drive ``v`` [V] (applied drive plus load steps) through its friction events
+    (stops, breakaways), from the motor's direction ``d`` (+1, -1, 0 stuck); ``which``
+    (0 or 1) names the precomputed interval ``h`` is (``cf`` its coefficients), or -1;
+    ``series`` (SCRATCH,) scratch. Returns ``(x, d)`` at the interval's end."""
     fixed = which >= 0  # cf holds the coefficients of remaining
-    cf = coef[which] if fixed else c2
+    if not friction:
+        if fixed:
+            return _slide(p, cf, x, v), d
+        return _slide_for(p, x, v, h)[1], d
+    remaining = h
     for _ in range(MAX_EVENTS):
         if remaining <= 0.0:
-            return
-        direction = directions[j]
-        if direction == 0.0:
-            t, at_end = _breakaway_time(p, x, v, remaining, y, cf, fixed)
+            return x, d
+        if d == 0.0:
+            t, at_end, y = _breakaway_time(p, x, v, remaining, cf, fixed)
             if t < 0.0:
-                if not at_end:
-                    _stuck(p, x, remaining, y)
-                for i in range(4):
-                    x[i] = y[i]
-                return
+                return (y if at_end else _stuck(p, x, remaining)), d
             if t > 0.0:
-                _stuck(p, x, t, y)
-                for i in range(4):
-                    x[i] = y[i]
-            directions[j] = 1.0 if _net_drive(p, x, v) > 0.0 else -1.0
+                x = _stuck(p, x, t)
+            d = 1.0 if _net_drive(p, x, v) > 0.0 else -1.0
             remaining -= t
             fixed = fixed and t == 0.0
             continue
-        veff = v - p[FC] * direction
-        t, at_end = _stop_time(p, x, veff, remaining, direction, c, y, cf, fixed, series)
+        veff = v - p[FC] * d
+        t, at_end, c, y = _stop_time(p, x, veff, remaining, d, cf, fixed, series)
         if t < 0.0:
             if at_end:
-                pass  # y is already the state at the interval's end
-            elif fixed:
-                _slide(p, cf, x, veff, y)
-            else:
-                _slide_for(p, x, veff, remaining, c, y)
-            for i in range(4):
-                x[i] = y[i]
-            return
-        _slide(p, c, x, veff, y)  # c: the coefficients of t (_stop_time)
-        for i in range(4):
-            x[i] = y[i]
-        x[0] = -p[LAM] * x[3] / p[KE]  # the motor at rest exactly (root's rounding)
+                return y, d  # already the state at the interval's end
+            if fixed:
+                return _slide(p, cf, x, veff), d
+            return _slide_for(p, x, veff, remaining)[1], d
+        y = _slide(p, c, x, veff)
+        # the motor at rest exactly (root's rounding)
+        x = (-p[LAM] * y[3] / p[KE], y[1], y[2], y[3])
         net = _net_drive(p, x, v)
         if abs(net) <= p[FS]:
-            directions[j] = 0.0
+            d = 0.0
             fixed = False  # a stuck motor's checks need CSC, CSS
         else:
-            directions[j] = 1.0 if net > 0.0 else -1.0
+            d = 1.0 if net > 0.0 else -1.0
             if fixed:  # the rest's coefficients without a transcendental but one
-                _rest_coefficients(p, cf, c, remaining - t, c2)
-                cf = c2
+                cf = _rest_coefficients(p, cf, c, remaining - t)
         remaining -= t
     # MAX_EVENTS reached: the motor is held for the rest of the interval
-    directions[j] = 0.0
-    x[0] = -p[LAM] * x[3] / p[KE]
-    _stuck(p, x, remaining, y)
-    for i in range(4):
-        x[i] = y[i]
+    x = (-p[LAM] * x[3] / p[KE], x[1], x[2], x[3])
+    return _stuck(p, x, remaining), 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def sample_step(P, C, F, DT, DD, dac_step, dac_levels, delay_samples, split, Ts, X, D, LINE,
-                ND, k, j, applied, c, y):
-    """Axis ``j`` over sample k: the DAC on the drive ``applied`` [V] (clipped), the
-    delay line, the load steps, and :func:`advance` over each interval of constant drive.
-    The arguments before ``k`` are :func:`stage_arrays` (the stage's and its state's
-    arrays and numbers)."""
-    q = dac_step
-    if q > 0.0:
-        level = math.floor(applied / q + 0.5)
-        level = min(max(level, -dac_levels), dac_levels - 1.0)
-        applied = level * q
+                ND, k, drive, row, series):
+    """Every axis over sample k: the DAC on its drive ``drive[row, j]`` [V] (clipped),
+    the delay line, the load steps, and each interval of constant drive advanced exactly:
+    by the precomputed coefficients when the axis has no friction or no friction event
+    in it (:func:`_friction_quiet`), else by :func:`_advance_events`. The arguments
+    before ``k`` are :func:`stage_arrays` (the stage's and its state's arrays and
+    numbers); ``series`` (SCRATCH,) scratch.
+
+    One call per sample for all axes, not inlined, and the axes' numbers go to the
+    functions it calls as tuples: an array handed to a compiled function (inlined or
+    not) costs an atomic reference count at the call and at the return, which here
+    would cost more than the plant's arithmetic."""
     length = LINE.shape[1]  # delay_samples + 2: one wrap of an index suffices
     now = k % length  # one division per sample (an integer division costs tens of cycles)
-    LINE[j, now] = applied
     i_new = now - delay_samples
     if i_new < 0:
         i_new += length
     i_old = i_new - 1
     if i_old < 0:
         i_old += length
-    new = LINE[j, i_new]
-    old = LINE[j, i_old]
     t0 = k * Ts
-    t = 0.0
-    while t < Ts:
-        if t < split:
-            seg_start, seg_end, seg_which, drive = 0.0, split, 0, old
-        else:
-            seg_start, seg_end, drive = split, Ts, new
-            seg_which = 1 if split > 0.0 else 0
-        i = ND[j]
-        at = DT[j, i] - t0
-        if at <= t:  # a load step due now (or, by rounding, a hair before)
-            ND[j] = i + 1
-            continue
-        load = DD[j, i - 1] if i > 0 else 0.0
-        end = min(seg_end, at)
-        which = seg_which if (t == seg_start and end == seg_end) else -1
-        advance(P, C, F, X, D, j, drive + load, end - t, which, c, y)
-        t = end
+    q = dac_step
+    for j in range(X.shape[0]):
+        applied = drive[row, j]
+        if q > 0.0:
+            level = math.floor(applied / q + 0.5)
+            level = min(max(level, -dac_levels), dac_levels - 1.0)
+            applied = level * q
+        LINE[j, now] = applied
+        new = LINE[j, i_new]
+        old = LINE[j, i_old]
+        p = _params(P, j)
+        x = (X[j, 0], X[j, 1], X[j, 2], X[j, 3])
+        d = D[j]
+        friction = F[j]
+        t = 0.0
+        while t < Ts:
+            if t < split:
+                seg_start, seg_end, seg_which, u = 0.0, split, 0, old
+            else:
+                seg_start, seg_end, u = split, Ts, new
+                seg_which = 1 if split > 0.0 else 0
+            i = ND[j]
+            at = DT[j, i] - t0
+            if at <= t:  # a load step due now (or, by rounding, a hair before)
+                ND[j] = i + 1
+                continue
+            load = DD[j, i - 1] if i > 0 else 0.0
+            end = min(seg_end, at)
+            which = seg_which if (t == seg_start and end == seg_end) else -1
+            v = u + load
+            h = end - t
+            if which >= 0:
+                cf = _coefficient_row(C, j, which)
+                if not friction:  # the common case
+                    x = _slide(p, cf, x, v)
+                else:
+                    quiet, x = _friction_quiet(p, cf, x, d, v, h)
+                    if not quiet:
+                        x, d = _advance_events(p, cf, friction, x, d, v, h, which, series)
+            else:
+                x, d = _advance_events(p, NO_COEFFICIENTS, friction, x, d, v, h, which,
+                                       series)
+            t = end
+        X[j, 0] = x[0]
+        X[j, 1] = x[1]
+        X[j, 2] = x[2]
+        X[j, 3] = x[3]
+        D[j] = d
 
 
 def stage_arrays(stage: "PlantStage", pstate: "PlantState") -> tuple:
@@ -927,7 +895,7 @@ def make_stage(effects, tau, Kc, Ke, max_drive: float, sample_period: float) -> 
     for j in range(n):
         intervals = (split, Ts - split) if split > 0.0 else (Ts,)
         for i, h in enumerate(intervals):
-            _coefficients(param[j], h, coef[j, i])
+            coef[j, i] = _coefficients(param[j], h)
             if two[j]:
                 coef[j, i, CSC], coef[j, i, CSS] = oscillator(param[j, SA1], param[j, SA0], h)
     bits = effects["dac_bits"]
@@ -962,7 +930,7 @@ def new_plant_state(stage: PlantStage, position) -> PlantState:
     direction = np.where(stage.friction, 0.0, 1.0)
     return PlantState(x, direction, np.zeros((n, stage.delay_samples + 2)),
                       np.zeros(n, np.int64), np.array(position, dtype=float),
-                      np.zeros(n), np.zeros(SCRATCH), np.zeros(4))
+                      np.zeros(n), np.zeros(SCRATCH))
 
 
 def stage_response(stage: PlantStage, drive, position=None):
@@ -990,8 +958,7 @@ def stage_response(stage: PlantStage, drive, position=None):
     xs[0] = pstate.x
     args = stage_arrays(stage, pstate)
     for k in range(drive.shape[0]):
-        for j in range(n_axes):
-            sample_step(*args, k, j, float(drive[k, j]), pstate.scratch, pstate.y)
+        sample_step(*args, k, drive, k, pstate.scratch)
         xs[k + 1] = pstate.x
     tool = xs[:, :, 1] + stage.param[:, TOOL] * xs[:, :, 2]
     return xs, tool
