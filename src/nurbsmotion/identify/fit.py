@@ -208,10 +208,30 @@ log's first this many samples; a longer log then refines the parameters in a few
 iterations on all of it."""
 
 
+STICTION_PASSES = 3
+"""Fits at most per axis with friction, each holding the stiction the previous one's scan
+found (see :func:`fit_axis`)."""
+
+
+STICTION_SHIFT = 1e-3
+"""A scan that moves the stiction by less than this share of Umax ends the passes (the
+share below which a friction is taken as zero, as in :func:`_fit_once`)."""
+
+
 def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
              max_drive: float = 10.0, base: dict | None = None,
              screen: int | None = SCREEN_SAMPLES) -> AxisFit:
     """Fit one axis (see the module docstring).
+
+    The stiction is not a parameter of the least-squares fits (the residual steps with
+    it: an axis held at rest breaks away only where the drive crosses it), but it shapes
+    every stop and breakaway, and on a two-mass axis the motor stops every half period
+    of the mode: a fit holding the stiction at the Coulomb friction bends tau, Ke*Kc and
+    the friction to mimic it, and can run off (tau at its bound). So the fit is a fixed
+    point in the stiction: the whole fit is repeated holding the stiction the previous
+    fit's scan found, while that scan moves it by more than :data:`STICTION_SHIFT` of
+    Umax (at most
+    :data:`STICTION_PASSES` fits), and the fit with the least residual is kept.
 
     Parameters
     ----------
@@ -223,10 +243,14 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         Sample period [s].
     noise : float
         A first guess of the reading noise [pulse] (for the rest detection).
+    max_drive : float
+        Umax [V], the bound of the friction.
     base : dict, optional
         ``time_constant`` and ``gain`` to fall back on where the data say nothing.
+    screen : int, optional
+        On a longer log the structure is chosen on its first this many samples
+        (:data:`SCREEN_SAMPLES`); None fits the whole log.
     """
-    notes: list[str] = []
     if screen is not None and len(y) > screen:
         head = fit_axis(u[:screen], y[:screen], Ts, noise=noise, max_drive=max_drive,
                         base=base, screen=None)
@@ -235,6 +259,28 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         sol = least_squares(fn, sol.x, bounds=bounds, max_iterations=6)
         return _finish(u, y, Ts, sol, names, fixed, fn, speed0, head.notes,
                        head.identified, head.sigma["stiction"], bounds)
+    # The first fit holds the stiction at the Coulomb friction (S = F while F moves);
+    # the next ones hold it at the value the previous scan found (F may then move
+    # below it).
+    held = None
+    best = fit = _fit_once(u, y, Ts, noise, max_drive, base, 0.0)
+    for _ in range(STICTION_PASSES - 1):
+        if not fit.identified["stiction"]:
+            break
+        found = fit.values["stiction"]
+        if held is not None and not abs(found - held) > STICTION_SHIFT * max_drive:
+            break  # the fixed point
+        held = found
+        fit = _fit_once(u, y, Ts, noise, max_drive, base, held)
+        if fit.residual_rms < best.residual_rms:
+            best = fit
+    return best
+
+
+def _fit_once(u, y, Ts, noise, max_drive, base, stiction) -> AxisFit:
+    """One fit of :func:`fit_axis`, holding the stiction at ``stiction`` [V] (read as
+    the Coulomb friction where below it) until its scan at the end."""
+    notes: list[str] = []
     dy = np.diff(y)
     speed0 = 0.0
     if np.all(np.abs(dy[:3]) > 1.0 + 4.0 * noise) and np.ptp(np.sign(dy[:3])) == 0:
@@ -267,7 +313,7 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         # model between stuck and sliding at 0 (with friction), and its finite-difference
         # derivative misleads the fit into a valley of its own.
         lower[3] = upper[3] = 0.0
-    fixed = {"stiction": 0.0}  # the stiction is scanned once the rest is fitted
+    fixed = {"stiction": stiction}  # the stiction is scanned once the rest is fitted
     if friction_ok:
         names.append("coulomb_friction")
         x0.append(min(friction0, 0.5 * max_drive))
@@ -300,7 +346,8 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
     # whose sticking makes the residual kink: started near its optimum, the fit stays in
     # the right valley.
     linear = names[:4]
-    fn = _residual_fn(u, dy, Ts, speed0, dict(fixed, coulomb_friction=0.0), linear)
+    fn = _residual_fn(u, dy, Ts, speed0, dict(fixed, coulomb_friction=0.0, stiction=0.0),
+                      linear)
     sol = least_squares(fn, x0[:4], bounds=(lower[:4], upper[:4]))
     if friction_ok:
         fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
@@ -419,6 +466,9 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         stiction_sigma = float(fine[1] - fine[0])
         identified["stiction"] = True
         fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+        if abs(fixed["stiction"] - max(stiction, friction)) > STICTION_SHIFT * max_drive:
+            # the rest refitted to the stiction found, from where it is
+            sol = least_squares(fn, sol.x, bounds=bounds, max_iterations=20)
     elif friction_ok:
         notes.append("stiction: not identifiable, the axis never left a rest (of 5 samples "
                      "or more) in the log; add a slow drive ramp from rest")
