@@ -271,15 +271,21 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         if held is not None and not abs(found - held) > STICTION_SHIFT * max_drive:
             break  # the fixed point
         held = found
-        fit = _fit_once(u, y, Ts, noise, max_drive, base, held)
+        # The mode shows in the spectrum whatever the stiction: a later fit looks for it
+        # only where the first found it (the mode search is most of a fit's work).
+        sign = (math.copysign(1.0, best.values["coupling"]) if best.identified["resonance"]
+                else 0.0)
+        fit = _fit_once(u, y, Ts, noise, max_drive, base, held, sign)
         if fit.residual_rms < best.residual_rms:
             best = fit
     return best
 
 
-def _fit_once(u, y, Ts, noise, max_drive, base, stiction) -> AxisFit:
+def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> AxisFit:
     """One fit of :func:`fit_axis`, holding the stiction at ``stiction`` [V] (read as
-    the Coulomb friction where below it) until its scan at the end."""
+    the Coulomb friction where below it) until its scan at the end. ``mode_sign``: None
+    searches a mode with the encoder on the motor and on the load; 1.0 or -1.0 only
+    there (+1 the motor); 0.0 searches none."""
     notes: list[str] = []
     dy = np.diff(y)
     speed0 = 0.0
@@ -364,19 +370,23 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction) -> AxisFit:
     mode_sol = None
     residual = sol.fun
     n = residual.size
-    if n >= 64:
+    if n >= 64 and (mode_sign is None or mode_sign != 0.0):
         spectrum = np.abs(np.fft.rfft(residual * np.hanning(n))) ** 2
         freqs = np.fft.rfftfreq(n, Ts)
-        band = (freqs > max(5.0 / (2 * math.pi * math.exp(sol.x[0])), 5.0)) & (
+        # A strong mode can pull the rigid fit's tau to a few samples (and its delay
+        # up), mimicking the mode's fast rise: the rigid body's band then reaches from
+        # the longer of its tau and the delay search's start, and the mode is started
+        # from both (and from the ARX's friction: with friction, a strong mode misleads
+        # the rigid fit, tau run off to its bound).
+        tau_rigid = max(math.exp(sol.x[0]), math.exp(x0[0]))
+        band = (freqs > max(5.0 / (2 * math.pi * tau_rigid), 5.0)) & (
             freqs < 0.45 / Ts)
         if np.any(band):
             f0 = float(freqs[band][np.argmax(spectrum[band])])
             best_mode = None
-            # With friction, the rigid part starts from the rigid fit and from the delay
-            # search's start: a strong mode misleads the rigid fit with friction (tau
-            # run off to its bound), less the ARX's start.
-            rigid_starts = [list(sol.x)] + ([list(x0)] if friction_ok else [])
-            for rigid0, coupling0 in [(r0, c0) for r0 in rigid_starts for c0 in (1.0, -1.0)]:
+            rigid_starts = [list(sol.x)] + ([list(x0)] if list(x0) != list(sol.x) else [])
+            signs = (1.0, -1.0) if mode_sign is None else (mode_sign,)
+            for rigid0, coupling0 in [(r0, c0) for r0 in rigid_starts for c0 in signs]:
                 # The friction acts on the motor: with the encoder on the load (coupling
                 # about -1) the motor's share of the twist, hence the load fraction, is a
                 # parameter of its own (on the motor it is the coupling's c / (1 + c)).
