@@ -5,13 +5,16 @@ The steps (docs/identify.md):
 1. An ARX regression on the position increments (the exact sampled model of a first-order
    lag, a few input taps and a sign(speed) term) gives tau, G = Ke*Kc and the Coulomb
    friction to start from.
-2. Stiction from the breakaways: the drive that held the axis at rest just before it
-   moved, and the drive that moved it.
-3. The delay by a search over fractions of a sample, then an output-error fit
-   (:func:`scipy.optimize.least_squares`) of the simulated increments against the logged
-   ones: tau, G, delay and Coulomb friction.
-4. A mode: started from the peak of the residual's spectrum, kept when it lowers the
-   residual clearly; then the stiction by a scan of the same residual.
+2. The delay by a search over fractions of a sample (and a few starts of tau), then an
+   output-error fit (:func:`least_squares`, Levenberg-Marquardt) of the simulated
+   increments against the logged ones: tau, G, delay and Coulomb friction.
+3. A mode: started from the peak of the residual's spectrum above the rigid body's band
+   (from the rigid fit and from the delay search's start), kept when it lowers the
+   residual clearly.
+4. The stiction by a scan of the same residual, bounded by the breakaways (the largest
+   drive an axis held at rest); the rest refitted to it.
+5. Steps 2-4 again holding the stiction the last scan found, until a scan no longer moves
+   it (a fixed point, :func:`fit_axis`); the least residual is kept.
 
 The residual is on the increments ``y[k+1] - y[k]`` [pulse per sample] rather than on the
 positions: the simulated speed does not drift, the position of an open-loop simulation
