@@ -50,14 +50,13 @@ def helix(center, radius0: float, radius1: float, a0: float, sweep: float, start
 class _Curves:
     """The reader's curved moves (mixed into :class:`~nurbsmotion.paths.gcode.reader._Reader`)."""
 
-    def arc(self, w: dict, start: list, end: list) -> None:
-        """G2/G3 in the selected plane, computed in program coordinates as LinuxCNC does:
-        an exact arc when only the plane's axes move, else a helix; a spiral when the
-        end radius differs from the start radius within LinuxCNC's tolerance."""
+    def arc_centre(self, w: dict, sx: float, sy: float, ex: float, ey: float) -> tuple:
+        """Centre (program coordinates of the plane's axes) and turns of a G2/G3 from
+        (sx, sy) to (ex, ey) by its words (R, or the centre offsets; P), with LinuxCNC's
+        checks of the words and of the radii to the start and the end."""
         clockwise = self.motion == "G2"
         k = self.scale()
-        line = self.line
-        i1, i2, lin, o1, o2 = _PLANES[self.plane]
+        _, _, lin, o1, o2 = _PLANES[self.plane]
         turns = w.get("P", 1.0)
         if turns != int(turns) or turns < 1:
             raise self.error(f"arc turns P{turns:g} must be a whole number >= 1")
@@ -67,8 +66,6 @@ class _Curves:
         wrong = "IJK"[lin]
         if wrong in w:
             raise self.error(f"{wrong} word not allowed with an arc in the {_g_name(self.plane)} plane")
-        ps, pe = self.to_program(start), self.to_program(end)
-        sx, sy, ex, ey = ps[i1], ps[i2], pe[i1], pe[i2]
         if "R" in w:
             if o1 in w or o2 in w:
                 raise self.error("arc with both R and a centre offset")
@@ -99,6 +96,20 @@ class _Curves:
             raise self.error(
                 f"radius to end of arc differs from radius to start: start {[sx, sy]} "
                 f"centre {[cx, cy]} end {[ex, ey]} r1 {r1:.6g} r2 {r2:.6g}")
+        return cx, cy, int(turns)
+
+    def arc(self, w: dict, start: list, end: list) -> None:
+        """G2/G3 in the selected plane, computed in program coordinates as LinuxCNC does:
+        an exact arc when only the plane's axes move, else a helix; a spiral when the
+        end radius differs from the start radius within LinuxCNC's tolerance."""
+        clockwise = self.motion == "G2"
+        line = self.line
+        i1, i2, lin, o1, o2 = _PLANES[self.plane]
+        ps, pe = self.to_program(start), self.to_program(end)
+        sx, sy, ex, ey = ps[i1], ps[i2], pe[i1], pe[i2]
+        cx, cy, turns = self.arc_centre(w, sx, sy, ex, ey)
+        r1, r2 = math.hypot(sx - cx, sy - cy), math.hypot(ex - cx, ey - cy)
+        diff = abs(r2 - r1)
         if i1 not in self.axes or i2 not in self.axes:
             if self.auto:
                 raise _NeedAxes({_AXES[i1], _AXES[i2]})

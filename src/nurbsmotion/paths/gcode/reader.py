@@ -15,10 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from ..._runtime.io import check_input_file
-from ...errors import InvalidCurveError, PathFileError
+from ...errors import InvalidArgumentError, InvalidCurveError, PathFileError
 from ...nurbs import NurbsCurve
 from ..pieces import PieceChain
 from .bulk import _Bulk
+from .compensation import _Compensation, read_tool_table
 from .codes import (_AXES, _AXIS_INDEX, _COORD_SYSTEMS, _CYCLES, _END_M, _INCH, _MOTION,
                     _MOTION_WORDS, _PLAIN_G, _PLAIN_WORDS, _REFUSED_G, _SKIPPED_G, _SKIPPED_WORDS,
                     MAX_COORDINATE, MIN_MOVE, _g_name, _NeedAxes, _picker, _skipped_m)
@@ -31,11 +32,12 @@ from .program import GcodeContour, GcodeProgram, GcodeWarning
 __all__ = ["load_gcode"]
 
 
-class _Reader(_Frames, _Curves, _Cycles, _Bulk):
+class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
     """The motion layer: executes blocks from :class:`ngc.Program` and collects pieces."""
 
-    def __init__(self, source: str, axes: str):
+    def __init__(self, source: str, axes: str, tool_table: dict | None = None, table_scale: float = 1.0):
         self.source = source
+        self.comp_init(tool_table, table_scale)
         self.axes = [_AXES.index(a.upper()) for a in axes]
         self.units: str | None = None  # output units
         self.units_source = "assumed: no G20/G21"  # where self.units came from
@@ -274,7 +276,8 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
         line, gs, ms, words = block
         self.line = line
         if (not ms and (not gs or gs in _PLAIN_G) and words.keys() <= _PLAIN_WORDS
-                and self.block is None and self.units is not None and self.identity_frame()):
+                and self.block is None and self.units is not None and self.identity_frame()
+                and self.comp is None and self.comp_exit is None):
             kind = _PLAIN_G[gs] if gs else self.motion
             if kind == "G0" or kind == "G1":  # the lines of CAM output: a lean path
                 self.motion = kind
@@ -293,6 +296,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
             return True
         motion = None
         special = None  # a non-modal G code of group 0 that uses the axis words
+        comp_code = None  # G40, G41, G42, G41.1 or G42.1
         for g in block.g:
             if g not in _MOTION:  # G1, G01 and G1.0 are read as 1.0 exactly; others may be computed
                 g = round(g, 4)
@@ -304,6 +308,8 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
                     raise self.error(f"two motion codes on one line: {motion} and {_g_name(g)}")
                 motion = _MOTION[g]
             elif g in (20.0, 21.0):
+                if self.comp is not None and self.input_inch is not None and (g == 20.0) != self.input_inch:
+                    self.comp_refuse(f"changing units ({_g_name(g)})")
                 self.input_inch = g == 20.0
                 self._k = None
                 if self.units is None:
@@ -318,16 +324,24 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
                     self.feed = self.feed_per_rev = 0.0  # LinuxCNC's convert_feed_mode: F anew
                 self.inverse_time, self.per_rev = g == 93.0, g == 95.0
             elif g in (17.0, 18.0, 19.0):
+                if g != 17.0:
+                    self.comp_refuse(f"leaving the XY plane ({_g_name(g)})")
                 self.plane = g
             elif g in (98.0, 99.0):
                 self.retract_old_level = g == 98.0
             elif g in _COORD_SYSTEMS:
+                self.comp_refuse(f"changing the coordinate system ({_g_name(g)})")
                 self.program.numbered[5220] = float(_COORD_SYSTEMS[g])
                 self.frame_changes += 1
             elif g in (10.0, 28.0, 28.1, 30.0, 30.1, 53.0, 92.0, 92.1, 92.2, 92.3):
                 if special is not None:
                     raise self.error(f"two codes of group 0 on one line: {_g_name(special)} and {_g_name(g)}")
                 special = g
+            elif g in (40.0, 41.0, 41.1, 42.0, 42.1):
+                if comp_code is not None:
+                    raise self.error(f"two cutter compensation codes on one line: {_g_name(comp_code)} "
+                                     f"and {_g_name(g)}")
+                comp_code = g
             elif g in _REFUSED_G:
                 raise self.error(f"{_g_name(g)}: {_REFUSED_G[g]}")
             elif g in _SKIPPED_G:
@@ -335,7 +349,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
                     self.warn(f"{_SKIPPED_G[g]} skipped: it does not change the path", _g_name(g))
                 if g == 4.0:
                     rest.pop("P", None)
-                    self.end_contour()
+                    self.comp_stop()
                 elif g == 64.0:
                     rest.pop("P", None), rest.pop("Q", None)
                 elif g in (43.0, 43.2):
@@ -345,11 +359,17 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
                         rest.pop(a, None)
             else:
                 raise self.error(f"{_g_name(g)} is not a LinuxCNC G code this reader knows")
+        if "T" in rest:  # selected before M6 on the same line, as in LinuxCNC
+            self.tool_selected = int(rest["T"])
         for m in block.m:
             if m in _END_M:
                 continue
             if m in (3.0, 4.0, 5.0):
                 self.spindle_on = m != 5.0
+            elif m == 6.0:
+                self.tool_in_spindle = self.tool_selected
+            elif m == 61.0 and "Q" in rest:
+                self.tool_in_spindle = self.tool_selected = int(rest["Q"])
             name = _skipped_m(m)
             if name is None:
                 raise self.error(f"M{m:g} is not an M code this reader knows")
@@ -363,6 +383,8 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
             self.spindle_rpm = rest["S"]
             if self.per_rev:
                 self.feed = self.feed_per_rev * self.spindle_rpm
+        if comp_code is not None:
+            self.cutter_comp(comp_code, rest)
         if not rest.keys().isdisjoint(_SKIPPED_WORDS):
             for letter, what in _SKIPPED_WORDS.items():
                 if letter in rest:
@@ -380,6 +402,9 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
         previous = self.motion
         if motion is not None:
             self.motion = motion
+        if self.comp is not None and self.motion not in (None, "G0", "G1", "G2", "G3", "G80") \
+                and (motion is not None or rest):
+            self.comp_refuse(self.motion)
         if special is not None:
             self.non_modal(special, rest)
             self.frame_changes += 1
@@ -408,6 +433,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
                 raise self.error("G53 needs absolute mode G90")
             self.move(w, machine=True)
         elif g in (28.0, 30.0):
+            self.comp_refuse(_g_name(g))
             home = 5161 if g == 28.0 else 5181
             self.end_contour()
             if w:
@@ -417,6 +443,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
             home = 5161 if g == 28.1 else 5181
             n[home: home + 9] = list(self.position / self.lengths())
         elif g == 92.0:
+            self.comp_refuse("G92")
             if not w:
                 raise self.error("G92 needs at least one axis word")
             _, g92, _ = self.frame()
@@ -435,7 +462,10 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
         else:  # G10
             L = w.pop("L", None)
             if L in (1.0, 10.0, 11.0):
-                self.warn(f"G10 L{L:g} tool table entries skipped: tool offsets are not applied", "G10 tool")
+                self.set_tool_entry(w)  # its R: the radius cutter compensation uses
+                if set(w) - {"P", "R"}:
+                    self.warn(f"G10 L{L:g} tool table entries skipped: tool offsets are not applied",
+                              "G10 tool")
                 return
             if L not in (2.0, 20.0):
                 raise self.error(f"G10 L{L if L is None else format(L, 'g')} is not read (G10 L2/L20 are)")
@@ -466,6 +496,12 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
         if not w.keys() <= _MOTION_WORDS[kind]:
             extra = sorted(set(w) - _MOTION_WORDS[kind])
             raise self.error(f"word(s) {', '.join(extra)} not read with {kind}")
+        if self.comp is not None or self.comp_exit is not None:
+            if kind in ("G0", "G1", "G2", "G3") and (self.comp_active() or self.comp_exit is not None):
+                self.comp_move(kind, w, machine)
+                return
+            if kind not in ("G0", "G1", "G2", "G3"):
+                self.comp_refuse(kind)
         if kind in ("G5", "G5.1") and self.plane != 17.0:
             raise self.error(f"{kind} is only allowed in the XY plane (G17), as in LinuxCNC")
         if kind in ("G33", "G33.1"):
@@ -552,12 +588,14 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
                              "with G5.3 (truncated program?)", self.block["line"])
         if self.block is not None:
             self.close_g6()
+        self.dequeue()
         self.end_contour()
 
 
 
-def _read_program(path: Path, axes: str, project: bool, auto: bool, rapids: bool = False) -> _Reader:
-    reader = _Reader(str(path), axes)
+def _read_program(path: Path, axes: str, project: bool, auto: bool, rapids: bool = False,
+                  tools: tuple = (None, 1.0)) -> _Reader:
+    reader = _Reader(str(path), axes, *tools)
     reader.project, reader.auto, reader.rapids_as_path = project, auto, rapids
     lines = split_lines(path.read_bytes(), str(path), upper=True)
     program = Program(lines, str(path), reader.system_parameter)  # upper-cased: plain lines in bulk
@@ -576,7 +614,8 @@ def _project(contour: GcodeContour, cols: list) -> GcodeContour:
     return GcodeContour(curve, contour.piece_edges, contour.programmed_feed, contour.lines)
 
 
-def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: bool = False) -> GcodeProgram:
+def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: bool = False,
+               tool_table: str | os.PathLike | None = None, tool_table_units: str = "mm") -> GcodeProgram:
     """Read the contours of a G-code program (see the module docstring).
 
     Parameters
@@ -592,6 +631,12 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
     project : bool
         Read a feed move of other axes together with path axes as its projection on the
         path axes (``--project xy``: a helix becomes its circle) instead of refusing it.
+    tool_table : str or path-like, optional
+        A LinuxCNC tool table (``.tbl``): the tool diameters ``G41 D<tool>`` / ``G42`` (the
+        tool in the spindle) compensate with. Without it, ``G41.1/G42.1 D<diameter>`` and
+        ``G10 L1 P<tool> R<radius>`` in the program give the radius.
+    tool_table_units : {"mm", "inch"}
+        The unit of the table's diameters (LinuxCNC: the machine's linear units).
 
     Returns
     -------
@@ -608,6 +653,12 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
         read, naming the file, the line and the value.
     """
     path = check_input_file(file)
+    if tool_table_units not in ("mm", "inch"):
+        raise InvalidArgumentError(f"tool_table_units {tool_table_units!r} must be 'mm' or 'inch'")
+    tools = (None, 1.0)
+    if tool_table is not None:
+        tools = (read_tool_table(check_input_file(tool_table), str(path)),
+                 _INCH if tool_table_units == "inch" else 1.0)
     auto = axes is None
     axes = "XYZ" if auto else str(axes).upper()
     if not axes or len(set(axes)) != len(axes) or not set(axes) <= set(_AXES):
@@ -617,7 +668,7 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
         with warnings.catch_warnings(record=True) as caught:  # shown once, from the last pass
             warnings.simplefilter("always")
             try:
-                reader = _read_program(path, axes, project, auto, rapids)
+                reader = _read_program(path, axes, project, auto, rapids, tools)
             except _NeedAxes as exc:
                 axes = "".join(a for a in _AXES if a in set(axes) | exc.letters)
                 continue
