@@ -33,10 +33,11 @@ _SKIPPED_G = {
     17.0: None, 18.0: None, 19.0: None,
 }  # fmt: skip
 _REFUSED_G = {
-    17.1: "the UVW planes are not read", 18.1: "the UVW planes are not read", 19.1: "the UVW planes are not read",
+    **dict.fromkeys((17.1, 18.1, 19.1), "the UVW planes are not read: write the arcs in G17, G18 or G19"),
     76.0: "the G76 threading cycle is not read (its passes follow the spindle, which the "
-          "path cannot; write the passes as G33 or G1 moves)", 38.2: "probing is not read", 38.3: "probing is not read",
-    38.4: "probing is not read", 38.5: "probing is not read",
+          "path cannot; write the passes as G33 or G1 moves)",
+    **dict.fromkeys((38.2, 38.3, 38.4, 38.5), "probing is not read (its moves end where the probe touches "
+                    "the part): remove the probing lines, or write the moves they make"),
 }  # fmt: skip
 _END_M = {2.0, 30.0}
 _PLAIN_G = {(0.0,): "G0", (1.0,): "G1"}

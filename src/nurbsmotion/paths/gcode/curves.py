@@ -68,14 +68,16 @@ class _Curves:
             raise self.error(f"{wrong} word not allowed with an arc in the {_g_name(self.plane)} plane")
         if "R" in w:
             if o1 in w or o2 in w:
-                raise self.error("arc with both R and a centre offset")
+                raise self.error("arc with both R and a centre offset: give one of them")
             r = k * self.value("R", w["R"])
             dx, dy = ex - sx, ey - sy
             d = math.hypot(dx, dy)
             if d == 0.0:
-                raise self.error("a radius-format arc cannot end where it starts")
+                raise self.error("a radius-format arc cannot end where it starts: write a full circle "
+                                 "with its centre (I/J/K)")
             if d > 2 * abs(r) * (1 + 1e-9):
-                raise self.error(f"arc radius {abs(r):g} is too small for the chord of length {d:g}")
+                raise self.error(f"arc radius {abs(r):g} is too small for the chord of length {d:g}: "
+                                 f"give a radius of at least {d / 2:g} or correct the end point")
             h = math.sqrt(max(r * r - d * d / 4, 0.0)) * (1.0 if (not clockwise) == (r > 0) else -1.0)
             cx, cy = (sx + ex) / 2 - h * dy / d, (sy + ey) / 2 + h * dx / d
         else:
@@ -88,14 +90,16 @@ class _Curves:
             cx, cy = (off1, off2) if self.arc_absolute else (sx + off1, sy + off2)
         r1, r2 = math.hypot(sx - cx, sy - cy), math.hypot(ex - cx, ey - cy)
         if r1 == 0.0:
-            raise self.error(f"arc centre {[cx, cy]} coincides with its start point")
+            raise self.error(f"arc centre {[cx, cy]} coincides with its start point: correct the "
+                             "centre offsets")
         # LinuxCNC's check (interp_arc.cc): |r2 - r1| > 100 tol, or > tol and > 0.1 %
         tol = (2 * 0.01 * math.sqrt(2)) * (1.0 if self.units == "mm" else 1.0 / _INCH)
         diff = abs(r2 - r1)
         if diff > 100 * tol or (diff > tol and diff / max(r1, r2) > 0.001):
             raise self.error(
                 f"radius to end of arc differs from radius to start: start {[sx, sy]} "
-                f"centre {[cx, cy]} end {[ex, ey]} r1 {r1:.6g} r2 {r2:.6g}")
+                f"centre {[cx, cy]} end {[ex, ey]} r1 {r1:.6g} r2 {r2:.6g} (LinuxCNC refuses it too): "
+                "correct the arc's end point or centre")
         return cx, cy, int(turns)
 
     def arc(self, w: dict, start: list, end: list) -> None:
