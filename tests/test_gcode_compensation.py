@@ -316,3 +316,37 @@ def test_zero_radius_compensates_nothing_and_says_so(tmp_path):
         program = load_gcode(write(tmp_path, text))
     plain = load_quiet(write(tmp_path, text.replace("G41 ", "").replace("G40 ", ""), "q.ngc"))
     assert program.contours[0].curve == plain.contours[0].curve
+
+
+def distance_to_polygon(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """Distance of each point (shape (m, 2)) to the closed polygon's edges."""
+    a, b = corners, np.roll(corners, -1, axis=0)
+    ab = b - a
+    t = np.clip(np.einsum("mkd,kd->mk", points[:, None, :] - a[None], ab) / np.sum(ab * ab, axis=1), 0, 1)
+    foot = a[None] + t[..., None] * ab[None]
+    return np.min(np.linalg.norm(points[:, None, :] - foot, axis=2), axis=1)
+
+
+@pytest.mark.parametrize("comp,outside", [("G42.1 D4", True), ("G41.1 D4", False)])
+def test_offset_path_runs_at_the_tool_radius_from_the_contour(tmp_path, comp, outside):
+    """Without any reference: round a counter-clockwise pentagon, G42 puts the tool outside
+    (corners rolled round on arcs of radius r), G41 inside (corners cut back); between the
+    entry and the exit every point of the path is r from the contour, inside or outside it
+    (but near the first and the last point: the entry and exit move round them as LinuxCNC's)."""
+    corners = np.array([[0.0, 0.0], [20.0, 0.0], [26.0, 14.0], [10.0, 24.0], [-4.0, 12.0]])
+    text = "G21 G90 G17\nG0 X-10 Y-10\n" + f"{comp} G1 X0 Y0 F100\n" + "".join(
+        f"G1 X{x:g} Y{y:g}\n" for x, y in corners[1:]) + "G1 X0 Y0\nG40 G1 X-10 Y-10\nM2\n"
+    program = load_quiet(write(tmp_path, text), axes="xy")
+    (contour,) = program.contours
+    edges = contour.piece_edges  # the pieces of the sides of lines 5-7 (and the corner arcs before them)
+    u = np.concatenate([np.linspace(edges[k], edges[k + 1], 50)
+                        for k, line in enumerate(contour.lines) if 5 <= line <= 7])
+    points = contour.curve(u)
+    assert np.max(np.abs(distance_to_polygon(points, corners) - 2.0)) <= 1e-9
+    from matplotlib.path import Path as Polygon  # point-in-polygon only
+
+    inside = Polygon(corners).contains_points(points)
+    assert not inside.any() if outside else inside.all()
+    assert len(u) == (6 if outside else 3) * 50  # three sides, with an arc before each outside
+    # entry, 5 sides, exit; outside an arc at each of 4 corners, inside one round the first point
+    assert len(contour.piece_edges) - 1 == (11 if outside else 8)
