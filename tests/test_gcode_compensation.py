@@ -278,9 +278,9 @@ def test_refused_where_linuxcnc_refuses(tmp_path, name):
                               r"select G17 before it \(the program is in G18\)"),
     ("G21\nG41.1 D2\nG42.1 D2\n", r"line 3: G42.1 while cutter compensation is already on: turn it off with G40"),
     ("G21\nG41.1\n", r"line 2: G41.1 needs the tool diameter as a D word"),
-    ("G21\nG41 D1\n", r"line 2: G41 uses the radius of tool 1, and no tool table is given: pass the table "
-                      r"\(load_gcode\(..., tool_table=FILE.tbl\)\), set it in the program \(G10 L1 P1 R<radius>\) "
-                      r"or write G41.1/G42.1 D<diameter>"),
+    ("G21\nG41 D1\n", r"line 2: G41 uses the radius of tool 1, and no tool table is given: put it beside the "
+                      r"program as p.tbl \(LinuxCNC's format\) or pass it \(load_gcode\(..., tool_table=FILE.tbl\)\), "
+                      r"set it in the program \(G10 L1 P1 R<radius>\) or write G41.1/G42.1 D<diameter>"),
     ("G21\nG41 D2.5\n", r"line 2: G41 D2.5: D is a tool number .*; for a diameter write G41.1 D2.5"),
     ("G21\nG0 X-5\nG41.1 D2\nG1 X0 F10\nG92 X0\n", r"line 5: G92 is not allowed while cutter radius compensation "
                                                   r"is on \(as in LinuxCNC\): turn it off with G40"),
@@ -305,7 +305,7 @@ def test_tool_table_errors(tmp_path):
     bad = write(tmp_path, "P3 D6\n", "bad.tbl")
     with pytest.raises(PathFileError, match=r"bad.tbl, line 1: no T word in 'P3 D6'"):
         load_quiet(program, tool_table=bad)
-    with pytest.raises(InvalidArgumentError, match="tool_table_units 'cm' must be 'mm' or 'inch'"):
+    with pytest.raises(InvalidArgumentError, match="tool_table_units 'cm' must be 'mm', 'inch' or None"):
         load_quiet(program, tool_table=table, tool_table_units="cm")
 
 
@@ -350,3 +350,32 @@ def test_offset_path_runs_at_the_tool_radius_from_the_contour(tmp_path, comp, ou
     assert len(u) == (6 if outside else 3) * 50  # three sides, with an arc before each outside
     # entry, 5 sides, exit; outside an arc at each of 4 corners, inside one round the first point
     assert len(contour.piece_edges) - 1 == (11 if outside else 8)
+
+
+CCOMP = Path(__file__).resolve().parent / "data" / "corpus" / "linuxcnc_ccomp"
+
+
+@pytest.mark.parametrize("name", ["mill-line-arc-entry", "mill-g90g91g92", "mill-zchanges"])
+def test_linuxcncs_own_cutter_compensation_tests(name):
+    """LinuxCNC's regression tests of cutter compensation (``tests/ccomp/``: a program, its
+    tool table in inches, and the canonical calls ``rs274 -t test.tbl -g`` must print, 4
+    decimals): every feed end LinuxCNC expects is a junction of the contours read (the
+    table found beside the program), and every junction is one of its feed or rapid ends.
+    The canon prints program coordinates: ``mill-g90g91g92`` shifts Z by G92, so it is
+    compared in XY."""
+    expected = (CCOMP / "expected" / f"{name}.txt").read_text()
+    feed, every = [], []
+    for call, args in re.findall(r"(STRAIGHT_FEED|ARC_FEED|STRAIGHT_TRAVERSE)\(([^)]*)\)", expected):
+        v = [float(x) for x in args.split(",")]
+        point = [v[0], v[1], v[5]] if call == "ARC_FEED" else v[:3]
+        every.append(point)
+        if call != "STRAIGHT_TRAVERSE":
+            feed.append(point)
+    cols = 2 if name == "mill-g90g91g92" else 3
+    with pytest.warns(GcodeWarning, match=rf"tool radii from the tool table {name}.tbl beside the program"):
+        program = load_gcode(CCOMP / f"{name}.ngc", axes="xyz")
+    assert program.units == "inch"
+    junctions = np.concatenate([c.curve(c.piece_edges) for c in program.contours])[:, :cols]
+    rounding = 0.5e-4 * np.sqrt(cols) + 1e-12  # [inch]
+    assert np.max(cKDTree(junctions).query(np.array(feed)[:, :cols])[0]) <= rounding
+    assert np.max(cKDTree(np.array(every)[:, :cols]).query(junctions)[0]) <= rounding

@@ -22,7 +22,11 @@ algorithm is LinuxCNC 2.9's (``convert_straight_comp1/2``, ``convert_arc_comp1/2
 The radius: ``G41.1/G42.1 D`` (the diameter, in program units), or ``G41/G42 [D n]``: the
 radius of tool ``n`` (without D: of the tool in the spindle, ``T n M6`` or ``M61 Q n``)
 from the tool table (``load_gcode(tool_table=...)``, a LinuxCNC ``.tbl`` file) or from
-``G10 L1/L10/L11 P n R`` in the program. A negative radius swaps the side.
+``G10 L1/L10/L11 P n R`` in the program; without a table given, a table named like the
+program beside it (``part.tbl`` for ``part.ngc``) is read when a radius is needed, with a
+warning. The table's diameters are in ``tool_table_units``, by default the program's units
+(its first G20/G21: LinuxCNC's tables are in the machine's units). A negative radius swaps
+the side.
 
 Glossary: ``op`` the last programmed point, ``cur`` the tool's compensated position, both
 program coordinates XY [output units]; ``turn`` LinuxCNC's signed turn count of an arc
@@ -138,7 +142,8 @@ class _Compensation:
         self.comp_exit = None  # after G40: the programmed XY the next move's words start from
         self.tools = {}  # tool -> radius [output units] from G10 L1/L10/L11 R
         self.tool_table = tool_table  # tool -> diameter [table units], or None
-        self.table_scale = table_scale  # table units -> mm
+        self.table_scale = table_scale  # table units -> mm, or None: the program's units
+        self.sibling_table = tool_table is None  # may look for PROGRAM.tbl beside the program
         self.tool_selected = 0
         self.tool_in_spindle = 0
 
@@ -147,14 +152,24 @@ class _Compensation:
         """Radius of ``tool`` [output units] from G10 L1 R or the tool table."""
         if tool in self.tools:
             return self.tools[tool]
+        if self.tool_table is None and self.sibling_table and tool != 0:
+            self.sibling_table = False
+            sibling = Path(self.source).with_suffix(".tbl")
+            if sibling.is_file():
+                self.tool_table = read_tool_table(sibling, self.source)
+                self.warn(f"{code}: tool radii from the tool table {sibling.name} beside the program, "
+                          "its diameters in the program's units")
         if self.tool_table is not None and tool in self.tool_table:
+            if self.table_scale is None:  # the program's units: the output units
+                return 0.5 * self.tool_table[tool]
             to_out = 1.0 if self.units in (None, "mm") else 1.0 / _INCH
             return 0.5 * self.tool_table[tool] * self.table_scale * to_out
         if tool == 0:
             return 0.0
         if self.tool_table is None:
             raise self.error(f"{code} uses the radius of tool {tool}, and no tool table is given: "
-                             "pass the table (load_gcode(..., tool_table=FILE.tbl)), set it in the "
+                             f"put it beside the program as {Path(self.source).stem}.tbl (LinuxCNC's "
+                             "format) or pass it (load_gcode(..., tool_table=FILE.tbl)), set it in the "
                              f"program (G10 L1 P{tool} R<radius>) or write G41.1/G42.1 D<diameter>")
         raise self.error(f"{code}: tool {tool} is not in the tool table; add it to the table or "
                          "write G41.1/G42.1 D<diameter>")

@@ -36,7 +36,7 @@ __all__ = ["load_gcode"]
 class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
     """The motion layer: executes blocks from :class:`ngc.Program` and collects pieces."""
 
-    def __init__(self, source: str, axes: str, tool_table: dict | None = None, table_scale: float = 1.0):
+    def __init__(self, source: str, axes: str, tool_table: dict | None = None, table_scale: float | None = None):
         self.source = source
         self.comp_init(tool_table, table_scale)
         self.axes = [_AXES.index(a.upper()) for a in axes]
@@ -659,7 +659,7 @@ def _subroutine_files(lines: list, path: Path, search: tuple) -> tuple[list, lis
 
 
 def _read_program(path: Path, axes: str, project: bool, auto: bool, rapids: bool = False,
-                  tools: tuple = (None, 1.0), search: tuple = ()) -> _Reader:
+                  tools: tuple = (None, None), search: tuple = ()) -> _Reader:
     reader = _Reader(str(path), axes, *tools)
     reader.project, reader.auto, reader.rapids_as_path = project, auto, rapids
     lines = split_lines(path.read_bytes(), str(path), upper=True)
@@ -693,7 +693,7 @@ def _project(contour: GcodeContour, cols: list) -> GcodeContour:
 
 
 def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: bool = False,
-               tool_table: str | os.PathLike | None = None, tool_table_units: str = "mm",
+               tool_table: str | os.PathLike | None = None, tool_table_units: str | None = None,
                subroutine_path: tuple = ()) -> GcodeProgram:
     """Read the contours of a G-code program (see the module docstring).
 
@@ -713,9 +713,11 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
     tool_table : str or path-like, optional
         A LinuxCNC tool table (``.tbl``): the tool diameters ``G41 D<tool>`` / ``G42`` (the
         tool in the spindle) compensate with. Without it, ``G41.1/G42.1 D<diameter>`` and
-        ``G10 L1 P<tool> R<radius>`` in the program give the radius.
-    tool_table_units : {"mm", "inch"}
-        The unit of the table's diameters (LinuxCNC: the machine's linear units).
+        ``G10 L1 P<tool> R<radius>`` in the program give the radius, or a table named like
+        the program beside it (``part.tbl``), read with a warning when a radius is needed.
+    tool_table_units : {"mm", "inch"} or None
+        The unit of the table's diameters (LinuxCNC: the machine's linear units); None: the
+        program's units (its first G20/G21).
     subroutine_path : sequence of str or path-like
         Folders where ``o<name> call`` finds ``name.ngc`` when the program does not define
         ``o<name>`` (after the program's own folder; LinuxCNC's ``SUBROUTINE_PATH``). The
@@ -737,12 +739,13 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
         read, naming the file, the line and the value.
     """
     path = check_input_file(file)
-    if tool_table_units not in ("mm", "inch"):
-        raise InvalidArgumentError(f"tool_table_units {tool_table_units!r} must be 'mm' or 'inch'")
-    tools = (None, 1.0)
+    if tool_table_units not in ("mm", "inch", None):
+        raise InvalidArgumentError(f"tool_table_units {tool_table_units!r} must be 'mm', 'inch' or None "
+                                   "(the program's units)")
+    scale = None if tool_table_units is None else _INCH if tool_table_units == "inch" else 1.0
+    tools = (None, scale)
     if tool_table is not None:
-        tools = (read_tool_table(check_input_file(tool_table), str(path)),
-                 _INCH if tool_table_units == "inch" else 1.0)
+        tools = (read_tool_table(check_input_file(tool_table), str(path)), scale)
     search = tuple(subroutine_path)
     auto = axes is None
     axes = "XYZ" if auto else str(axes).upper()
