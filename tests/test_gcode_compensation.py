@@ -288,6 +288,9 @@ def test_refused_where_linuxcnc_refuses(tmp_path, name):
                                                            r"compensation is on"),
     ("G21\nG0 X-5\nG41.1 D2\nG1 X0 F10\nG55\n", r"line 5: changing the coordinate system \(G55\) is not allowed"),
     ("G21\nG0 X-5\nG41.1 D2\nG1 X0 F10\nG20\n", r"line 5: changing units \(G20\) is not allowed"),
+    ("G21\nG0 X-5\nG41.1 D2\nG1 X0 F10\nG64 P0.1\n", r"line 5: changing the path control mode \(G64\) is not allowed"),
+    ("G21\nG0 X-5\nG41.1 D2\nG1 X0 F10\nG10 L2 P1 X3\n", r"line 5: G10 L2 \(a coordinate system's offsets\) is not "
+                                                       r"allowed while cutter radius compensation is on"),
     ("G21\nG0 X-5\nG41.1 D2\nG93 G1 X0 F10\n", r"line 4: inverse-time feed \(G93\) with cutter radius "
                                                r"compensation is not read: write the compensated moves in G94"),
 ])

@@ -350,6 +350,8 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
             elif g in _REFUSED_G:
                 raise self.error(f"{_g_name(g)}: {_REFUSED_G[g]}")
             elif g in _SKIPPED_G:
+                if g in (61.0, 61.1, 64.0):
+                    self.comp_refuse(f"changing the path control mode ({_g_name(g)})")
                 if _SKIPPED_G[g]:
                     self.warn(f"{_SKIPPED_G[g]} skipped: it does not change the path", _g_name(g))
                 if g == 4.0:
@@ -474,6 +476,8 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
                     self.warn(f"G10 L{L:g} tool table entries skipped: tool offsets are not applied",
                               "G10 tool")
                 return
+            if L in (2.0, 20.0):
+                self.comp_refuse(f"G10 L{L:g} (a coordinate system's offsets)")
             if L not in (2.0, 20.0):
                 raise self.error(f"G10 L{L if L is None else format(L, 'g')} is not read (G10 L2/L20 are)")
             p = w.pop("P", 0.0)
