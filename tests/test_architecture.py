@@ -34,7 +34,8 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "geometry": (("nurbs", "geometry", "joining", "feed", "chords"), ("base",)),
     "paths": (("paths", "paths.files", "paths.dxf", "paths.gcode", "paths.gcode.ngc", "paths.gcode.program",
                "paths.gcode.codes", "paths.gcode.reader", "paths.gcode.frames", "paths.gcode.curves",
-               "paths.gcode.cycles", "paths.gcode.bulk", "paths.gcode.writer", "paths.ngc",
+               "paths.gcode.cycles", "paths.gcode.bulk", "paths.gcode.writer", "paths.gcode.compensation",
+               "paths.ngc",
                "paths.pieces", "paths.random_paths"), ("base", "geometry")),
     # The servo side knows nothing of curves: machine does not import geometry.
     "machine": (("control", "servo", "plant", "plant.two_mass", "plant.friction", "plant.stage",

@@ -87,7 +87,8 @@ def _read(path: Path):
                             source=str(path)) from None
     except (ezdxf.DXFError, OSError, UnicodeError, ValueError, TypeError, KeyError, IndexError,
             AttributeError, EOFError, ArithmeticError, RuntimeError) as exc:
-        raise PathFileError(f"cannot read DXF: {_one_line(exc)}", source=str(path)) from None
+        raise PathFileError(f"cannot read DXF: {_one_line(exc)} (open the drawing in a CAD program and "
+                            "save it again as DXF)", source=str(path)) from None
 
 
 def _one_line(exc: BaseException) -> str:
@@ -247,7 +248,7 @@ def _pieces(entity) -> list[NurbsCurve]:
         radius = _number(entity, entity.dxf.radius, "radius")
         if not 0 < radius <= MAX_COORDINATE:
             raise InvalidCurveError(f"{label}: radius {radius:g} must be > 0 and at most "
-                                    f"{MAX_COORDINATE:g}")
+                                    f"{MAX_COORDINATE:g}: correct or delete the entity in the drawing")
         center = np.array([_number(entity, v, "centre") for v in entity.dxf.center])
         if kind == "CIRCLE":
             a0, a1 = 0.0, 2 * math.pi
