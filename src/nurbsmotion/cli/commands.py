@@ -115,7 +115,8 @@ def _cmd_interpolate(args) -> int:
     from ..loop import interpolate
     from ..plots import plot_setpoints
 
-    contour = _contour(args)
+    machine = load_machine(args.machine)
+    contour = _contour(args, machine)  # as run reads it: chord runs joined
     curve = contour.curve
     cap = None if args.feed is None else units.feed_in_path_units(args.feed, curve)
     feed, note = _feed_used(args, contour, cap, 1.0, f"{curve.units}/s")
@@ -139,6 +140,7 @@ def _cmd_interpolate(args) -> int:
     fl_max, fl_rms = series.feed_fluctuation()
     print(f"{args.method}: {len(series.t)} samples, cycle time {series.cycle_time:.6g} s, "
           f"feed fluctuation max {fl_max:.3%} RMS {fl_rms:.3%}; feed: {note} -> {out}")
+    _print_joined(contour, machine)
     return 0
 
 

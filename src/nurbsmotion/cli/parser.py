@@ -169,6 +169,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="read a G-code file's moves as their projection on the machine's axes "
                    "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
                    "refusing moves that change other axes with them")
+    i.add_argument("--machine", default="die-bonder",
+                   help=machine_help + ": the path is read on it as run reads it (the "
+                   "axes of G-code and DXF, rotary axes, the pulse of --path-tolerance); "
+                   "the setpoints stay in the path's units")
+    i.add_argument("--path-tolerance", help=path_tolerance_help)
     i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
                    help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
     i.add_argument("--sample-period", type=_sample_period, default=1e-3,
