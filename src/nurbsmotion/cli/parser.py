@@ -252,10 +252,11 @@ def _parser() -> argparse.ArgumentParser:
                    "refusing moves that change other axes with them")
     b.add_argument("--path-tolerance", help=path_tolerance_help)
     b.add_argument("--sampled", action="store_true",
-                   help="print instead a lower bound for any sampled motion that stops at "
-                   "every sharp corner [s]: whole samples per "
-                   "piece, each at least what the slowest axis needs from rest to rest "
-                   "(ignores the feed and the path's shape; within 1 pulse of the end)")
+                   help="print instead a lower bound for any sampled motion along the path "
+                   "within Umax [s]: whole samples between the corners where every axis "
+                   "stops or starts, each stretch at least what the slowest axis needs from "
+                   "rest to rest, and at least the time out to the farthest point and back "
+                   "(ignores the feed; within 1 pulse of the path and the end)")
     b.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
                    help="refuse, as run does, a move estimated (or bounded) to take more "
                    "samples than this")
