@@ -254,6 +254,22 @@ def _path_file(tmp_path: Path, **change) -> str:
     (["run", "die-bonder-pi", "--feed", "1m/s", "--export", "pvt", "--pvt-period",
       "1e-12", "--out", "{out}"], "--pvt-period"),
     (["interpolate", "butterfly", "--feed", "1e-3", "--out", "{out}"], "--max-samples"),
+    # issue 37's fuzz: each ran with exit 0 and a wrong answer
+    (["run", "die-bonder-pi", "--feed", "1m/s", "--settle-window", "1e300", "--out",
+      "{out}"], "--settle-window 1e300"),                 # "settled at 0 s"
+    (["run", "die-bonder-pi", "--feed", "1m/s", "--corner-tolerance", "1e300", "--out",
+      "{out}"], "--corner-tolerance 1e300"),              # 0.614 x the bound, 9 mm off
+    (["run", "die-bonder-pi", "--feed", "1m/s", "--path-tolerance", "1e300", "--out",
+      "{out}"], "--path-tolerance 1e300"),                # an overflow warning
+    (["bound", "die-bonder-pi", "--path-tolerance", "1e300", "--sampled"],
+     "--path-tolerance 1e300"),
+    (["run", "die-bonder-pi", "--feed", "1m/s", "--export", "pvt", "--pvt-period",
+      "1e300", "--out", "{out}"], "--pvt-period 1e+300"),  # a table of one row
+    (["interpolate", "butterfly", "--feed", "1e300", "--out", "{out}"], "1e+300 mm/s"),
+    (["interpolate", "butterfly", "--feed", "1", "--sample-period", "1e300", "--out",
+      "{out}"], "--sample-period"),                       # "cannot advance from u = 0"
+    (["run", "die-bonder-pi", "--machine", "{ideal}", "--feed", "1m/s", "--out", "{out}"],
+     "'max_drive' must be a finite number"),              # planned diverged
     (["interpolate", "butterfly", "--feed", "1e-2", "--sample-period", "1e-5", "--out",
       "{out}"], "samples"),
     (["run", "die-bonder-pi", "--feed", "1m/s", "--out", "{file}"], "is a file"),
@@ -270,8 +286,8 @@ def test_command_line_cases_give_one_line_and_exit_2(tmp_path, capsys, argv, mes
     m = die_bonder().to_dict()
     fmt = dict(out=tmp_path / "out", file=tmp_path / "file.txt")
     (tmp_path / "file.txt").write_text("x")
-    for key, change in (("unstable", dict(max_drive=math.inf)),
-                        ("slow", dict(sample_period=1e6))):
+    for key, change in (("unstable", dict()),
+                        ("slow", dict(sample_period=1e6)), ("ideal", dict(max_drive=math.inf))):
         data = {**m, **change}
         if key == "unstable":
             data["axes"] = [{**a, "position_gain": 50.0} for a in m["axes"]]

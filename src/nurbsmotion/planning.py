@@ -821,9 +821,14 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
                 lambda n: umax * _rest_to_rest_reach(a, b0, c, b1, n, slack), distance,
                 max_samples))
         samples += need
+    extent = _extent_time(curve, machine, settle_window) / Ts  # [samples]
+    if not extent <= max_samples:  # inf where an axis barely moves (Ke = 1e-300)
+        raise WorkLimitError(
+            f"the path's extent takes at least {extent:.3g} samples at full drive, more than "
+            f"the sample limit of {max_samples:.3g} (--max-samples): the drive barely moves "
+            "an axis")
     # whole samples, never rounded up past the time itself (a lower bound)
-    extent = math.ceil(_extent_time(curve, machine, settle_window) / Ts * (1.0 - 1e-12))
-    return max(samples, extent) * Ts
+    return max(samples, math.ceil(extent * (1.0 - 1e-12))) * Ts
 
 
 def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,

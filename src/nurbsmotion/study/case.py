@@ -125,7 +125,7 @@ def case_trace(case: Case):
     changes).
     """
     from ..loop import run
-    from ..metrics import trace_metrics
+    from ..metrics import check_settle_window, trace_metrics
     from ..report import summary
     from ..servo import ServoPlant
 
@@ -134,6 +134,7 @@ def case_trace(case: Case):
     machine = _machine(case.machine, case.base_dir)
     contour, pulses = _path(case, machine)
     machine.check_path(contour.curve.n_axes)
+    check_settle_window(case.settle_window, pulses, "settle_window")
     # What `nurbsmotion run PATH --feed F` runs: the path in pulses, the feed in pulse/s
     # (per piece where the file programs one, capped by the study's feed).
     feed = run_feed(_feed_text(case), contour, machine)
