@@ -773,3 +773,40 @@ def _machine_from(data):
         file = Path(tmp) / "m.json"
         file.write_text(json.dumps(data))
         return load_machine(file)
+
+
+# ------------------------------------------------ degenerate pieces (issue 37, item 6)
+def test_a_piece_of_zero_length_is_refused_when_the_path_is_read(tmp_path, capsys):
+    """Regression: a degree-1 path whose first span is one point (a repeated control
+    point) gave `bound` a number with a NumPy 'invalid value encountered in divide'
+    warning (its tangent there is 0/0), while `run` refused it late. It is refused when
+    read, naming the span and the point."""
+    f = tmp_path / "zero.json"
+    f.write_text(json.dumps({"units": "mm", "degree": 1, "knots": [0, 0, 0.5, 1, 1],
+                             "control_points": [[0, 0], [0, 0], [5, 0]]}))
+    for argv in (["bound", str(f), "--feed", "10mm/s"], ["bound", str(f), "--sampled"]):
+        assert main(argv) == 2
+        line = _one_error_line(capsys)
+        assert "knot span [0, 0.5] is a piece of zero length" in line and "[0.0, 0.0]" in line
+    with pytest.raises(InvalidCurveError, match=r"control points 1\.\.2 coincide"):
+        nm.NurbsCurve(1, [0, 0, 0.3, 0.6, 1, 1], [[0, 0], [5, 0], [5, 0], [5, 5]])
+    # a repeated control point inside a cubic span is no zero-length piece: still read
+    nm.NurbsCurve(3, [0, 0, 0, 0, 1, 1, 1, 1], [[0, 0], [4, 0], [4, 0], [9, 6]])
+
+
+@pytest.mark.parametrize("bad, message", [
+    (float("nan"), "a point [1.0, nan, 0.0] is not finite"),   # was "Singular matrix"
+    (float("inf"), "a point [1.0, inf, 0.0] is not finite"),
+    (None, "no path entity"),                                   # was "list index out of range"
+])
+def test_a_dxf_spline_through_bad_fit_points_names_the_point(tmp_path, capsys, bad, message):
+    import ezdxf
+
+    doc = ezdxf.new()
+    fit = [(1, 1)] * 4 if bad is None else [(0, 0), (1, bad), (2, 0), (3, 1)]
+    doc.modelspace().add_spline(fit)
+    f = tmp_path / "spline.dxf"
+    doc.saveas(f)
+    assert main(["bound", str(f), "--feed", "10mm/s"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()  # with a "skipped" warning before
+    assert message in err[-1] and not any("Traceback" in e for e in err)
