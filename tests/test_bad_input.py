@@ -270,6 +270,8 @@ def _path_file(tmp_path: Path, **change) -> str:
       "{out}"], "--sample-period"),                       # "cannot advance from u = 0"
     (["run", "die-bonder-pi", "--machine", "{ideal}", "--feed", "1m/s", "--out", "{out}"],
      "'max_drive' must be a finite number"),              # planned diverged
+    (["excite", "--out", "{out}/e.csv", "--travel", "1e-300"],
+     "travel 1e-300 pulse is too short"),                 # went 1497 pulse anyway
     (["interpolate", "butterfly", "--feed", "1e-2", "--sample-period", "1e-5", "--out",
       "{out}"], "samples"),
     (["run", "die-bonder-pi", "--feed", "1m/s", "--out", "{file}"], "is a file"),
@@ -316,6 +318,7 @@ def test_command_line_cases_give_one_line_and_exit_2(tmp_path, capsys, argv, mes
     ["run", "die-bonder-pi", "--feed", "1m/s", "--max-samples", "0", "--out", "x"],
     ["interpolate", "butterfly", "--feed", "1", "--sample-period", "-1", "--out", "x"],
     ["interpolate", "butterfly", "--feed", "1", "--sample-period", "0", "--out", "x"],
+    ["excite", "--out", "x.csv", "--seed", "-1"],  # NumPy's "expected non-negative integer"
 ])
 def test_bad_arguments_are_one_line(capsys, argv):
     with pytest.raises(SystemExit) as exc:

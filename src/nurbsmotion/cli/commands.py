@@ -673,15 +673,15 @@ def _cmd_excite(args) -> int:
         travel = units.length_in_pulses(args.travel, None, machine, "--travel",
                                         bare_unit="pulse")
     suffix = out.suffix.lower()
-    if suffix in (".csv", ".ngc", ".nc", ".gcode"):
-        out.parent.mkdir(parents=True, exist_ok=True)
     if suffix == ".csv":
         t, drive = excitation(machine, travel=travel, seed=args.seed)
+        out.parent.mkdir(parents=True, exist_ok=True)  # once there is something to write
         write_excitation_csv(t, drive, machine.axis_names, out, overwrite=args.overwrite)
         print(f"{len(t)} samples ({t[-1]:.3g} s) of drive commands within +-"
               f"{abs(drive).max():.3g} V -> {out}")
     elif suffix in (".ngc", ".nc", ".gcode"):
         text = excitation_gcode(machine, travel=travel)
+        out.parent.mkdir(parents=True, exist_ok=True)
         write_output(out, lambda h: h.write(text), overwrite=args.overwrite)
         print(f"position moves -> {out} (run it: nurbsmotion run {out} --machine "
               f"{args.machine} --out DIR, then nurbsmotion identify DIR/trace.csv)")

@@ -83,6 +83,18 @@ def _non_negative_float(text: str) -> float:
     return value
 
 
+def _non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0 (a seed: NumPy's "expected non-negative integer"
+    leaked for -1)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     """argparse type: an integer >= 1."""
     try:
@@ -317,7 +329,8 @@ def _parser() -> argparse.ArgumentParser:
     x.add_argument("--out", required=True, help="excitation.csv or excitation.ngc")
     x.add_argument("--travel", help="bound of the excursion from the start, a length "
                    "(20mm) or pulses (default: 20 mm)")
-    x.add_argument("--seed", type=int, default=0, help="seed of the random binary part")
+    x.add_argument("--seed", type=_non_negative_int, default=0,
+                   help="seed of the random binary part (an integer >= 0)")
     x.add_argument("--overwrite", action="store_true", help="replace an existing file")
     x.set_defaults(func=_cmd_excite)
     return p
