@@ -171,7 +171,7 @@ def test_sampled_stop_bound_of_a_line(L):
 
 
 def test_sampled_stop_bound_is_below_every_run():
-    """On the Pi (three stop corners): ``planned``'s and ``paper``'s move-and-settle are
+    """On the Pi: ``planned``'s and ``paper``'s move-and-settle are
     never below the sampled bound, which is itself below the continuous one at 1 m/s
     (whose pieces it rounds up to samples but whose path and feed it ignores); a window
     that is not a finite number >= 0 is refused."""
@@ -187,6 +187,37 @@ def test_sampled_stop_bound_is_below_every_run():
     for bad in (-1.0, math.nan, math.inf):
         with pytest.raises(ValueError, match="settle_window"):
             sampled_stop_bound(curve, MACHINE, settle_window=bad)
+
+
+def test_sampled_bound_of_an_out_and_back_move_is_the_time_to_turn_and_return():
+    """Out along x by L and back to the start (a closed path; it printed 0, issue 37):
+    its turn is no sample-instant rest (x reverses, and may within a sample), so the
+    bound is the full-drive time out to L less the window, where x turns, plus back to
+    within the window of the end, from scipy's root of the closed form
+    ``V (t - tau (1 - exp(-t / tau)))``, in whole samples; and no run within the drive
+    limit settles sooner."""
+    from scipy.optimize import brentq
+    from nurbsmotion.planning import rest_corners, sampled_stop_bound
+    L, window = 20_000.0, 1.0
+    path = nm.make_polyline([[0.0, 0.0], [L, 0.0], [0.0, 0.0]])
+    assert path.sharp_corners().size == 1 and rest_corners(path).size == 0
+    tau = MACHINE.tau[0]
+    V = MACHINE.max_drive * MACHINE.Kc[0] * MACHINE.Ke[0]
+
+    def reach(d):
+        return brentq(lambda t: V * (t - tau * (1 - math.exp(-t / tau))) - d, 0.0, 10.0,
+                      xtol=1e-15)
+
+    Ts = MACHINE.sample_period
+    expected = math.ceil((reach(L - window) + reach(L - 2 * window)) / Ts - 1e-9) * Ts
+    bound = sampled_stop_bound(path, MACHINE, settle_window=window)
+    assert bound == pytest.approx(expected, abs=1e-12)
+    for method in ("planned", "paper"):
+        tr = simulate(make_interpolator(method, path, MACHINE, 5e5), MACHINE,
+                      settle_time=0.05)
+        metrics = tr.metrics()
+        if metrics.total_saturated_samples == 0:
+            assert metrics.settle_time_s >= bound, method
 
 
 def test_profile_rests_at_corners_and_ends():

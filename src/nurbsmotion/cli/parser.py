@@ -83,6 +83,18 @@ def _non_negative_float(text: str) -> float:
     return value
 
 
+def _non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0 (a seed: NumPy's "expected non-negative integer"
+    leaked for -1)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     """argparse type: an integer >= 1."""
     try:
@@ -169,6 +181,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="read a G-code file's moves as their projection on the machine's axes "
                    "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
                    "refusing moves that change other axes with them")
+    i.add_argument("--machine", default="die-bonder",
+                   help=machine_help + ": the path is read on it as run reads it (the "
+                   "axes of G-code and DXF, rotary axes, the pulse of --path-tolerance); "
+                   "the setpoints stay in the path's units")
+    i.add_argument("--path-tolerance", help=path_tolerance_help)
     i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
                    help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
     i.add_argument("--sample-period", type=_sample_period, default=1e-3,
@@ -247,10 +264,11 @@ def _parser() -> argparse.ArgumentParser:
                    "refusing moves that change other axes with them")
     b.add_argument("--path-tolerance", help=path_tolerance_help)
     b.add_argument("--sampled", action="store_true",
-                   help="print instead a lower bound for any sampled motion that stops at "
-                   "every sharp corner [s]: whole samples per "
-                   "piece, each at least what the slowest axis needs from rest to rest "
-                   "(ignores the feed and the path's shape; within 1 pulse of the end)")
+                   help="print instead a lower bound for any sampled motion along the path "
+                   "within Umax [s]: whole samples between the corners where every axis "
+                   "stops or starts, each stretch at least what the slowest axis needs from "
+                   "rest to rest, and at least the time out to the farthest point and back "
+                   "(ignores the feed; within 1 pulse of the path and the end)")
     b.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
                    help="refuse, as run does, a move estimated (or bounded) to take more "
                    "samples than this")
@@ -311,7 +329,8 @@ def _parser() -> argparse.ArgumentParser:
     x.add_argument("--out", required=True, help="excitation.csv or excitation.ngc")
     x.add_argument("--travel", help="bound of the excursion from the start, a length "
                    "(20mm) or pulses (default: 20 mm)")
-    x.add_argument("--seed", type=int, default=0, help="seed of the random binary part")
+    x.add_argument("--seed", type=_non_negative_int, default=0,
+                   help="seed of the random binary part (an integer >= 0)")
     x.add_argument("--overwrite", action="store_true", help="replace an existing file")
     x.set_defaults(func=_cmd_excite)
     return p

@@ -226,6 +226,9 @@ def _pieces(entity) -> list[NurbsCurve]:
             points = _wcs(entity.control_points)
             weights = np.asarray(list(entity.weights), dtype=float) if len(entity.weights) else None
         else:  # fit points only: ezdxf's own construction of the curve through them
+            fit = _wcs(entity.fit_points)  # checked first: NaN gave "Singular matrix"
+            if np.ptp(fit, axis=0).max(initial=0.0) == 0.0:  # "list index out of range"
+                return []
             tool = entity.construction_tool()
             degree = int(tool.degree)
             knots = np.asarray(tool.knots(), dtype=float)
