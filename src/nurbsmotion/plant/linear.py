@@ -17,6 +17,20 @@ from .two_mass import _mode
 
 __all__ = ["continuous_model", "linear_loop_poles"]
 
+
+def split_delay(delay: float, sample_period: float) -> tuple[int, float]:
+    """A delay [s] as whole samples and the rest [s], ``delay = whole*Ts + split`` with
+    ``0 <= split < Ts``; a rest within 1e-12 Ts of 0 or of Ts is rounded to the whole
+    sample (a delay given as ``k*Ts`` in floating point is k whole samples)."""
+    Ts = float(sample_period)
+    whole = int(math.floor(delay / Ts))
+    split = delay - whole * Ts
+    if split <= 1e-12 * Ts:
+        split = 0.0
+    elif split >= Ts * (1.0 - 1e-12):
+        whole, split = whole + 1, 0.0
+    return whole, split
+
 def continuous_model(tau: float, Kc: float, Ke: float, resonance_frequency: float = 0.0,
                      resonance_damping: float = 0.0, load_fraction: float = 0.5):
     """The axis's linear continuous model in physical coordinates
@@ -64,12 +78,7 @@ def linear_loop_poles(gains, tau: float, Kc: float, Ke: float, sample_period: fl
     else:
         pos[3], spd[2] = 1.0, Ke
     Ts = float(sample_period)
-    whole = int(math.floor(delay / Ts))
-    split = delay - whole * Ts
-    if split <= 1e-12 * Ts:
-        split = 0.0
-    elif split >= Ts * (1.0 - 1e-12):
-        whole, split = whole + 1, 0.0
+    whole, split = split_delay(delay, Ts)
 
     def zoh(h):
         M = np.zeros((nx + 1, nx + 1))

@@ -20,6 +20,7 @@ from .two_mass import (CDMP, CHECK_SLIDE, CHECK_STUCK, CSC, CSS, ENC, FC, FS, GA
                        KE, KSPR, LAM, N_COEF, N_PARAM, SA0, SA1, SIG, TAU, TOOL, W2,
                        _coefficients, _mode, oscillator)
 from .friction import SCRATCH
+from .linear import split_delay
 
 __all__ = ["PlantStage", "IdleStage", "is_active", "PlantState", "make_stage",
            "inactive_stage", "new_plant_state"]
@@ -156,13 +157,7 @@ def make_stage(effects, tau, Kc, Ke, max_drive: float, sample_period: float) -> 
             total += drive
             dist_t[j, i] = at
             dist_d[j, i] = total
-    delay = float(effects["delay"])
-    whole = int(math.floor(delay / Ts))
-    split = delay - whole * Ts
-    if split <= 1e-12 * Ts:
-        split = 0.0
-    elif split >= Ts * (1.0 - 1e-12):
-        whole, split = whole + 1, 0.0
+    whole, split = split_delay(float(effects["delay"]), Ts)
     coef = np.zeros((n, 2, N_COEF))
     for j in range(n):
         intervals = (split, Ts - split) if split > 0.0 else (Ts,)
