@@ -202,6 +202,11 @@ class _WarmProgram:
         if basis is not None:
             h.setBasis(basis)
         h.run()
+        if basis is not None and h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            # a carried-over basis is a start, never a verdict: the program decides cold
+            h.clearSolver()
+            h.setOptionValue("presolve", "choose")
+            h.run()
         if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
             self.basis = None
             return None
