@@ -44,10 +44,13 @@ and, at the earliest arrival, never come within the tolerance."""
 SHORTEN_START = 1
 """Step 6 starts its search for a piece's arrival this many samples after the piece's
 continuous time-optimal duration (rounded up; :func:`planning.speed_profile` before any
-easing), not at the plan's arrival, and runs down from there: a short move's earliest
-arrival lies within a sample or two of that duration, and each sample it need not step
-down from costs one or more linear programs (on six 60-120 mm free-form moves at 1.7 m/s
-the plan arrived 1-10 samples later, and the search from there took 10-71 programs)."""
+easing), not at the plan's arrival, and runs down from there to that duration; where
+none is found at the start, up from it: a short move's earliest arrival lies within a
+sample or two of that duration, and each sample it need not step down from costs one or
+more linear programs (on six 60-120 mm free-form moves at 1.7 m/s the plan arrived 1-10
+samples later, and the search from there took 10-71 programs; on the first 300 cases of
+``benchmarks/planner_sweep.py``, searched all the way down, 11 of 294 pieces arrived a
+sample before the duration rounded up, and one two samples before)."""
 
 SHORTEN_BELOW_ROUNDS = 2
 """Most linear programs step 6 solves, per trust region, for an arrival sample before the
@@ -479,10 +482,14 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
     N runs down from ``arrival - 1`` while one is found (where none is, and the plan so
     leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one is);
     given the ``earliest`` sample worth trying first (:data:`SHORTEN_START`), from there
-    if one is found there within :data:`SHORTEN_STALL` rounds, else from the top. The first guess of the nearest
-    points is the plan's (its parameters ``param``, shape (n,)), compressed in time to
-    arrive at N; each later N starts from the last motion found, compressed by a sample.
-    The programs of one N are warm-started (:class:`_WarmProgram`).
+    if one is found there within :data:`SHORTEN_STALL` rounds, down to the piece's
+    continuous duration ``earliest - SHORTEN_START`` and below it by tries of
+    :data:`SHORTEN_BELOW_ROUNDS` rounds; else up from there to the first N at which one
+    is found within :data:`SHORTEN_STALL` rounds (the N below, tried as a probe only, is
+    not tried again). The first guess of the nearest points is the plan's (its
+    parameters ``param``, shape (n,)), compressed in time to arrive at N; each later N
+    starts from the last motion found, compressed by a sample. The programs of one N
+    are warm-started (:class:`_WarmProgram`).
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
     Ts = machine.sample_period
