@@ -28,7 +28,10 @@ and the sampled bound (on the nominal plant the run settles where its plan rests
 the slowest cases with what they are. The sweep plans case 0 once, untimed, first
 (:func:`_warm_up`: numba's kernels load, or compile, in the first plan of a process).
 
-Run: PLANNER_SWEEP_CASES=1000 python benchmarks/planner_sweep.py   (default 1000 cases)
+Run: PLANNER_SWEEP_CASES=1000 python benchmarks/planner_sweep.py   (default 1000 cases).
+``PLANNER_SWEEP_LOG=FILE`` appends every case's row to FILE as it ends (one JSON object a
+line); ``PLANNER_SWEEP_REPORT=FILE`` prints the report of such a file's first
+``PLANNER_SWEEP_CASES`` rows instead of running (a sweep stopped part-way).
 """
 
 from __future__ import annotations
@@ -261,6 +264,12 @@ def _warm_up() -> None:
 def main():
     n = int(os.environ.get("PLANNER_SWEEP_CASES", "1000"))
     plan_only = os.environ.get("PLANNER_SWEEP_PLAN_ONLY", "") not in ("", "0")
+    if os.environ.get("PLANNER_SWEEP_REPORT"):   # the report of a PLANNER_SWEEP_LOG so far
+        import json
+        with open(os.environ["PLANNER_SWEEP_REPORT"]) as f:
+            rows = [json.loads(line) for line in f][:n]
+        (report_plan_only if plan_only else report)(rows)
+        return
     _warm_up()
     t0 = time.perf_counter()
     rows = []
