@@ -31,7 +31,9 @@ the slowest cases with what they are. The sweep plans case 0 once, untimed, firs
 Run: PLANNER_SWEEP_CASES=1000 python benchmarks/planner_sweep.py   (default 1000 cases).
 ``PLANNER_SWEEP_LOG=FILE`` appends every case's row to FILE as it ends (one JSON object a
 line); ``PLANNER_SWEEP_REPORT=FILE`` prints the report of such a file's first
-``PLANNER_SWEEP_CASES`` rows instead of running (a sweep stopped part-way).
+``PLANNER_SWEEP_CASES`` rows instead of running (a sweep stopped part-way);
+``PLANNER_SWEEP_FIRST=k`` runs cases k, k + 1, ... (a part of the sweep in a second
+process).
 """
 
 from __future__ import annotations
@@ -274,13 +276,14 @@ def main():
     t0 = time.perf_counter()
     rows = []
     log = os.environ.get("PLANNER_SWEEP_LOG")   # one JSON row a line, as each case ends
-    for i in range(n):
+    first = int(os.environ.get("PLANNER_SWEEP_FIRST", "0"))   # a later part of the sweep
+    for i in range(first, first + n):
         rows.append(plan_only_case(i) if plan_only else one_case(i))
         if log:
             import json
             with open(log, "a") as f:
                 f.write(json.dumps(rows[-1], default=float) + "\n")
-        if (i + 1) % 50 == 0:
+        if (i + 1 - first) % 50 == 0:
             print(f"  {i + 1} cases, {time.perf_counter() - t0:.0f} s", flush=True)
     (report_plan_only if plan_only else report)(rows)
     if os.environ.get("PLANNER_SWEEP_JSON"):   # every row, for a closer look

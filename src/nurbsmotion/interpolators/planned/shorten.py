@@ -561,7 +561,9 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
         if earliest is None:
             N, floor = top + 1, low
         else:
-            floor = max(earliest - SHORTEN_START, low)
+            # (a motion as far from the path as the plan may arrive well before the
+            # continuous duration: no floor then; 5 ms for a duration of 7 ms seen)
+            floor = max(earliest - SHORTEN_START, low) if tolerance <= path_tolerance else low
             N = min(max(earliest, low), top)
             if not found_at(N, SHORTEN_STALL if N < top else SHORTEN_ROUNDS):
                 for N in range(N + 1, top + 1):
@@ -576,6 +578,7 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
     # within the path tolerance; failing that, no farther from the path than the plan;
     # failing both, a plan at rest at the arrival or later, before this one settles, if
     # this one rings about the end
+    path_tolerance = tolerance
     tops = [arrival - 1] + list(range(arrival, settled))
     tries = [(top, t) for top in tops
              for t in dict.fromkeys([tolerance, max(tolerance, own)]) if t > 0]
