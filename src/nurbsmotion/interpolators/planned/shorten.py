@@ -554,10 +554,11 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
         # one is found, each from the motion found a sample later; below the continuous
         # duration only as a short try (SHORTEN_BELOW_ROUNDS). Where none is found at the
         # estimate within SHORTEN_STALL rounds (a probe: from the plan's guess, compressed
-        # by several samples, a program that does not converge soon seldom does), upward
-        # from it to the first N at which one is found within as many (failures cost the
-        # most: up to SHORTEN_ROUNDS programs each, against a few for a success).
-        low = LEAD + 2
+        # by several samples, a program that does not converge soon seldom does), from
+        # the top down, the probed sample again only within as many rounds (failures
+        # cost the most: up to SHORTEN_ROUNDS programs each, against a few for a
+        # success; each N from the motion found a sample later, which the probe lacked).
+        low, probe = LEAD + 2, None
         if earliest is None:
             N, floor = top + 1, low
         else:
@@ -566,12 +567,16 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
             floor = max(earliest - SHORTEN_START, low) if tolerance <= path_tolerance else low
             N = min(max(earliest, low), top)
             if not found_at(N, SHORTEN_STALL if N < top else SHORTEN_ROUNDS):
-                for N in range(N + 1, top + 1):
-                    if found_at(N, SHORTEN_STALL if N < top else SHORTEN_ROUNDS):
-                        return best
-                return None
-        while N > low and found_at(N - 1, SHORTEN_ROUNDS if N - 1 >= floor
-                                   else SHORTEN_BELOW_ROUNDS):
+                if N == top:
+                    return None    # tried in full, from the plan: nothing later to start from
+                N, probe = top + 1, N
+
+        def rounds_at(N):
+            if N == probe:
+                return SHORTEN_STALL
+            return SHORTEN_ROUNDS if N >= floor else SHORTEN_BELOW_ROUNDS
+
+        while N > low and found_at(N - 1, rounds_at(N - 1)):
             N -= 1
         return best
 
