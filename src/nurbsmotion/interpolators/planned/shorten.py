@@ -45,12 +45,12 @@ SHORTEN_START = 1
 """Step 6 starts its search for a piece's arrival this many samples after the piece's
 continuous time-optimal duration (rounded up; :func:`planning.speed_profile` before any
 easing), not at the plan's arrival, and runs down from there to that duration; where
-none is found at the start, up from it: a short move's earliest arrival lies within a
-sample or two of that duration, and each sample it need not step down from costs one or
-more linear programs (on six 60-120 mm free-form moves at 1.7 m/s the plan arrived 1-10
-samples later, and the search from there took 10-71 programs; on the first 300 cases of
-``benchmarks/planner_sweep.py``, searched all the way down, 11 of 294 pieces arrived a
-sample before the duration rounded up, and one two samples before)."""
+none is found at the start, down from the plan's arrival: a short move's earliest
+arrival lies within a sample or two of that duration, and each sample it need not step
+down from costs one or more linear programs (on six 60-120 mm free-form moves at 1.7 m/s
+the plan arrived 1-10 samples later, and the search from there took 10-71 programs; on
+the first 300 cases of ``benchmarks/planner_sweep.py``, searched all the way down, 11 of
+294 pieces arrived a sample before the duration rounded up, and one two samples before)."""
 
 SHORTEN_BELOW_ROUNDS = 2
 """Most linear programs step 6 solves, per trust region, for an arrival sample before the
@@ -480,16 +480,18 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
     ``tolerance`` either).
 
     N runs down from ``arrival - 1`` while one is found (where none is, and the plan so
-    leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one is);
-    given the ``earliest`` sample worth trying first (:data:`SHORTEN_START`), from there
-    if one is found there within :data:`SHORTEN_STALL` rounds, down to the piece's
+    leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one
+    is); given the ``earliest`` sample worth trying first (:data:`SHORTEN_START`), from
+    there if one is found there within :data:`SHORTEN_STALL` rounds, down to the piece's
     continuous duration ``earliest - SHORTEN_START`` and below it by tries of
-    :data:`SHORTEN_BELOW_ROUNDS` rounds; else up from there to the first N at which one
-    is found within :data:`SHORTEN_STALL` rounds (the N below, tried as a probe only, is
-    not tried again). The first guess of the nearest points is the plan's (its
-    parameters ``param``, shape (n,)), compressed in time to arrive at N; each later N
-    starts from the last motion found, compressed by a sample. The programs of one N
-    are warm-started (:class:`_WarmProgram`).
+    :data:`SHORTEN_BELOW_ROUNDS` rounds; else from the top, the probed N again within
+    :data:`SHORTEN_STALL` rounds only (searching up from it instead, each N from the
+    plan's guess, arrived 1-3 samples later on ``examples/study.toml``'s closed path at
+    1 m/s than coming down, each N from the motion found a sample later). The first
+    guess of the nearest points is the plan's (its parameters ``param``, shape (n,)),
+    compressed in time to arrive at N; each later N starts from the last motion found,
+    compressed by a sample. The programs of one N are warm-started
+    (:class:`_WarmProgram`).
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
     Ts = machine.sample_period
@@ -568,7 +570,7 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
             N = min(max(earliest, low), top)
             if not found_at(N, SHORTEN_STALL if N < top else SHORTEN_ROUNDS):
                 if N == top:
-                    return None    # tried in full, from the plan: nothing later to start from
+                    return None    # the top, in full: no motion found to start from
                 N, probe = top + 1, N
 
         def rounds_at(N):
