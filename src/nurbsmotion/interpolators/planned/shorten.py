@@ -537,15 +537,14 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
             # as the linearisation stays within the tolerance
             found = None
             # (the narrow region is the fallback: it starts from the wide one's basis and
-            # runs SHORTEN_STALL rounds at most, the rounds in which one that does not
-            # stall makes its progress)
+            # runs as many rounds; capped at SHORTEN_STALL, its pace test gave up on case
+            # 88 of benchmarks/planner_sweep.py, which arrived 2 samples later)
             program = _WarmProgram()
             for wide in (True, False):
                 found = found or _shorten_at(curve, span, plant, zoh, N,
                                              np.maximum.accumulate(guess),
                                              limit, tolerance, tangent, feed, Ts, wide,
-                                             most_rounds if wide else
-                                             min(most_rounds, SHORTEN_STALL), program)
+                                             most_rounds, program)
             if found is not None:
                 best = (N, *found, zoh)
                 known[:] = [np.concatenate([[float(LEAD)], t, [N]]),
