@@ -1242,6 +1242,42 @@ def test_warm_started_programs_match_scipy_linprog(seed):
     assert program.solve(cost, infeasible, np.array([-2.0]), A_eq, bounds) is None
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_programs_that_grow_are_warm_started_to_scipys_optimum(seed):
+    """Step 6's programs (issue 35) add rows and columns as a round holds more points: the
+    rows and columns named as in the last program keep their basis status, the new ones
+    start basic (rows) or at a bound (columns); HiGHS still reaches the optimum scipy's
+    ``linprog`` finds cold, and the same after rows are dropped again."""
+    from scipy import sparse
+    from scipy.optimize import linprog
+    from nurbsmotion.interpolators.planned.shorten import _WarmProgram
+
+    rng = np.random.default_rng(seed)
+    n, m_ub, m_eq = 40, 90, 8
+    A_all = rng.normal(size=(m_ub, n + 21))           # rows of every point, 20 extra columns
+    A_eq_all = rng.normal(size=(m_eq, n + 21))
+    A_eq_all[:, -1] = 0.0
+    program = _WarmProgram()
+    for rows, extra in ((np.arange(0, 90, 3), 0), (np.arange(0, 90, 2), 8),
+                        (np.arange(90), 20), (np.arange(0, 90, 5), 4)):
+        cols = np.r_[np.arange(n - 1), n - 1 + 1 + np.arange(extra), n - 1 + 21]
+        # the last column (E) last, as step 6 orders them; its key is the same throughout
+        A = A_all[np.ix_(rows, cols)] + 0.02 * rng.normal(size=(len(rows), len(cols)))
+        A[:, -1] = -1.0
+        A_ub, A_eq = sparse.csr_matrix(A), sparse.csr_matrix(A_eq_all[:, cols])
+        b_ub = rng.uniform(0.5, 1.5, len(rows))
+        bounds = np.column_stack([np.full(len(cols), -1.0), np.full(len(cols), 1.0)])
+        bounds[-1] = (0.0, np.inf)
+        cost = np.r_[rng.normal(size=len(cols) - 1) * 0.01, 1.0]
+        row_keys = np.r_[rows, 1000 + np.arange(m_eq)]
+        x = program.solve(cost, A_ub, b_ub, A_eq, bounds, row_keys, cols)
+        ref = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=np.zeros(m_eq),
+                      bounds=bounds, method="highs")
+        assert ref.status == 0 and x is not None
+        assert cost @ x == pytest.approx(ref.fun, rel=1e-7, abs=1e-9)
+        assert np.all(A_ub @ x <= b_ub + 1e-7) and np.allclose(A_eq @ x, 0.0, atol=1e-7)
+
+
 def test_a_single_count_does_not_throw_the_identification():
     """Issue 33 item 1: an encoder edge under a resting axis (the count toggling 0, 1, 0,
     ... with no drive) leaves the estimate and its covariance as they were when the
