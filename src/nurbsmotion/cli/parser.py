@@ -51,15 +51,22 @@ def _version() -> str:
         return __version__
 
 
-def _positive_float(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
-    return value
+def _float_above(low: float, inclusive: bool):
+    """argparse type: a finite number > ``low`` (>= with ``inclusive``)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not (math.isfinite(value) and (value >= low if inclusive else value > low)):
+            raise argparse.ArgumentTypeError(
+                f"must be finite and {'>=' if inclusive else '>'} {low:g}, got {text!r}")
+        return value
+    return parse
+
+
+_positive_float = _float_above(0.0, inclusive=False)
+_non_negative_float = _float_above(0.0, inclusive=True)
 
 
 def _sample_period(text: str) -> float:
@@ -69,17 +76,6 @@ def _sample_period(text: str) -> float:
         raise argparse.ArgumentTypeError(
             f"{text!r} s is below the minimum sample period of {MIN_SAMPLE_PERIOD:g} s "
             "(machine.MIN_SAMPLE_PERIOD); is it in seconds?")
-    return value
-
-
-def _non_negative_float(text: str) -> float:
-    """argparse type: a finite number >= 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"must be finite and >= 0, got {text!r}")
     return value
 
 
@@ -168,14 +164,20 @@ def _parser() -> argparse.ArgumentParser:
                            help="no progress bar (there is none either when stderr is not "
                            "a terminal)")
 
+    def path_input(c, machine=True):
+        """The path, its machine, feed, units and projection, as run reads them."""
+        c.add_argument("path", help=path_help)
+        if machine:
+            c.add_argument("--machine", default="die-bonder", help=machine_help)
+        c.add_argument("--feed", type=parse_feed, help=feed_help)
+        c.add_argument("--units", choices=PATH_UNITS, help=units_help)
+        c.add_argument("--project", metavar="AXES",
+                       help="read a G-code file's moves as their projection on the "
+                       "machine's axes (e.g. xy: a helix becomes its circle, a Z move is "
+                       "dropped) instead of refusing moves that change other axes with them")
+
     i = command("interpolate", "open-loop setpoints of a path at a constant feed")
-    i.add_argument("path", help=path_help)
-    i.add_argument("--feed", type=parse_feed, help=feed_help)
-    i.add_argument("--units", choices=PATH_UNITS, help=units_help)
-    i.add_argument("--project", metavar="AXES",
-                   help="read a G-code file's moves as their projection on the machine's axes "
-                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
-                   "refusing moves that change other axes with them")
+    path_input(i, machine=False)  # its --machine says what it is for here
     i.add_argument("--machine", default="die-bonder",
                    help=machine_help + ": the path is read on it as run reads it (the "
                    "axes of G-code and DXF, rotary axes, the pulse of --path-tolerance); "
@@ -192,14 +194,7 @@ def _parser() -> argparse.ArgumentParser:
     i.set_defaults(func=_cmd_interpolate)
 
     r = command("run", "closed-loop servo simulation of a path on a machine")
-    r.add_argument("path", help=path_help)
-    r.add_argument("--machine", default="die-bonder", help=machine_help)
-    r.add_argument("--feed", type=parse_feed, help=feed_help)
-    r.add_argument("--units", choices=PATH_UNITS, help=units_help)
-    r.add_argument("--project", metavar="AXES",
-                   help="read a G-code file's moves as their projection on the machine's axes "
-                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
-                   "refusing moves that change other axes with them")
+    path_input(r)
     r.add_argument("--interpolator", choices=LOOP_METHODS, default=DEFAULT_INTERPOLATOR,
                    help="planned: plans the actual motion within ±Umax and steers the plant "
                    "along it; paper: Yeh & Sun (2008), saturation-aware one step ahead; "
@@ -249,14 +244,7 @@ def _parser() -> argparse.ArgumentParser:
 
     b = command("bound", "print the time-optimal bound of a path [s]: the least time at "
                 "rest at both ends within the drive limits and the feed")
-    b.add_argument("path", help=path_help)
-    b.add_argument("--machine", default="die-bonder", help=machine_help)
-    b.add_argument("--feed", type=parse_feed, help=feed_help)
-    b.add_argument("--units", choices=PATH_UNITS, help=units_help)
-    b.add_argument("--project", metavar="AXES",
-                   help="read a G-code file's moves as their projection on the machine's axes "
-                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
-                   "refusing moves that change other axes with them")
+    path_input(b)
     b.add_argument("--path-tolerance", help=path_tolerance_help)
     b.add_argument("--sampled", action="store_true",
                    help="print instead a lower bound for any sampled motion along the path "
