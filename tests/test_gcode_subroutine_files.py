@@ -129,3 +129,29 @@ def test_hal_and_ini_parameters_are_refused_with_the_remedy(tmp_path, name, what
     with pytest.raises(PathFileError, match=rf"line 3: #<{re.escape(name)}> reads {what}, which a program file "
                                             r"alone does not give: replace it with its value \(a number\)"):
         load_quiet(path)
+
+
+def test_warnings_and_contour_lines_of_a_called_file_name_that_file_and_its_line(tmp_path):
+    """The lines of a called file are numbered after the program's own in
+    ``GcodeContour.lines``; ``source_line`` gives each one's file and own line, and a
+    warning or an error about one names that file and its own line, not the number after
+    the program's."""
+    (tmp_path / "square.ngc").write_text(SQUARE.replace("  Y[#2 + #3]\n", "  G64 P0.01\n  Y[#2 + #3]\n"))
+    (tmp_path / "back.ngc").write_text(BACK)
+    (tmp_path / "main.ngc").write_text(MAIN)
+    with pytest.warns(GcodeWarning) as caught:
+        program = load_gcode(tmp_path / "main.ngc")
+    texts = [str(w.message) for w in caught]
+    assert any(re.fullmatch(r".*square\.ngc, line 4: G64 path blending tolerance skipped.*", t) for t in texts), texts
+    assert not any("main.ngc" in t and "G64" in t for t in program.warnings)
+    lines = program.contours[0].lines
+    where = [(Path(f).name, n) for f, n in map(program.source_line, lines[:7])]
+    assert where == [("main.ngc", 3), ("square.ngc", 3), ("square.ngc", 5), ("square.ngc", 6),
+                     ("square.ngc", 7), ("back.ngc", 2), ("square.ngc", 3)]
+    # a message that names another line (the cutter compensation's held move) names its file too
+    (tmp_path / "square.ngc").write_text(SQUARE.replace("o<square> sub\n", "o<square> sub\n  G41.1 D4\n"))
+    (tmp_path / "main.ngc").write_text("G21 G90\nG0 X-5 Y0\nG1 F100 X-4\no<square> call [0] [0] [1]\nM2\n")
+    with pytest.raises(PathFileError, match=r"square.ngc, line \d+: the move of line \d+ of square.ngc ends in a "
+                                            r"concave corner") as info:
+        load_quiet(tmp_path / "main.ngc")
+    assert info.value.source.endswith("square.ngc")

@@ -299,16 +299,16 @@ class _Compensation:
                 r1 = math.hypot(q.end[0] - q.centre[0], q.end[1] - q.centre[1])
                 r2 = math.hypot(x - q.centre[0], y - q.centre[1])
                 if abs(r1 - r2) > 0.01 * self.lengths()[0]:
-                    raise self.error(f"cutter compensation made an arc of line {q.line} with radii "
+                    raise self.error(f"cutter compensation made an arc of {self.line_name(q.line)} with radii "
                                      f"{r1:.6g} and {r2:.6g}; check the contour near this line")
                 if ep is not None and q.sweep != 0.0:
                     l2 = _find_turn(ep[0], ep[1], q.centre[0], q.centre[1], q.turn, x, y)
                     if abs(l2) > abs(q.sweep) + gouge:
-                        raise self.error(self._gouge(f"the arc of line {q.line}"))
+                        raise self.error(self._gouge(f"the arc of {self.line_name(q.line)}"))
             elif q.kind != "stop":
                 dx, dy = q.direction
                 if ep is not None and dx * (x - ep[0]) + dy * (y - ep[1]) < 0:
-                    raise self.error(self._gouge(f"the move of line {q.line}"))
+                    raise self.error(self._gouge(f"the move of {self.line_name(q.line)}"))
             if q.kind != "stop":
                 q.end = list(q.end)
                 q.end[0], q.end[1] = x, y
@@ -438,7 +438,7 @@ class _Compensation:
                 d = (oldrad + r if inside else oldrad - r) * math.cos(th - phi)
                 ratio = (d - r if inside else d + r) / oldrad
                 if not -1.0 <= ratio <= 1.0:
-                    raise self.error(self._gouge(f"the arc of line {front.line}"))
+                    raise self.error(self._gouge(f"the arc of {self.line_name(front.line)}"))
                 sign = -1.0 if (front.turn > 0) == inside else 1.0
                 angle = sign * math.acos(ratio) + th + math.pi
                 self.move_endpoint_and_flush(ox + oldrad * math.cos(angle), oy + oldrad * math.sin(angle))
@@ -551,11 +551,11 @@ class _Compensation:
                 newrad = arc_radius - r if inside else arc_radius + r
                 arc_cc = math.hypot(py_ - oy, px_ - ox)
                 if oldrad == 0.0 or arc_cc == 0.0:
-                    raise self.error(f"the arc of line {front.line} and this one have the same centre "
+                    raise self.error(f"the arc of {self.line_name(front.line)} and this one have the same centre "
                                      "and meet in a corner: cutter compensation cannot join them")
                 a = (oldrad ** 2 + arc_cc ** 2 - newrad ** 2) / (2 * oldrad * arc_cc)
                 if not -1.0 <= a <= 1.0:
-                    raise self.error(self._gouge(f"the arc of line {front.line}"))
+                    raise self.error(self._gouge(f"the arc of {self.line_name(front.line)}"))
                 pullback = math.acos(a)
                 cc_dir = math.atan2(oy - py_, ox - px_)
                 plus = (turn > 0) == self._inside(front.turn)

@@ -232,7 +232,7 @@ class _Curves:
         points, order = np.array(bl["points"]), bl["order"]
         if len(points) < order:
             raise self.error(
-                f"the G5.2 block opened on line {bl['line']} has {len(points)} control points "
+                f"the G5.2 block opened on {self.line_name(bl['line'])} has {len(points)} control points "
                 f"(counting the start point); order L = {order} needs at least {order}")
         line = bl["line"]
         self.block = None
@@ -312,10 +312,10 @@ class _Curves:
         points, order, knots = np.array(bl["points"]), bl["order"], bl["knots"]
         n = len(points)
         if len(knots) != n + order:
-            raise self.error(f"the G6.2 block of line {line} has {len(knots)} knots, expected "
+            raise self.error(f"the G6.2 block of {self.line_name(line)} has {len(knots)} knots, expected "
                              f"{n + order} = control points ({n}) + order ({order})", line)
         if len(set(knots[:order])) != 1 or len(set(knots[-order:])) != 1:
-            raise self.error(f"the G6.2 block of line {line} must start and end with {order} equal "
+            raise self.error(f"the G6.2 block of {self.line_name(line)} must start and end with {order} equal "
                              f"knots (clamped ends), got {knots[:order]} ... {knots[-order:]}", line)
         self.finish_nurbs(lambda: NurbsCurve(order - 1, knots, points, bl["weights"]), bl["plane"],
                           points[-1], line)

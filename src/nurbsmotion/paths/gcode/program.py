@@ -86,6 +86,11 @@ class GcodeProgram:
         The program has no feed move: its rapids are the contours, with no programmed
         feed (``programmed_feed`` NaN), as LinuxCNC's trajectory-planner tests of rapids
         are run.
+    called_files : tuple of (int, int, str, int)
+        For each file ``o<name> call`` ran: its lines are the program's lines ``first + 1``
+        to ``end`` (numbered after the program's own, as in ``GcodeContour.lines``), its
+        file name, and the line of the file that ``first + 1`` is, less one
+        (:meth:`source_line` reads it).
     """
 
     contours: tuple
@@ -95,3 +100,21 @@ class GcodeProgram:
     axes: str = "XY"
     units_source: str = ""
     rapids_only: bool = False
+    called_files: tuple = ()
+
+    def source_line(self, line: int) -> tuple[str, int]:
+        """The file and its own line of ``line``, a line number of
+        ``GcodeContour.lines`` or of the reader (the program's own lines, then those of
+        the files it calls)."""
+        return _source_line(self.called_files, self.source, line)
+
+
+def _source_line(called: tuple, source: str, line: int) -> tuple[str, int]:
+    """The file and its own line of the program's ``line``: ``called`` holds, for each
+    called file, (first, end, file, first in the file) as :func:`_subroutine_files`
+    returns its parts (program lines first < line <= end are that file's)."""
+    for a, b, file, begin in called:
+        if a < line <= b:
+            return file, line - a + begin
+    return source, line
+

@@ -28,7 +28,7 @@ from .curves import _Curves
 from .cycles import _Cycles
 from .frames import _Frames
 from .ngc import Program, Rows, split_lines
-from .program import GcodeContour, GcodeProgram, GcodeWarning
+from .program import GcodeContour, GcodeProgram, GcodeWarning, _source_line
 
 __all__ = ["load_gcode"]
 
@@ -87,6 +87,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
         self.retract_old_level = False  # G98 (True) or G99, LinuxCNC's default
         self.cycle_words: dict = {}  # R, depth, P, Q, I/J/K kept from the last cycle [input units]
         self.cycle_level: float | None = None  # the initial level of a series of cycles [output units]
+        self.called: tuple = ()  # (first, end, file, first in the file) of each called file's lines
 
     @property
     def position(self) -> np.ndarray:
@@ -101,12 +102,23 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
     def error(self, message: str, line: int | None = None) -> PathFileError:
         return PathFileError(message, self.source, line if line is not None else self.line)
 
+    def where(self, line: int) -> tuple[str, int]:
+        """The file and its own line of the program's ``line`` (the lines of the files that
+        ``o<name> call`` runs are numbered after the program's own)."""
+        return _source_line(self.called, self.source, line)
+
+    def line_name(self, line: int) -> str:
+        """``"line 7"``, or ``"line 4 of square.ngc"`` for a line of a called file."""
+        file, own = self.where(line)
+        return f"line {own}" if file == self.source else f"line {own} of {Path(file).name}"
+
     def warn(self, message: str, kind: str | None = None) -> None:
         if kind is not None:
             if kind in self.warned:
                 return
             self.warned.add(kind)
-        text = f"{self.source}, line {self.line}: {message}"
+        file, own = self.where(self.line)
+        text = f"{file}, line {own}: {message}"
         self.warnings.append(text)
         warnings.warn(text, GcodeWarning, stacklevel=2)
 
@@ -318,7 +330,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
                 self._k = None
                 if self.units is None:
                     self.units = "inch" if self.input_inch else "mm"
-                    self.units_source = f"{_g_name(g)} on line {self.line}"
+                    self.units_source = f"{_g_name(g)} on {self.line_name(self.line)}"
             elif g in (90.0, 91.0):
                 self.absolute = g == 90.0
             elif g in (90.1, 91.1):
@@ -404,7 +416,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
             self.set_feed(rest.pop("F"))
 
         if self.block is not None and self.block["kind"] == "G5.2" and motion not in (None, "G5.2", "G5.3"):
-            raise self.error(f"the G5.2 block opened on line {self.block['line']} is not closed "
+            raise self.error(f"the G5.2 block opened on {self.line_name(self.block['line'])} is not closed "
                              f"with G5.3 before this {motion}")
         if self.block is not None and self.block["kind"] == "G6.2" and motion not in (None, "G6.2"):
             self.close_g6()
@@ -595,7 +607,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
 
     def finish(self) -> None:
         if self.block is not None and self.block["kind"] == "G5.2":
-            raise self.error(f"the G5.2 block opened on line {self.block['line']} is never closed "
+            raise self.error(f"the G5.2 block opened on {self.line_name(self.block['line'])} is never closed "
                              "with G5.3 (truncated program?): close it with G5.3", self.block["line"])
         if self.block is not None:
             self.close_g6()
@@ -668,6 +680,7 @@ def _read_program(path: Path, axes: str, project: bool, auto: bool, rapids: bool
     reader.project, reader.auto, reader.rapids_as_path = project, auto, rapids
     lines = split_lines(path.read_bytes(), str(path), upper=True)
     lines, parts, note = _subroutine_files(lines, path, search)
+    reader.called = tuple(parts)
     try:
         program = Program(lines, str(path), reader.system_parameter)  # upper-cased: plain lines in bulk
         program.search_note = note
@@ -678,10 +691,11 @@ def _read_program(path: Path, axes: str, project: bool, auto: bool, rapids: bool
                 break
         reader.finish()
     except PathFileError as exc:
-        for a, b, file, begin in parts:  # a line of a subroutine file: name that file's line
-            if exc.source == str(path) and exc.line is not None and a < exc.line <= b:
+        if exc.source == str(path) and exc.line is not None:  # a line of a called file: name it
+            file, own = _source_line(reader.called, str(path), exc.line)
+            if file != str(path):
                 raise PathFileError(f"{exc.message} (in o<{Path(file).stem}>, called from {path.name})",
-                                    file, exc.line - a + begin) from None
+                                    file, own) from None
         raise
     for line in program.nested_comments[:1]:
         reader.line = line
@@ -725,8 +739,9 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
     subroutine_path : sequence of str or path-like
         Folders where ``o<name> call`` finds ``name.ngc`` when the program does not define
         ``o<name>`` (after the program's own folder; LinuxCNC's ``SUBROUTINE_PATH``). The
-        lines of a called file are numbered after the program's own in ``GcodeContour.lines``;
-        an error in one names that file and its line.
+        lines of a called file are numbered after the program's own in ``GcodeContour.lines``
+        (:meth:`GcodeProgram.source_line` gives the file and its own line); an error or a
+        warning on one names that file and its own line.
 
     Returns
     -------
@@ -806,4 +821,4 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
                             f"{remedy}",
                             str(path))
     return GcodeProgram(tuple(contours), reader.units or "mm", str(path), tuple(reader.warnings), axes,
-                        reader.units_source, rapids)
+                        reader.units_source, rapids, reader.called)
