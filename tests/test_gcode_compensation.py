@@ -279,7 +279,8 @@ def test_refused_where_linuxcnc_refuses(tmp_path, name):
     ("G21\nG41.1 D2\nG42.1 D2\n", r"line 3: G42.1 while cutter compensation is already on: turn it off with G40"),
     ("G21\nG41.1\n", r"line 2: G41.1 needs the tool diameter as a D word"),
     ("G21\nG41 D1\n", r"line 2: G41 uses the radius of tool 1, and no tool table is given: put it beside the "
-                      r"program as p.tbl \(LinuxCNC's format\) or pass it \(load_gcode\(..., tool_table=FILE.tbl\)\), "
+                      r"program as p.tbl \(LinuxCNC's format\) or pass it \(--tool-table FILE.tbl; load_gcode\(..., "
+                      r"tool_table=\)\), "
                       r"set it in the program \(G10 L1 P1 R<radius>\) or write G41.1/G42.1 D<diameter>"),
     ("G21\nG41 D2.5\n", r"line 2: G41 D2.5: D is a tool number .*; for a diameter write G41.1 D2.5"),
     ("G21\nG0 X-5\nG41.1 D2\nG1 X0 F10\nG92 X0\n", r"line 5: G92 is not allowed while cutter radius compensation "
@@ -382,3 +383,45 @@ def test_linuxcncs_own_cutter_compensation_tests(name):
     rounding = 0.5e-4 * np.sqrt(cols) + 1e-12  # [inch]
     assert np.max(cKDTree(junctions).query(np.array(feed)[:, :cols])[0]) <= rounding
     assert np.max(cKDTree(np.array(every)[:, :cols]).query(junctions)[0]) <= rounding
+
+
+PART = """G21 G90 G17
+G0 X-10 Y-10
+G41 D3
+G1 X0 Y0 F600
+G1 X30
+G1 Y20
+G1 X0
+G1 Y0
+G40 G1 X-10 Y-10
+M2
+"""
+
+
+def test_tool_table_flag_of_the_commands_and_the_study_key(tmp_path, capsys):
+    """``--tool-table FILE`` (contours, bound, interpolate, run) and a study's
+    ``tool_table`` give the program the table's diameters: G41 with a 6 mm tool inside a
+    30 x 20 mm rectangle (counter-clockwise) runs 3 mm inside it; without the table the
+    refusal names the flag; with a path that is no G-code program the flag is refused."""
+    from nurbsmotion.cli import main
+    from nurbsmotion.study.case import _contour
+    from nurbsmotion.study.spec import load_study, study_cases
+
+    part = write(tmp_path, PART, "part.ngc")
+    write(tmp_path, "T3 P3 D6 ;a 6 mm cutter\n", "tools.tbl")
+    table = str(tmp_path / "tools.tbl")
+    assert main(["contours", str(part)]) == 2
+    assert "--tool-table FILE.tbl" in capsys.readouterr().err
+    assert main(["contours", str(part), "--tool-table", table]) == 0
+    assert "x[-10, 27] y[-10, 17]" in capsys.readouterr().out
+    assert main(["bound", str(part), "--feed", "10mm/s", "--tool-table", table]) == 0
+    assert main(["bound", "die-bonder-pi", "--feed", "1m/s", "--tool-table", table]) == 2
+    assert "read with a G-code program only, and die-bonder-pi is a built-in path" in capsys.readouterr().err
+    (tmp_path / "study.toml").write_text('paths = ["part.ngc", "die-bonder-pi"]\nfeeds = [10]\n'
+                                         'feed_unit = "mm/s"\ntool_table = "tools.tbl"\n')
+    case = study_cases(load_study(tmp_path / "study.toml"))[0]
+    contour = _contour(case.path, None, None, 0, 0.0, case.base_dir, case.machine, case.tool_table)
+    reference = load_quiet(part, tool_table=table)
+    lo, hi = contour.curve.bounding_box()
+    assert np.max(np.abs(np.concatenate([lo, hi]) - [-10, -10, 27, 17])) <= 1e-9
+    assert np.max(np.abs(contour.curve.bounding_box()[1] - reference.contours[0].curve.bounding_box()[1])) <= 1e-12

@@ -35,7 +35,8 @@ def _contour(args, machine: Machine | None = None):
 
     return load_run_contour(args.path, machine, units=args.units,
                             project=getattr(args, "project", None),
-                            path_tolerance=getattr(args, "path_tolerance", None))
+                            path_tolerance=getattr(args, "path_tolerance", None),
+                            tool_table=args.tool_table)
 
 
 def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float = 1.0,
@@ -84,7 +85,7 @@ def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float 
 def _cmd_contours(args) -> int:
     from ..paths import load_contours
 
-    contours = load_contours(args.path, axes=args.axes, units=args.units)
+    contours = load_contours(args.path, axes=args.axes, units=args.units, tool_table=args.tool_table)
     print(f"{args.path}: {len(contours)} contour{'s' if len(contours) != 1 else ''} "
           f"(choose one with {args.path}#k)")
     named = contours[0].axes if contours and contours[0].axes else None

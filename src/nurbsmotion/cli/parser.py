@@ -164,13 +164,22 @@ def _parser() -> argparse.ArgumentParser:
                            help="no progress bar (there is none either when stderr is not "
                            "a terminal)")
 
+    def tool_table(c):
+        """``--tool-table``: where a G-code program's cutter compensation finds its tools."""
+        c.add_argument("--tool-table", metavar="FILE",
+                       help="LinuxCNC tool table (.tbl: T1 P1 D6.0 per line) whose diameters "
+                       "a G-code program's cutter radius compensation (G41/G42 D<tool>, or "
+                       "the tool of T M6) uses, in the program's units (default: PROGRAM.tbl "
+                       "beside the program, if there is one)")
+
     def path_input(c, machine=True):
-        """The path, its machine, feed, units and projection, as run reads them."""
+        """The path, its machine, feed, units, projection and tool table, as run reads them."""
         c.add_argument("path", help=path_help)
         if machine:
             c.add_argument("--machine", default="die-bonder", help=machine_help)
         c.add_argument("--feed", type=parse_feed, help=feed_help)
         c.add_argument("--units", choices=PATH_UNITS, help=units_help)
+        tool_table(c)
         c.add_argument("--project", metavar="AXES",
                        help="read a G-code file's moves as their projection on the "
                        "machine's axes (e.g. xy: a helix becomes its circle, a Z move is "
@@ -263,6 +272,7 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--axes", help="read G-code and DXF on these path axes, e.g. xy or xyz, as a "
                    "machine with them would (default: every axis the file moves)")
     c.add_argument("--units", choices=PATH_UNITS, help=units_help)
+    tool_table(c)
     c.set_defaults(func=_cmd_contours)
 
     e = command("reproduce", "the paper's experiment on built-in defaults: the Π and the "

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 from .._runtime.io import parse_json_or_toml, read_text_file, write_output
 from ..feed import FeedLimit
-from ..errors import InvalidCurveError, PathFileError
+from ..errors import InvalidArgumentError, InvalidCurveError, PathFileError
 from ..nurbs import BUILTIN_PATHS, MAX_CONTROL_POINTS, NurbsCurve, builtin_path
 
 if TYPE_CHECKING:  # (annotation only)
@@ -351,29 +351,35 @@ def load_path(file: str | os.PathLike, *, axes: str = "xy", units: str | None = 
 
 
 def load_contour(file: str | os.PathLike, *, axes: str = "xy", units: str | None = None,
-                 project: bool = False) -> Contour:
+                 project: bool = False, tool_table: str | os.PathLike | None = None) -> Contour:
     """:func:`load_path`, also returning the file's programmed feed (a :class:`Contour`)."""
     spec = os.fspath(file)
     index = None
     match = _CONTOUR_SELECTOR.match(spec)
     if match and not Path(spec).exists():
         spec, index = match.group("file"), int(match.group("index"))
-    contours = load_contours(spec, axes=axes, units=units, project=project)
+    contours = load_contours(spec, axes=axes, units=units, project=project, tool_table=tool_table)
     chosen = _choose_contour([c.curve for c in contours], index, spec)
     return next(c for c in contours if c.curve is chosen)
 
 
 def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: str | None = None,
-                  project: bool = False) -> list[Contour]:
+                  project: bool = False, tool_table: str | os.PathLike | None = None) -> list[Contour]:
     """Every contour of a path file, with its programmed feed (see :func:`load_path`).
 
     ``axes=None`` reads a G-code or DXF file on every axis it moves (G-code: by a feed or
     a rapid; DXF: XY where every entity is flat, else XYZ); ``project``: a G-code feed
-    move of other axes together with ``axes`` is read as its projection on them."""
+    move of other axes together with ``axes`` is read as its projection on them;
+    ``tool_table``: a LinuxCNC tool table (``.tbl``) a G-code program's cutter radius
+    compensation takes its tools' diameters from, in the program's units
+    (:func:`nurbsmotion.paths.gcode.load_gcode`; ``--tool-table``)."""
     path = Path(file)
     if units is not None and units not in PATH_UNITS:
         raise PathFileError(f"unit {units!r} is not one of {', '.join(PATH_UNITS)}", str(path))
     suffix = path.suffix.lower()
+    if tool_table is not None and suffix not in _GCODE_SUFFIXES:
+        raise InvalidArgumentError(f"a tool table ({os.fspath(tool_table)}) is read with a G-code "
+                                   f"program only, and {path.name} is not one: leave it out")
     if suffix in (".json", ".toml"):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -390,7 +396,7 @@ def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: st
         with warnings.catch_warnings():
             if units is not None:
                 warnings.filterwarnings("ignore", "no G20/G21", GcodeWarning)
-            program = load_gcode(path, axes=axes, project=project)
+            program = load_gcode(path, axes=axes, project=project, tool_table=tool_table)
         found = [Contour(c.curve, None if program.rapids_only else c.feed_limit, f"{path}#{k + 1}",
                          program.axes, program.units_source)
                  for k, c in enumerate(program.contours)]
@@ -463,9 +469,13 @@ def resolve_path(spec: str, *, axes: str = "xy", units: str | None = None) -> Nu
 
 
 def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None,
-                    project: bool = False) -> Contour:
-    """:func:`resolve_path`, also returning the file's programmed feed (a :class:`Contour`)."""
+                    project: bool = False, tool_table: str | os.PathLike | None = None) -> Contour:
+    """:func:`resolve_path`, also returning the file's programmed feed (a :class:`Contour`);
+    ``tool_table`` as for :func:`load_contours`."""
     if spec in BUILTIN_PATHS and not Path(spec).exists():
+        if tool_table is not None:
+            raise InvalidArgumentError(f"a tool table ({os.fspath(tool_table)}) is read with a G-code "
+                                       f"program only, and {spec} is a built-in path: leave it out")
         curve = builtin_path(spec)
         if units is not None:
             if units not in PATH_UNITS:
@@ -477,4 +487,4 @@ def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None,
             f"{spec!r} is neither a built-in path ({', '.join(BUILTIN_PATHS)}) nor a file "
             f"name with an ending ({', '.join(PATH_FILE_SUFFIXES)})"
         )
-    return load_contour(spec, axes=axes, units=units, project=project)
+    return load_contour(spec, axes=axes, units=units, project=project, tool_table=tool_table)

@@ -26,13 +26,14 @@ __all__ = ["case_trace", "run_case"]
 
 @lru_cache(maxsize=64)
 def _contour(path: str, family: str | None, path_seed: int | None, n_axes: int,
-             length: float, base_dir: str, machine_spec: str):
+             length: float, base_dir: str, machine_spec: str, tool_table: str | None = None):
     """The case's path and its programmed feed (a ``Contour``; kept per worker: its
     arc-length table serves every case on it), read on the machine ``machine_spec`` by
     the function ``nurbsmotion run`` reads its path with
     (:func:`nurbsmotion.study.run_input.load_run_contour`: G-code and DXF on its axes,
     rotary axes rescaled, runs of CAM chords joined within the default path tolerance).
-    A random path (``family``) is made, not read: it is used as drawn."""
+    A random path (``family``) is made, not read: it is used as drawn. ``tool_table``:
+    the study's ``tool_table`` (relative to ``base_dir``), for G-code programs."""
     if family is not None:
         from ..paths import Contour
         from ..paths.random_paths import random_path
@@ -42,7 +43,10 @@ def _contour(path: str, family: str | None, path_seed: int | None, n_axes: int,
     from .run_input import load_run_contour
 
     spec = path if path.split("#")[0] in BUILTIN_PATHS else str(Path(base_dir) / path)
-    return load_run_contour(spec, _machine(machine_spec, base_dir))
+    table = None if tool_table is None else str(Path(base_dir) / tool_table)
+    if table is not None and Path(spec.split("#")[0]).suffix.lower() in ("", ".dxf", ".json", ".toml"):
+        table = None  # the study's tool table is for its G-code programs (not built-ins, DXF, NURBS)
+    return load_run_contour(spec, _machine(machine_spec, base_dir), tool_table=table)
 
 
 _PATH_ERRORS: dict = {}
@@ -56,7 +60,7 @@ def _path(case: Case, machine: Machine):
     with the same error."""
     from ..planning import check_path_size
 
-    key = _path_key(case) + (case.machine,)
+    key = _path_key(case) + (case.machine, case.tool_table)
     if key in _PATH_ERRORS:
         raise _PATH_ERRORS[key]
     try:

@@ -60,7 +60,7 @@ def path_axes(machine: Machine | None) -> str:
 
 
 def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | None = None,
-                     project: str | None = None, path_tolerance=None):
+                     project: str | None = None, path_tolerance=None, tool_table=None):
     """The path ``spec`` names (a built-in name or a file, ``FILE#k`` for a contour) with
     its programmed feed, read on ``machine``'s axes (:func:`path_axes`).
 
@@ -74,6 +74,9 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
 
     Parameters
     ----------
+    tool_table : str or path-like, optional
+        ``--tool-table``: a LinuxCNC tool table a G-code program's cutter radius
+        compensation takes its tools' diameters from (in the program's units).
     path_tolerance : str or float, optional
         ``--path-tolerance`` as given: a length (``"2um"``) or a bare number of pulses;
         default :data:`nurbsmotion.motion_plan.DEFAULT_PATH_TOLERANCE` (one
@@ -99,7 +102,8 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
     if project is not None and project.lower() != axes:
         raise InvalidArgumentError(f"--project {project} must name the machine's axes ({axes}): "
                                    "the path is read as its projection on them")
-    contour = resolve_contour(spec, axes=axes, units=units, project=project is not None)
+    contour = resolve_contour(spec, axes=axes, units=units, project=project is not None,
+                              tool_table=tool_table)
     rotary = [j for j, a in enumerate(contour.axes or "") if a in "ABC"]
     if rotary:
         contour = _on_rotary_axes(contour, machine, rotary, spec)

@@ -103,6 +103,9 @@ class Study:
     case_time_limit: float | None = CASE_TIME_LIMIT
     source: str | None = None
     base_dir: str = "."
+    tool_table: str | None = None
+    """A LinuxCNC tool table (relative to the study file) for the cutter radius
+    compensation of the study's G-code programs (``run --tool-table``)."""
 
 
 @dataclass(frozen=True)
@@ -127,6 +130,7 @@ class Case:
     bound: bool = True
     base_dir: str = "."
     time_limit: float | None = CASE_TIME_LIMIT
+    tool_table: str | None = None
 
     @property
     def case_id(self) -> str:
@@ -135,7 +139,7 @@ class Case:
 
 _STUDY_KEYS = {"name", "seed", "paths", "random_paths", "feeds", "feed_unit", "machines",
                "plants", "interpolators", "sample", "settle_time", "settle_window",
-               "time_optimal_bound", "case_time_limit"}
+               "time_optimal_bound", "case_time_limit", "tool_table"}
 
 
 def load_study(file: str | os.PathLike) -> Study:
@@ -205,6 +209,11 @@ def _study_from_dict(data: dict, source: str, base_dir: str) -> Study:
     limit = data.get("case_time_limit", CASE_TIME_LIMIT)
     if limit is not False:
         limit = _positive_number(limit, "case_time_limit (CPU seconds, or false)")
+    tool_table = data.get("tool_table")
+    if tool_table is not None:
+        if not isinstance(tool_table, str) or not (Path(base_dir) / tool_table).is_file():
+            raise InvalidArgumentError(f"tool_table {tool_table!r} must name a LinuxCNC tool table "
+                                       "(.tbl) file, relative to the study file")
     bound = data.get("time_optimal_bound", True)
     if not isinstance(bound, bool):
         raise InvalidArgumentError(f"time_optimal_bound must be true or false, got {bound!r}")
@@ -213,7 +222,7 @@ def _study_from_dict(data: dict, source: str, base_dir: str) -> Study:
                  feed_unit=feed_unit, machines=machines, plants=plants,
                  interpolators=interpolators, sample=sample, settle_time=settle_time,
                  settle_window=settle_window, bound=bound, case_time_limit=limit or None,
-                 source=source, base_dir=base_dir)
+                 source=source, base_dir=base_dir, tool_table=tool_table)
 
 
 def _check_path_file(spec: str, base_dir: str) -> None:
@@ -332,7 +341,7 @@ def study_cases(study: Study) -> list[Case]:
                           length, feed, study.feed_unit, machine, plant, interp,
                           _seed(study.seed, 2, index), study.settle_time,
                           study.settle_window, study.bound, study.base_dir,
-                          study.case_time_limit))
+                          study.case_time_limit, study.tool_table))
         index += 1
     if study.sample is not None and study.sample < len(cases):
         pick = np.random.default_rng(_seed(study.seed, 3)).choice(

@@ -21,7 +21,7 @@ algorithm is LinuxCNC 2.9's (``convert_straight_comp1/2``, ``convert_arc_comp1/2
 
 The radius: ``G41.1/G42.1 D`` (the diameter, in program units), or ``G41/G42 [D n]``: the
 radius of tool ``n`` (without D: of the tool in the spindle, ``T n M6`` or ``M61 Q n``)
-from the tool table (``load_gcode(tool_table=...)``, a LinuxCNC ``.tbl`` file) or from
+from the tool table (``--tool-table``, ``load_gcode(tool_table=...)``: a LinuxCNC ``.tbl`` file) or from
 ``G10 L1/L10/L11 P n R`` in the program; without a table given, a table named like the
 program beside it (``part.tbl`` for ``part.ngc``) is read when a radius is needed, with a
 warning. The table's diameters are in ``tool_table_units``, by default the program's units
@@ -169,7 +169,7 @@ class _Compensation:
         if self.tool_table is None:
             raise self.error(f"{code} uses the radius of tool {tool}, and no tool table is given: "
                              f"put it beside the program as {Path(self.source).stem}.tbl (LinuxCNC's "
-                             "format) or pass it (load_gcode(..., tool_table=FILE.tbl)), set it in the "
+                             "format) or pass it (--tool-table FILE.tbl; load_gcode(..., tool_table=)), set it in the "
                              f"program (G10 L1 P{tool} R<radius>) or write G41.1/G42.1 D<diameter>")
         raise self.error(f"{code}: tool {tool} is not in the tool table; add it to the table or "
                          "write G41.1/G42.1 D<diameter>")
