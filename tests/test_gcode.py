@@ -260,7 +260,7 @@ K1
         ("G21\nG1 X#1 F10 Y[1/0]\n", r"line 2: expression cannot be evaluated: \[1 / 0\]"),
         ("G21\nG1 X[1+2 F10\n", r"line 2: expected '\]'"),
         ("G21\nG41 D1\n", r"line 2: G41 uses the radius of tool 1, and no tool table is given: put it beside the program"),
-        ("G21\nG18\nG41.1 D2\n", r"line 3: G41.1: cutter radius compensation is read in the XY plane only; select G17"),
+        ("G21\nG19\nG41.1 D2\n", r"line 3: G41.1: cutter radius compensation allowed only in XY, XZ planes"),
         ("G21\nM98 P100\n", r"line 2: M98 is not an M code"),
         ("G21\no<x> call\n", r"line 2: o<x> call: no subroutine o<x> in this file"),
         ("G21\nG1 X#<nope> F10\n", r"line 2: named parameter #<nope> is not defined"),

@@ -175,10 +175,22 @@ def write(tmp_path: Path, text: str, name: str = "p.ngc") -> Path:
     return path
 
 
+_TO_XZ = {"X": "Z", "Y": "X", "Z": "Y", "I": "K", "J": "I", "K": "J"}
+
+
+def in_xz_plane(text: str) -> str:
+    """A G17 program written in G18: LinuxCNC's XZ plane is (Z, X) with Y normal to it, so
+    X Y Z (I J K) become Z X Y (K I J) and the program is the same one turned."""
+    return re.sub(r"[XYZIJK](?=\s*[-+.\d])", lambda m: _TO_XZ[m.group()], text).replace("G17", "G18")
+
+
 @needs_linuxcnc
+@pytest.mark.parametrize("plane", ["G17", "G18"])
 @pytest.mark.parametrize("name", sorted(PROGRAMS))
-def test_compensated_path_is_linuxcncs(tmp_path, name):
-    path = write(tmp_path, PROGRAMS[name], f"{name}.ngc")
+def test_compensated_path_is_linuxcncs(tmp_path, name, plane):
+    """In G17 and in G18 (LinuxCNC compensates in the XZ plane for lathes)."""
+    text = PROGRAMS[name] if plane == "G17" else in_xz_plane(PROGRAMS[name])
+    path = write(tmp_path, text, f"{name}.ngc")
     ref = linuxcnc_moves(path)
     assert ref["error"] is None, ref["error"]
     program = load_quiet(path, axes="xyz")
@@ -192,6 +204,19 @@ def test_compensated_path_is_linuxcncs(tmp_path, name):
     junctions = np.concatenate([c.curve(c.piece_edges) * scale for c in program.contours])
     gap, _ = cKDTree(points).query(junctions)
     assert np.max(gap) <= 1e-9
+
+
+@pytest.mark.parametrize("name", sorted(PROGRAMS))
+def test_xz_plane_compensation_is_the_xy_one_turned(tmp_path, name):
+    """Without LinuxCNC: a program in G18 gives the contours of its G17 original with the
+    columns X Y Z turned to Z X Y, piece for piece (LinuxCNC's comp_get_current)."""
+    xy = load_quiet(write(tmp_path, PROGRAMS[name], "xy.ngc"), axes="xyz")
+    xz = load_quiet(write(tmp_path, in_xz_plane(PROGRAMS[name]), "xz.ngc"), axes="xyz")
+    assert len(xz.contours) == len(xy.contours)
+    for a, b in zip(xy.contours, xz.contours):
+        assert a.lines == b.lines
+        u = np.linspace(0.0, 1.0, 2001)
+        assert np.max(np.abs(a.curve(u)[:, [1, 2, 0]] - b.curve(u))) <= 1e-9
 
 
 def rs274_ends(program: Path, tmp_path: Path, table: Path | None = None) -> np.ndarray:
@@ -274,8 +299,12 @@ def test_refused_where_linuxcnc_refuses(tmp_path, name):
 
 
 @pytest.mark.parametrize("text,pattern", [
-    ("G21\nG18\nG41.1 D2\n", r"line 3: G41.1: cutter radius compensation is read in the XY plane only; "
-                              r"select G17 before it \(the program is in G18\)"),
+    ("G21\nG19\nG41.1 D2\n", r"line 3: G41.1: cutter radius compensation allowed only in XY, XZ planes "
+                              r"\(as LinuxCNC says\): select G17 or G18 before it \(the program is in G19\)"),
+    ("G21\nG0 X-5\nG41.1 D2\nG1 X0 F10\nG18\n", r"line 5: changing planes \(G18\) is not allowed while "
+                                               r"cutter radius compensation is on"),
+    ("G21\nG41.1 D2 L3\n", r"line 2: G41.1 with an L word \(a lathe tool's orientation\), but the plane is "
+                          r"not G18"),
     ("G21\nG41.1 D2\nG42.1 D2\n", r"line 3: G42.1 while cutter compensation is already on: turn it off with G40"),
     ("G21\nG41.1\n", r"line 2: G41.1 needs the tool diameter as a D word"),
     ("G21\nG41 D1\n", r"line 2: G41 uses the radius of tool 1, and no tool table is given: put it beside the "
@@ -425,3 +454,92 @@ def test_tool_table_flag_of_the_commands_and_the_study_key(tmp_path, capsys):
     lo, hi = contour.curve.bounding_box()
     assert np.max(np.abs(np.concatenate([lo, hi]) - [-10, -10, 27, 17])) <= 1e-9
     assert np.max(np.abs(contour.curve.bounding_box()[1] - reference.contours[0].curve.bounding_box()[1])) <= 1e-12
+
+
+# A lathe profile in G18 (XZ): lines and an arc, and one entered by an arc. A lathe tool's
+# orientation (G41.1/G42.1 L, or Q in the tool table) moves the path by the nose radius
+# from its centre to the tool's origin (LinuxCNC's latheorigin_x/_z).
+LATHE = {
+    "lines": """G21 G90 G18
+G0 X20 Z5
+G1 X20 Z2 F100
+{comp} D1 L{orientation}
+G1 X10 Z0
+G1 Z-10
+G2 X14 Z-14 K0 I4
+G1 X20
+G40 G1 X25 Z-16
+G1 X30 Z-16
+G0 X40 Z10
+M2
+""",
+    "entry_arc": """G21 G90 G18
+G0 X20 Z5
+G1 X20 Z2 F100
+{comp} D1 L{orientation}
+G3 X10 Z0 I-5 K-1
+G1 Z-10
+G2 X14 Z-14 K0 I4
+G1 X20
+G40 G1 X25 Z-16
+M2
+""",
+}
+
+
+@needs_linuxcnc
+@pytest.mark.parametrize("orientation", range(10))
+@pytest.mark.parametrize("comp", ["G41.1", "G42.1"])
+@pytest.mark.parametrize("name", sorted(LATHE))
+def test_lathe_tool_orientation_in_the_xz_plane_is_linuxcncs(tmp_path, name, comp, orientation):
+    """Every orientation on either side: the path is LinuxCNC's to rounding, or refused on
+    the line where LinuxCNC refuses it (an entry arc with a lathe tool followed by a
+    concave corner: LinuxCNC's extra line to the tool's origin is the move it cuts back,
+    and it reports the mismatched radii of the arc; the reader does the same)."""
+    path = write(tmp_path, LATHE[name].format(comp=comp, orientation=orientation))
+    ref = linuxcnc_moves(path)
+    if ref["error"] is not None:
+        line = int(re.match(r"line (\d+)", ref["error"]).group(1))
+        radii = re.search(r"r1 ([\d.]+) r2 ([\d.]+)", ref["error"])
+        with pytest.raises(PathFileError, match=rf"line {line}: cutter compensation made an arc of line "
+                                                rf"\d+ with radii {float(radii[1]):.6g} and {float(radii[2]):.6g}"):
+            load_quiet(path, axes="xz")
+        return
+    program = load_quiet(path, axes="xz")
+    dist, n = max_distance(path, [c.curve for c in program.contours], axes="xz")
+    assert n >= 9 and dist <= 1e-9
+    points = np.array([m[2] for m in ref["moves"]], dtype=float)[:, [0, 2]]
+    junctions = np.concatenate([c.curve(c.piece_edges) for c in program.contours])
+    assert np.max(cKDTree(points).query(junctions)[0]) <= 1e-9
+
+
+def test_lathe_tool_orientation_moves_the_path_by_the_nose_radius(tmp_path):
+    """Without LinuxCNC: orientation 3 puts the tool's origin at +X and -Z of its nose
+    centre: the path of L3 is the path of L0 moved by (+r, -r) in (X, Z) between the
+    entry move's end and the exit's start; orientations 0 and 9 do not move it."""
+    def ends(orientation):
+        text = LATHE["lines"].format(comp="G42.1", orientation=orientation)
+        (contour,) = load_quiet(write(tmp_path, text, f"l{orientation}.ngc"), axes="xz").contours[:1]
+        return contour.curve(contour.piece_edges)
+    plain, moved = ends(0), ends(3)
+    assert np.max(np.abs(moved[2:-2] - plain[2:-2] - [0.5, -0.5])) <= 1e-12
+    assert np.array_equal(ends(9), plain)
+    assert np.array_equal(moved[[0, 1, -1]], plain[[0, 1, -1]])
+
+
+@needs_rs274
+def test_lathe_tool_orientation_from_the_tool_table_matches_rs274(tmp_path):
+    """``G42 D1`` with tool 1 of orientation Q3 in the table (inches, as rs274 reads it)."""
+    path = write(tmp_path, LATHE["lines"].format(comp="G42", orientation=0).replace(" L0", ""))
+    table = write(tmp_path, "T1 P1 D0.0393700787 Q3 ;a 1 mm lathe tool\n", "lathe.tbl")
+    out = subprocess.run(["rs274", "-t", str(table), "-g", str(path)], input="\n\n", capture_output=True,
+                         text=True, timeout=60, cwd=tmp_path).stdout
+    calls = re.findall(r"N\.+\s+(STRAIGHT_FEED|ARC_FEED)\(([^)]*)\)", out)
+    xz = np.array([[float(v) for v in a.split(",")][:3:2] if k == "STRAIGHT_FEED"
+                   else [float(v) for v in a.split(",")][1::-1] for k, a in calls])  # ARC_FEED(z, x, ...)
+    assert len(xz) == 7
+    program = load_quiet(path, axes="xz", tool_table=table, tool_table_units="inch")
+    junctions = np.concatenate([c.curve(c.piece_edges[1:]) for c in program.contours])
+    assert junctions.shape == xz.shape
+    assert np.max(np.abs(junctions - xz)) <= 0.5e-4 + 1e-12
+    assert np.max(np.abs(junctions[1] - [11.0, -0.9099])) <= 0.5e-4

@@ -1,6 +1,14 @@
 """Cutter radius compensation of the G-code reader (G40, G41, G42, G41.1, G42.1) as
-LinuxCNC's interpreter computes it, in the XY plane (G17). A part of
+LinuxCNC's interpreter computes it, in the XY plane (G17) and the XZ plane (G18, a lathe's;
+G19 is refused as LinuxCNC refuses it). A part of
 :class:`~nurbsmotion.paths.gcode.reader._Reader`.
+
+The algorithm is written for the XY plane; in G18 it runs on the plane's axes (Z, X) with
+Y off the plane, as LinuxCNC's ``comp_get_current`` turns them. A lathe tool's orientation
+(``G41.1/G42.1 L``, or ``Q`` of its tool table line or of ``G10 L1``; 1-8 in G18) names
+its origin, which lies off the centre of its nose radius by the radius in Z and X: every
+compensated move is sent moved by that (LinuxCNC's ``latheorigin_x/_z``), and an entry
+arc starts with a line to the tool's origin.
 
 The programmed contour is the part's edge; with G41 (tool left of the direction of
 motion) or G42 (right) the tool centre runs at the tool radius ``r`` beside it. The
@@ -29,7 +37,7 @@ warning. The table's diameters are in ``tool_table_units``, by default the progr
 the side.
 
 Glossary: ``op`` the last programmed point, ``cur`` the tool's compensated position, both
-program coordinates XY [output units]; ``turn`` LinuxCNC's signed turn count of an arc
+program coordinates of the plane's axes (XY, or ZX in G18) [output units]; ``turn`` LinuxCNC's signed turn count of an arc
 (> 0 counter-clockwise).
 """
 
@@ -41,7 +49,7 @@ from pathlib import Path
 
 from ...errors import PathFileError
 from ..pieces import HELIX_TOLERANCE, arc_sweep
-from .codes import _AXES, _INCH, _NeedAxes
+from .codes import _AXES, _INCH, _PLANES, _NeedAxes
 
 __all__ = ["read_tool_table", "CORNER_TOLERANCE"]
 
@@ -68,7 +76,8 @@ def read_tool_table(file, source: str = "") -> dict:
     Returns
     -------
     dict
-        Tool number -> diameter [the table's units].
+        Tool number -> (diameter [the table's units], orientation): ``Q``, a lathe tool's
+        orientation 1-9 (0, a mill, where the line has none).
 
     Raises
     ------
@@ -90,7 +99,7 @@ def read_tool_table(file, source: str = "") -> dict:
         if "T" not in words:
             raise PathFileError(f"tool table {path}, line {n}: no T word in {code!r}; each line "
                                 "names its tool as LinuxCNC's .tbl does (T1 P1 D6.0)", source)
-        table[int(words["T"])] = words.get("D", 0.0)
+        table[int(words["T"])] = (words.get("D", 0.0), int(words.get("Q", 0.0)))
     return table
 
 
@@ -141,11 +150,14 @@ class _Compensation:
         self.comp_xyz = [0.0] * 9  # the tool's position X..W after the last compensated move
         self.comp_exit = None  # after G40: the programmed XY the next move's words start from
         self.tools = {}  # tool -> radius [output units] from G10 L1/L10/L11 R
-        self.tool_table = tool_table  # tool -> diameter [table units], or None
+        self.tool_orientations = {}  # tool -> a lathe tool's orientation from G10 L1/L10/L11 Q
+        self.tool_table = tool_table  # tool -> (diameter [table units], orientation), or None
         self.table_scale = table_scale  # table units -> mm, or None: the program's units
         self.sibling_table = tool_table is None  # may look for PROGRAM.tbl beside the program
         self.tool_selected = 0
         self.tool_in_spindle = 0
+        self.c1, self.c2 = 0, 1  # the plane's first and second axes (G17: X, Y; G18: Z, X)
+        self.comp_shift = None  # G18 with a lathe tool: (Z, X) from the radius centre to its origin
 
     # -- the tool's radius
     def tool_radius(self, tool: int, code: str) -> float:
@@ -160,10 +172,11 @@ class _Compensation:
                 self.warn(f"{code}: tool radii from the tool table {sibling.name} beside the program, "
                           "its diameters in the program's units")
         if self.tool_table is not None and tool in self.tool_table:
+            diameter = self.tool_table[tool][0]
             if self.table_scale is None:  # the program's units: the output units
-                return 0.5 * self.tool_table[tool]
+                return 0.5 * diameter
             to_out = 1.0 if self.units in (None, "mm") else 1.0 / _INCH
-            return 0.5 * self.tool_table[tool] * self.table_scale * to_out
+            return 0.5 * diameter * self.table_scale * to_out
         if tool == 0:
             return 0.0
         if self.tool_table is None:
@@ -174,13 +187,28 @@ class _Compensation:
         raise self.error(f"{code}: tool {tool} is not in the tool table; add it to the table or "
                          "write G41.1/G42.1 D<diameter>")
 
+    def tool_orientation(self, tool: int) -> int:
+        """A lathe tool's orientation (0: a mill) from G10 L1 Q or the tool table (LinuxCNC's
+        ``Q``), read where its radius was."""
+        if tool in self.tool_orientations:
+            return self.tool_orientations[tool]
+        if tool not in self.tools and self.tool_table is not None and tool in self.tool_table:
+            return self.tool_table[tool][1]
+        return 0
+
     def set_tool_entry(self, w: dict) -> None:
-        """G10 L1/L10/L11 P<tool> R<radius>: the radius cutter compensation uses."""
+        """G10 L1/L10/L11 P<tool> R<radius> Q<orientation>: what cutter compensation uses."""
+        p = w.get("P", 0.0)
+        if ("R" in w or "Q" in w) and (p != int(p) or p < 0):
+            raise self.error(f"G10 tool number P{p:g} must be a whole number >= 0")
         if "R" in w:
-            p = w.get("P", 0.0)
-            if p != int(p) or p < 0:
-                raise self.error(f"G10 tool number P{p:g} must be a whole number >= 0")
             self.tools[int(p)] = self.lengths()[0] * self.value("R", w["R"])
+        if "Q" in w:
+            q = w["Q"]
+            if q != int(q) or not 0 <= q <= 9:
+                raise self.error(f"G10 tool orientation Q{q:g} must be a whole number 0-9 (LinuxCNC's "
+                                 "lathe tool orientations)")
+            self.tool_orientations[int(p)] = int(q)
 
     def cutter_comp(self, g: float, w: dict) -> None:
         """G40, G41, G42, G41.1, G42.1 on this line (before its motion, as in LinuxCNC)."""
@@ -192,10 +220,19 @@ class _Compensation:
         if self.comp is not None:
             raise self.error(f"{code} while cutter compensation is already on: turn it off with G40 "
                              "first (and make a new entry move)")
-        if self.plane != 17.0:
-            raise self.error(f"{code}: cutter radius compensation is read in the XY plane only; "
-                             f"select G17 before it (the program is in G{self.plane:g})")
-        w.pop("L", None)  # the lathe tool orientation: no effect in G17
+        if self.plane not in (17.0, 18.0):
+            raise self.error(f"{code}: cutter radius compensation allowed only in XY, XZ planes (as "
+                             f"LinuxCNC says): select G17 or G18 before it (the program is in "
+                             f"G{self.plane:g})")
+        self.c1, self.c2 = _PLANES[self.plane][:2]
+        if "L" in w and g in (41.1, 42.1) and self.plane != 18.0:
+            raise self.error(f"{code} with an L word (a lathe tool's orientation), but the plane is "
+                             f"not G18 (as LinuxCNC refuses it): select G18 or remove the L word")
+        orientation = w.pop("L", 0.0) if g in (41.1, 42.1) else 0.0
+        if orientation != int(orientation) or not 0 <= orientation <= 9:
+            raise self.error(f"{code} L{orientation:g}: L is a lathe tool's orientation, a whole "
+                             "number 0-9 (LinuxCNC's)")
+        w.pop("L", None)
         if g in (41.1, 42.1):
             if "D" not in w:
                 raise self.error(f"{code} needs the tool diameter as a D word ({code} D6)")
@@ -210,6 +247,11 @@ class _Compensation:
             else:
                 tool = self.tool_in_spindle
             radius = self.tool_radius(tool, code)
+            orientation = self.tool_orientation(tool)
+            if self.plane != 18.0 and orientation not in (0, 9):
+                raise self.error(f"{code} with a lathe tool (tool {tool}, orientation {orientation}), but "
+                                 "the plane is not G18 (as LinuxCNC refuses it): select G18, or a "
+                                 "tool without an orientation")
         left = g in (41.0, 41.1)
         if radius < 0.0:  # LinuxCNC: a negative radius swaps the side
             radius, left = -radius, not left
@@ -219,6 +261,14 @@ class _Compensation:
         self.comp = "left" if left else "right"
         self.comp_radius = radius
         self.comp_first = True
+        self.comp_shift = None
+        o = int(orientation)
+        if self.plane == 18.0 and o not in (0, 9) and radius > 0.0:
+            # LinuxCNC's latheorigin_x/_z: the point a lathe tool's orientation names is its
+            # origin, not the centre of its nose radius that the offset path is of
+            dz = -radius if o in (2, 7, 3) else radius if o in (1, 5, 4) else 0.0
+            dx = -radius if o in (2, 6, 1) else radius if o in (3, 8, 4) else 0.0
+            self.comp_shift = (dz, dx)
 
     def comp_active(self) -> bool:
         """Whether moves are offset (compensation on with a radius > 0)."""
@@ -236,12 +286,13 @@ class _Compensation:
             self.comp_exit = self.comp_op
         self.comp = None
         self.comp_first = True
+        self.comp_shift = None
 
     # -- coordinates
     def comp_cur(self) -> tuple:
         """The tool's position XY, program coordinates."""
         p = self.comp_tool()
-        return p[0], p[1]
+        return p[self.c1], p[self.c2]
 
     def comp_tool(self) -> list:
         """The tool's position X..W, program coordinates: the end of the last compensated
@@ -255,7 +306,7 @@ class _Compensation:
             return self.target(w, machine=machine)
         saved = self.pos
         p = self.to_program(self.pos) if self.comp_exit is not None else self.comp_tool()
-        p[0], p[1] = self.comp_exit if self.comp_exit is not None else self.comp_op
+        p[self.c1], p[self.c2] = self.comp_exit if self.comp_exit is not None else self.comp_op
         self.pos = self.to_absolute_point(p)
         try:
             return self.target(w, machine=machine)
@@ -280,9 +331,16 @@ class _Compensation:
                 if q.kind == "stop":
                     self.end_contour()
                     continue
-                end = self.to_absolute_point(q.end)
+                end, centre = list(q.end), q.centre
+                if self.comp_shift is not None:  # a lathe tool: its origin, not its radius centre
+                    d1, d2 = self.comp_shift
+                    end[self.c1] += d1
+                    end[self.c2] += d2
+                    if centre is not None:
+                        centre = (centre[0] + d1, centre[1] + d2)
+                end = self.to_absolute_point(end)
                 if q.kind == "arc":
-                    self.comp_arc_piece(q, end)
+                    self.comp_arc_piece(q, end, centre)
                 else:
                     self.feed = q.feed
                     self.travel("G0" if q.kind == "traverse" else "G1", {}, end)
@@ -296,7 +354,7 @@ class _Compensation:
         ep = self.comp_endpoint
         for q in self.comp_queue:
             if q.kind == "arc":
-                r1 = math.hypot(q.end[0] - q.centre[0], q.end[1] - q.centre[1])
+                r1 = math.hypot(q.end[self.c1] - q.centre[0], q.end[self.c2] - q.centre[1])
                 r2 = math.hypot(x - q.centre[0], y - q.centre[1])
                 if abs(r1 - r2) > 0.01 * self.lengths()[0]:
                     raise self.error(f"cutter compensation made an arc of {self.line_name(q.line)} with radii "
@@ -311,7 +369,7 @@ class _Compensation:
                     raise self.error(self._gouge(f"the move of {self.line_name(q.line)}"))
             if q.kind != "stop":
                 q.end = list(q.end)
-                q.end[0], q.end[1] = x, y
+                q.end[self.c1], q.end[self.c2] = x, y
         self.dequeue()
         self.comp_endpoint = (x, y)
 
@@ -359,7 +417,7 @@ class _Compensation:
     def straight_comp1(self, kind: str, p: list) -> None:
         """The entry line: it ends ``r`` beside the programmed end, perpendicular to it."""
         cx, cy = self.comp_cur()
-        px, py = p[0], p[1]
+        px, py = p[self.c1], p[self.c2]
         r = self.comp_radius
         distance = math.hypot(px - cx, py - cy)
         if distance <= r:
@@ -367,7 +425,7 @@ class _Compensation:
                              f"than the tool radius {r:g}: start it farther from the contour")
         alpha = math.atan2(py - cy, px - cx) + (_HALF_PI if self.comp == "left" else -_HALF_PI)
         end = list(p)
-        end[0], end[1] = px + r * math.cos(alpha), py + r * math.sin(alpha)
+        end[self.c1], end[self.c2] = px + r * math.cos(alpha), py + r * math.sin(alpha)
         self.comp_endpoint = (cx, cy)
         self.enqueue("traverse" if kind == "G0" else "feed", end,
                      direction=(math.cos(alpha), math.sin(alpha)))
@@ -380,13 +438,13 @@ class _Compensation:
         cx, cy = self.comp_cur()
         cz = self.comp_tool()
         opx, opy = self.comp_op
-        px, py = p[0], p[1]
+        px, py = p[self.c1], p[self.c2]
         left = self.comp == "left"
         r = self.comp_radius
         small = CORNER_TOLERANCE
         if px == opx and py == opy:  # no XY motion: the tool stays where it is in XY
             end = list(p)
-            end[0], end[1] = cx, cy
+            end[self.c1], end[self.c2] = cx, cy
             self.enqueue("traverse" if kind == "G0" else "feed", end, direction=(0.0, 0.0))
             return
         theta = math.atan2(cy - opy, cx - opx)
@@ -402,7 +460,7 @@ class _Compensation:
             beta = alpha - theta - _HALF_PI
             gamma = -_HALF_PI
         end = list(p)
-        end[0], end[1] = px + r * math.cos(alpha + gamma), py + r * math.sin(alpha + gamma)
+        end[self.c1], end[self.c2] = px + r * math.cos(alpha + gamma), py + r * math.sin(alpha + gamma)
         mid = (opx + r * math.cos(alpha + gamma), opy + r * math.sin(alpha + gamma))
         front = self.comp_queue[0] if self.comp_queue else None
         concave = beta < -small or beta > math.pi + small or (
@@ -411,7 +469,7 @@ class _Compensation:
         if not concave and beta > small:  # convex: round the programmed corner
             self.move_endpoint_and_flush(cx, cy)
             corner = list(cz)
-            corner[0], corner[1] = mid
+            corner[self.c1], corner[self.c2] = mid
             for i in range(3, 9):
                 corner[i] = p[i]
             if kind == "G1":
@@ -431,7 +489,7 @@ class _Compensation:
                                              cy + retreat * math.sin(theta + gamma))
             else:  # arc -> line
                 ox, oy = front.centre
-                oldrad = math.hypot(ox - front.end[0], oy - front.end[1])
+                oldrad = math.hypot(ox - front.end[self.c1], oy - front.end[self.c2])
                 th = alpha + _HALF_PI if front.turn > 0 else alpha - _HALF_PI
                 phi = math.atan2(oy - opy, ox - opx)
                 inside = self._inside(front.turn)
@@ -469,8 +527,9 @@ class _Compensation:
     def arc_comp1(self, kind: str, w: dict, p: list) -> None:
         """The entry arc: through the tool's position, ending ``r`` inside or outside the
         programmed end, its centre on the line from that end to the programmed centre."""
-        cx, cy = self.comp_cur()
-        ex, ey = p[0], p[1]
+        tool = self.comp_tool()
+        cx, cy = tool[self.c1], tool[self.c2]
+        ex, ey = p[self.c1], p[self.c2]
         r = self.comp_radius
         if math.hypot(ex - cx, ey - cy) <= r:
             raise self.error(f"the cutter compensation entry arc ends within the tool radius {r:g} "
@@ -487,11 +546,18 @@ class _Compensation:
         ab = math.atan2(oy - ey, ox - ex)
         a = math.atan2(cy - ey, cx - ex) - ab
         if abs(math.cos(a)) < _EQUAL:
-            raise self.error(self._too_small(math.hypot(ox - p[0], oy - p[1])))
+            raise self.error(self._too_small(math.hypot(ox - p[self.c1], oy - p[self.c2])))
         c_len = b_len / math.cos(a)
         ox, oy = ex + c_len * math.cos(ab), ey + c_len * math.sin(ab)
         end = list(p)
-        end[0], end[1] = ex, ey
+        end[self.c1], end[self.c2] = ex, ey
+        if self.comp_shift is not None:  # LinuxCNC: move the lathe tool's origin first, so
+            first = list(p)  # that the arc is an arc (the axes off the plane to their ends)
+            first[self.c1], first[self.c2] = cx, cy
+            linear = _PLANES[self.plane][2]
+            first[linear] = tool[linear]
+            self.enqueue("feed", first)
+            self.comp_endpoint = (cx, cy)
         self.enqueue("arc", end, centre=(ox, oy), turn=turn,
                      sweep=_find_turn(cx, cy, ox, oy, turn, ex, ey))
 
@@ -501,7 +567,7 @@ class _Compensation:
         opx, opy = self.comp_op
         cx, cy = self.comp_cur()
         cz = self.comp_tool()
-        ex, ey = p[0], p[1]
+        ex, ey = p[self.c1], p[self.c2]
         ox, oy, turn = self.arc_centre(w, opx, opy, ex, ey)
         turn = -turn if kind == "G2" else turn
         r = self.comp_radius
@@ -526,7 +592,7 @@ class _Compensation:
             gamma = math.atan2(ey - oy, ex - ox)
             delta += math.pi
         end = list(p)
-        end[0], end[1] = ex + r * math.cos(gamma), ey + r * math.sin(gamma)
+        end[self.c1], end[self.c2] = ex + r * math.cos(gamma), ey + r * math.sin(gamma)
         sweep = _find_turn(opx, opy, ox, oy, turn, ex, ey)
         front = self.comp_queue[0] if self.comp_queue else None
         if beta < -small or beta > math.pi + small or (abs(beta - math.pi) < small and not inside):
@@ -547,7 +613,7 @@ class _Compensation:
                 self.move_endpoint_and_flush(ox + dist * math.cos(angle), oy + dist * math.sin(angle))
             else:  # arc -> arc
                 px_, py_ = front.centre
-                oldrad = math.hypot(py_ - front.end[1], px_ - front.end[0])
+                oldrad = math.hypot(py_ - front.end[self.c2], px_ - front.end[self.c1])
                 newrad = arc_radius - r if inside else arc_radius + r
                 arc_cc = math.hypot(py_ - oy, px_ - ox)
                 if oldrad == 0.0 or arc_cc == 0.0:
@@ -567,7 +633,7 @@ class _Compensation:
             mid = (opx + r * math.cos(delta), opy + r * math.sin(delta))
             self.dequeue()
             corner = list(cz)
-            corner[0], corner[1] = mid
+            corner[self.c1], corner[self.c2] = mid
             for i in range(3, 9):
                 corner[i] = p[i]
             self.enqueue("arc", corner, centre=(opx, opy), turn=-1 if left else 1)
@@ -580,14 +646,19 @@ class _Compensation:
             self.enqueue("arc", end, centre=(ox, oy), turn=turn, sweep=sweep)
         self.comp_op = (ex, ey)
 
-    def comp_arc_piece(self, q: _Queued, end: list) -> None:
-        """Send a held arc to the path: from the tool's position round its centre to its
-        end (absolute coordinates), ``|turn|`` turns."""
+    def comp_arc_piece(self, q: _Queued, end: list, centre: tuple) -> None:
+        """Send a held arc to the path: from the tool's position round ``centre`` (the
+        plane's program coordinates) to its end (absolute coordinates), ``|turn|`` turns."""
         start = self.pos
         self.feed = q.feed
-        centre = self.to_absolute_point([q.centre[0], q.centre[1]] + [0.0] * 7)
+        c1, c2 = self.c1, self.c2
+        plane_centre = centre
+        centre = [0.0] * 9
+        centre[c1], centre[c2] = plane_centre
+        centre = self.to_absolute_point(centre)
         clockwise = q.turn < 0
-        others = "".join(_AXES[i] for i in range(2, 9) if end[i] != start[i] and i not in self.axes)
+        others = "".join(_AXES[i] for i in range(9) if end[i] != start[i] and i not in self.axes
+                         and i != c1 and i != c2)
         if others and not self.project:
             if self.auto:
                 raise _NeedAxes(set(others))
@@ -597,17 +668,17 @@ class _Compensation:
                              f"{''.join(sorted(set(path) | set(others), key=_AXES.index))} can follow it "
                              f"(or read the path's projection on {path}: --project {path.lower()})")
         self.note_moved("G2", start, end)
-        if 0 not in self.axes or 1 not in self.axes:
+        if c1 not in self.axes or c2 not in self.axes:
             if self.auto:
-                raise _NeedAxes({"X", "Y"})
-            raise self.error("a compensated arc needs the axes XY in the path (the path has "
-                             f"{''.join(_AXES[i] for i in self.axes)})")
-        sx, sy, ex, ey, cx, cy = start[0], start[1], end[0], end[1], centre[0], centre[1]
+                raise _NeedAxes({_AXES[c1], _AXES[c2]})
+            raise self.error(f"a compensated arc needs the axes {_AXES[c1]}{_AXES[c2]} in the path (the "
+                             f"path has {''.join(_AXES[i] for i in self.axes)})")
+        sx, sy, ex, ey, cx, cy = start[c1], start[c2], end[c1], end[c2], centre[c1], centre[c2]
         r1, r2 = math.hypot(sx - cx, sy - cy), math.hypot(ex - cx, ey - cy)
         a0, sweep = arc_sweep((sx, sy), (ex, ey), (cx, cy), clockwise)
         turns = abs(q.turn)
-        linear = any(end[i] != start[i] for i in self.axes if i > 1)
-        cols = (self.axes.index(0), self.axes.index(1))
+        linear = any(end[i] != start[i] for i in self.axes if i != c1 and i != c2)
+        cols = (self.axes.index(c1), self.axes.index(c2))
         chain = self.open_chain()
         if not linear and abs(r2 - r1) <= HELIX_TOLERANCE * r1:
             full = math.copysign(2 * math.pi, sweep)
@@ -616,7 +687,7 @@ class _Compensation:
             self.add_length(chain.add_arc(self.path_of(end), cols, (cx, cy), r1, a0, sweep), q.line)
         else:
             sweep += math.copysign(2 * math.pi * (turns - 1), sweep)
-            rise = math.dist(*((p[i] for i in self.axes if i > 1) for p in (start, end)))
+            rise = math.dist(*((p[i] for i in self.axes if i != c1 and i != c2) for p in (start, end)))
             length = math.hypot(0.5 * (r1 + r2) * sweep, rise)
             self.add_length(chain.add_spiral(self.path_of(end), cols, (cx, cy), r1, r2, a0, sweep, length),
                             q.line)

@@ -340,8 +340,8 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
                     self.feed = self.feed_per_rev = 0.0  # LinuxCNC's convert_feed_mode: F anew
                 self.inverse_time, self.per_rev = g == 93.0, g == 95.0
             elif g in (17.0, 18.0, 19.0):
-                if g != 17.0:
-                    self.comp_refuse(f"leaving the XY plane ({_g_name(g)})")
+                if g != self.plane:
+                    self.comp_refuse(f"changing planes ({_g_name(g)})")
                 self.plane = g
             elif g in (98.0, 99.0):
                 self.retract_old_level = g == 98.0
@@ -483,8 +483,8 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
         else:  # G10
             L = w.pop("L", None)
             if L in (1.0, 10.0, 11.0):
-                self.set_tool_entry(w)  # its R: the radius cutter compensation uses
-                if set(w) - {"P", "R"}:
+                self.set_tool_entry(w)  # its R and Q: the radius and orientation compensation uses
+                if set(w) - {"P", "R", "Q"}:
                     self.warn(f"G10 L{L:g} tool table entries skipped: tool offsets are not applied",
                               "G10 tool")
                 return
