@@ -37,7 +37,8 @@ def linuxcnc_python() -> str | None:
 
 
 def linuxcnc_moves(program: Path) -> dict:
-    """``{"error": str | None, "moves": [[kind, line, [x..w]], ...]}`` in mm (see the helper)."""
+    """``{"error": str | None, "moves": [[kind, line, [x..w], feed], ...]}`` in mm and
+    mm/min (see the helper)."""
     exe = linuxcnc_python()
     with tempfile.TemporaryDirectory() as tmp:  # LinuxCNC writes its rs274ngc.var there
         r = subprocess.run([exe, str(HELPER), str(Path(program).resolve())], capture_output=True,

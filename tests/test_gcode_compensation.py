@@ -12,6 +12,7 @@ change. Without LinuxCNC these comparisons skip; the refusals without a referenc
 
 from __future__ import annotations
 
+import math
 import re
 import shutil
 import subprocess
@@ -321,8 +322,8 @@ def test_refused_where_linuxcnc_refuses(tmp_path, name):
     ("G21\nG0 X-5\nG41.1 D2\nG1 X0 F10\nG64 P0.1\n", r"line 5: changing the path control mode \(G64\) is not allowed"),
     ("G21\nG0 X-5\nG41.1 D2\nG1 X0 F10\nG10 L2 P1 X3\n", r"line 5: G10 L2 \(a coordinate system's offsets\) is not "
                                                        r"allowed while cutter radius compensation is on"),
-    ("G21\nG0 X-5\nG41.1 D2\nG93 G1 X0 F10\n", r"line 4: inverse-time feed \(G93\) with cutter radius "
-                                               r"compensation is not read: write the compensated moves in G94"),
+    ("G21\nG0 X-5\nG41.1 D2\nG93 G1 X0 F10\nG1 X5\n", r"line 5: inverse-time feed \(G93\) needs an F word on "
+                                                      r"every feed move"),
 ])
 def test_compensation_refusals_name_the_line_and_the_remedy(tmp_path, text, pattern):
     with pytest.raises(PathFileError, match=pattern) as info:
@@ -543,3 +544,48 @@ def test_lathe_tool_orientation_from_the_tool_table_matches_rs274(tmp_path):
     assert junctions.shape == xz.shape
     assert np.max(np.abs(junctions - xz)) <= 0.5e-4 + 1e-12
     assert np.max(np.abs(junctions[1] - [11.0, -0.9099])) <= 0.5e-4
+
+
+INVERSE_TIME = """G21 G90 G17
+G0 X-5 Y-5 Z1
+G93
+G41.1 D4 G1 X0 Y0 F10
+G1 X10 Y0 F12
+G1 X20 Y0 Z-1 F6
+G3 X20 Y10 I0 J5 F8
+G1 X10 Y10 F20
+G2 X0 Y10 R5 F4
+G1 X0 Y0 F10
+G0 X-10 Y-10
+G1 X-10 Y-12 F30
+G40 G1 X-20 Y-20 F5
+M2
+"""
+
+
+@needs_linuxcnc
+@pytest.mark.parametrize("plane", ["G17", "G18"])
+def test_inverse_time_feed_with_compensation_is_linuxcncs(tmp_path, plane):
+    """G93 with G41/G42: LinuxCNC takes F of a compensated move as 1 / the duration of the
+    programmed move (from the programmed point, or the tool for the entry and after G40,
+    arcs round their programmed centre) and feeds the offset move, and a corner arc before
+    it, at that programmed length x F. Each piece's feed is the rate LinuxCNC sets for the
+    move that ends where the piece ends."""
+    text = INVERSE_TIME if plane == "G17" else in_xz_plane(INVERSE_TIME)
+    path = write(tmp_path, text, "g93.ngc")
+    ref = linuxcnc_moves(path)
+    assert ref["error"] is None, ref["error"]
+    program = load_quiet(path, axes="xyz")
+    fed = [m for m in ref["moves"] if m[0] != "traverse"]
+    points = np.array([m[2][:3] for m in fed], dtype=float)
+    rates = np.array([m[3] for m in fed])
+    tree = cKDTree(points)
+    n = 0
+    for c in program.contours:
+        gap, idx = tree.query(c.curve(c.piece_edges[1:]))
+        assert np.max(gap) <= 1e-9
+        assert np.max(np.abs(c.programmed_feed - rates[idx]) / rates[idx]) <= 1e-12
+        n += len(idx)
+    assert n >= 9 and len(set(np.round(rates, 9))) >= 7  # the moves' rates differ
+    # the entry: F10 over the line from (-5, -5) to the programmed (0, 0), not the offset one
+    assert abs(program.contours[0].programmed_feed[0] - 10 * math.sqrt(50)) <= 1e-9

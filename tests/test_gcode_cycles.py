@@ -51,7 +51,7 @@ def load(path, axes="xyz"):
 def feed_segments_of_linuxcnc(ref: dict) -> np.ndarray:
     """LinuxCNC's feed moves as (start, end) in XYZ [mm], shape (m, 2, 3)."""
     out, last = [], np.zeros(3)
-    for kind, _, point in ref["moves"]:
+    for kind, _, point, _ in ref["moves"]:
         p = np.array(point[:3])
         if kind == "feed" and np.any(p != last):
             out.append((last, p))

@@ -10,8 +10,10 @@ translated by the G92 and G5x offsets, arcs cut into points by ``gcode.arc_to_se
 
 (run in a scratch folder: it writes ``program.ngc`` and ``rs274ngc.var`` there).
 
-Output: ``{"error": null | "message", "moves": [[kind, line, [x, y, z, a, b, c, u, v, w]],
-...]}`` with kind ``"feed"``, ``"traverse"`` or ``"arc"`` (arc points), in mm.
+Output: ``{"error": null | "message", "moves": [[kind, line, [x, y, z, a, b, c, u, v, w],
+feed], ...]}`` with kind ``"feed"``, ``"traverse"`` or ``"arc"`` (arc points), in mm, and
+the feed rate in force (the last ``SET_FEED_RATE``; under G93 what LinuxCNC computes from
+F and the move's length) [mm/min].
 """
 
 import json
@@ -28,6 +30,7 @@ class Canon(Translated, ArcsToSegmentsMixin):
         self.lineno = 0
         self.lo = (0.0,) * 9
         self.arcdivision = 64
+        self.rate = 0.0  # the feed rate in force [mm/min]
         # A parameter file in the working folder (a temporary one): LinuxCNC rewrites it
         # when a program changes persistent parameters (a tool change sets #5400).
         self.parameter_file = "rs274ngc.var"
@@ -56,9 +59,12 @@ class Canon(Translated, ArcsToSegmentsMixin):
     def get_tool(self, idx):
         return (-1,) + (0.0,) * 12 + (0,)
 
+    def set_feed_rate(self, rate):  # the module's lengths are inches
+        self.rate = rate * 25.4
+
     def record(self, kind, point):
         self.moves.append([kind, self.lineno, [v * 25.4 if i in (0, 1, 2, 6, 7, 8) else v
-                                               for i, v in enumerate(point)]])
+                                               for i, v in enumerate(point)], self.rate])
         self.lo = tuple(point)
 
     def straight_traverse_translated(self, *p):

@@ -26,6 +26,11 @@ algorithm is LinuxCNC 2.9's (``convert_straight_comp1/2``, ``convert_arc_comp1/2
   ``r`` (a rapid goes straight to that arc's end instead).
 * G40 ends the compensation; the next move starts where the tool is and goes to its
   programmed end (it must be a line, as in LinuxCNC).
+* Under inverse time (G93) F is 1 / the duration of the *programmed* move: LinuxCNC sets
+  the feed to F times the programmed length (a line from the programmed point, or from the
+  tool for the entry move and the move after G40; an arc round its programmed centre;
+  ``inverse_time_rate_straight/_arc``) and feeds the offset move, and the corner arc
+  before it, at that rate.
 
 The radius: ``G41.1/G42.1 D`` (the diameter, in program units), or ``G41/G42 [D n]``: the
 radius of tool ``n`` (without D: of the tool in the spindle, ``T n M6`` or ``M61 Q n``)
@@ -118,6 +123,16 @@ class _Queued:
         self.centre = centre  # an arc's centre (x, y)
         self.turn = turn
         self.sweep = sweep  # an arc's sweep when queued (0: never checked) [rad]
+
+
+def _straight_length(a: list, b: list) -> float:
+    """Length of a line from ``a`` to ``b`` (X..W) that an inverse-time F applies to: of
+    XYZ if any of them moves more than 1e-7, else of UVW, else of ABC (LinuxCNC's
+    ``find_straight_length``)."""
+    for group in ((0, 1, 2), (6, 7, 8), (3, 4, 5)):
+        if any(abs(b[i] - a[i]) > 1e-7 for i in group) or group == (3, 4, 5):
+            return math.sqrt(sum((b[i] - a[i]) ** 2 for i in group))
+    return 0.0
 
 
 def _find_turn(x1, y1, cx, cy, turn, x2, y2) -> float:
@@ -324,7 +339,8 @@ class _Compensation:
         """Send the held moves to the path."""
         self.comp_endpoint = None
         queue, self.comp_queue = self.comp_queue, []
-        line, feed = self.line, self.feed
+        line, feed, inverse = self.line, self.feed, self.inverse_time
+        self.inverse_time = False  # each held move carries its feed (under G93: F x its length)
         try:
             for q in queue:
                 self.line = q.line
@@ -345,7 +361,7 @@ class _Compensation:
                     self.feed = q.feed
                     self.travel("G0" if q.kind == "traverse" else "G1", {}, end)
         finally:
-            self.line, self.feed = line, feed
+            self.line, self.feed, self.inverse_time = line, feed, inverse
 
     def move_endpoint_and_flush(self, x: float, y: float) -> None:
         """Move the held moves' end to (x, y) (a concave corner), refusing a move that
@@ -383,19 +399,33 @@ class _Compensation:
         """A G0/G1/G2/G3 move while compensation is on, or the first after G40."""
         if machine:
             self.comp_refuse("G53 (machine coordinates)")
-        if self.inverse_time:
-            raise self.error("inverse-time feed (G93) with cutter radius compensation is not read: "
-                             "write the compensated moves in G94 (units per minute)")
+        if self.inverse_time and kind != "G0" and not self.f_on_line:
+            raise self.error("inverse-time feed (G93) needs an F word on every feed move")
         end = self.comp_target(w, machine)
         if self.comp_exit is not None:  # the move after G40: from the tool to its end, a line
-            self.comp_exit = None
+            exit_point, self.comp_exit = self.comp_exit, None
             if kind in ("G2", "G3"):
                 raise self.error("the move after G40 must be a straight line (G0/G1), as in "
                                  "LinuxCNC: add a line before this arc")
-            self.travel(kind, w, end)
+            if not (self.inverse_time and kind == "G1"):
+                self.travel(kind, w, end)
+                return
+            start = self.to_program(self.pos)  # G93: LinuxCNC's length from the programmed point
+            start[self.c1], start[self.c2] = exit_point
+            feed, self.feed = self.feed, self.feed_word * _straight_length(start, self.to_program(end))
+            self.inverse_time = False
+            try:
+                self.travel(kind, w, end)
+            finally:
+                self.feed, self.inverse_time = feed, True
             return
         p = self.to_program(end)
         if kind in ("G0", "G1"):
+            if self.inverse_time and kind == "G1":  # LinuxCNC's inverse_time_rate_straight
+                start = self.comp_tool()
+                if not self.comp_first:  # from the programmed point
+                    start[self.c1], start[self.c2] = self.comp_op
+                self.feed = self.feed_word * _straight_length(start, p)
             if self.comp_first:
                 self.straight_comp1(kind, p)
             else:
@@ -406,6 +436,20 @@ class _Compensation:
             else:
                 self.arc_comp2(kind, w, p)
         self._g5_pq = None
+
+    def comp_arc_rate(self, x1: float, y1: float, start: list, ox: float, oy: float, turn: int,
+                      p: list) -> None:
+        """Under G93, the feed of a compensated arc [output units / min]: F times the length
+        of the programmed arc from (x1, y1) round (ox, oy) to ``p`` (LinuxCNC's
+        ``inverse_time_rate_arc`` and ``find_arc_length``, with the axis off the plane
+        rising from ``start``'s to ``p``'s)."""
+        if not self.inverse_time:
+            return
+        linear = _PLANES[self.plane][2]
+        radius = math.hypot(ox - x1, oy - y1)
+        theta = _find_turn(x1, y1, ox, oy, turn, p[self.c1], p[self.c2])
+        rise = p[linear] - start[linear]
+        self.feed = self.feed_word * (radius * abs(theta) if rise == 0.0 else math.hypot(radius * theta, rise))
 
     def comp_stop(self) -> None:
         """A dwell while compensation holds a move: it stops after that move."""
@@ -535,6 +579,7 @@ class _Compensation:
             raise self.error(f"the cutter compensation entry arc ends within the tool radius {r:g} "
                              "of its start: start it farther from the contour")
         ox, oy, turn = self._arc_data(kind, w, cx, cy, ex, ey)
+        self.comp_arc_rate(cx, cy, tool, ox, oy, turn, p)
         if self._inside(turn):
             gamma = math.atan2(oy - ey, ox - ex)
         else:
@@ -570,6 +615,7 @@ class _Compensation:
         ex, ey = p[self.c1], p[self.c2]
         ox, oy, turn = self.arc_centre(w, opx, opy, ex, ey)
         turn = -turn if kind == "G2" else turn
+        self.comp_arc_rate(opx, opy, cz, ox, oy, turn, p)
         r = self.comp_radius
         small = CORNER_TOLERANCE
         arc_radius = math.hypot(ox - ex, oy - ey)
