@@ -25,11 +25,10 @@ import numpy as np
 
 from .feed import FeedLimit
 from .interpolators import DEFAULT_INTERPOLATOR
-from .loop import (RunOutcome, Trace, background_sink, fan_out, hold_samples_of, run,
-                   run_streamed, settle_hold_samples)
+from .loop import (SETTLE_TIME, RunOutcome, Trace, background_sink, fan_out,
+                   hold_samples_of, run, run_streamed, settle_hold_samples)
 from .loop.budget import MAX_SAMPLES
 from .loop.closed_loop import SETTLE_WINDOW, Rows
-from .loop import SETTLE_TIME
 from .machine import Machine
 from .metrics import AtRest, Metrics, RunningAtRest, RunningMetrics
 from .nurbs import NurbsCurve

@@ -182,6 +182,11 @@ class Scale:
         """Pulses per path unit, the same on every axis [pulse/path unit]."""
         return self._common(self.pulses_per_path_unit, "a length")
 
+    def pulses_per(self, unit: str) -> float:
+        """Pulses per ``unit`` (one of :data:`LENGTH_UNITS_UM`), the same on every axis
+        [pulse/unit]: outputs whose unit is fixed (G-code and halstreamer in mm)."""
+        return self._pulses_per(unit, f"a length in {unit}")
+
     @property
     def report_factor(self) -> float:
         """Pulses per :attr:`report_unit`, the same on every axis [pulse/mm or pulse/in]."""

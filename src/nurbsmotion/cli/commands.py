@@ -306,9 +306,9 @@ def _run(args, precompiler) -> int:
             bar.update(2)
             stage(stages[3])
             if file is not None:
-                _write_trace(args, result.trace, file, unit, per_unit)
+                _write_trace(args, result.trace, file, scale)
             if exports:
-                _export_setpoints(result.trace, curve, machine, exports, args)
+                _export_setpoints(result.trace, scale, exports, args)
             bar.update()
         metrics = result.metrics
         stage(stages[4])
@@ -445,12 +445,13 @@ def _trace_notice(args, file: Path, rows: int, size: float, bar=None) -> None:
         bar.write(text, file=sys.stderr)
 
 
-def _write_trace(args, trace, file: Path, unit: str, per_unit: float) -> None:
-    """Write the trace file of a whole run, announcing its size first when it is large."""
+def _write_trace(args, trace, file: Path, scale: units.Scale) -> None:
+    """Write the trace file of a whole run (lengths also in ``scale``'s report unit),
+    announcing its size first when it is large."""
     from ..report import estimate_trace_bytes, trace_rows, write_trace
 
-    options = dict(fmt=args.trace_format, every=args.trace_every, length_unit=unit,
-                   pulses_per_length_unit=per_unit)
+    options = dict(fmt=args.trace_format, every=args.trace_every,
+                   length_unit=scale.report_unit, pulses_per_length_unit=scale.report_factor)
     rows = len(trace_rows(trace, args.trace_every))
     _trace_notice(args, file, rows, estimate_trace_bytes(trace, **options))
     with _progress(args, total=rows, unit="row", unit_scale=True,
@@ -461,17 +462,19 @@ EXPORT_PULSE_FRACTION = 1e-3
 """Exported positions are written to this fraction of a pulse (CSV, PVT, halstreamer, ROS)."""
 
 
-def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None:
-    """The commanded setpoints of a run, in the path's own units (G-code: in mm)."""
+def _export_setpoints(trace, path_scale: units.Scale, files: dict, args) -> None:
+    """The commanded setpoints of a run, in the path's own units (``path_scale``'s;
+    G-code, halstreamer and ROS in their fixed units)."""
     from ..report.export import (SetpointArrays, pvt_table, save_halstreamer, save_motion_gcode, save_pvt,
                          save_ros_trajectory, save_setpoints)
 
-    scale = machine.pulses_per_unit(curve.units)
+    machine = trace.machine
+    scale = path_scale.factor  # [pulse/path unit]
     end = trace.finished_index + 1
     sp = SetpointArrays(trace.t[:end], trace.u[:end], trace.position_command[:end] / scale,
                         trace.feed[:end] / scale, machine.axis_names)
     # Values to a thousandth of a pulse: finer digits are below what the encoder resolves.
-    per_mm = machine.pulses_per_unit("mm")
+    per_mm = path_scale.pulses_per("mm")
     resolution = EXPORT_PULSE_FRACTION / scale  # [path units]
     rotary = [j for j, a in enumerate(machine.axes) if a.pulses_per_degree is not None]
     if rotary:  # a rotary axis in degrees (radians for ROS), its CSV/PVT column named so
@@ -498,7 +501,7 @@ def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None
                                 overwrite=args.overwrite)
         else:  # G-code is in mm whatever the path's units
             save_motion_gcode(out, file, units="mm", overwrite=args.overwrite,
-                              scale=scale / machine.pulses_per_unit("mm"))
+                              scale=scale / per_mm)
 
 
 def _rotary_setpoints(sp, pulses, machine: Machine, rotary: list):
