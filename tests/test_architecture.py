@@ -58,7 +58,7 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                        "interpolators.planned.guards", "interpolators.planned.step",
                        "interpolators.planned.interpolator", "interpolators.replay"),
                       ("base", "geometry", "machine", "planning")),
-    "loop": (("loop", "loop.trace", "loop.closed_loop", "loop.budget"),
+    "loop": (("loop", "loop.trace", "loop.closed_loop", "loop.budget", "loop.sink"),
              ("base", "geometry", "machine", "planning", "interpolators")),
     "metrics": (("metrics",),
                 ("base", "geometry", "machine", "planning", "interpolators", "loop")),
@@ -66,6 +66,10 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                 "report.trace_file", "report.export", "export", "identify.plot"),
                ("base", "geometry", "paths", "machine", "identification", "planning",
                 "interpolators", "loop", "metrics")),
+    # One run, end to end (Job -> RunResult): the loop, the metrics and the summary.
+    "job": (("job",),
+            ("base", "geometry", "machine", "planning", "interpolators", "loop", "metrics",
+             "output")),
     # study.run_input: what a run of a named path reads (the contour and its feed), shared
     # by the CLI and a study's cases; run_input, experiments and campaign are the old
     # import paths, re-exporting the study package's names.
@@ -73,14 +77,14 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                "study.run", "study.digest", "study.reproduce", "study.run_input",
                "run_input", "experiments", "campaign"),
               ("base", "geometry", "paths", "machine", "planning", "interpolators", "loop",
-               "metrics", "output")),
+               "metrics", "output", "job")),
     "cli": (("cli", "cli.__main__", "cli.parser", "cli.commands", "cli.console", "__main__",
              "_runtime.precompile"),
             ("base", "geometry", "paths", "machine", "identification", "planning", "interpolators", "loop",
-             "metrics", "output", "study")),
+             "metrics", "output", "job", "study")),
     # The package's façade loads its names on first use (PEP 562), from any stage.
     "facade": (("",), ("base", "geometry", "paths", "machine", "identification", "planning", "interpolators",
-                       "loop", "metrics", "output", "study", "cli")),
+                       "loop", "metrics", "output", "job", "study", "cli")),
 }
 """The allowed layering, lowest first. Within a layer any import is allowed (the cycle
 check still applies)."""

@@ -32,7 +32,12 @@ An interpolator is, for the loop, two pieces of data and one compiled function:
 :func:`step` dispatches on the plan's type at compile time (numba ``overload``), so the
 loop is compiled once per interpolator type and cached on disk; with
 ``NUMBA_DISABLE_JIT=1`` the same functions run as plain Python. Adding an interpolator
-means one module that defines its plan, state and step and calls :func:`register`.
+means one module that defines its plan, state and step and calls :func:`register`; given
+a ``name`` there, the same call makes it a named interpolator (:class:`Named`): its
+factory serves :func:`nurbsmotion.interpolators.make_interpolator` (or ``make_open_loop``),
+its name :data:`nurbsmotion.interpolators.LOOP_METHODS` and the command's choices, and its
+made-up plan and state a cold first run's compilation
+(:func:`nurbsmotion._runtime.precompile.loop_example`).
 :func:`first_sample` (compiled: a constant per plan type) says from which sample the loop
 calls the step.
 """
@@ -40,6 +45,8 @@ calls the step.
 from __future__ import annotations
 
 import enum
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from numba import njit
@@ -48,7 +55,7 @@ from numba.extending import overload
 from .errors import InvalidArgumentError
 
 __all__ = ["Status", "WORKING", "FINISHED", "LIMITED", "CORNERED", "FAILED", "register",
-           "step", "first_sample", "hold_end"]
+           "step", "first_sample", "hold_end", "Named", "named", "interpolator_names"]
 
 WORKING, FINISHED, LIMITED, CORNERED, FAILED = 0, 1, 2, 3, 4
 """Status codes a step returns (see :class:`Status`)."""
@@ -74,6 +81,40 @@ _STEPS: dict = {}
 _FIRST_SAMPLES: dict = {}
 
 
+@dataclass(frozen=True)
+class Named:
+    """A named interpolator (:func:`register` with a ``name``).
+
+    Attributes
+    ----------
+    name : str
+        What a user calls it (``"paper"``).
+    plan_type : type
+        The type of its plans, whose registered step the loop runs.
+    make : callable or None
+        ``make(curve, machine, feed, **options) -> Interpolator`` for the closed loop
+        (curve [pulse], feed [pulse/s] or a per-piece FeedLimit); None: open loop only.
+    open_loop : callable or None
+        ``open_loop(curve, sample_period, feed) -> Interpolator`` without a loop state
+        (:func:`nurbsmotion.loop.interpolate`); None: closed loop only.
+    example : callable or None
+        ``example(n_axes) -> (plan, state)``: made-up values of the types a run passes
+        the loop (zeros: only their types count), for a cold first run's compilation.
+    options : bool
+        Whether ``make`` takes options (``corner_tolerance``, ...).
+    """
+
+    name: str
+    plan_type: type
+    make: Callable | None = None
+    open_loop: Callable | None = None
+    example: Callable | None = None
+    options: bool = False
+
+
+_NAMED: dict[str, Named] = {}
+
+
 @njit(cache=True)
 def hold_end(end, command, bounds):
     """The step of an interpolator that has reached the end: hold it (feed 0)."""
@@ -84,14 +125,38 @@ def hold_end(end, command, bounds):
     return 1.0, 0.0, FINISHED
 
 
-def register(plan_type: type, step_function, first_sample: int = 1) -> None:
+def register(plan_type: type, step_function, first_sample: int = 1, *,
+             name: str | None = None, make: Callable | None = None,
+             open_loop: Callable | None = None, example: Callable | None = None,
+             options: bool = False) -> None:
     """Make ``step_function`` the step of plans of type ``plan_type`` (a NamedTuple),
     called from sample ``first_sample`` on: 1 (sample 0's setpoint is the path's start) or
-    0 (the step gives sample 0's setpoint too, as a planner of the drive does)."""
+    0 (the step gives sample 0's setpoint too, as a planner of the drive does).
+
+    With a ``name``, also a named interpolator (:class:`Named`: ``make``, ``open_loop``,
+    ``example`` and ``options`` as its attributes); several names may share a plan type
+    (``taylor1`` and ``taylor2``). Names keep the order they were registered in.
+    """
     if first_sample not in (0, 1):
         raise InvalidArgumentError(f"first_sample must be 0 or 1, got {first_sample!r}")
+    if name is not None and make is None and open_loop is None:
+        raise InvalidArgumentError(f"interpolator {name!r} needs make or open_loop")
     _STEPS[plan_type] = step_function
     _FIRST_SAMPLES[plan_type] = first_sample
+    if name is not None:
+        _NAMED[name] = Named(name, plan_type, make, open_loop, example, options)
+
+
+def named(name: str) -> Named | None:
+    """The named interpolator ``name`` (None if there is none)."""
+    return _NAMED.get(name)
+
+
+def interpolator_names(open_loop: bool = False) -> tuple[str, ...]:
+    """Names of the registered interpolators that run in the closed loop (with
+    ``open_loop``: without a loop state), in the order they were registered."""
+    return tuple(n for n, r in _NAMED.items()
+                 if (r.open_loop if open_loop else r.make) is not None)
 
 
 def first_sample(plan) -> int:

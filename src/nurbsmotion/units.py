@@ -182,6 +182,16 @@ class Scale:
         """Pulses per path unit, the same on every axis [pulse/path unit]."""
         return self._common(self.pulses_per_path_unit, "a length")
 
+    def pulses_per(self, unit: str) -> float:
+        """Pulses per ``unit`` (one of :data:`LENGTH_UNITS_UM`), the same on every axis
+        [pulse/unit]: outputs whose unit is fixed (G-code and halstreamer in mm)."""
+        return self._pulses_per(unit, f"a length in {unit}")
+
+    @property
+    def report_factor(self) -> float:
+        """Pulses per :attr:`report_unit`, the same on every axis [pulse/mm or pulse/in]."""
+        return self._common(self.pulses_per_report_unit, "a length")
+
     def path(self, curve: NurbsCurve) -> NurbsCurve:
         """``curve`` (drawn in :attr:`path_units`) in the machine's pulses; the same object
         when it is already in pulses."""
@@ -199,6 +209,8 @@ class Scale:
             A bare number [path units/s], a text with a unit (``"100mm/s"``), the pair
             :func:`parse_feed` returns, or a per-piece limit
             (:class:`nurbsmotion.feed.FeedLimit`, in path units/s; returned scaled).
+            A pair ``(value, "pulse")`` is in pulse/s already, ``value`` a number or a
+            :class:`~nurbsmotion.feed.FeedLimit` (returned as it is).
 
         Returns
         -------
@@ -207,6 +219,14 @@ class Scale:
         """
         if isinstance(feed, FeedLimit):
             return feed.scaled(self.factor)
+        if isinstance(feed, tuple) and len(feed) == 2 and isinstance(feed[0], FeedLimit):
+            limit, unit = feed  # a per-piece limit with its unit: path units or pulse
+            if unit == "pulse":
+                return limit
+            if unit is None:
+                return limit.scaled(self.factor)
+            raise InvalidFeedError(f"a feed limit's unit must be None (the path's units) "
+                                   f"or 'pulse', got {unit!r}")
         value, unit = _parsed(feed)
         if unit == "pulse":
             return value

@@ -47,31 +47,15 @@ def loop_example(interpolator: str) -> tuple | None:
     ``None`` for an interpolator without one."""
     from ..loop.closed_loop import AxisState, LoopState, Settling, new_rows, run_samples
     from ..control import PID_LAW, PID_STATE
-    from ..interpolators.base import PathData
+    from ..interpolators import LOOP_METHODS  # noqa: F401  (every interpolator registered)
     from ..plant import inactive_stage, new_plant_state
-    from ..interpolators.paper import PaperPlan
-    from ..interpolators.planned import SUPPORT_DIRECTIONS, PlannedPlan, PlannedState
-    from ..interpolators.taylor import StepState, TaylorPlan
+    from ..stepping import named
 
     f, n = _zeros, 2  # n_axes: any number gives the same types
-    path = PathData(f(2, writeable=False), f(1, 2, n + 1, writeable=False), f(1),
-                    f(n, writeable=False))
-    feed = (f(2, writeable=False), f(1, writeable=False), f(1, writeable=False))
-    if interpolator == "paper":
-        plan = PaperPlan(path, 1, *feed, f(n))
-        state = StepState.new(path)
-    elif interpolator in ("taylor1", "taylor2"):
-        plan = TaylorPlan(path, int(interpolator[-1]), *feed)
-        state = StepState.new(path)
-    elif interpolator == "planned":
-        plan = PlannedPlan(f(1), f(1), f(1, n), f(1, n), f(1, n),
-                           f(1, n, SUPPORT_DIRECTIONS), np.zeros(2, np.int64),
-                           *(f(n) for _ in range(5)), 0.0, 0.0, 0, f(1, 4),
-                           np.zeros(n + 1, np.int64))
-        state = PlannedState(f(1), f(1), f(1), f(12, n), f(5, n), f(n), f(n), f(n),
-                             f(n, SUPPORT_DIRECTIONS), f(2, n))
-    else:
+    registered = named(interpolator)
+    if registered is None or registered.example is None or registered.make is None:
         return None
+    plan, state = registered.example(n)  # its module knows its types
     law = np.zeros(n, PID_LAW)
     law.flags.writeable = False
     ro = dict(writeable=False)

@@ -164,23 +164,22 @@ def _check_bound(bound: float, machine: Machine, curve, max_samples: int) -> Non
 
 
 def _cmd_bound(args) -> int:
-    from ..loop import check_run_arguments, to_pulses
+    from ..loop import check_run_arguments
 
     machine = load_machine(args.machine)
     contour = _contour(args, machine)
     curve = contour.curve
     machine.check_path(curve.n_axes)
+    scale = units.Scale.of(curve, machine)
     if args.sampled:
-        bound = sampled_stop_bound(to_pulses(curve, machine), machine,
-                                   max_samples=args.max_samples)
+        bound = sampled_stop_bound(scale.path(curve), machine, max_samples=args.max_samples)
         print(f"{bound:.6g}")
         _print_joined(contour, machine)
         return 0
-    cap = None if args.feed is None else units.feed_in_pulses(args.feed, curve, machine)
-    feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s",
-                            per_shown=units.pulses_per_report_unit(curve.units, machine),
-                            shown_unit=f"{units.report_unit(curve.units)}/s")
-    path = to_pulses(curve, machine)
+    cap = None if args.feed is None else scale.feed(args.feed)
+    feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s",
+                            per_shown=scale.report_factor, shown_unit=f"{scale.report_unit}/s")
+    path = scale.path(curve)
     # What `run` refuses, `bound` refuses: the same checks, and a bound no run could
     # reach within its samples.
     check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
@@ -197,11 +196,9 @@ def _print_joined(contour, machine: Machine) -> None:
     """Say on stderr which chords the path's runs joined (nothing where none were)."""
     joined = contour.joined
     if joined is not None and joined.chords_joined:
-        curve = contour.curve
-        shown = machine.pulses_per_unit(curve.units) / units.pulses_per_report_unit(
-            curve.units, machine)  # report units per path unit
-        print("path: " + joined.describe(units.report_unit(curve.units), shown),
-              file=sys.stderr)
+        scale = units.Scale.of(contour.curve, machine)
+        shown = scale.factor / scale.report_factor  # report units per path unit
+        print("path: " + joined.describe(scale.report_unit, shown), file=sys.stderr)
 
 
 TRACE_NOTICE_BYTES = 200e6
@@ -218,21 +215,23 @@ def _cmd_run(args) -> int:
 
 
 def _run(args, precompiler) -> int:
-    from ..loop import check_run_arguments, run, to_pulses
+    from ..job import Job
+    from ..loop import check_run_arguments
     from ..metrics import check_settle_window
-    from ..report import TRACE_FILES, summary, write_json
+    from ..report import TRACE_FILES, write_json
 
     machine = load_machine(args.machine)
     contour = _contour(args, machine)
     curve = contour.curve
     machine.check_path(curve.n_axes)
-    cap = None if args.feed is None else units.feed_in_pulses(args.feed, curve, machine)
-    unit = units.report_unit(curve.units)
-    per_unit = units.pulses_per_report_unit(curve.units, machine)
-    feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s",
+    scale = units.Scale.of(curve, machine)  # the one conversion of this run's units
+    cap = None if args.feed is None else scale.feed(args.feed)
+    unit, per_unit = scale.report_unit, scale.report_factor
+    feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s",
                             per_shown=per_unit, shown_unit=f"{unit}/s")
-    feed_number = feed if isinstance(feed, (int, float)) else feed.highest
-    path = to_pulses(curve, machine)
+    job = Job(curve, machine, (feed, "pulse"), args.interpolator, name=args.path,
+              max_samples=args.max_samples)
+    path = job.pulses
     try:
         check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
     except WorkLimitError:  # too many samples: a bare feed number in the wrong unit?
@@ -244,7 +243,7 @@ def _run(args, precompiler) -> int:
         check_samples(args.hold / plant_machine.sample_period, limit=args.max_samples,
                       n_axes=curve.n_axes, what=f"--hold {args.hold:g} s at Ts = "
                       f"{plant_machine.sample_period:g} s", option="--max-samples")
-    eps = units.length_in_pulses(args.corner_tolerance, curve, machine, "--corner-tolerance")
+    eps = scale.length(args.corner_tolerance, "--corner-tolerance")
     if eps and args.interpolator != "planned":
         raise InvalidArgumentError(
             f"--corner-tolerance applies to the planned interpolator, not {args.interpolator}")
@@ -254,11 +253,10 @@ def _run(args, precompiler) -> int:
             f"--corner-tolerance {args.corner_tolerance} ({eps:g} pulse) is not below the "
             f"path's extent (its bounding box's diagonal, {extent:.6g} pulse)")
     options = {"corner_tolerance": eps} if eps else {}
-    path_tolerance = contour.joined.tolerance * machine.pulses_per_unit(curve.units)
+    path_tolerance = contour.joined.tolerance * scale.factor
     if args.path_tolerance is not None and args.interpolator == "planned":
         options["path_tolerance"] = path_tolerance
-    window = units.length_in_pulses(args.settle_window, curve, machine, "--settle-window",
-                                    bare_unit="pulse")
+    window = scale.length(args.settle_window, "--settle-window", bare_unit="pulse")
     if window <= 0:
         raise InvalidArgumentError(f"--settle-window must be > 0, got {args.settle_window!r}")
     check_settle_window(window, path, f"--settle-window {args.settle_window}:")
@@ -268,6 +266,8 @@ def _run(args, precompiler) -> int:
                       limit=args.max_samples, n_axes=curve.n_axes,
                       what=f"the PVT table at --pvt-period {args.pvt_period:g} s",
                       option="--max-samples (or a longer --pvt-period)")
+    job = job.with_options(interpolator_options=options, plant=plant, settle_window=window,
+                           hold=args.hold)
     # Without figures or exports nothing needs the whole run at once: it streams, and
     # its memory does not grow with its length.
     stream = args.no_figures and not args.export
@@ -283,40 +283,35 @@ def _run(args, precompiler) -> int:
             bar.set_description(name)
 
         # The bound first: a path it cannot be computed for is refused before the run.
-        bound = time_optimal_bound(path, machine, feed)
+        bound = job.bound()
         _check_bound(bound, machine, curve, args.max_samples)
         if "pvt" in exports and not args.pvt_period < bound:  # a table of one row
             raise InvalidArgumentError(
                 f"--pvt-period {args.pvt_period:g} s is not shorter than the move (its "
                 f"time-optimal bound is {bound:.6g} s): the PVT table would hold one row")
+        job = job.with_options(time_optimal_bound=bound)
         bar.update()
         stage(stages[1])
         expected = estimate_samples(path.length, lowest, machine.sample_period)
         precompiler.wait()
-        run_options = dict(max_samples=args.max_samples, interpolator_options=options,
-                           plant=plant, settle_window=window, hold=args.hold)
         file = None if args.no_trace else out / TRACE_FILES[args.trace_format]
         if stream:  # the rows go to the metrics and the trace file as the loop runs
-            metrics, notes, at_rest = _run_streamed(args, path, machine, feed, run_options,
-                                                    file, unit, per_unit, expected)
+            result = _run_streamed(args, job, file, expected)
             bar.update(3)
         else:
             with _progress(args, total=_total(expected), unit="sample", unit_scale=True,
                            desc="closed loop") as samples:
-                trace = run(path, machine, feed, args.interpolator,
-                            progress=lambda k: samples.update(k - samples.n), **run_options)
-            bar.update()
-            # The metrics before the trace file: their temporaries are gone before the
-            # writer's buffers are made (the peak memory is the larger, not the sum).
-            stage(stages[2])
-            metrics, notes, at_rest = trace.metrics(), trace.notes, trace.at_rest()
-            bar.update()
+                # the metrics before the trace file: their temporaries are gone before
+                # the writer's buffers are made (the peak memory is the larger, not the sum)
+                result = job.run(progress=lambda k: samples.update(k - samples.n))
+            bar.update(2)
             stage(stages[3])
             if file is not None:
-                _write_trace(args, trace, file, unit, per_unit)
+                _write_trace(args, result.trace, file, scale)
             if exports:
-                _export_setpoints(trace, curve, machine, exports, args)
+                _export_setpoints(result.trace, scale, exports, args)
             bar.update()
+        metrics = result.metrics
         stage(stages[4])
         extra = {"plant": machine.name if args.plant is None else args.plant,
                  "corner_tolerance": eps,
@@ -328,27 +323,24 @@ def _run(args, precompiler) -> int:
         if contour.joined.chords_joined:  # what the path run is: said where it differs
             extra.update({"chords_joined": contour.joined.chords_joined,
                           "chord_runs": contour.joined.runs})
-        extra.update(_at_rest_keys(at_rest, unit, per_unit))
+        extra.update(result.at_rest_keys())
         if machine.has_effects or plant_machine.has_effects:  # both, as they were read
             extra["machine_model"] = machine.to_dict()
             extra["true_plant"] = plant_machine.to_dict()
         if contour.feed is not None:  # the file gave a feed: say which one ran
             extra["feed_used"] = note
-        extra["notes"] = list(notes)
+        extra["notes"] = list(result.notes)
         extra["path_unit"] = curve.units
         if machine.rotary_axes:  # their trace columns are in degrees
             extra["rotary_axes"] = {a.name: {"unit": "deg", "pulses_per_degree": a.pulses_per_degree}
                                     for a in machine.axes if a.pulses_per_degree is not None}
         if contour.units_source:
             extra["path_unit_source"] = contour.units_source
-        data = summary(metrics, interpolator=args.interpolator, feed=feed_number,
-                       machine=machine.name, path=args.path, time_optimal_bound=bound,
-                       length_unit=unit, pulses_per_length_unit=per_unit, extra=extra)
-        write_json(data, out / "summary.json")
+        write_json(result.summary(extra), out / "summary.json")
         bar.update()
         if not args.no_figures:
             stage(stages[5])
-            trace.plot(out, feed=feed_number, length_unit=unit, overwrite=True)
+            result.trace.plot(out, feed=result.feed, length_unit=unit, overwrite=True)
             bar.update()
     out = Path(args.out)
     sat = metrics.total_saturated_samples
@@ -358,8 +350,7 @@ def _run(args, precompiler) -> int:
                f"({metrics.settle_time_s / bound:.3f} x)" if metrics.settled
                else "not settled by the end of the run")
     source = f", {contour.units_source}" if contour.units_source else ""
-    joined = ("; path: " + contour.joined.describe(unit, machine.pulses_per_unit(curve.units)
-                                                  / per_unit)
+    joined = ("; path: " + contour.joined.describe(unit, scale.factor / per_unit)
               if contour.joined.chords_joined else "")
     print(f"{args.interpolator} on {_machine_label(args.machine, machine)} at {at} (path in "
           f"{curve.units}{source}): cycle time {metrics.cycle_time_s:.4g} s "
@@ -401,57 +392,42 @@ def _total(expected: float) -> int | None:
     return int(expected) if math.isfinite(expected) else None
 
 
-def _run_streamed(args, path, machine, feed, run_options: dict, file: Path | None,
-                  unit: str, per_unit: float, expected: float):
-    """Run the loop with its rows streamed to the metrics and the trace file (if any);
-    return the metrics and the interpolator's notes."""
-    from ..loop import background_sink, hold_samples_of, run_streamed, settle_hold_samples
-    from ..metrics import RunningAtRest, RunningMetrics
+def _run_streamed(args, job, file: Path | None, expected: float):
+    """Run ``job`` with its rows streamed to the metrics and the trace file (if any),
+    announcing the file's size once its first rows are written when it is large."""
     from ..report import TraceWriter
 
-    running = RunningMetrics(path, machine, run_options["settle_window"])
-    true_plant = run_options["plant"] or machine.plant()
-    resting = RunningAtRest(machine, path.end_points[1], run_options["settle_window"],
-                            hold_samples_of(true_plant, run_options["hold"])
-                            or settle_hold_samples(machine))
     with contextlib.ExitStack() as stack:
         writer = None if file is None else stack.enter_context(TraceWriter(
-            file, machine, fmt=args.trace_format, every=args.trace_every, length_unit=unit,
-            pulses_per_length_unit=per_unit, overwrite=args.overwrite, threads=0))
+            file, job.machine, fmt=args.trace_format, every=args.trace_every,
+            length_unit=job.scale.report_unit, pulses_per_length_unit=job.scale.report_factor,
+            overwrite=args.overwrite, threads=0))
         samples = stack.enter_context(_progress(
             args, total=_total(expected), unit="sample", unit_scale=True,
             desc="closed loop" if writer is None else f"closed loop -> {file.name}"))
-        announce = writer is not None and math.isfinite(expected)
-
-        def consume(first, rows, finished, last):
-            nonlocal announce
-            running.add(first, rows, finished, last)
-            resting.add(first, rows, finished, last)
-            if writer is not None:
-                writer.add(first, rows, finished, last)
-            if announce and writer.rows_written:
-                announce = False
-                total = max(writer.rows_written, int(expected / args.trace_every))
-                _trace_notice(args, file, total, writer.bytes_per_row() * total, samples)
-
-        # the metrics and the file beside the loop; left before the writer closes
-        sink = stack.enter_context(background_sink(consume))
-        outcome = run_streamed(path, machine, feed, sink, args.interpolator,
-                               progress=lambda k: samples.update(k - samples.n),
-                               **run_options)
-    return (running.result(outcome.finished_index, outcome.success, outcome.message),
-            outcome.notes, resting.result())
+        sinks = [] if writer is None else [writer]
+        if writer is not None and math.isfinite(expected):
+            sinks.append(_TraceNotice(args, file, writer, expected, samples))
+        # the sinks run beside the loop and are left before the writer closes
+        return job.run(sinks, keep_trace=False,
+                       progress=lambda k: samples.update(k - samples.n))
 
 
-def _at_rest_keys(at_rest, unit: str, per_unit: float) -> dict:
-    """The summary keys of :class:`nurbsmotion.metrics.AtRest`, the peaks also in the
-    path's unit (``peak_speed_mm_per_s``, ``peak_acceleration_mm_per_s2``, ...)."""
-    data = at_rest.to_dict()
-    out = {"hold_window_s": data.pop("window_s"), **data}
-    for key, suffix in (("peak_speed", "per_s"), ("peak_acceleration", "per_s2"),
-                        ("peak_jerk", "per_s3")):
-        out[f"{key}_{unit}_{suffix}"] = {a: v / per_unit for a, v in data[key].items()}
-    return out
+class _TraceNotice:
+    """A sink that announces the trace file's size (:func:`_trace_notice`) once the
+    writer has written its first rows."""
+
+    def __init__(self, args, file: Path, writer, expected: float, bar):
+        self.args, self.file, self.writer = args, file, writer
+        self.expected, self.bar, self.done = expected, bar, False
+
+    def add(self, first, rows, finished, last) -> None:
+        if self.done or not self.writer.rows_written:
+            return
+        self.done = True
+        total = max(self.writer.rows_written, int(self.expected / self.args.trace_every))
+        _trace_notice(self.args, self.file, total, self.writer.bytes_per_row() * total,
+                      self.bar)
 
 
 def _trace_notice(args, file: Path, rows: int, size: float, bar=None) -> None:
@@ -470,12 +446,13 @@ def _trace_notice(args, file: Path, rows: int, size: float, bar=None) -> None:
         bar.write(text, file=sys.stderr)
 
 
-def _write_trace(args, trace, file: Path, unit: str, per_unit: float) -> None:
-    """Write the trace file of a whole run, announcing its size first when it is large."""
+def _write_trace(args, trace, file: Path, scale: units.Scale) -> None:
+    """Write the trace file of a whole run (lengths also in ``scale``'s report unit),
+    announcing its size first when it is large."""
     from ..report import estimate_trace_bytes, trace_rows, write_trace
 
-    options = dict(fmt=args.trace_format, every=args.trace_every, length_unit=unit,
-                   pulses_per_length_unit=per_unit)
+    options = dict(fmt=args.trace_format, every=args.trace_every,
+                   length_unit=scale.report_unit, pulses_per_length_unit=scale.report_factor)
     rows = len(trace_rows(trace, args.trace_every))
     _trace_notice(args, file, rows, estimate_trace_bytes(trace, **options))
     with _progress(args, total=rows, unit="row", unit_scale=True,
@@ -486,17 +463,19 @@ EXPORT_PULSE_FRACTION = 1e-3
 """Exported positions are written to this fraction of a pulse (CSV, PVT, halstreamer, ROS)."""
 
 
-def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None:
-    """The commanded setpoints of a run, in the path's own units (G-code: in mm)."""
+def _export_setpoints(trace, path_scale: units.Scale, files: dict, args) -> None:
+    """The commanded setpoints of a run, in the path's own units (``path_scale``'s;
+    G-code, halstreamer and ROS in their fixed units)."""
     from ..report.export import (SetpointArrays, pvt_table, save_halstreamer, save_motion_gcode, save_pvt,
                          save_ros_trajectory, save_setpoints)
 
-    scale = machine.pulses_per_unit(curve.units)
+    machine = trace.machine
+    scale = path_scale.factor  # [pulse/path unit]
     end = trace.finished_index + 1
     sp = SetpointArrays(trace.t[:end], trace.u[:end], trace.position_command[:end] / scale,
                         trace.feed[:end] / scale, machine.axis_names)
     # Values to a thousandth of a pulse: finer digits are below what the encoder resolves.
-    per_mm = machine.pulses_per_unit("mm")
+    per_mm = path_scale.pulses_per("mm")
     resolution = EXPORT_PULSE_FRACTION / scale  # [path units]
     rotary = [j for j, a in enumerate(machine.axes) if a.pulses_per_degree is not None]
     if rotary:  # a rotary axis in degrees (radians for ROS), its CSV/PVT column named so
@@ -523,7 +502,7 @@ def _export_setpoints(trace, curve, machine: Machine, files: dict, args) -> None
                                 overwrite=args.overwrite)
         else:  # G-code is in mm whatever the path's units
             save_motion_gcode(out, file, units="mm", overwrite=args.overwrite,
-                              scale=scale / machine.pulses_per_unit("mm"))
+                              scale=scale / per_mm)
 
 
 def _rotary_setpoints(sp, pulses, machine: Machine, rotary: list):

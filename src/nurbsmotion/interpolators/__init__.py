@@ -1,6 +1,8 @@
-"""Interpolators: one module each; a plan (data) and a compiled step each, registered with
-:mod:`nurbsmotion.stepping`. Adding one means a module and an entry in
-:func:`make_interpolator` (and :data:`LOOP_METHODS` for the command line).
+"""Interpolators: one module each; a plan (data) and a compiled step each, registered by
+name with :func:`nurbsmotion.stepping.register`. Adding one means one module (imported
+here): its registration gives :func:`make_interpolator` (or :func:`make_open_loop`), the
+names :data:`LOOP_METHODS` (the command's ``--interpolator`` choices) and
+:data:`OPEN_LOOP_METHODS`, and the made-up plan a cold first run compiles from.
 
 - ``uniform``: fixed parameter step (eq. 1.1);
 - ``taylor1`` / ``taylor2``: constant (or parameter-dependent) feed, eq. 3.2 / 3.1;
@@ -9,24 +11,27 @@
 - ``replay``: a parameter sequence planned elsewhere, fed through the same loop.
 """
 
+from .. import stepping
 from ..errors import InvalidArgumentError
 from ..units import in_pulses
 from .base import Interpolator, Status, taylor_increment
+# registered in this order (the order of the names): taylor's, paper, planned
+from .taylor import TaylorInterpolator, UniformInterpolator
 from .paper import PaperInterpolator
 from .replay import ReplayInterpolator
 from .planned import PlannedInterpolator
-from .taylor import TaylorInterpolator, UniformInterpolator
 
 __all__ = ["Interpolator", "Status", "taylor_increment", "PaperInterpolator", "PlannedInterpolator",
            "ReplayInterpolator", "TaylorInterpolator", "UniformInterpolator",
            "OPEN_LOOP_METHODS", "LOOP_METHODS", "make_open_loop", "make_interpolator",
            "DEFAULT_INTERPOLATOR"]
 
-OPEN_LOOP_METHODS = ("uniform", "taylor1", "taylor2")
-"""Interpolators that need no loop state."""
+OPEN_LOOP_METHODS = stepping.interpolator_names(open_loop=True)
+"""Interpolators that need no loop state: ``uniform``, ``taylor1``, ``taylor2``."""
 
-LOOP_METHODS = ("taylor1", "taylor2", "paper", "planned")
-"""Interpolators offered in the servo loop (``nurbsmotion run --interpolator``)."""
+LOOP_METHODS = stepping.interpolator_names()
+"""Interpolators offered in the servo loop (``nurbsmotion run --interpolator``):
+``taylor1``, ``taylor2``, ``paper``, ``planned``."""
 
 DEFAULT_INTERPOLATOR = "planned"
 """The interpolator a run uses when none is named: :func:`nurbsmotion.loop.run`,
@@ -38,12 +43,11 @@ default, ``["paper"]``, is kept for the digests of existing studies)."""
 
 def make_open_loop(method: str, curve, sample_period: float, feed) -> Interpolator:
     """An open-loop interpolator by name (one of :data:`OPEN_LOOP_METHODS`)."""
-    if method == "uniform":
-        return UniformInterpolator.for_feed(curve, sample_period, feed)
-    if method in ("taylor1", "taylor2"):
-        return TaylorInterpolator(curve, sample_period, feed, order=int(method[-1]))
-    raise InvalidArgumentError(f"unknown interpolation method {method!r}; choose from "
-                               f"{OPEN_LOOP_METHODS}")
+    named = stepping.named(method) if isinstance(method, str) else None
+    if named is None or named.open_loop is None:
+        raise InvalidArgumentError(f"unknown interpolation method {method!r}; choose from "
+                                   f"{stepping.interpolator_names(open_loop=True)}")
+    return named.open_loop(curve, sample_period, feed)
 
 
 def make_interpolator(method: str, curve, machine, feed, **options) -> Interpolator:
@@ -57,13 +61,10 @@ def make_interpolator(method: str, curve, machine, feed, **options) -> Interpola
     ``tracking_pole``, ...).
     """
     curve, feed = in_pulses(curve, machine, feed)
-    if method == "planned":
-        return PlannedInterpolator(curve, machine, feed, **options)
-    if method not in LOOP_METHODS:
+    named = stepping.named(method) if isinstance(method, str) else None
+    if named is None or named.make is None:
         raise InvalidArgumentError(f"unknown interpolator {method!r}; choose from "
-                                   f"{LOOP_METHODS}")
-    if options:
+                                   f"{stepping.interpolator_names()}")
+    if options and not named.options:
         raise InvalidArgumentError(f"{method} takes no options, got {sorted(options)}")
-    if method == "paper":
-        return PaperInterpolator(curve, machine, feed)
-    return make_open_loop(method, curve, machine.sample_period, feed)
+    return named.make(curve, machine, feed, **options)

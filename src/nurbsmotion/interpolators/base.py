@@ -66,6 +66,26 @@ def path_data(curve: NurbsCurve, order: int) -> PathData:
                     np.ascontiguousarray(curve.end_points[1], dtype=float))
 
 
+def _zeros(*shape, writeable: bool = True) -> np.ndarray:
+    a = np.zeros(shape)
+    a.flags.writeable = writeable
+    return a
+
+
+def example_path(n_axes: int) -> PathData:
+    """Made-up :class:`PathData` of the types a run passes (zeros; a registered
+    interpolator's ``example``, :func:`nurbsmotion.stepping.register`)."""
+    f = _zeros
+    return PathData(f(2, writeable=False), f(1, 2, n_axes + 1, writeable=False), f(1),
+                    f(n_axes, writeable=False))
+
+
+def example_feed() -> tuple:
+    """Made-up feed table (breakpoints, start and end feeds) of the types a run passes."""
+    f = _zeros
+    return (f(2, writeable=False), f(1, writeable=False), f(1, writeable=False))
+
+
 def check_taylor_starts(curve: NurbsCurve, path: PathData, name: str) -> None:
     """Refuse a path whose Taylor step would start at a point of zero speed: ``u = 0`` or
     a restart knot where ``C'(u) = 0`` from the right (a repeated control point there).

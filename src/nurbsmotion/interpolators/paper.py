@@ -29,9 +29,10 @@ from numba import njit
 from .. import stepping
 from ..machine import Machine
 from ..nurbs import NurbsCurve
-from .base import (PathData, advance, check_taylor_starts, finish_step, path_data,
+from .base import (PathData, advance, check_taylor_starts, example_feed, example_path,
+                   finish_step, path_data,
                    path_derivatives, speed_bounds)
-from .taylor import FeedTableInterpolator, feed_at, feed_table
+from .taylor import FeedTableInterpolator, StepState, feed_at, feed_table
 
 __all__ = ["PaperInterpolator"]
 
@@ -114,4 +115,11 @@ def paper_step(plan, state, law, law_state, position, velocity, command, bounds)
     return u, Vm, status
 
 
-stepping.register(PaperPlan, paper_step)
+def _example(n_axes: int):
+    """Made-up plan and state of the types a run passes (a cold first run's compilation)."""
+    path = example_path(n_axes)
+    return PaperPlan(path, 1, *example_feed(), np.zeros(n_axes)), StepState.new(path)
+
+
+stepping.register(PaperPlan, paper_step, name="paper", make=PaperInterpolator,
+                  example=_example)

@@ -17,7 +17,8 @@ from .. import stepping
 from ..errors import InvalidArgumentError, InvalidFeedError
 from ..feed import FeedLimit
 from ..nurbs import NurbsCurve
-from .base import (Interpolator, PathData, advance, check_taylor_starts, finish_step, land, path_data,
+from .base import (Interpolator, PathData, advance, check_taylor_starts, example_feed, example_path,
+                   finish_step, land, path_data,
                    path_derivatives, path_scratch, positive_feed)
 
 __all__ = ["UniformInterpolator", "TaylorInterpolator", "FeedTableInterpolator", "feed_table"]
@@ -232,5 +233,22 @@ def taylor_step(plan, state, law, law_state, position, velocity, command, bounds
     return u, V, status
 
 
-stepping.register(UniformPlan, uniform_step)
-stepping.register(TaylorPlan, taylor_step)
+def _taylor(order: int):
+    """The factories and the example of ``taylor<order>``."""
+    def open_loop(curve, sample_period, feed):
+        return TaylorInterpolator(curve, sample_period, feed, order=order)
+
+    def make(curve, machine, feed):
+        return open_loop(curve, machine.sample_period, feed)
+
+    def example(n_axes: int):
+        path = example_path(n_axes)
+        return TaylorPlan(path, order, *example_feed()), StepState.new(path)
+
+    return dict(make=make, open_loop=open_loop, example=example)
+
+
+stepping.register(UniformPlan, uniform_step, name="uniform",
+                  open_loop=UniformInterpolator.for_feed)
+stepping.register(TaylorPlan, taylor_step, name="taylor1", **_taylor(1))
+stepping.register(TaylorPlan, taylor_step, name="taylor2", **_taylor(2))

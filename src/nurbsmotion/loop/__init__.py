@@ -10,8 +10,9 @@ plant; docs/model.md#chain and #controllers) until the setpoint has reached the 
 settled there. It changes none of the objects it is given.
 
 The package holds the results (:mod:`.trace`: :class:`Trace`, :class:`RunOutcome`,
-:class:`SetpointSeries`), the compiled loop itself (:mod:`.closed_loop`) and the work
-estimates a run is refused by (:mod:`.budget`); every name is re-exported here.
+:class:`SetpointSeries`), the compiled loop itself (:mod:`.closed_loop`), the work
+estimates a run is refused by (:mod:`.budget`) and the protocol of what takes the rows
+of a streamed run (:mod:`.sink`); every name is re-exported here.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from ..planning import check_feed_reachable, check_path_size
 from ..servo import ServoPlant
 from ..stepping import Status
 from ..units import Scale, feed_in_pulses
+from .sink import Sink, fan_out
 from .trace import RunOutcome, SetpointSeries, Trace
 
 SETTLE_TIME = 0.05
@@ -56,7 +58,7 @@ float holds every integer up to it); commands refuse far less, by ``--max-sample
 
 __all__ = ["Trace", "RunOutcome", "SetpointSeries", "simulate", "simulate_streamed",
            "background_sink", "interpolate", "run", "run_streamed", "to_pulses",
-           "settle_hold_samples", "check_run_arguments"]
+           "settle_hold_samples", "check_run_arguments", "hold_samples_of", "Sink", "fan_out"]
 
 
 def to_pulses(curve: NurbsCurve, machine: Machine) -> NurbsCurve:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import time
 from contextlib import contextmanager
+from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -125,12 +126,12 @@ def _true_machine(machine: Machine, group: PlantGroup) -> Machine:
 def case_trace(case: Case):
     """Run one case: ``(trace, summary dict, tau scales, Kc scales)``.
 
-    The one function that builds and runs a case's loop (adapt it when the loop's API
-    changes).
+    The case's :class:`~nurbsmotion.job.Job`: its path in pulses (kept per worker), its
+    feed as ``nurbsmotion run PATH --feed F`` runs it, its true plant, and the bound kept
+    per worker.
     """
-    from ..loop import run
-    from ..metrics import check_settle_window, trace_metrics
-    from ..report import summary
+    from ..job import Job
+    from ..metrics import check_settle_window
     from ..servo import ServoPlant
 
     from .run_input import run_feed
@@ -145,18 +146,16 @@ def case_trace(case: Case):
     tau_s, kc_s = _plant_scales(case, machine.n_axes)
     plant = ServoPlant.of_machine(_true_machine(machine, case.plant), pulses(0.0),
                                   time_constant_scale=tau_s, electrical_gain_scale=kc_s)
-    trace = run(pulses, machine, feed, case.interpolator, plant=plant,
-                settle_time=case.settle_time, settle_window=case.settle_window)
-    metrics = trace_metrics(trace, settle_window=case.settle_window)
-    bound = _bound(case, pulses, machine, feed) if case.bound else math.nan
+    job = Job(pulses, machine, (feed, "pulse"), case.interpolator, plant=plant,
+              settle_window=case.settle_window, settle_time=case.settle_time,
+              time_optimal_bound=math.nan, name=case.path)
+    result = job.run()
+    if case.bound:  # after the run, as it always was: a run's error comes first
+        result = replace(result, bound=_bound(case, pulses, machine, job.feed_pulses))
     extra = None
     if plant.effects is not None:  # what the machine did at rest (issue 32); added keys
-        rest = trace.at_rest().to_dict()
-        extra = {"hold_window_s": rest.pop("window_s"), **rest}
-    data = summary(metrics, interpolator=case.interpolator,
-                   feed=feed if isinstance(feed, (int, float)) else feed.highest,
-                   machine=machine.name, path=case.path, time_optimal_bound=bound, extra=extra)
-    return trace, data, tau_s, kc_s
+        extra = result.at_rest_keys(in_report_unit=False)
+    return result.trace, result.summary(extra, in_report_unit=False), tau_s, kc_s
 
 
 _BOUNDS: dict = {}

@@ -15,12 +15,11 @@ from pathlib import Path
 from typing import Callable
 
 from .._runtime.io import write_output
-from ..loop import Trace, run, to_pulses
+from ..job import Job
+from ..loop import Trace
 from ..machine import Machine, die_bonder
 from ..nurbs import builtin_path
-from ..planning import time_optimal_bound
-from ..report import check_writable, markdown_table, summary, write_json
-from ..units import pulses_per_report_unit, report_unit
+from ..report import check_writable, markdown_table, write_json
 
 __all__ = ["PAPER_EXPERIMENT", "ExperimentResult", "reproduce", "reproduce_outputs"]
 
@@ -106,25 +105,21 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
     rows, traces, files = [], {}, []
     jobs, labels = [], []  # the figures of each path and feed
     for name, feeds in experiment.items():
-        given = builtin_path(name)
-        unit = report_unit(given.units)
-        per_unit = pulses_per_report_unit(given.units, machine)
-        curve = to_pulses(given, machine)  # once, so its geometry is reused
+        path = Job(builtin_path(name), machine, None, name=name)  # the feed comes per feed
+        path.pulses  # converted once, so its geometry serves every feed and interpolator
         for feed_m_s in feeds:
             feed = feed_m_s * pulses_per_m
-            bound = time_optimal_bound(curve, machine, feed)
+            job = path.with_options(feed=(feed, "pulse"))
+            job = job.with_options(time_optimal_bound=job.bound())  # one per path and feed
             group: dict[str, Trace] = {}
             for method in interpolators:
-                tr = run(curve, machine, feed, method)
-                group[method] = traces[(name, feed_m_s, method)] = tr
-                row = summary(tr.metrics(), interpolator=method, feed=feed,
-                              machine=machine.name, path=name, time_optimal_bound=bound,
-                              length_unit=unit, pulses_per_length_unit=per_unit)
-                rows.append({"path": name, "feed_m_s": feed_m_s, **row})
+                result = job.with_options(interpolator=method).run()
+                group[method] = traces[(name, feed_m_s, method)] = result.trace
+                rows.append({"path": name, "feed_m_s": feed_m_s, **result.summary()})
                 step(f"{name} {feed_m_s:g} m/s {method}")
             if figures:  # drawn once every run is done, in worker processes
                 jobs.append((group, out, _figure_prefix(name, feed_m_s),
-                             {"feed": feed, "length_unit": unit}))
+                             {"feed": feed, "length_unit": job.scale.report_unit}))
                 labels.append(f"{name} {feed_m_s:g} m/s figures")
     if jobs:
         from ..plots import plot_comparisons

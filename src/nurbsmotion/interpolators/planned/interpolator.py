@@ -206,8 +206,24 @@ class PlannedInterpolator(Interpolator):
                             np.empty((n, SUPPORT_DIRECTIONS)), np.empty((2, n)))
 
 
+def _example(n_axes: int):
+    """Made-up plan and state of the types a run passes (zeros), for a cold first run's
+    compilation (:func:`nurbsmotion._runtime.precompile.loop_example`)."""
+    def f(*shape):
+        return np.zeros(shape)
+
+    n, d = n_axes, SUPPORT_DIRECTIONS
+    plan = PlannedPlan(f(1), f(1), f(1, n), f(1, n), f(1, n), f(1, n, d),
+                       np.zeros(2, np.int64), *(f(n) for _ in range(5)), 0.0, 0.0, 0,
+                       f(1, 4), np.zeros(n + 1, np.int64))
+    state = PlannedState(f(1), f(1), f(1), f(12, n), f(5, n), f(n), f(n), f(n), f(n, d),
+                         f(2, n))
+    return plan, state
+
+
 # from sample 0: the plan's first drive u[0] moves the plant (inverse.LEAD)
-stepping.register(PlannedPlan, planned_step, first_sample=0)
+stepping.register(PlannedPlan, planned_step, first_sample=0, name="planned",
+                  make=PlannedInterpolator, example=_example, options=True)
 
 
 def _path_steps(desired: np.ndarray) -> np.ndarray:
