@@ -116,6 +116,11 @@ def _fine_positions(plant: ServoPlant, zoh, u: np.ndarray):
     return w, theta, np.vstack([fine, theta[-1:]])
 
 
+CHOOSE, DEVEX = -1, 1
+"""Values of HiGHS' option ``simplex_dual_edge_weight_strategy``: its own choice (dual
+steepest edge), Devex."""
+
+
 def _highs():
     """The HiGHS module and its solver class: ``highspy`` (a dependency), or the same
     bindings that scipy carries for its ``linprog`` where highspy is not installed."""
@@ -162,7 +167,8 @@ class _WarmProgram:
     85 samples). A round that holds more points than the last adds rows and columns: the
     rows and columns the programs share (named by ``row_keys`` and ``col_keys``) keep
     their status, the new rows are basic (their slacks, as a cutting-plane method
-    restarts its dual simplex) and the new columns at their lower bounds."""
+    restarts its dual simplex) and the new columns at their lower bounds. From a carried
+    basis the dual simplex prices by Devex (:data:`DEVEX`), from none by HiGHS' choice."""
 
     def __init__(self):
         self.highs = None
@@ -202,6 +208,12 @@ class _WarmProgram:
         h.passModel(lp)
         basis = self._mapped_basis(highspy, row_keys, col_keys)
         h.setOptionValue("presolve", "off" if basis is not None else "choose")
+        # from a carried-over basis, Devex pricing: the dual steepest-edge weights cost
+        # HiGHS about 2.7 x as much CPU per pivot from such a basis as from a cold start
+        # (0.25 against 0.09 ms on the rounds of planner_sweep case 60); Devex takes
+        # 1.5 x the pivots at 0.14 ms each, 17 % less CPU on those rounds
+        h.setOptionValue("simplex_dual_edge_weight_strategy",
+                         DEVEX if basis is not None else CHOOSE)
         if basis is not None:
             h.setBasis(basis)
         h.run()
@@ -209,6 +221,7 @@ class _WarmProgram:
             # a carried-over basis is a start, never a verdict: the program decides cold
             h.clearSolver()
             h.setOptionValue("presolve", "choose")
+            h.setOptionValue("simplex_dual_edge_weight_strategy", CHOOSE)
             h.run()
         if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
             self.basis = None
@@ -490,8 +503,8 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
     1 m/s than coming down, each N from the motion found a sample later). The first
     guess of the nearest points is the plan's (its parameters ``param``, shape (n,)),
     compressed in time to arrive at N; each later N starts from the last motion found,
-    compressed by a sample. The programs of one N are warm-started
-    (:class:`_WarmProgram`).
+    compressed by a sample. The programs of one N and trust region are warm-started
+    (:class:`_WarmProgram`; the narrow region's first program starts cold).
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
     Ts = machine.sample_period
@@ -536,15 +549,18 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
             # a trust region as wide as the feed goes in a sample, failing that as wide
             # as the linearisation stays within the tolerance
             found = None
-            # (the narrow region is the fallback: it starts from the wide one's basis and
-            # runs as many rounds; capped at SHORTEN_STALL, its pace test gave up on case
-            # 88 of benchmarks/planner_sweep.py, which arrived 2 samples later)
-            program = _WarmProgram()
+            # (the narrow region is the fallback: it runs as many rounds; capped at
+            # SHORTEN_STALL, its pace test gave up on case 88 of
+            # benchmarks/planner_sweep.py, which arrived 2 samples later. Its programs
+            # start cold: warm-started from the wide region's last basis, a first program
+            # that the narrow region makes infeasible took HiGHS' dual simplex 2,100
+            # pivots and 5 s of CPU through its unboundedness checks on case 71, where
+            # presolve proves it infeasible cold in 0.13 s)
             for wide in (True, False):
                 found = found or _shorten_at(curve, span, plant, zoh, N,
                                              np.maximum.accumulate(guess),
                                              limit, tolerance, tangent, feed, Ts, wide,
-                                             most_rounds, program)
+                                             most_rounds, _WarmProgram())
             if found is not None:
                 best = (N, *found, zoh)
                 known[:] = [np.concatenate([[float(LEAD)], t, [N]]),
