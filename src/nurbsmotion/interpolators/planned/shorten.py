@@ -116,11 +116,6 @@ def _fine_positions(plant: ServoPlant, zoh, u: np.ndarray):
     return w, theta, np.vstack([fine, theta[-1:]])
 
 
-CHOOSE, DEVEX = -1, 1
-"""Values of HiGHS' option ``simplex_dual_edge_weight_strategy``: its own choice (dual
-steepest edge), Devex."""
-
-
 def _highs():
     """The HiGHS module and its solver class: ``highspy`` (a dependency), or the same
     bindings that scipy carries for its ``linprog`` where highspy is not installed."""
@@ -167,8 +162,7 @@ class _WarmProgram:
     85 samples). A round that holds more points than the last adds rows and columns: the
     rows and columns the programs share (named by ``row_keys`` and ``col_keys``) keep
     their status, the new rows are basic (their slacks, as a cutting-plane method
-    restarts its dual simplex) and the new columns at their lower bounds. From a carried
-    basis the dual simplex prices by Devex (:data:`DEVEX`), from none by HiGHS' choice."""
+    restarts its dual simplex) and the new columns at their lower bounds."""
 
     def __init__(self):
         self.highs = None
@@ -208,12 +202,6 @@ class _WarmProgram:
         h.passModel(lp)
         basis = self._mapped_basis(highspy, row_keys, col_keys)
         h.setOptionValue("presolve", "off" if basis is not None else "choose")
-        # from a carried-over basis, Devex pricing: the dual steepest-edge weights cost
-        # HiGHS about 2.7 x as much CPU per pivot from such a basis as from a cold start
-        # (0.25 against 0.09 ms on the rounds of planner_sweep case 60); Devex takes
-        # 1.5 x the pivots at 0.14 ms each, 17 % less CPU on those rounds
-        h.setOptionValue("simplex_dual_edge_weight_strategy",
-                         DEVEX if basis is not None else CHOOSE)
         if basis is not None:
             h.setBasis(basis)
         h.run()
@@ -221,7 +209,6 @@ class _WarmProgram:
             # a carried-over basis is a start, never a verdict: the program decides cold
             h.clearSolver()
             h.setOptionValue("presolve", "choose")
-            h.setOptionValue("simplex_dual_edge_weight_strategy", CHOOSE)
             h.run()
         if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
             self.basis = None
