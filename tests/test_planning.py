@@ -1278,6 +1278,31 @@ def test_programs_that_grow_are_warm_started_to_scipys_optimum(seed):
         assert np.all(A_ub @ x <= b_ub + 1e-7) and np.allclose(A_eq @ x, 0.0, atol=1e-7)
 
 
+def test_the_narrow_trust_region_starts_its_programs_cold(monkeypatch):
+    """Step 6 (issue 35): an arrival sample's narrow trust region, tried where the wide one
+    finds no motion, starts from no basis: warm-started from the wide region's last one,
+    a first program the narrow region makes infeasible took HiGHS 5 s of CPU on
+    planner_sweep case 71 (0.13 s cold). Each region's rounds share one program."""
+    from nurbsmotion.interpolators.planned import shorten as step6
+    from nurbsmotion.paths.random_paths import random_path
+
+    calls = []
+    original = step6._shorten_at
+
+    def recorded(*args):
+        program = args[-1]
+        calls.append((args[4], args[11], program, program.basis is None))
+        return original(*args)
+
+    monkeypatch.setattr(step6, "_shorten_at", recorded)
+    curve = random_path("short_moves", [10, 0], n_axes=2)
+    plan_motion(curve, MACHINE, 1e6)
+    narrow = [c for c in calls if not c[1]]
+    wide = [c[2] for c in calls if c[1]]
+    assert narrow and all(cold for *_, cold in narrow)
+    assert not any(program is other for _, _, program, _ in narrow for other in wide)
+
+
 def test_a_single_count_does_not_throw_the_identification():
     """Issue 33 item 1: an encoder edge under a resting axis (the count toggling 0, 1, 0,
     ... with no drive) leaves the estimate and its covariance as they were when the

@@ -85,7 +85,7 @@ is built offline in six steps:
    start sample again only within as few rounds; where the landing could not put the
    plan at rest and it rings about the end by more than ``path_tolerance``, from the
    first of the arrival and the samples after it, up to where the ringing dies down, at
-   which one is). Each program is
+   which one is). Each program but the first of a sample's trust region is
    warm-started from the last one's basis (HiGHS' dual simplex through ``highspy``),
    where a round holds more points as well. The nearest path points of the motion found move
    by at most ``F*Ts +`` :data:`FEED_SLACK` a sample.

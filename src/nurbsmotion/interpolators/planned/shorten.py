@@ -490,8 +490,8 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
     1 m/s than coming down, each N from the motion found a sample later). The first
     guess of the nearest points is the plan's (its parameters ``param``, shape (n,)),
     compressed in time to arrive at N; each later N starts from the last motion found,
-    compressed by a sample. The programs of one N are warm-started
-    (:class:`_WarmProgram`).
+    compressed by a sample. The programs of one N and trust region are warm-started
+    (:class:`_WarmProgram`; the narrow region's first program starts cold).
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
     Ts = machine.sample_period
@@ -536,15 +536,18 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
             # a trust region as wide as the feed goes in a sample, failing that as wide
             # as the linearisation stays within the tolerance
             found = None
-            # (the narrow region is the fallback: it starts from the wide one's basis and
-            # runs as many rounds; capped at SHORTEN_STALL, its pace test gave up on case
-            # 88 of benchmarks/planner_sweep.py, which arrived 2 samples later)
-            program = _WarmProgram()
+            # (the narrow region is the fallback: it runs as many rounds; capped at
+            # SHORTEN_STALL, its pace test gave up on case 88 of
+            # benchmarks/planner_sweep.py, which arrived 2 samples later. Its programs
+            # start cold: warm-started from the wide region's last basis, a first program
+            # that the narrow region makes infeasible took HiGHS' dual simplex 2,100
+            # pivots and 5 s of CPU through its unboundedness checks on case 71, where
+            # presolve proves it infeasible cold in 0.13 s)
             for wide in (True, False):
                 found = found or _shorten_at(curve, span, plant, zoh, N,
                                              np.maximum.accumulate(guess),
                                              limit, tolerance, tangent, feed, Ts, wide,
-                                             most_rounds, program)
+                                             most_rounds, _WarmProgram())
             if found is not None:
                 best = (N, *found, zoh)
                 known[:] = [np.concatenate([[float(LEAD)], t, [N]]),
