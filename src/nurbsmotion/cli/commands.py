@@ -162,6 +162,20 @@ def _check_bound(bound: float, machine: Machine, curve, max_samples: int) -> Non
                        f"{machine.sample_period:g} s): a run", option="--max-samples")
 
 
+def _settle_window(args, curve, machine: Machine, path) -> float:
+    """``--settle-window`` [pulse] of ``run`` and ``bound``: > 0 and below the farthest
+    distance of ``path`` [pulse] from its end (one check, one message for both commands:
+    bound printed nanoseconds for a path run refused as settled from the start)."""
+    from ..metrics import check_settle_window
+
+    window = units.length_in_pulses(args.settle_window, curve, machine, "--settle-window",
+                                    bare_unit="pulse")
+    if window <= 0:
+        raise InvalidArgumentError(f"--settle-window must be > 0, got {args.settle_window!r}")
+    check_settle_window(window, path, f"--settle-window {args.settle_window}:")
+    return window
+
+
 def _cmd_bound(args) -> int:
     from ..loop import check_run_arguments, to_pulses
 
@@ -169,8 +183,10 @@ def _cmd_bound(args) -> int:
     contour = _contour(args, machine)
     curve = contour.curve
     machine.check_path(curve.n_axes)
+    path = to_pulses(curve, machine)
     if args.sampled:
-        bound = sampled_stop_bound(to_pulses(curve, machine), machine,
+        bound = sampled_stop_bound(path, machine,
+                                   settle_window=_settle_window(args, curve, machine, path),
                                    max_samples=args.max_samples)
         print(f"{bound:.6g}")
         _print_joined(contour, machine)
@@ -179,10 +195,10 @@ def _cmd_bound(args) -> int:
     feed, note = _feed_used(args, contour, cap, machine.pulses_per_unit(curve.units), "pulse/s",
                             per_shown=units.pulses_per_report_unit(curve.units, machine),
                             shown_unit=f"{units.report_unit(curve.units)}/s")
-    path = to_pulses(curve, machine)
     # What `run` refuses, `bound` refuses: the same checks, and a bound no run could
     # reach within its samples.
     check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
+    _settle_window(args, curve, machine, path)
     bound = time_optimal_bound(path, machine, feed)
     _check_bound(bound, machine, curve, args.max_samples)
     print(f"{bound:.6g}")
@@ -218,7 +234,6 @@ def _cmd_run(args) -> int:
 
 def _run(args, precompiler) -> int:
     from ..loop import check_run_arguments, run, to_pulses
-    from ..metrics import check_settle_window
     from ..report import TRACE_FILES, summary, write_json
 
     machine = load_machine(args.machine)
@@ -256,11 +271,7 @@ def _run(args, precompiler) -> int:
     path_tolerance = contour.joined.tolerance * machine.pulses_per_unit(curve.units)
     if args.path_tolerance is not None and args.interpolator == "planned":
         options["path_tolerance"] = path_tolerance
-    window = units.length_in_pulses(args.settle_window, curve, machine, "--settle-window",
-                                    bare_unit="pulse")
-    if window <= 0:
-        raise InvalidArgumentError(f"--settle-window must be > 0, got {args.settle_window!r}")
-    check_settle_window(window, path, f"--settle-window {args.settle_window}:")
+    window = _settle_window(args, curve, machine, path)
     lowest = feed if isinstance(feed, (int, float)) else feed.lowest
     if "pvt" in (args.export or ()):
         check_samples(estimate_samples(path.length, lowest, args.pvt_period),
