@@ -28,6 +28,12 @@ and the sampled bound (on the nominal plant the run settles where its plan rests
 the slowest cases with what they are. The sweep plans case 0 once, untimed, first
 (:func:`_warm_up`: numba's kernels load, or compile, in the first plan of a process).
 
+With ``PLANNER_SWEEP_BOUNDS_ONLY=1`` it computes only each case's bound columns (the
+time-optimal bound and the sampled bound, from the same seeded draw; nothing is planned or
+run) and reports per condition how many cases cannot meet the target: the column a
+change of :func:`~nurbsmotion.planning.sampled_stop_bound` alone moves, in minutes where
+the whole sweep takes hours on a shared machine.
+
 Run: PLANNER_SWEEP_CASES=1000 python benchmarks/planner_sweep.py   (default 1000 cases).
 ``PLANNER_SWEEP_LOG=FILE`` appends every case's row to FILE as it ends (one JSON object a
 line); ``PLANNER_SWEEP_REPORT=FILE`` prints the report of such a file's first
@@ -159,6 +165,38 @@ def plan_only_case(i: int) -> dict:
     return row
 
 
+def bounds_case(i: int) -> dict:
+    """Case ``i`` (as :func:`one_case` draws it): its bound and sampled bound [s] only, and
+    whether the target max(5 %, 3 ms) over the bound is reachable (as :func:`one_case`)."""
+    row, curve, m, _ = _draw(i)
+    if curve is None:
+        return row
+    try:
+        bound = time_optimal_bound(curve, m, row["feed"])
+    except NurbsmotionError as exc:
+        row["status"] = "refused"
+        row["error"] = f"{type(exc).__name__}: {exc}"
+        return row
+    row.update(bound=bound, sampled_bound=sampled_stop_bound(curve, m))
+    row["reachable"] = bool(row["sampled_bound"] - bound <= max(0.05 * bound, 3e-3))
+    return row
+
+
+def report_bounds_only(rows: list) -> None:
+    ran = [r for r in rows if r["status"] == "ran"]
+    print(f"cases {len(rows)}: bounded {len(ran)}, refused "
+          f"{sum(r['status'] == 'refused' for r in rows)}, invalid paths "
+          f"{sum(r['status'] == 'invalid path' for r in rows)}")
+    print("\n| condition | cases | unreachable (sampled bound misses it) "
+          "| sampled bound / bound median / 95 % / max |\n|---|---|---|---|")
+    for cond in CONDITIONS:
+        rs = [r for r in ran if r["condition"] == cond]
+        if rs:
+            unreachable = sum(not r["reachable"] for r in rs)
+            print(f"| {cond} | {len(rs)} | {unreachable} ({unreachable / len(rs) * 100:.1f} %) | "
+                  f"{_common.spread([r['sampled_bound'] / r['bound'] for r in rs])} |")
+
+
 def report_plan_only(rows: list) -> None:
     ran = [r for r in rows if r["status"] == "ran"]
     times = np.array([r["planning"] for r in ran])
@@ -246,6 +284,10 @@ def report(rows: list) -> None:
               f" % (the per-piece estimate); `planned` meets it in "
               f"{np.mean([r['settle_ok'] for r in estimated]) * 100:.1f} % of those, and in "
               f"{sum(r['settle_ok'] for r in nominal if not r['within_estimate'])} beyond it")
+    below = [r for r in ran if r["settle"] < r["sampled_bound"] - 1e-9]
+    print(f"\nruns settling before the sampled bound (it would not be a bound): {len(below)}"
+          + "".join(f"; case {r['case']} {r['settle']:.4g} s < {r['sampled_bound']:.4g} s"
+                    for r in below[:5]))
     worst = sorted((r for r in ran if r["condition"] == "nominal"),
                    key=lambda r: r["settle"] / r["bound"])[-5:]
     print("\nslowest nominal cases (settle / bound):",
@@ -266,26 +308,30 @@ def _warm_up() -> None:
 def main():
     n = int(os.environ.get("PLANNER_SWEEP_CASES", "1000"))
     plan_only = os.environ.get("PLANNER_SWEEP_PLAN_ONLY", "") not in ("", "0")
+    bounds_only = os.environ.get("PLANNER_SWEEP_BOUNDS_ONLY", "") not in ("", "0")
+    case, show = ((bounds_case, report_bounds_only) if bounds_only else
+                  (plan_only_case, report_plan_only) if plan_only else (one_case, report))
     if os.environ.get("PLANNER_SWEEP_REPORT"):   # the report of a PLANNER_SWEEP_LOG so far
         import json
         with open(os.environ["PLANNER_SWEEP_REPORT"]) as f:
             rows = [json.loads(line) for line in f][:n]
-        (report_plan_only if plan_only else report)(rows)
+        show(rows)
         return
-    _warm_up()
+    if not bounds_only:
+        _warm_up()
     t0 = time.perf_counter()
     rows = []
     log = os.environ.get("PLANNER_SWEEP_LOG")   # one JSON row a line, as each case ends
     first = int(os.environ.get("PLANNER_SWEEP_FIRST", "0"))   # a later part of the sweep
     for i in range(first, first + n):
-        rows.append(plan_only_case(i) if plan_only else one_case(i))
+        rows.append(case(i))
         if log:
             import json
             with open(log, "a") as f:
                 f.write(json.dumps(rows[-1], default=float) + "\n")
         if (i + 1 - first) % 50 == 0:
             print(f"  {i + 1} cases, {time.perf_counter() - t0:.0f} s", flush=True)
-    (report_plan_only if plan_only else report)(rows)
+    show(rows)
     if os.environ.get("PLANNER_SWEEP_JSON"):   # every row, for a closer look
         import json
         with open(os.environ["PLANNER_SWEEP_JSON"], "w") as f:

@@ -306,6 +306,27 @@ def test_bound_sampled_prints_the_sampled_stop_bound(capsys):
         round(got / machine.sample_period))
 
 
+def test_run_and_bound_refuse_a_path_within_the_settle_window_alike(tmp_path, capsys):
+    """Issue 37: `run` refused a 0.5 um line (within 1 pulse of its end from the start)
+    while `bound` printed 0.000125 s and `bound --sampled` 0: one check, one message."""
+    path = tmp_path / "short.json"
+    path.write_text('{"units": "mm", "degree": 1, "knots": [0, 0, 1, 1], '
+                    '"control_points": [[0, 0], [0.0005, 0]]}')
+    errors = []
+    for args in (["run", str(path), "--feed", "10mm/s", "--out", str(tmp_path / "o")],
+                 ["bound", str(path), "--feed", "10mm/s"], ["bound", str(path), "--sampled"]):
+        assert main(args) == 2
+        captured = capsys.readouterr()
+        assert captured.out == "" and captured.err.count("\n") == 1
+        errors.append(captured.err.split(": error: ", 1)[1])
+    assert errors[0] == errors[1] == errors[2]
+    assert "--settle-window 1: 1 pulse is not below the path's farthest distance from its end " \
+        "point (0.5 pulse)" in errors[0]
+    # a smaller window, given to either command, lets the same path through
+    assert main(["bound", str(path), "--sampled", "--settle-window", "0.1"]) == 0
+    assert float(capsys.readouterr().out) > 0.0
+
+
 def test_run_defaults_to_planned_and_reports_in_mm(tmp_path, capsys):
     assert main(["run", "butterfly", "--feed", "100mm/s", "--out", str(tmp_path),
                  "--no-figures"]) == 0

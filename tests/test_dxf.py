@@ -116,6 +116,32 @@ def test_not_a_dxf_and_huge_garbage_fail_fast(tmp_path):
     assert_fails_fast(load_dxf, path, r"garbage\.dxf, line 1: not a DXF file")
 
 
+@pytest.mark.parametrize("ratio", ["0.0", "1e-12"])
+def test_a_flat_ellipse_is_refused_as_ezdxf_rules(tmp_path, ratio):
+    # Issue 37: an ELLIPSE of ratio 0 is its major axis traversed there and back, not an
+    # ellipse. ezdxf will not write it (its is_valid_ratio: 1e-10 <= ratio <= 1) and its
+    # audit sets it to 1e-10, a needle whose ends `paper` saturated on; read, it is refused
+    # naming the entity, the ratio and ezdxf's limit.
+    from ezdxf.entities.ellipse import MIN_RATIO, is_valid_ratio
+
+    assert not is_valid_ratio(float(ratio))
+    doc, msp = drawing()
+    msp.add_ellipse((0, 0), major_axis=(10, 0), ratio=0.5)
+    file = tmp_path / "flat.dxf"
+    doc.saveas(file)
+    text = file.read_text()
+    at = text.index("\n 40\n", text.index("AcDbEllipse"))
+    end = text.index("\n", at + 5)
+    file.write_text(text[:at] + "\n 40\n" + ratio + text[end:])
+    with pytest.raises(PathFileError, match=rf"ELLIPSE #\w+: axis ratio {float(ratio)!r} is "
+                       rf"below the smallest valid one, {MIN_RATIO:g} \(ezdxf's check\)"):
+        load_path(file)
+    # the smallest valid ratio is read as the exact ellipse it is
+    file.write_text(text[:at] + "\n 40\n1e-10" + text[end:])
+    curve = load_path(file)
+    np.testing.assert_allclose(curve.bounding_box(), [[-10, -1e-9], [10, 1e-9]], atol=1e-12)
+
+
 def test_export_refuses_three_axes(tmp_path):
     curve = make_circle(1.0)
     from nurbsmotion import NurbsCurve

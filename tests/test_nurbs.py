@@ -13,6 +13,7 @@ import math
 import os
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -386,6 +387,32 @@ def test_end_knot_multiplicity_above_p_plus_1_is_rejected_regression():
     # point (so the setpoint would jump at the start of a move).
     with pytest.raises(InvalidCurveError, match="knot 0 has multiplicity 4"):
         NurbsCurve(2, [0, 0, 0, 0, 1, 1, 1], [[0, 0], [1, 0], [2, 1], [3, 0]])
+
+
+def test_knot_span_below_double_resolution_is_refused_naming_it(tmp_path, capsys):
+    # Regression (issue 37): a span of 1e-300 passed; its derivatives overflowed (NumPy
+    # warnings) and `bound` never finished its arc-length table. The limit is the spacing
+    # of doubles at the normalised domain's end: one just above it is accepted and its
+    # derivatives are finite.
+    points = [[0, 0], [5, 0], [5, 5], [10, 5], [10, 10]]
+    with pytest.raises(InvalidCurveError, match=r"knot span \[0, 1e-300\] \(knots 2 and 3\)"):
+        NurbsCurve(2, [0, 0, 0, 1e-300, 1e-300, 1, 1, 1], points)
+    eps = np.finfo(float).eps
+    with pytest.raises(InvalidCurveError, match="shorter than a double can resolve"):
+        NurbsCurve(2, [0, 0, 0, 0.25 * eps, 0.5, 1, 1, 1], points)
+    ok = NurbsCurve(2, [0, 0, 0, 2 * eps, 0.5, 1, 1, 1], points)
+    assert np.all(np.isfinite(ok(np.linspace(0, 1, 101), 3)))
+    # read from a file: the same refusal, one line naming the file, no warning
+    from nurbsmotion.cli import main
+
+    path = tmp_path / "tiny_span.json"
+    path.write_text('{"units": "mm", "degree": 2, "knots": [0, 0, 0, 1e-300, 1e-300, 1, 1, 1],'
+                    ' "control_points": [[0, 0], [5, 0], [5, 5], [10, 5], [10, 10]]}')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["bound", str(path), "--feed", "50mm/s"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "tiny_span.json" in err and "knot span [0, 1e-300]" in err
 
 
 @pytest.mark.parametrize("degree", [3.0, True, "3", np.float64(3.0)])

@@ -71,6 +71,14 @@ finds the roots of a degree 2p - 2 polynomial per span from its companion matrix
 a degree-62 polynomial those roots are no longer reliable in double precision, and CAD
 systems stay far below (degree 3 to 11)."""
 
+MIN_KNOT_SPAN = float(np.finfo(float).eps)
+"""Shortest nonzero knot span, as a fraction of the knot domain (2.2e-16): the spacing of
+doubles just below the normalised domain's end, so a shorter span holds no parameter there;
+and with coordinates within :data:`MAX_MAGNITUDE` and degree within :data:`MAX_DEGREE`
+it keeps the derivatives up to :data:`MAX_ORDER`, their squares and ``|C'|^3`` finite
+(a span of 1e-300 overflowed them: NumPy warnings and an arc-length table that never
+converged, issue 37). A curve with a shorter span is refused naming it."""
+
 RELATIVE_ACCURACY = 1e-9
 """Relative accuracy the geometry promises (arc length, inverse, points)."""
 
@@ -305,6 +313,14 @@ class NurbsCurve:
                 f"more than the degree {p}"
             )
 
+        span = np.diff(t) / (t[-1] - t[0])
+        tiny = (span > 0) & (span < MIN_KNOT_SPAN)
+        if np.any(tiny):
+            i = _first_bad(tiny)
+            raise InvalidCurveError(
+                f"the knot span [{t[i]:.17g}, {t[i + 1]:.17g}] (knots {i} and {i + 1}) is {span[i]:.3g} of the knot "
+                f"domain, shorter than a double can resolve ({MIN_KNOT_SPAN:.3g}): make its "
+                "knots equal (a repeated knot) or move them apart")
         domain = (float(t[0]), float(t[-1]))
         t = (t - t[0]) / (t[-1] - t[0])
         for arr in (t, P, w):

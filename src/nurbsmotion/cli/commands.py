@@ -163,6 +163,19 @@ def _check_bound(bound: float, machine: Machine, curve, max_samples: int) -> Non
                        f"{machine.sample_period:g} s): a run", option="--max-samples")
 
 
+def _settle_window(args, scale, path) -> float:
+    """``--settle-window`` [pulse] of ``run`` and ``bound``: > 0 and below the farthest
+    distance of ``path`` [pulse] from its end (one check, one message for both commands:
+    bound printed nanoseconds for a path run refused as settled from the start)."""
+    from ..metrics import check_settle_window
+
+    window = scale.length(args.settle_window, "--settle-window", bare_unit="pulse")
+    if window <= 0:
+        raise InvalidArgumentError(f"--settle-window must be > 0, got {args.settle_window!r}")
+    check_settle_window(window, path, f"--settle-window {args.settle_window}:")
+    return window
+
+
 def _cmd_bound(args) -> int:
     from ..loop import check_run_arguments
 
@@ -171,18 +184,21 @@ def _cmd_bound(args) -> int:
     curve = contour.curve
     machine.check_path(curve.n_axes)
     scale = units.Scale.of(curve, machine)
+    path = scale.path(curve)
     if args.sampled:
-        bound = sampled_stop_bound(scale.path(curve), machine, max_samples=args.max_samples)
+        bound = sampled_stop_bound(path, machine,
+                                   settle_window=_settle_window(args, scale, path),
+                                   max_samples=args.max_samples)
         print(f"{bound:.6g}")
         _print_joined(contour, machine)
         return 0
     cap = None if args.feed is None else scale.feed(args.feed)
     feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s",
                             per_shown=scale.report_factor, shown_unit=f"{scale.report_unit}/s")
-    path = scale.path(curve)
     # What `run` refuses, `bound` refuses: the same checks, and a bound no run could
     # reach within its samples.
     check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
+    _settle_window(args, scale, path)
     bound = time_optimal_bound(path, machine, feed)
     _check_bound(bound, machine, curve, args.max_samples)
     print(f"{bound:.6g}")
@@ -217,7 +233,6 @@ def _cmd_run(args) -> int:
 def _run(args, precompiler) -> int:
     from ..job import Job
     from ..loop import check_run_arguments
-    from ..metrics import check_settle_window
     from ..report import TRACE_FILES, write_json
 
     machine = load_machine(args.machine)
@@ -256,10 +271,7 @@ def _run(args, precompiler) -> int:
     path_tolerance = contour.joined.tolerance * scale.factor
     if args.path_tolerance is not None and args.interpolator == "planned":
         options["path_tolerance"] = path_tolerance
-    window = scale.length(args.settle_window, "--settle-window", bare_unit="pulse")
-    if window <= 0:
-        raise InvalidArgumentError(f"--settle-window must be > 0, got {args.settle_window!r}")
-    check_settle_window(window, path, f"--settle-window {args.settle_window}:")
+    window = _settle_window(args, scale, path)
     lowest = feed if isinstance(feed, (int, float)) else feed.lowest
     if "pvt" in (args.export or ()):
         check_samples(estimate_samples(path.length, lowest, args.pvt_period),

@@ -224,10 +224,10 @@ def _parser() -> argparse.ArgumentParser:
                    f"from the path a short move (a plan of at most {SHORT_MOVE_SAMPLES} "
                    "samples; with stops, planned from stop to stop) may go where that lets "
                    "it arrive sooner")
-    r.add_argument("--settle-window", default="1",
-                   help="the motion has settled once it stays within this distance of the "
-                   "end point: a length (1um, 0.001mm) or a number of pulses (default: 1 "
-                   "pulse)")
+    settle_window_help = ("the motion has settled once it stays within this distance of "
+                          "the end point: a length (1um, 0.001mm) or a number of pulses "
+                          "(default: 1 pulse)")
+    r.add_argument("--settle-window", default="1", help=settle_window_help)
     common(r)
     r.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     r.add_argument("--no-trace", action="store_true",
@@ -260,7 +260,9 @@ def _parser() -> argparse.ArgumentParser:
                    "within Umax [s]: whole samples between the corners where every axis "
                    "stops or starts, each stretch at least what the slowest axis needs from "
                    "rest to rest, and at least the time out to the farthest point and back "
-                   "(ignores the feed; within 1 pulse of the path and the end)")
+                   "(ignores the feed; within 1 pulse of the path, and --settle-window of the end)")
+    b.add_argument("--settle-window", default="1", help=settle_window_help + "; a path "
+                   "that stays within it of its end is refused, as run refuses it")
     b.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
                    help="refuse, as run does, a move estimated (or bounded) to take more "
                    "samples than this")

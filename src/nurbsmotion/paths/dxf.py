@@ -265,10 +265,20 @@ def _pieces(entity) -> list[NurbsCurve]:
     if kind == "ELLIPSE":
         # exact rational form: the unit-circle arc over the ellipse's parameter range,
         # mapped by the affine map (x, y) -> centre + x major + y minor
+        from ezdxf.entities.ellipse import MIN_RATIO
+
         e = entity.construction_tool()
         center, major, minor = (np.array(tuple(v), dtype=float) for v in (e.center, e.major_axis, e.minor_axis))
         t0, t1 = float(e.start_param), float(e.end_param)
-        if not all(map(math.isfinite, (t0, t1))) or np.linalg.norm(major) == 0 or e.ratio <= 0:
+        if not (abs(e.ratio) >= MIN_RATIO):
+            # ezdxf's own rule (is_valid_ratio; its audit "fixes" such a ratio to 1e-10, a
+            # needle whose two ends turn within 1e-10 of the major axis): ratio 0 is no
+            # ellipse but its major axis traversed there and back.
+            raise InvalidCurveError(
+                f"{label}: axis ratio {e.ratio!r} is below the smallest valid one, {MIN_RATIO:g} "
+                f"(ezdxf's check): a flat ellipse is its major axis {major.tolist()} traversed "
+                "there and back; draw it as LINE entities")
+        if not all(map(math.isfinite, (t0, t1))) or np.linalg.norm(major) == 0:
             raise InvalidCurveError(f"{label}: degenerate ellipse (major axis {major.tolist()}, "
                                     f"ratio {e.ratio!r})")
         if t1 <= t0:
