@@ -68,7 +68,7 @@ def loop_example(interpolator: str) -> tuple | None:
                            f(1, n, SUPPORT_DIRECTIONS), np.zeros(2, np.int64),
                            *(f(n) for _ in range(5)), 0.0, 0.0, 0, f(1, 4),
                            np.zeros(n + 1, np.int64))
-        state = PlannedState(f(1), f(1), f(1), f(12, n), f(5, n), f(n), f(n), f(n),
+        state = PlannedState(f(1), f(1), f(1), f(12, n), f(6, n), f(n), f(n), f(n),
                              f(n, SUPPORT_DIRECTIONS), f(2, n))
     else:
         return None

@@ -122,7 +122,8 @@ def reading_knowledge(machine: Machine, a, b0, c, b1) -> dict:
     """What the online step takes from the model machine's reading of the position
     (:attr:`Machine.encoder`, :attr:`Machine.measurement_noise`,
     :attr:`Machine.dac_bits`): the identification's ``dead_zone`` [pulse], 0 for an
-    exact reading and an exact drive (today's step, bit for bit).
+    exact reading and an exact drive, and the landing's ``landing_band`` [pulse], half a
+    count plus 3 sigma of the noise, 0 for an exact reading.
 
     The regression's residual (:func:`_identify`) reads positions with weights 1,
     -(1 + a), a and drives with b1, beta; a reading within q/2 of the position (q = one
@@ -139,4 +140,8 @@ def reading_knowledge(machine: Machine, a, b0, c, b1) -> dict:
     reading = (0.5 * q + 3.0 * sigma) * (1.0 + np.abs(1.0 + a) + np.abs(a))
     drive = (np.abs(b1) + np.abs(beta)) * 0.5 * lsb
     dead_zone = float(np.max(reading + drive)) if q or sigma or lsb else 0.0
-    return {"dead_zone": dead_zone}
+    # the landing's band (:func:`.step.online_step`, step 3'): how far the reading alone
+    # can put the measured position from the true one; an error within it carries no
+    # information on where the axis is, and the landing leaves it alone (no hunting on a
+    # count's edge, no integrating of the noise)
+    return {"dead_zone": dead_zone, "landing_band": 0.5 * q + 3.0 * sigma}

@@ -61,6 +61,9 @@ class PlannedPlan(NamedTuple):
     guards: np.ndarray           # (n_guards, 4) where the plant must be able to stop
     guard_offsets: np.ndarray    # (n_axes + 1,) each axis' rows of guards
     dead_zone: float = 0.0       # the identification's dead zone [pulse]
+    landing_gains: np.ndarray = np.zeros((1, 3))  # (n_axes, 3) landing_gains()
+    # the landing's band [pulse] (reading_knowledge)
+    landing_band: float = 0.0
     # the online step's tuning, each documented at the constant that is its default (data,
     # not compiled in: ``plan._replace(rate_window=32)`` needs no new compilation); the
     # support's SUPPORT_BLOCK and SUPPORT_DIRECTIONS fix array shapes and stay constants
@@ -191,7 +194,8 @@ class PlannedInterpolator(Interpolator):
             a=a, b0=b0, c=c, b1=b1, log_a=np.log(a), headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole, rest=rest, guards=guards,
-            guard_offsets=guard_offsets, **reading_knowledge(machine, a, b0, c, b1))
+            guard_offsets=guard_offsets, **reading_knowledge(machine, a, b0, c, b1),
+            landing_gains=landing_gains(a, b0, c, b1, self.tracking_pole))
         release_freed_memory()  # the plan's temporaries, before a long run's peak
 
     def nominal_duration(self) -> float:
@@ -202,12 +206,34 @@ class PlannedInterpolator(Interpolator):
         # the clock starts at plan sample 0 with the loop: the step gives sample 0's
         # setpoint too (registered below with first_sample=0)
         return PlannedState(np.zeros(1), np.ones(1), np.zeros(1), _prior_estimate(self.plan),
-                            np.zeros((5, n)), np.empty(n), np.empty(n), np.empty(n),
+                            np.zeros((6, n)), np.empty(n), np.empty(n), np.empty(n),
                             np.empty((n, SUPPORT_DIRECTIONS)), np.empty((2, n)))
 
 
 # from sample 0: the plan's first drive u[0] moves the plant (inverse.LEAD)
 stepping.register(PlannedPlan, planned_step, first_sample=0)
+
+
+def landing_gains(a, b0, c, b1, pole: float) -> np.ndarray:
+    """The landing's gains ``(k_theta, k_w, k_i)`` per axis, shape (n_axes, 3) [V/pulse,
+    V/(rad/s), V/(pulse*sample)]: the drive ``u = k_theta*e - k_w*w + k_i*sum(e)`` (e =
+    end - theta [pulse], w [rad/s]) puts all three poles of the model's ZOH plant
+    ``x[k+1] = [[a, 0], [c, 1]] x[k] + [b0, b1] u[k]`` with the integrator
+    ``z[k+1] = z[k] + e[k]`` at ``pole`` (Ackermann's formula,
+    ``K = [0, 0, 1] C^-1 (A - pole*I)^3``, C the controllability matrix). Derived from
+    the model and the user's ``tracking_pole`` only: the integral removes what a constant
+    drive the model does not know (friction, a load) leaves of the error."""
+    out = np.empty((len(a), 3))
+    for j, (aj, b0j, cj, b1j) in enumerate(zip(a, b0, c, b1)):
+        A = np.array([[aj, 0.0, 0.0], [cj, 1.0, 0.0], [0.0, -1.0, 1.0]])  # z += end - th
+        B = np.array([b0j, b1j, 0.0])
+        C = np.column_stack([B, A @ B, A @ A @ B])
+        M = A - pole * np.eye(3)
+        K = np.linalg.solve(C.T, np.array([0.0, 0.0, 1.0])) @ (M @ M @ M)
+        # u = -K x with x = (w, th - end, z): k_w = K0, k_theta = K1 (on e = -(th - end)),
+        # k_i = -K2
+        out[j] = (K[1], K[0], -K[2])
+    return out
 
 
 def _path_steps(desired: np.ndarray) -> np.ndarray:

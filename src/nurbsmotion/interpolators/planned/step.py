@@ -71,9 +71,10 @@ def online_step(plan, state, position, umax, out_setpoint):
         ``slope`` and ``offset``, shape (n_axes,), the law's affine form at this sample:
         u[k] = slope*thd[k] + offset [V/pulse, V]. In/out: ``est``, shape (12, n_axes),
         the plant's identified sampled model and its covariance (:func:`_identify`);
-        ``hist``, shape (5, n_axes), the identification's memory (:func:`_identify`; row
-        0 is the drive applied at the last sample, which the caller corrects if the law
-        produced another). Scratch: ``gains``, shape (2, n_axes), the estimated plant's
+        ``hist``, shape (6, n_axes), rows 0-4 the identification's memory
+        (:func:`_identify`; row 0 is the drive applied at the last sample, which the
+        caller corrects if the law produced another), row 5 the landing's sum of the
+        position error beyond ``landing_band`` [pulse*samples]. Scratch: ``gains``, shape (2, n_axes), the estimated plant's
         ga and gv (:func:`_gains`). Written: ``drive``, shape (n_axes,), the drive [V]
         the setpoint produces.
     position : ndarray, shape (n_axes,)
@@ -169,9 +170,26 @@ def online_step(plan, state, position, umax, out_setpoint):
         # clipped
         w_next = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi_next, j, a[j],
                                 log_a[j], b0[j])
-        uf = (w_next * rate - ae * w_ref * rate_old) / b0e
-        kpe, kde = _pole_gains(ae, b0e, ce, b1e, 0.0 if phi >= rest else 1.0 - rate_gain)
-        u = uf + kpe * e_th + kde * e_w
+        if phi >= rest:
+            # 3'. landing (docs/model.md#planned-on-a-real-machine): the plan rests on the
+            # end; a fixed law designed on the model about the end point, all three poles
+            # of the model's plant with an integrator of the position error at the
+            # tracking pole (plan.landing_gains), on the error beyond what the reading
+            # can tell from the end (plan.landing_band): no deadbeat gains on a counted or
+            # noisy position, integral action against friction and load
+            band = plan.landing_band
+            e_end = plan_position[n - 1, j] - position[j]
+            e_end -= min(max(e_end, -band), band)
+            hist[5, j] += e_end
+            # the speed through the model's plant (the one the gains are placed on; the
+            # identified one, unexcited at rest, may sit anywhere in its range)
+            w_model = a[j] * (hist[3, j] - b1[j] * hist[0, j]) / c[j] + b0[j] * hist[0, j]
+            kl = plan.landing_gains
+            u = kl[j, 0] * e_end - kl[j, 1] * w_model + kl[j, 2] * hist[5, j]
+        else:
+            uf = (w_next * rate - ae * w_ref * rate_old) / b0e
+            kpe, kde = _pole_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
+            u = uf + kpe * e_th + kde * e_w
         if abs(u) > umax:
             excess = max(excess, abs(u) / umax - 1.0)
             u = umax if u > 0 else -umax
@@ -183,9 +201,11 @@ def online_step(plan, state, position, umax, out_setpoint):
                  _guarded(guards, lo_g, hi_g, i1, 1.0))
         lo = min(_guarded(guards, lo_g, hi_g, i0, -1.0),
                  _guarded(guards, lo_g, hi_g, i1, -1.0))
+        # (not in the landing: its law is stable about the end, and the end's guard read
+        # on a count past it would brake at Umax)
         for side in (-1.0, 1.0) if w_now >= 0.0 else (1.0, -1.0):
             target = hi if side > 0.0 else lo
-            if math.isfinite(target):
+            if phi < rest and math.isfinite(target):
                 u = _short_of_stop(u, position[j], w_now, target, side, ae, b0e, ce, b1e,
                                    umax, bisections)
         hist[1, j] = hist[0, j]

@@ -1,0 +1,67 @@
+"""``planned`` on a real machine (issue 33, item 1): each effect alone on a short move, on
+the project's plant stage (verified against solve_ivp in tests/test_plant.py). The landing
+(:func:`nurbsmotion.interpolators.planned.step.online_step`, step 3') hands the drive to a
+fixed law about the end point instead of deadbeat gains on the identified plant."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from nurbsmotion.interpolators.planned.inverse import axis_zoh
+from nurbsmotion.interpolators.planned.interpolator import landing_gains
+from nurbsmotion.machine import Disturbance, die_bonder
+from nurbsmotion.nurbs import make_line
+
+LINE = ([0.0, 0.0], [2000.0, 1000.0])
+FEED = 2e5  # pulse/s
+
+
+def _run(true, model):
+    from nurbsmotion.interpolators import make_interpolator
+    from nurbsmotion.loop import simulate
+    from nurbsmotion.servo import ServoPlant
+
+    line = make_line(*LINE)
+    interp = make_interpolator("planned", line, model, FEED)
+    plant = ServoPlant(true.tau, true.Kc, true.Ke, model.max_drive, model.sample_period,
+                       np.array(LINE[0]), true.effects() if true.has_effects else None)
+    return simulate(interp, model, plant=plant, hold=0.3, settle_window=2.0)
+
+
+def test_landing_gains_place_every_pole():
+    """The landing's gains put all three closed-loop poles (plant and integrator) of the
+    model's ZOH plant at the tracking pole: checked on the closed loop's matrix."""
+    a, b0, c, b1 = axis_zoh(die_bonder())
+    k = landing_gains(a, b0, c, b1, 0.7)
+    for j in range(2):
+        # x = (w, th - end, z), z[k+1] = z[k] - (th - end); u = -k_w*w - k_th*(th-end) + k_i*z
+        A = np.array([[a[j], 0, 0], [c[j], 1, 0], [0, -1, 1]])
+        B = np.array([b0[j], b1[j], 0.0])
+        K = np.array([k[j, 1], k[j, 0], -k[j, 2]])
+        poles = np.linalg.eigvals(A - np.outer(B, K))
+        np.testing.assert_allclose(poles, 0.7, atol=1e-3)  # a triple root: eigvals ~ eps^(1/3)
+
+
+@pytest.mark.parametrize("label, model_changes, true_changes", [
+    ("counts", dict(encoder="counts"), None),
+    ("noise", dict(measurement_noise=0.3, seed=1), None),
+    ("delay", dict(delay=0.5e-3), None),
+    ("load step", {}, "load"),
+])
+def test_each_effect_settles_without_limit_cycle(label, model_changes, true_changes):
+    model = die_bonder(**model_changes)
+    true = model
+    if true_changes == "load":  # unknown to the model: 0.5 V from 0.1 s on, every axis
+        true = model.with_options(axes=tuple(
+            dataclasses.replace(ax, disturbance=(Disturbance(0.1, 0.5),))
+            for ax in model.axes))
+    tr = _run(true, model)
+    rest = tr.at_rest(window=300)
+    assert tr.metrics().settled, label
+    assert not any(rest.limit_cycle.values()), label
+    # within 2 pulses of the end at rest (the settle window), true position
+    end = np.array(LINE[1])
+    assert np.max(np.abs(tr.position[-300:] - end)) <= 2.0, label
