@@ -10,8 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from nurbsmotion.interpolators.planned.inverse import axis_zoh
-from nurbsmotion.interpolators.planned.interpolator import landing_gains
+from nurbsmotion.interpolators.planned.identify import _landing_gains
 from nurbsmotion.machine import Disturbance, die_bonder
 from nurbsmotion.nurbs import make_line
 
@@ -32,17 +31,26 @@ def _run(true, model):
 
 
 def test_landing_gains_place_every_pole():
-    """The landing's gains put all three closed-loop poles (plant and integrator) of the
-    model's ZOH plant at the tracking pole: checked on the closed loop's matrix."""
-    a, b0, c, b1 = axis_zoh(die_bonder())
-    k = landing_gains(a, b0, c, b1, 0.7)
-    for j in range(2):
-        # x = (w, th - end, z), z[k+1] = z[k] - (th - end); u = -k_w*w - k_th*(th-end) + k_i*z
-        A = np.array([[a[j], 0, 0], [c[j], 1, 0], [0, -1, 1]])
-        B = np.array([b0[j], b1[j], 0.0])
-        K = np.array([k[j, 1], k[j, 0], -k[j, 2]])
-        poles = np.linalg.eigvals(A - np.outer(B, K))
-        np.testing.assert_allclose(poles, 0.7, atol=1e-3)  # a triple root: eigvals ~ eps^(1/3)
+    """The landing's gains (closed form) put all three closed-loop poles (plant and
+    integrator) of a ZOH plant at the pole asked for: checked on the closed loop's matrix,
+    the plant discretized by scipy, for the die bonder's axes and tau, Kc x0.5 and x2."""
+    from scipy.signal import cont2discrete
+
+    m = die_bonder()
+    for tau_f, kc_f, pole in ((1, 1, 0.7), (0.5, 2, 0.7), (2, 0.5, 0.3), (1, 1, 0.0)):
+        for tau, kc, ke in zip(m.tau * tau_f, m.Kc * kc_f, m.Ke):
+            Ac = np.array([[-1 / tau, 0.0], [ke, 0.0]])
+            Bc = np.array([[kc / tau], [0.0]])
+            Ad, Bd, *_ = cont2discrete((Ac, Bc, np.eye(2), np.zeros((2, 1))),
+                                       m.sample_period)
+            a, c, b0, b1 = Ad[0, 0], Ad[1, 0], Bd[0, 0], Bd[1, 0]
+            k_th, k_w, k_i = _landing_gains(a, b0, c, b1, pole)
+            # x = (w, th - end, z), z[k+1] = z[k] - (th - end); u = -k_w*w - k_th*(th - end)
+            # + k_i*z
+            A = np.array([[a, 0, 0], [c, 1, 0], [0, -1, 1]])
+            B = np.array([b0, b1, 0.0])
+            poles = np.linalg.eigvals(A - np.outer(B, [k_w, k_th, -k_i]))
+            np.testing.assert_allclose(np.abs(poles - pole), 0, atol=1e-3)  # ~eps^(1/3)
 
 
 @pytest.mark.parametrize("label, model_changes, true_changes", [

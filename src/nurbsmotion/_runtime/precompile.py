@@ -50,7 +50,9 @@ def loop_example(interpolator: str) -> tuple | None:
     from ..interpolators.base import PathData
     from ..plant import inactive_stage, new_plant_state
     from ..interpolators.paper import PaperPlan
-    from ..interpolators.planned import SUPPORT_DIRECTIONS, PlannedPlan, PlannedState
+    from ..interpolators.planned import (LANDING_ROWS, SUPPORT_DIRECTIONS, PlannedPlan,
+                                         PlannedState)
+    from ..interpolators.planned.identify import EST_ROWS, HIST_ROWS
     from ..interpolators.taylor import StepState, TaylorPlan
 
     f, n = _zeros, 2  # n_axes: any number gives the same types
@@ -68,8 +70,8 @@ def loop_example(interpolator: str) -> tuple | None:
                            f(1, n, SUPPORT_DIRECTIONS), np.zeros(2, np.int64),
                            *(f(n) for _ in range(5)), 0.0, 0.0, 0, f(1, 4),
                            np.zeros(n + 1, np.int64))
-        state = PlannedState(f(1), f(1), f(1), f(12, n), f(6, n), f(n), f(n), f(n),
-                             f(n, SUPPORT_DIRECTIONS), f(2, n))
+        state = PlannedState(f(1), f(1), f(1), f(EST_ROWS, n), f(HIST_ROWS, n), f(n), f(n),
+                             f(n), f(n, SUPPORT_DIRECTIONS), f(2, n), f(LANDING_ROWS, n))
     else:
         return None
     law = np.zeros(n, PID_LAW)

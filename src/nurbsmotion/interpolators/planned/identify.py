@@ -1,7 +1,7 @@
 """The online step's identification of the plant (:mod:`.step`): recursive least squares of
 the exact sampled model from the measured positions and the applied drives (:func:`_identify`,
 its dead zone :func:`reading_knowledge`), and the state feedback gains that place the
-identified deviation dynamics' poles (:func:`_pole_gains`).
+identified plant's poles with an integrator (:func:`_landing_gains`).
 """
 
 from __future__ import annotations
@@ -44,69 +44,156 @@ def _estimated_plant(est, j, b0, ga):
 
 
 @njit(cache=True)
-def _pole_gains(a, b0, c, b1, pole):
-    """State-feedback gains ``(k_theta, k_w)`` that put both poles of the deviation
-    dynamics of the ZOH plant ``x[k+1] = [[a, 0], [c, 1]] x[k] + [b0, b1] u[k]`` at
-    ``pole`` (Ackermann's formula in closed form)."""
-    det = b0 * (c * b0 + (1.0 - a) * b1)
-    k_w = (b0 * c * (a + 1.0 - 2.0 * pole) - b1 * (a - pole) ** 2) / det
-    k_theta = b0 * (1.0 - pole) ** 2 / det
-    return k_theta, k_w
+def _landing_gains(a, b0, c, b1, pole):
+    """The landing's gains ``(k_theta, k_w, k_i)`` [V/pulse, V/(rad/s), V/(pulse*sample)]:
+    the drive ``u = k_theta*e - k_w*w + k_i*z`` (e = end - theta [pulse], w [rad/s],
+    ``z[k+1] = z[k] + e[k]``) puts all three poles of the ZOH plant
+    ``x[k+1] = [[a, 0], [c, 1]] x[k] + [b0, b1] u[k]`` with the integrator at ``pole``.
+    Ackermann's formula solved in closed form (the characteristic polynomial of the closed
+    loop matched to ``(z - pole)^3``); ``d = c*b0 + (1 - a)*b1`` is the plant's position
+    gain per sample of drive at steady speed, > 0 for every plant of the model's form."""
+    q = 1.0 - pole
+    d = c * b0 + (1.0 - a) * b1
+    k_i = q ** 3 / d
+    k_theta = q * q * (3.0 * d - b1 * q) / (d * d)
+    k_w = -(-a ** 3 * b1 ** 2 + 2 * a ** 2 * b0 * b1 * c + 3 * a ** 2 * b1 ** 2 * pole
+            - a * b0 ** 2 * c ** 2 - 6 * a * b0 * b1 * c * pole + 2 * a * b0 * b1 * c
+            - 3 * a * b1 ** 2 * pole ** 2 + 3 * b0 ** 2 * c ** 2 * pole
+            - 2 * b0 ** 2 * c ** 2 + 3 * b0 * b1 * c * pole ** 2 - b0 * b1 * c
+            + b1 ** 2 * pole ** 3) / (b0 * d * d)
+    return k_theta, k_w, k_i
+
+
+HIST_ROWS = 5
+"""Rows of the identification's memory per axis (:func:`_identify`)."""
+
+N_PARAMETERS = 4
+"""The identification's parameters (a, b1, beta, delta) (:func:`_identify`)."""
+
+EST_ROWS = N_PARAMETERS * (1 + N_PARAMETERS)
+"""Rows of the estimate per axis: the parameters, then their covariance row-major."""
 
 
 @njit(cache=True)
-def _identify(est, hist, j, position, a, b0, c, b1, dead_zone=0.0, gain_range=GAIN_RANGE):
+def _zoh_part(a, kc, ke_tau, kekc_ts, h):
+    """The ZOH plant over a part ``h`` of the sample (0 < h <= 1): ``(a_h, b0_h, c_h,
+    b1_h)`` with ``a_h = a**h``, ``b0_h = Kc*(1 - a_h)``, ``c_h = Ke*tau*(1 - a_h)``,
+    ``b1_h = Ke*Kc*(h*Ts - tau*(1 - a_h))``."""
+    ah = a ** h
+    return ah, kc * (1.0 - ah), ke_tau * (1.0 - ah), kekc_ts * h - ke_tau * kc * (1.0 - ah)
+
+
+@njit(cache=True)
+def _delayed_zoh(a, b0, c, b1, delay):
+    """The ZOH plant ``(a, b0, c, b1)`` (one sample Ts) with its drive arriving ``delay``
+    samples late, 0 <= delay < 1: ``x[k+1] = [[a, 0], [c, 1]] x[k] + g0 u[k] + g1 u[k-1]``
+    (u[k-1] holds for the first ``delay`` of the sample, u[k] for the rest). Returns
+    ``(g0w, g0th, g1w, g1th)``; with no delay ``(b0, b1, 0, 0)``. The plant's tau, Kc and
+    Ke follow from ``a = exp(-Ts/tau)``, ``b0 = Kc*(1 - a)``, ``c = Ke*tau*(1 - a)`` and
+    ``b1 = Ke*Kc*Ts - c*Kc`` (:func:`_zoh_part`)."""
+    if delay <= 0.0:
+        return b0, b1, 0.0, 0.0
+    kc = b0 / (1.0 - a)
+    ke_tau = c / (1.0 - a)                  # Ke*tau [pulse/(rad/s)]
+    kekc_ts = b1 + ke_tau * b0              # Ke*Kc*Ts [pulse/V]
+    a_late, b0_late, c_late, b1_late = _zoh_part(a, kc, ke_tau, kekc_ts, 1.0 - delay)
+    _, b0_held, _, b1_held = _zoh_part(a, kc, ke_tau, kekc_ts, delay)
+    # u[k-1]'s effect at the sample's end: its ZOH over the delay, then the free plant
+    return b0_late, b1_late, a_late * b0_held, c_late * b0_held + b1_held
+
+
+LAW_ROWS = 10
+"""Rows of :func:`_landing_law`'s output."""
+
+
+@njit(cache=True)
+def _landing_law(a, b0, c, b1, delay, pole, out):
+    """The landing's law on the ZOH plant ``(a, b0, c, b1)`` whose drive arrives
+    ``delay`` samples late (0 <= delay < 1, :func:`_delayed_zoh`), written to ``out``
+    (:data:`LAW_ROWS`): the plant ``a, c, g0w, g0th, g1w, g1th`` and the gains
+    ``K = (k_w, k_e, k_u, k_z)`` of ``u[k] = -K . (w[k], e[k], u[k-1], z[k])``, e = theta -
+    end [pulse], ``z[k+1] = z[k] - e[k]``. All four poles (the plant, the drive in flight
+    and the integrator) at ``pole`` (Ackermann's formula, ``K = [0, 0, 0, 1] C^-1
+    (A - pole*I)^4``, C the controllability matrix); without a delay the drive in flight
+    is no state (k_u = 0) and the other three are :func:`_landing_gains`."""
+    g0w, g0th, g1w, g1th = _delayed_zoh(a, b0, c, b1, delay)
+    out[0], out[1], out[2], out[3], out[4], out[5] = a, c, g0w, g0th, g1w, g1th
+    if delay <= 0.0:
+        k_theta, k_w, k_i = _landing_gains(a, b0, c, b1, pole)
+        out[6], out[7], out[8], out[9] = k_w, k_theta, 0.0, -k_i
+        return
+    A = np.array([[a, 0.0, g1w, 0.0], [c, 1.0, g1th, 0.0], [0.0, 0.0, 0.0, 0.0],
+                  [0.0, -1.0, 0.0, 1.0]])
+    col = np.array([g0w, g0th, 1.0, 0.0])
+    C = np.empty((4, 4))
+    for i in range(4):
+        C[:, i] = col
+        col = A @ col
+    M = A - pole * np.eye(4)
+    K = np.linalg.solve(C.T, np.array([0.0, 0.0, 0.0, 1.0])) @ (M @ M @ M @ M)
+    out[6], out[7], out[8], out[9] = K[0], K[1], K[2], K[3]
+
+
+@njit(cache=True)
+def _identify(est, hist, j, position, a, b0, c, b1, dead_zone=0.0, gain_range=GAIN_RANGE,
+              follow=0.0):
     """Update axis j's estimate of its sampled plant from the position measured now.
 
-    Every plant of the model's form (docs/model.md#servo-axis, ZOH) obeys, in measured positions
-    and applied drives only,
+    Every plant of the model's form (docs/model.md#servo-axis, ZOH) driven by the drive u
+    plus a drive d it does not know (a load; Coulomb friction while the axis moves one
+    way) obeys, in measured positions and applied drives only,
 
-        dth[k] = a*dth[k-1] + b1*u[k-1] + beta*u[k-2],   beta = c*b0 - a*b1,
+        dth[k] = a*dth[k-1] + b1*u[k-1] + beta*u[k-2] + delta,
+        beta = c*b0 - a*b1,  delta = (b1 + beta)*d,
 
-    with ``dth[k] = th[k] - th[k-1]``: an exact linear regression in (a, b1, beta) whatever
-    tau and Kc are (no speed is differenced, so the nominal plant's estimate stays on the
-    model). Recursive least squares from the model's values, with the residual of an
-    encoder read to one pulse (:func:`_position_noise`). ``est`` rows 0-2 hold
-    (a, b1, beta), rows 3-11 their covariance (row-major 3x3); ``hist`` rows u[k-1],
+    with ``dth[k] = th[k] - th[k-1]``: an exact linear regression in (a, b1, beta, delta)
+    whatever tau, Kc and a constant d are (no speed is differenced, so the nominal plant's
+    estimate stays on the model; without delta a load was read as a plant of a quarter of
+    the gain, and a law placed on that plant was unstable). A Kalman filter of these four
+    with the plant's three constant and delta a random walk (d may change: a load step,
+    friction reversing with the motion) whose variance per sample is
+    ``follow**2`` times the residual's (:func:`_position_noise`): delta is followed with
+    a gain of about ``follow`` per sample. ``est`` rows 0-3 hold (a, b1, beta, delta),
+    rows 4-19 their covariance (row-major 4x4); ``hist`` (:data:`HIST_ROWS` rows) u[k-1],
     u[k-2] [V], th[k-1] [pulse], dth[k-1] [pulse] and 1 once th[k-1] is known.
 
-    ``dead_zone`` [pulse] (:func:`identification_dead_zone`): the largest residual the
-    reading alone can make (encoder counts, noise, DAC); a residual within it carries no
-    information on the plant and leaves the estimate and its covariance as they are, and
-    a larger one updates them by its part beyond it (the dead-zone RLS of bounded noise:
-    a single count cannot throw the estimate). 0 (an exact reading): every residual.
+    ``dead_zone`` [pulse] (:func:`reading_knowledge`): the largest residual the reading
+    alone can make (encoder counts, noise, DAC); a residual within it carries no
+    information on the plant and leaves the estimate as it is, and a larger one updates
+    it by its part beyond it (the dead-zone RLS of bounded noise: a single count cannot
+    throw the estimate). 0 (an exact reading): every residual.
     Returns :func:`_gains` (within ``gain_range``)."""
+    n = N_PARAMETERS
+    noise = _position_noise(a)
+    est[n + n * (n - 1) + n - 1, j] += follow * follow * noise
     if hist[4, j] > 0.0:
         y = position - hist[2, j]
-        x0, x1, x2 = hist[3, j], hist[0, j], hist[1, j]
-        p0 = est[3, j] * x0 + est[4, j] * x1 + est[5, j] * x2
-        p1 = est[6, j] * x0 + est[7, j] * x1 + est[8, j] * x2
-        p2 = est[9, j] * x0 + est[10, j] * x1 + est[11, j] * x2
-        err = y - est[0, j] * x0 - est[1, j] * x1 - est[2, j] * x2
+        x = (hist[3, j], hist[0, j], hist[1, j], 1.0)
+        err = y
+        for r in range(n):
+            err -= est[r, j] * x[r]
+        hist[3, j] = y
+        hist[2, j] = position
         if dead_zone > 0.0:
             if abs(err) <= dead_zone:
-                hist[3, j] = y
-                hist[2, j] = position
                 return _gains(est, j, a, b0, c, b1, gain_range)
             err -= math.copysign(dead_zone, err)
-        gain = 1.0 / (_position_noise(a) + x0 * p0 + x1 * p1 + x2 * p2)
-        est[0, j] += p0 * gain * err
-        est[1, j] += p1 * gain * err
-        est[2, j] += p2 * gain * err
-        est[3, j] -= p0 * p0 * gain
-        est[4, j] -= p0 * p1 * gain
-        est[5, j] -= p0 * p2 * gain
-        est[6, j] -= p1 * p0 * gain
-        est[7, j] -= p1 * p1 * gain
-        est[8, j] -= p1 * p2 * gain
-        est[9, j] -= p2 * p0 * gain
-        est[10, j] -= p2 * p1 * gain
-        est[11, j] -= p2 * p2 * gain
-        hist[3, j] = y
+        p0 = p1 = p2 = p3 = 0.0
+        for q in range(n):
+            p0 += est[n + q, j] * x[q]
+            p1 += est[2 * n + q, j] * x[q]
+            p2 += est[3 * n + q, j] * x[q]
+            p3 += est[4 * n + q, j] * x[q]
+        p = (p0, p1, p2, p3)
+        gain = 1.0 / (noise + x[0] * p0 + x[1] * p1 + x[2] * p2 + x[3] * p3)
+        for r in range(n):
+            est[r, j] += p[r] * gain * err
+            for q in range(n):
+                est[n + n * r + q, j] -= p[r] * p[q] * gain
     else:
         hist[3, j] = 0.0   # the loop starts at rest: th[0] = th[1]
         hist[4, j] = 1.0
-    hist[2, j] = position
+        hist[2, j] = position
     return _gains(est, j, a, b0, c, b1, gain_range)
 
 

@@ -6,6 +6,7 @@ which builds both from the offline plan (:func:`.plan.plan_motion`) and register
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -19,11 +20,11 @@ from ...nurbs import NurbsCurve
 from ..base import Interpolator, positive_feed
 from .governor import RATE_BISECTIONS, RATE_WINDOW, SUPPORT_BLOCK, SUPPORT_DIRECTIONS, _support
 from .guards import _sample_extremes, _stop_guards
-from .identify import GAIN_RANGE, reading_knowledge
+from .identify import EST_ROWS, GAIN_RANGE, HIST_ROWS, N_PARAMETERS, reading_knowledge
 from .inverse import axis_zoh
 from .plan import plan_motion
 from .shorten import DEFAULT_PATH_TOLERANCE
-from .step import DRIVE_MATCH, planned_step
+from .step import DRIVE_MATCH, LANDING_ROWS, planned_step
 
 __all__ = ["PlannedInterpolator", "PlannedPlan", "PlannedState", "DEFAULT_TRACKING_POLE",
            "DEFAULT_DRIVE_HEADROOM"]
@@ -61,9 +62,10 @@ class PlannedPlan(NamedTuple):
     guards: np.ndarray           # (n_guards, 4) where the plant must be able to stop
     guard_offsets: np.ndarray    # (n_axes + 1,) each axis' rows of guards
     dead_zone: float = 0.0       # the identification's dead zone [pulse]
-    landing_gains: np.ndarray = np.zeros((1, 3))  # (n_axes, 3) landing_gains()
-    # the landing's band [pulse] (reading_knowledge)
+    # the landing's band [pulse] (reading_knowledge) and its closed loop's poles
     landing_band: float = 0.0
+    landing_pole: float = 0.0
+    delay: float = 0.0           # the model's delay [samples], < 1 (the landing's law)
     # the online step's tuning, each documented at the constant that is its default (data,
     # not compiled in: ``plan._replace(rate_window=32)`` needs no new compilation); the
     # support's SUPPORT_BLOCK and SUPPORT_DIRECTIONS fix array shapes and stay constants
@@ -89,6 +91,7 @@ class PlannedState(NamedTuple):
     drive: np.ndarray
     support: np.ndarray
     gains: np.ndarray
+    landing: np.ndarray
 
 
 class PlannedInterpolator(Interpolator):
@@ -160,6 +163,12 @@ class PlannedInterpolator(Interpolator):
         self.feed = feed
         self.machine = machine
         self.tracking_pole = float(tracking_pole)
+        if machine.delay >= machine.sample_period:
+            raise InvalidArgumentError(
+                f"planned lands on a law that models a delay of less than one sample; the "
+                f"machine's delay is {machine.delay:g} s ({machine.delay / machine.sample_period:g}"
+                f" samples of {machine.sample_period:g} s): use another interpolator or a "
+                f"shorter sample period's worth of delay")
         self.drive_headroom = float(drive_headroom)
         # The motion's speed and drive are not kept: the plan's drive_speed and
         # drive_accel hold them (u_ff = drive_speed + drive_accel), and a long move's
@@ -186,6 +195,13 @@ class PlannedInterpolator(Interpolator):
         path_step = _path_steps(p.desired)
         parameter, position, stops, n = p.parameter, p.position, p.stop_indices, p.n_samples
         del p  # its speed, drive and desired positions before the support is built
+        reading = reading_knowledge(machine, a, b0, c, b1)
+        if machine.delay > 0.0:
+            # the identification's regression (:func:`_identify`) has no delay in it: on a
+            # delayed drive it reads a plant that is none (a' of 1.75 on the die bonder at
+            # half a sample), so with a delay the online step keeps the model's plant
+            reading["dead_zone"] = math.inf
+        exact = reading["dead_zone"] == 0.0 and machine.delay == 0.0
         self.plan = PlannedPlan(
             parameter=parameter, path_step=path_step, position=position,
             drive_speed=drive_speed, drive_accel=drive_accel,
@@ -194,8 +210,12 @@ class PlannedInterpolator(Interpolator):
             a=a, b0=b0, c=c, b1=b1, log_a=np.log(a), headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole, rest=rest, guards=guards,
-            guard_offsets=guard_offsets, **reading_knowledge(machine, a, b0, c, b1),
-            landing_gains=landing_gains(a, b0, c, b1, self.tracking_pole))
+            guard_offsets=guard_offsets, **reading,
+            # deadbeat where the model's reading and drive are exact and immediate (what
+            # a plant unlike the model has left of the move closes in three samples);
+            # otherwise the landing filters the reading at the tracking pole
+            landing_pole=0.0 if exact else self.tracking_pole,
+            delay=machine.delay / machine.sample_period)
         release_freed_memory()  # the plan's temporaries, before a long run's peak
 
     def nominal_duration(self) -> float:
@@ -205,35 +225,14 @@ class PlannedInterpolator(Interpolator):
         n = self.machine.n_axes
         # the clock starts at plan sample 0 with the loop: the step gives sample 0's
         # setpoint too (registered below with first_sample=0)
-        return PlannedState(np.zeros(1), np.ones(1), np.zeros(1), _prior_estimate(self.plan),
-                            np.zeros((6, n)), np.empty(n), np.empty(n), np.empty(n),
-                            np.empty((n, SUPPORT_DIRECTIONS)), np.empty((2, n)))
+        return PlannedState(np.zeros(1), np.ones(1), np.zeros(1), _prior_estimate(self.plan, self.machine.max_drive),
+                            np.zeros((HIST_ROWS, n)), np.empty(n), np.empty(n), np.empty(n),
+                            np.empty((n, SUPPORT_DIRECTIONS)), np.empty((2, n)),
+                            np.zeros((LANDING_ROWS, n)))
 
 
 # from sample 0: the plan's first drive u[0] moves the plant (inverse.LEAD)
 stepping.register(PlannedPlan, planned_step, first_sample=0)
-
-
-def landing_gains(a, b0, c, b1, pole: float) -> np.ndarray:
-    """The landing's gains ``(k_theta, k_w, k_i)`` per axis, shape (n_axes, 3) [V/pulse,
-    V/(rad/s), V/(pulse*sample)]: the drive ``u = k_theta*e - k_w*w + k_i*sum(e)`` (e =
-    end - theta [pulse], w [rad/s]) puts all three poles of the model's ZOH plant
-    ``x[k+1] = [[a, 0], [c, 1]] x[k] + [b0, b1] u[k]`` with the integrator
-    ``z[k+1] = z[k] + e[k]`` at ``pole`` (Ackermann's formula,
-    ``K = [0, 0, 1] C^-1 (A - pole*I)^3``, C the controllability matrix). Derived from
-    the model and the user's ``tracking_pole`` only: the integral removes what a constant
-    drive the model does not know (friction, a load) leaves of the error."""
-    out = np.empty((len(a), 3))
-    for j, (aj, b0j, cj, b1j) in enumerate(zip(a, b0, c, b1)):
-        A = np.array([[aj, 0.0, 0.0], [cj, 1.0, 0.0], [0.0, -1.0, 1.0]])  # z += end - th
-        B = np.array([b0j, b1j, 0.0])
-        C = np.column_stack([B, A @ B, A @ A @ B])
-        M = A - pole * np.eye(3)
-        K = np.linalg.solve(C.T, np.array([0.0, 0.0, 1.0])) @ (M @ M @ M)
-        # u = -K x with x = (w, th - end, z): k_w = K0, k_theta = K1 (on e = -(th - end)),
-        # k_i = -K2
-        out[j] = (K[1], K[0], -K[2])
-    return out
 
 
 def _path_steps(desired: np.ndarray) -> np.ndarray:
@@ -246,16 +245,19 @@ def _path_steps(desired: np.ndarray) -> np.ndarray:
     return np.sqrt(steps, out=steps)
 
 
-def _prior_estimate(plan: PlannedPlan) -> np.ndarray:
-    """The identification's start (:func:`_identify`): the model's (a, b1, beta), shape
-    (12, n_axes) with the covariance. Prior standard deviations: 1 - a for a (a plant
-    whose tau is half or twice the model's has 1 - a about twice or half the model's),
-    and the plan's ``gain_range`` times b1 and beta (the drive's effect, proportional to Kc/tau)."""
+def _prior_estimate(plan: PlannedPlan, umax: float) -> np.ndarray:
+    """The identification's start (:func:`_identify`): the model's (a, b1, beta) and no
+    unknown drive (delta = 0), shape (EST_ROWS, n_axes) with the covariance. Prior
+    standard deviations: 1 - a for a (a plant whose tau is half or twice the model's has
+    1 - a about twice or half the model's), the plan's ``gain_range`` times b1 and beta
+    (the drive's effect, proportional to Kc/tau), and for delta an unknown drive of up to
+    ``umax`` [V] through the model's ``b1 + beta``."""
     a, b0, c, b1 = plan.a, plan.b0, plan.c, plan.b1
     beta = c * b0 - a * b1
-    est = np.zeros((12, len(a)))
+    est = np.zeros((EST_ROWS, len(a)))
     est[0], est[1], est[2] = a, b1, beta
-    est[3] = (1.0 - a) ** 2
-    est[7] = (plan.gain_range * b1) ** 2
-    est[11] = (plan.gain_range * beta) ** 2
+    n = N_PARAMETERS
+    for r, sigma in enumerate((1.0 - a, plan.gain_range * b1, plan.gain_range * beta,
+                               (b1 + beta) * umax)):
+        est[n + n * r + r] = sigma ** 2
     return est

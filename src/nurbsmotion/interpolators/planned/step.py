@@ -15,9 +15,14 @@ from ... import stepping
 from ...control import pid_affine, pid_output
 from .governor import _demand, _rate_room, _support_at, _window_rate
 from .guards import _guarded, _short_of_stop
-from .identify import _estimated_plant, _identify, _pole_gains
+from .identify import LAW_ROWS, _estimated_plant, _identify, _landing_gains, _landing_law
 
-__all__ = ["online_step", "planned_step"]
+__all__ = ["online_step", "planned_step", "LANDING_ROWS"]
+
+LANDING_ROWS = 12
+"""Rows of the landing's state per axis (:func:`online_step`, step 3'): 1 once the landing
+has begun, the law placed then on the identified plant (:func:`.identify._landing_law`,
+rows 1-10) and the integral of the error beyond the reading's band [pulse*samples]."""
 
 
 @njit(cache=True)
@@ -69,13 +74,14 @@ def online_step(plan, state, position, umax, out_setpoint):
         parts from the window's end (:data:`RATE_WINDOW` samples after the clock's) up to
         the next stop (:func:`_support_at`; zero when the window reaches the plan's end);
         ``slope`` and ``offset``, shape (n_axes,), the law's affine form at this sample:
-        u[k] = slope*thd[k] + offset [V/pulse, V]. In/out: ``est``, shape (12, n_axes),
+        u[k] = slope*thd[k] + offset [V/pulse, V]. In/out: ``est``, shape (EST_ROWS, n_axes),
         the plant's identified sampled model and its covariance (:func:`_identify`);
-        ``hist``, shape (6, n_axes), rows 0-4 the identification's memory
+        ``hist``, shape (HIST_ROWS, n_axes), the identification's memory
         (:func:`_identify`; row 0 is the drive applied at the last sample, which the
-        caller corrects if the law produced another), row 5 the landing's sum of the
-        position error beyond ``landing_band`` [pulse*samples]. Scratch: ``gains``, shape (2, n_axes), the estimated plant's
-        ga and gv (:func:`_gains`). Written: ``drive``, shape (n_axes,), the drive [V]
+        caller corrects if the law produced another); ``landing``, shape
+        (:data:`LANDING_ROWS`, n_axes), the landing's plant, gains and integral (step 3').
+        Scratch: ``gains``, shape (2, n_axes), the estimated plant's ga and gv
+        (:func:`_gains`). Written: ``drive``, shape (n_axes,), the drive [V]
         the setpoint produces.
     position : ndarray, shape (n_axes,)
         tha[k], measured [pulse].
@@ -93,6 +99,7 @@ def online_step(plan, state, position, umax, out_setpoint):
     phi, rate, excess_prev = state.phi[0], state.rate[0], state.excess[0]
     est, hist, support, gains = state.est, state.hist, state.support, state.gains
     slope, offset, out_drive = state.slope, state.offset, state.drive
+    landing = state.landing
     plan_position, plan_drive_speed = plan.position, plan.drive_speed
     plan_drive_accel = plan.drive_accel
     a, b0, c, b1, log_a = plan.a, plan.b0, plan.c, plan.b1, plan.log_a
@@ -109,7 +116,7 @@ def online_step(plan, state, position, umax, out_setpoint):
     r_tail = 1.0
     for j in range(n_axes):
         ga, gv = _identify(est, hist, j, position[j], a[j], b0[j], c[j], b1[j],
-                           dead_zone, gain_range)
+                           dead_zone, gain_range, rate_gain)
         gains[0, j] = ga
         gains[1, j] = gv
         # 2a. the largest uniform rate at which the estimated plant can follow the plan
@@ -165,31 +172,43 @@ def online_step(plan, state, position, umax, out_setpoint):
         w_ref = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi, j, a[j], log_a[j],
                                b0[j])
         e_w = w_ref * rate_old - w_now
-        # 3. drive: the estimated plant's drive from the plan's speed at the clock (at the
-        # rate it had) to its speed at the next clock (at the new rate), plus feedback;
-        # clipped
         w_next = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi_next, j, a[j],
                                 log_a[j], b0[j])
+        # 3. drive: the estimated plant's drive from the plan's speed at the clock (at the
+        # rate it had) to its speed at the next clock (at the new rate), plus feedback
+        # on the deviation and its integral, all three poles of the estimated plant and
+        # the integrator at the tracking pole (:func:`_landing_gains`): the integral
+        # removes what a constant drive the model does not know (a load, friction while
+        # the axis moves one way) leaves of the deviation. The deviation is taken beyond
+        # what the reading alone can make of it (plan.landing_band: a count's edge or the
+        # noise is neither chased nor integrated).
+        band = plan.landing_band
         if phi >= rest:
             # 3'. landing (docs/model.md#planned-on-a-real-machine): the plan rests on the
-            # end; a fixed law designed on the model about the end point, all three poles
-            # of the model's plant with an integrator of the position error at the
-            # tracking pole (plan.landing_gains), on the error beyond what the reading
-            # can tell from the end (plan.landing_band): no deadbeat gains on a counted or
-            # noisy position, integral action against friction and load
-            band = plan.landing_band
+            # end. At the hand-over the identified plant is frozen (the move excited it;
+            # at rest nothing does, and the estimate would drift on the reading) with the
+            # gains placed on it at plan.landing_pole; the integral carries over
+            if landing[0, j] == 0.0:
+                landing[0, j] = 1.0
+                _landing_law(ae, b0e, ce, b1e, plan.delay, plan.landing_pole,
+                             landing[1:LAW_ROWS + 1, j])
             e_end = plan_position[n - 1, j] - position[j]
             e_end -= min(max(e_end, -band), band)
-            hist[5, j] += e_end
-            # the speed through the model's plant (the one the gains are placed on; the
-            # identified one, unexcited at rest, may sit anywhere in its range)
-            w_model = a[j] * (hist[3, j] - b1[j] * hist[0, j]) / c[j] + b0[j] * hist[0, j]
-            kl = plan.landing_gains
-            u = kl[j, 0] * e_end - kl[j, 1] * w_model + kl[j, 2] * hist[5, j]
+            # the speed from the last position increment and the drives that made it
+            al, cl, g0w, g0th = landing[1, j], landing[2, j], landing[3, j], landing[4, j]
+            g1w, g1th = landing[5, j], landing[6, j]
+            w_last = (hist[3, j] - g0th * hist[0, j] - g1th * hist[1, j]) / cl
+            w_land = al * w_last + g0w * hist[0, j] + g1w * hist[1, j]
+            u = -(landing[7, j] * w_land - landing[8, j] * e_end + landing[9, j] * hist[0, j]
+                  + landing[10, j] * landing[11, j])
         else:
+            e_end = e_th - min(max(e_th, -band), band)
             uf = (w_next * rate - ae * w_ref * rate_old) / b0e
-            kpe, kde = _pole_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
-            u = uf + kpe * e_th + kde * e_w
+            kt, kw, ki = _landing_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
+            u = uf + kt * e_end + kw * e_w + ki * landing[11, j]
+        # the integral only while the drive is within Umax (no wind-up)
+        if abs(u) <= umax:
+            landing[11, j] += e_end
         if abs(u) > umax:
             excess = max(excess, abs(u) / umax - 1.0)
             u = umax if u > 0 else -umax
@@ -201,11 +220,13 @@ def online_step(plan, state, position, umax, out_setpoint):
                  _guarded(guards, lo_g, hi_g, i1, 1.0))
         lo = min(_guarded(guards, lo_g, hi_g, i0, -1.0),
                  _guarded(guards, lo_g, hi_g, i1, -1.0))
-        # (not in the landing: its law is stable about the end, and the end's guard read
-        # on a count past it would brake at Umax)
+        # (in the landing only on an exact reading and an immediate drive: the end's
+        # guard read on a count or noise past it would brake at Umax, and it brakes a
+        # plant with no delay)
+        guarded = phi < rest or (band == 0.0 and plan.delay == 0.0)
         for side in (-1.0, 1.0) if w_now >= 0.0 else (1.0, -1.0):
             target = hi if side > 0.0 else lo
-            if phi < rest and math.isfinite(target):
+            if guarded and math.isfinite(target):
                 u = _short_of_stop(u, position[j], w_now, target, side, ae, b0e, ce, b1e,
                                    umax, bisections)
         hist[1, j] = hist[0, j]
