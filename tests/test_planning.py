@@ -706,14 +706,16 @@ def test_a_weaker_plant_is_slowed_only_where_it_must_be(butterfly, tau_scale, kc
 def test_a_weaker_plant_lands_on_the_pi_within_its_margin(tau_scale, kc_scale):
     """Issue 10 item 4 on the Pi at 1 m/s, the plants that cannot follow the plan at full
     rate (they arrived 5-16 um short or long and crept in at the tracking pole, 1.11-1.17x
-    the bound): the deadbeat feedback once the plan rests on the end lands them within
-    1.15x the nominal bound, within 25 um of the path and never beyond Umax."""
+    the bound): the landing on the plant identified during the move lands them within
+    1.25x the nominal bound (1.17-1.22x; within 1.15x with deadbeat poles, which
+    limit-cycled or never settled with an unknown load, friction or mode:
+    benchmarks/real_planned_item1.md), within 25 um of the path and never beyond Umax."""
     it, _ = _planned_pi(1e6)
     plant = ServoPlant.of_machine(MACHINE, PI(0.0), time_constant_scale=tau_scale,
                                   electrical_gain_scale=kc_scale)
     trace = simulate(it, MACHINE, plant=plant, settle_time=0.1)
     _check_run(it, trace)
-    assert settle_time(trace) <= 1.15 * time_optimal_bound(PI, MACHINE, 1e6)
+    assert settle_time(trace) <= 1.25 * time_optimal_bound(PI, MACHINE, 1e6)
     assert np.max(contour_error(PI, trace.position)) <= 25.0
 
 
@@ -798,6 +800,23 @@ def test_the_guard_lookup_finds_every_guard_that_holds_a_sample():
                 held = [g[2] for g in rows if g[0] <= i < g[1] and g[3] == side]
                 want = (min(held) if side > 0 else max(held)) if held else side * math.inf
                 assert _guarded(guards, offsets[j], offsets[j + 1], i, side) == want
+
+
+@pytest.mark.parametrize("tau_scale, kc_scale", [(0.5, 1.0), (1.2, 0.8), (2.0, 0.5)])
+@pytest.mark.parametrize("pole", [0.7, 0.0])
+def test_feedback_gains_place_the_identified_plants_poles(tau_scale, kc_scale, pole):
+    """The online feedback's gains for a plant's ZOH coefficients (scipy's expm of the
+    continuous plant) put both eigenvalues of A - B K (numpy) at the tracking pole, and
+    at 0 once the plan rests on the end (deadbeat: (A - B K)^2 = 0)."""
+    from nurbsmotion.interpolators.planned.identify import _pole_gains
+
+    for j in range(2):
+        a, b0, c, b1 = _scipy_zoh(j, tau_scale, kc_scale)
+        k_theta, k_w = _pole_gains(a, b0, c, b1, pole)
+        closed = np.array([[a, 0.0], [c, 1.0]]) - np.outer([b0, b1], [k_w, k_theta])
+        np.testing.assert_allclose(np.linalg.eigvals(closed), [pole, pole], atol=1e-6)
+        if pole == 0.0:
+            np.testing.assert_allclose(closed @ closed, 0.0, atol=1e-9)
 
 
 def test_corner_tolerance_rounds_within_eps_and_is_faster():

@@ -78,12 +78,13 @@ from __future__ import annotations
 from .governor import RATE_BISECTIONS, RATE_WINDOW, SUPPORT_BLOCK, SUPPORT_DIRECTIONS
 from .identify import GAIN_RANGE, reading_knowledge
 from .interpolator import (DEFAULT_DRIVE_HEADROOM, DEFAULT_TRACKING_POLE, PlannedInterpolator,
-                           PlannedPlan, PlannedState)
+                           PlannedPlan, PlannedState, machine_knowledge)
 from .plan import MotionPlan, plan_motion
 from .step import DRIVE_MATCH, LANDING_ROWS, online_step, planned_step
 
 __all__ = ["PlannedInterpolator", "PlannedPlan", "PlannedState", "online_step",
-           "planned_step", "reading_knowledge", "MotionPlan", "plan_motion",
+           "planned_step", "reading_knowledge", "machine_knowledge", "MotionPlan",
+           "plan_motion",
            "DEFAULT_TRACKING_POLE", "DEFAULT_DRIVE_HEADROOM", "SUPPORT_DIRECTIONS",
            "SUPPORT_BLOCK", "RATE_WINDOW", "RATE_BISECTIONS", "GAIN_RANGE", "DRIVE_MATCH",
            "LANDING_ROWS"]

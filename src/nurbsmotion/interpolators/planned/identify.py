@@ -1,7 +1,8 @@
 """The online step's identification of the plant (:mod:`.step`): recursive least squares of
 the exact sampled model from the measured positions and the applied drives (:func:`_identify`,
 its dead zone :func:`reading_knowledge`), and the state feedback gains that place the
-identified plant's poles with an integrator (:func:`_landing_gains`).
+identified deviation dynamics' poles (:func:`_pole_gains`) and the landing's law
+(:func:`_landing_law`).
 """
 
 from __future__ import annotations
@@ -41,6 +42,17 @@ def _estimated_plant(est, j, b0, ga):
     ae, b1e = est[0, j], est[1, j]
     b0e = b0 / ga
     return ae, b0e, (est[2, j] + ae * b1e) / b0e, b1e
+
+
+@njit(cache=True)
+def _pole_gains(a, b0, c, b1, pole):
+    """State-feedback gains ``(k_theta, k_w)`` that put both poles of the deviation
+    dynamics of the ZOH plant ``x[k+1] = [[a, 0], [c, 1]] x[k] + [b0, b1] u[k]`` at
+    ``pole`` (Ackermann's formula in closed form)."""
+    det = b0 * (c * b0 + (1.0 - a) * b1)
+    k_w = (b0 * c * (a + 1.0 - 2.0 * pole) - b1 * (a - pole) ** 2) / det
+    k_theta = b0 * (1.0 - pole) ** 2 / det
+    return k_theta, k_w
 
 
 @njit(cache=True)

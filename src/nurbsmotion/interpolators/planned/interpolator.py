@@ -27,7 +27,7 @@ from .shorten import DEFAULT_PATH_TOLERANCE
 from .step import DRIVE_MATCH, LANDING_ROWS, planned_step
 
 __all__ = ["PlannedInterpolator", "PlannedPlan", "PlannedState", "DEFAULT_TRACKING_POLE",
-           "DEFAULT_DRIVE_HEADROOM"]
+           "DEFAULT_DRIVE_HEADROOM", "machine_knowledge"]
 
 
 DEFAULT_TRACKING_POLE = 0.7
@@ -195,13 +195,6 @@ class PlannedInterpolator(Interpolator):
         path_step = _path_steps(p.desired)
         parameter, position, stops, n = p.parameter, p.position, p.stop_indices, p.n_samples
         del p  # its speed, drive and desired positions before the support is built
-        reading = reading_knowledge(machine, a, b0, c, b1)
-        if machine.delay > 0.0:
-            # the identification's regression (:func:`_identify`) has no delay in it: on a
-            # delayed drive it reads a plant that is none (a' of 1.75 on the die bonder at
-            # half a sample), so with a delay the online step keeps the model's plant
-            reading["dead_zone"] = math.inf
-        exact = reading["dead_zone"] == 0.0 and machine.delay == 0.0
         self.plan = PlannedPlan(
             parameter=parameter, path_step=path_step, position=position,
             drive_speed=drive_speed, drive_accel=drive_accel,
@@ -210,12 +203,8 @@ class PlannedInterpolator(Interpolator):
             a=a, b0=b0, c=c, b1=b1, log_a=np.log(a), headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole, rest=rest, guards=guards,
-            guard_offsets=guard_offsets, **reading,
-            # deadbeat where the model's reading and drive are exact and immediate (what
-            # a plant unlike the model has left of the move closes in three samples);
-            # otherwise the landing filters the reading at the tracking pole
-            landing_pole=0.0 if exact else self.tracking_pole,
-            delay=machine.delay / machine.sample_period)
+            guard_offsets=guard_offsets,
+            **machine_knowledge(machine, a, b0, c, b1, self.tracking_pole))
         release_freed_memory()  # the plan's temporaries, before a long run's peak
 
     def nominal_duration(self) -> float:
@@ -233,6 +222,28 @@ class PlannedInterpolator(Interpolator):
 
 # from sample 0: the plan's first drive u[0] moves the plant (inverse.LEAD)
 stepping.register(PlannedPlan, planned_step, first_sample=0)
+
+
+def machine_knowledge(machine: Machine, a, b0, c, b1, tracking_pole: float) -> dict:
+    """What the online step takes from the model machine beyond its rigid plant
+    (:class:`PlannedPlan`'s fields): :func:`reading_knowledge` (the identification's
+    dead zone and the landing's band), the model's ``delay`` [samples] and the landing's
+    poles ``landing_pole``.
+
+    - With a delay the identification is off (``dead_zone`` infinite): its regression
+      (:func:`.identify._identify`) has no delay in it, and on a delayed drive it reads a
+      plant that is none (a' of 1.75 on the die bonder at half a sample); the online step
+      keeps the model's plant, and the landing's law holds the delay
+      (:func:`.identify._landing_law`).
+    - The landing's poles are at ``tracking_pole``: deadbeat (poles at 0), as it was,
+      closes what a plant unlike the model has left of the move in three samples, but
+      on the same plant with a load, friction or a mode the model does not know it
+      limit-cycled or never settled (benchmarks/real_planned_item1.md)."""
+    known = reading_knowledge(machine, a, b0, c, b1)
+    if machine.delay > 0.0:
+        known["dead_zone"] = math.inf
+    return dict(known, delay=machine.delay / machine.sample_period,
+                landing_pole=float(tracking_pole))
 
 
 def _path_steps(desired: np.ndarray) -> np.ndarray:

@@ -15,7 +15,7 @@ from ... import stepping
 from ...control import pid_affine, pid_output
 from .governor import _demand, _rate_room, _support_at, _window_rate
 from .guards import _guarded, _short_of_stop
-from .identify import LAW_ROWS, _estimated_plant, _identify, _landing_gains, _landing_law
+from .identify import LAW_ROWS, _estimated_plant, _identify, _landing_law, _pole_gains
 
 __all__ = ["online_step", "planned_step", "LANDING_ROWS"]
 
@@ -175,19 +175,16 @@ def online_step(plan, state, position, umax, out_setpoint):
         w_next = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi_next, j, a[j],
                                 log_a[j], b0[j])
         # 3. drive: the estimated plant's drive from the plan's speed at the clock (at the
-        # rate it had) to its speed at the next clock (at the new rate), plus feedback
-        # on the deviation and its integral, all three poles of the estimated plant and
-        # the integrator at the tracking pole (:func:`_landing_gains`): the integral
-        # removes what a constant drive the model does not know (a load, friction while
-        # the axis moves one way) leaves of the deviation. The deviation is taken beyond
-        # what the reading alone can make of it (plan.landing_band: a count's edge or the
-        # noise is neither chased nor integrated).
+        # rate it had) to its speed at the next clock (at the new rate), plus feedback;
+        # clipped
         band = plan.landing_band
         if phi >= rest:
             # 3'. landing (docs/model.md#planned-on-a-real-machine): the plan rests on the
             # end. At the hand-over the identified plant is frozen (the move excited it;
-            # at rest nothing does, and the estimate would drift on the reading) with the
-            # gains placed on it at plan.landing_pole; the integral carries over
+            # at rest nothing does, and the estimate would drift on the reading) and the
+            # law placed on it with the model's delay, the plant and an integral of the
+            # error beyond what the reading can tell (plan.landing_band: a count's edge or
+            # the noise is neither chased nor integrated), poles at plan.landing_pole
             if landing[0, j] == 0.0:
                 landing[0, j] = 1.0
                 _landing_law(ae, b0e, ce, b1e, plan.delay, plan.landing_pole,
@@ -202,13 +199,9 @@ def online_step(plan, state, position, umax, out_setpoint):
             u = -(landing[7, j] * w_land - landing[8, j] * e_end + landing[9, j] * hist[0, j]
                   + landing[10, j] * landing[11, j])
         else:
-            e_end = e_th - min(max(e_th, -band), band)
             uf = (w_next * rate - ae * w_ref * rate_old) / b0e
-            kt, kw, ki = _landing_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
-            u = uf + kt * e_end + kw * e_w + ki * landing[11, j]
-        # the integral only while the drive is within Umax (no wind-up)
-        if abs(u) <= umax:
-            landing[11, j] += e_end
+            kpe, kde = _pole_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
+            u = uf + kpe * e_th + kde * e_w
         if abs(u) > umax:
             excess = max(excess, abs(u) / umax - 1.0)
             u = umax if u > 0 else -umax
