@@ -24,7 +24,8 @@ piece) no sampled motion comes near it (``nurbsmotion bound --sampled``).
 
 Run: python benchmarks/file_sweep.py (``FILE_SWEEP_DRAWS=n``: each contour on n machines,
 the first one always the same; ``FILE_SWEEP_FILES=corpus|linuxcnc_tp|all``: which files,
-LinuxCNC's trajectory-planner test programs being ``corpus/linuxcnc_tp``)
+LinuxCNC's trajectory-planner test programs being ``corpus/linuxcnc_tp``; ``all`` also
+takes ``corpus/linuxcnc_ccomp``, LinuxCNC's cutter compensation tests)
 
 The commands as a user types them (``FILE_SWEEP_MODE=commands``, issue 36): every file
 through ``nurbsmotion contours FILE`` with no flag, then ``bound FILE#1`` (and, with
@@ -86,14 +87,15 @@ flag (as ``nurbsmotion contours FILE`` lists it), on a machine with that many ax
 
 FILES = os.environ.get("FILE_SWEEP_FILES", "all")
 """Which files: ``corpus`` (the corpus' own folder), ``linuxcnc_tp`` (LinuxCNC's
-trajectory-planner test programs, ``corpus/linuxcnc_tp``) or ``all``."""
+trajectory-planner test programs, ``corpus/linuxcnc_tp``) or ``all`` (those and
+``corpus/linuxcnc_ccomp``, LinuxCNC's cutter compensation tests)."""
 
 
 def cases() -> list[tuple]:
     folders = {"corpus": [CORPUS], "linuxcnc_tp": [CORPUS / "linuxcnc_tp"],
-               "all": [CORPUS, CORPUS / "linuxcnc_tp"]}[FILES]
+               "all": [CORPUS, CORPUS / "linuxcnc_tp", CORPUS / "linuxcnc_ccomp"]}[FILES]
     files = sorted(f for folder in folders for f in folder.iterdir()
-                   if f.is_file() and f.suffix.lower() != ".md")
+                   if f.is_file() and f.suffix.lower() not in (".md", ".tbl"))
     return [(i, f, axes) for i, f in enumerate(files) for axes in AXES]
 
 
@@ -294,9 +296,9 @@ def commands_main() -> None:
     from multiprocessing import Pool
 
     folders = {"corpus": [CORPUS], "linuxcnc_tp": [CORPUS / "linuxcnc_tp"],
-               "all": [CORPUS, CORPUS / "linuxcnc_tp"]}[FILES]
+               "all": [CORPUS, CORPUS / "linuxcnc_tp", CORPUS / "linuxcnc_ccomp"]}[FILES]
     files = sorted(f for folder in folders for f in folder.iterdir()
-                   if f.is_file() and f.suffix.lower() != ".md")
+                   if f.is_file() and f.suffix.lower() not in (".md", ".tbl"))
     t0 = time.perf_counter()
     with Pool(int(os.environ.get("FILE_SWEEP_PROCESSES", "2"))) as pool:
         rows = pool.map(one_file_commands, files, chunksize=1)
@@ -308,7 +310,8 @@ def commands_main() -> None:
         "# The file sweep as a user types the commands (benchmarks/file_sweep.py, "
         "FILE_SWEEP_MODE=commands)", "",
         f"Files: {len(rows)} (`tests/data/corpus`, its `linuxcnc_tp` folder: LinuxCNC's "
-        f"trajectory-planner test programs); listed by `contours` with no flag: {listed}; "
+        f"trajectory-planner test programs, and `linuxcnc_ccomp`: its cutter compensation tests); "
+        f"listed by `contours` with no flag: {listed}; "
         f"`bound` of contour 1 on a machine with the file's axes: {bound}"
         + (f"; `run` of contour 1: {ran}" if RUN else " (`run` not asked: FILE_SWEEP_RUN=1)")
         + f"; stopped at the sweep's {CASE_SECONDS} s limit: {timed_out}"

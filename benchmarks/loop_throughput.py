@@ -120,6 +120,66 @@ def real_throughput(repeats: int) -> str:
         "settle go on to the 10 s settle limit).")
 
 
+EFFECTS = [  # (label, machine-level keys, axis-level keys), each alone on die-bonder
+    ("none (the ideal plant)", {}, {}),
+    ("encoder counts", {"encoder": "counts"}, {}),
+    ("0.5 pulse of noise", {"measurement_noise": 0.5, "seed": 1}, {}),
+    ("0.5 ms delay", {"delay": 0.5e-3}, {}),
+    ("16-bit DAC", {"dac_bits": 16}, {}),
+    ("0.3 V Coulomb, 0.4 V stiction", {}, {"coulomb_friction": 0.3, "stiction": 0.4}),
+    ("0.5 V load step at 50 ms", {}, "step"),
+    ("100 Hz mode, damping 0.02", {}, {"resonance_frequency": 100.0,
+                                       "resonance_damping": 0.02}),
+]
+
+
+def effect_cost(repeats: int) -> str:
+    """The loop's time per sample with one effect of the machine as it is on at a time
+    (the profile behind the table above): ``paper`` on the Pi at 1 m/s, the ideal
+    die-bonder's controller, the die-bonder with that one effect as the true plant, and
+    the whole of the previous table's plant."""
+    import dataclasses
+
+    import nurbsmotion as nm
+    from nurbsmotion.interpolators import make_interpolator
+    from nurbsmotion.loop import simulate, to_pulses
+    from nurbsmotion.machine import Disturbance, die_bonder, die_bonder_real
+    from nurbsmotion.servo import ServoPlant
+
+    m = die_bonder()
+    path = to_pulses(nm.builtin_path("die-bonder-pi"), m)
+    interp = make_interpolator("paper", path, m, 1e6)
+    start = path.end_points[0]
+    step = (Disturbance(0.05, 0.5),)
+    full = die_bonder_real(measurement_noise=0.5, seed=1)
+    full = full.with_options(axes=tuple(dataclasses.replace(a, disturbance=step)
+                                        for a in full.axes))
+    cases = []
+    for label, machine_keys, axis_keys in EFFECTS:
+        if axis_keys == "step":
+            axis_keys = {"disturbance": step}
+        axes = tuple(dataclasses.replace(a, **axis_keys) for a in m.axes)
+        ideal = not (machine_keys or axis_keys)
+        cases.append((label, m.with_options(axes=axes, **machine_keys), ideal))
+    cases.append(("every effect (the table above)", full, False))
+    rows = []
+    for label, true, ideal in cases:
+        plant = ServoPlant(true.tau, true.Kc, true.Ke, m.max_drive, m.sample_period, start,
+                           None if ideal else true.effects())
+        tr = simulate(interp, m, plant=plant)
+        n = len(tr.t)
+        fast = best_cpu_time(lambda: simulate(interp, m, plant=plant), repeats)
+        rows.append([label, n, f"{n / fast:,.0f}", f"{fast / n * 1e9:,.0f}"])
+    return section(
+        "Cost of each effect, one at a time",
+        ["effect on the true plant", "samples", "samples/s", "ns per sample"], rows,
+        f"`paper` on the die-bonder-pi at 1 m/s with the ideal die-bonder's controller; "
+        f"least process CPU time of {repeats} runs of `simulate()` after one warm-up run, "
+        "set-up and trace included (a run that ends within a few hundred samples is "
+        "mostly set-up; one that hunts or limit-cycles goes on to the 10 s settle "
+        "limit).")
+
+
 def planning_time(repeats: int) -> str:
     import nurbsmotion as nm
     from nurbsmotion.interpolators import PlannedInterpolator
@@ -143,7 +203,7 @@ def planning_time(repeats: int) -> str:
 
 def main(repeats: int = 15) -> str:
     return (throughput(repeats) + "\n" + real_throughput(max(3, repeats // 3)) + "\n"
-            + planning_time(max(1, repeats // 5)))
+            + effect_cost(max(3, repeats // 3)) + "\n" + planning_time(max(1, repeats // 5)))
 
 
 if __name__ == "__main__":

@@ -28,7 +28,12 @@ and the sampled bound (on the nominal plant the run settles where its plan rests
 the slowest cases with what they are. The sweep plans case 0 once, untimed, first
 (:func:`_warm_up`: numba's kernels load, or compile, in the first plan of a process).
 
-Run: PLANNER_SWEEP_CASES=1000 python benchmarks/planner_sweep.py   (default 1000 cases)
+Run: PLANNER_SWEEP_CASES=1000 python benchmarks/planner_sweep.py   (default 1000 cases).
+``PLANNER_SWEEP_LOG=FILE`` appends every case's row to FILE as it ends (one JSON object a
+line); ``PLANNER_SWEEP_REPORT=FILE`` prints the report of such a file's first
+``PLANNER_SWEEP_CASES`` rows instead of running (a sweep stopped part-way);
+``PLANNER_SWEEP_FIRST=k`` runs cases k, k + 1, ... (a part of the sweep in a second
+process).
 """
 
 from __future__ import annotations
@@ -98,9 +103,10 @@ def one_case(i: int) -> dict:
                                       time_constant_scale=rng.uniform(0.8, 1.2, n_axes),
                                       electrical_gain_scale=rng.uniform(0.8, 1.2, n_axes))
     try:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         interp = PlannedInterpolator(curve, m, feed)
         planning = time.perf_counter() - t0
+        planning_cpu = time.process_time() - c0
         bound = time_optimal_bound(curve, m, feed)
     except NurbsmotionError as exc:
         row["status"] = "refused"
@@ -110,7 +116,7 @@ def one_case(i: int) -> dict:
     st = settle_time(tr, curve(1.0))
     metrics = tr.metrics()
     row.update(
-        bound=bound, settle=st, planning=planning,
+        bound=bound, settle=st, planning=planning, planning_cpu=planning_cpu,
         end_overshoot=metrics.end_overshoot, corner_overshoot=metrics.corner_overshoot,
         saturated=int(np.count_nonzero(np.abs(tr.drive) > m.max_drive * (1 + 1e-9))),
         nan=not (np.all(np.isfinite(tr.position_command)) and np.all(np.isfinite(tr.drive))),
@@ -209,7 +215,7 @@ def report(rows: list) -> None:
           "| beyond the per-piece estimate "
           "| settle / bound median / 95 % / max "
           "| max contour [um] median / 95 % / max | passes the end / a stop corner by > 1 um "
-          "| planning [s] median / 95 % / max |"
+          "| planning CPU [s] median / 95 % / max |"
           "\n|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for cond in CONDITIONS:
         rs = [r for r in ran if r["condition"] == cond]
@@ -228,7 +234,7 @@ def report(rows: list) -> None:
               f"{_common.spread(ratio)} | {_common.spread(ce)} | "
               f"{sum(r['end_overshoot'] > 1 for r in rs)} / "
               f"{sum(r['corner_overshoot'] > 1 for r in rs)} | "
-              f"{_common.spread([r['planning'] for r in rs])} |")
+              f"{_common.spread([r['planning_cpu'] for r in rs])} |")
     nominal = [r for r in ran if r["condition"] == "nominal"]
     if nominal:
         reachable = [r for r in nominal if r["reachable"]]
@@ -260,17 +266,24 @@ def _warm_up() -> None:
 def main():
     n = int(os.environ.get("PLANNER_SWEEP_CASES", "1000"))
     plan_only = os.environ.get("PLANNER_SWEEP_PLAN_ONLY", "") not in ("", "0")
+    if os.environ.get("PLANNER_SWEEP_REPORT"):   # the report of a PLANNER_SWEEP_LOG so far
+        import json
+        with open(os.environ["PLANNER_SWEEP_REPORT"]) as f:
+            rows = [json.loads(line) for line in f][:n]
+        (report_plan_only if plan_only else report)(rows)
+        return
     _warm_up()
     t0 = time.perf_counter()
     rows = []
     log = os.environ.get("PLANNER_SWEEP_LOG")   # one JSON row a line, as each case ends
-    for i in range(n):
+    first = int(os.environ.get("PLANNER_SWEEP_FIRST", "0"))   # a later part of the sweep
+    for i in range(first, first + n):
         rows.append(plan_only_case(i) if plan_only else one_case(i))
         if log:
             import json
             with open(log, "a") as f:
                 f.write(json.dumps(rows[-1], default=float) + "\n")
-        if (i + 1) % 50 == 0:
+        if (i + 1 - first) % 50 == 0:
             print(f"  {i + 1} cases, {time.perf_counter() - t0:.0f} s", flush=True)
     (report_plan_only if plan_only else report)(rows)
     if os.environ.get("PLANNER_SWEEP_JSON"):   # every row, for a closer look

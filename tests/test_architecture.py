@@ -34,10 +34,13 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "geometry": (("nurbs", "geometry", "joining", "feed", "chords"), ("base",)),
     "paths": (("paths", "paths.files", "paths.dxf", "paths.gcode", "paths.gcode.ngc", "paths.gcode.program",
                "paths.gcode.codes", "paths.gcode.reader", "paths.gcode.frames", "paths.gcode.curves",
-               "paths.gcode.cycles", "paths.gcode.bulk", "paths.gcode.writer", "paths.ngc",
+               "paths.gcode.cycles", "paths.gcode.bulk", "paths.gcode.writer", "paths.gcode.compensation",
+               "paths.ngc",
                "paths.pieces", "paths.random_paths"), ("base", "geometry")),
     # The servo side knows nothing of curves: machine does not import geometry.
-    "machine": (("control", "servo", "plant", "machine", "random_machines"), ("base",)),
+    "machine": (("control", "servo", "plant", "plant.two_mass", "plant.friction", "plant.stage",
+                 "plant.step", "plant.measure", "plant.linear", "machine", "random_machines"),
+                ("base",)),
     # A machine from its own log (the fit's model is the plant of section 11, written for
     # the fit): it knows machines, nothing of paths.
     "identification": (("identify", "identify.log", "identify.identification",

@@ -254,6 +254,24 @@ def _path_file(tmp_path: Path, **change) -> str:
     (["run", "die-bonder-pi", "--feed", "1m/s", "--export", "pvt", "--pvt-period",
       "1e-12", "--out", "{out}"], "--pvt-period"),
     (["interpolate", "butterfly", "--feed", "1e-3", "--out", "{out}"], "--max-samples"),
+    # issue 37's fuzz: each ran with exit 0 and a wrong answer
+    (["run", "die-bonder-pi", "--feed", "1m/s", "--settle-window", "1e300", "--out",
+      "{out}"], "--settle-window 1e300"),                 # "settled at 0 s"
+    (["run", "die-bonder-pi", "--feed", "1m/s", "--corner-tolerance", "1e300", "--out",
+      "{out}"], "--corner-tolerance 1e300"),              # 0.614 x the bound, 9 mm off
+    (["run", "die-bonder-pi", "--feed", "1m/s", "--path-tolerance", "1e300", "--out",
+      "{out}"], "--path-tolerance 1e300"),                # an overflow warning
+    (["bound", "die-bonder-pi", "--path-tolerance", "1e300", "--sampled"],
+     "--path-tolerance 1e300"),
+    (["run", "die-bonder-pi", "--feed", "1m/s", "--export", "pvt", "--pvt-period",
+      "1e300", "--out", "{out}"], "--pvt-period 1e+300"),  # a table of one row
+    (["interpolate", "butterfly", "--feed", "1e300", "--out", "{out}"], "1e+300 mm/s"),
+    (["interpolate", "butterfly", "--feed", "1", "--sample-period", "1e300", "--out",
+      "{out}"], "--sample-period"),                       # "cannot advance from u = 0"
+    (["run", "die-bonder-pi", "--machine", "{ideal}", "--feed", "1m/s", "--out", "{out}"],
+     "'max_drive' must be a finite number"),              # planned diverged
+    (["excite", "--out", "{out}/e.csv", "--travel", "1e-300"],
+     "travel 1e-300 pulse is too short"),                 # went 1497 pulse anyway
     (["interpolate", "butterfly", "--feed", "1e-2", "--sample-period", "1e-5", "--out",
       "{out}"], "samples"),
     (["run", "die-bonder-pi", "--feed", "1m/s", "--out", "{file}"], "is a file"),
@@ -270,8 +288,8 @@ def test_command_line_cases_give_one_line_and_exit_2(tmp_path, capsys, argv, mes
     m = die_bonder().to_dict()
     fmt = dict(out=tmp_path / "out", file=tmp_path / "file.txt")
     (tmp_path / "file.txt").write_text("x")
-    for key, change in (("unstable", dict(max_drive=math.inf)),
-                        ("slow", dict(sample_period=1e6))):
+    for key, change in (("unstable", dict()),
+                        ("slow", dict(sample_period=1e6)), ("ideal", dict(max_drive=math.inf))):
         data = {**m, **change}
         if key == "unstable":
             data["axes"] = [{**a, "position_gain": 50.0} for a in m["axes"]]
@@ -300,6 +318,7 @@ def test_command_line_cases_give_one_line_and_exit_2(tmp_path, capsys, argv, mes
     ["run", "die-bonder-pi", "--feed", "1m/s", "--max-samples", "0", "--out", "x"],
     ["interpolate", "butterfly", "--feed", "1", "--sample-period", "-1", "--out", "x"],
     ["interpolate", "butterfly", "--feed", "1", "--sample-period", "0", "--out", "x"],
+    ["excite", "--out", "x.csv", "--seed", "-1"],  # NumPy's "expected non-negative integer"
 ])
 def test_bad_arguments_are_one_line(capsys, argv):
     with pytest.raises(SystemExit) as exc:
@@ -757,3 +776,40 @@ def _machine_from(data):
         file = Path(tmp) / "m.json"
         file.write_text(json.dumps(data))
         return load_machine(file)
+
+
+# ------------------------------------------------ degenerate pieces (issue 37, item 6)
+def test_a_piece_of_zero_length_is_refused_when_the_path_is_read(tmp_path, capsys):
+    """Regression: a degree-1 path whose first span is one point (a repeated control
+    point) gave `bound` a number with a NumPy 'invalid value encountered in divide'
+    warning (its tangent there is 0/0), while `run` refused it late. It is refused when
+    read, naming the span and the point."""
+    f = tmp_path / "zero.json"
+    f.write_text(json.dumps({"units": "mm", "degree": 1, "knots": [0, 0, 0.5, 1, 1],
+                             "control_points": [[0, 0], [0, 0], [5, 0]]}))
+    for argv in (["bound", str(f), "--feed", "10mm/s"], ["bound", str(f), "--sampled"]):
+        assert main(argv) == 2
+        line = _one_error_line(capsys)
+        assert "knot span [0, 0.5] is a piece of zero length" in line and "[0.0, 0.0]" in line
+    with pytest.raises(InvalidCurveError, match=r"control points 1\.\.2 coincide"):
+        nm.NurbsCurve(1, [0, 0, 0.3, 0.6, 1, 1], [[0, 0], [5, 0], [5, 0], [5, 5]])
+    # a repeated control point inside a cubic span is no zero-length piece: still read
+    nm.NurbsCurve(3, [0, 0, 0, 0, 1, 1, 1, 1], [[0, 0], [4, 0], [4, 0], [9, 6]])
+
+
+@pytest.mark.parametrize("bad, message", [
+    (float("nan"), "a point [1.0, nan, 0.0] is not finite"),   # was "Singular matrix"
+    (float("inf"), "a point [1.0, inf, 0.0] is not finite"),
+    (None, "no path entity"),                                   # was "list index out of range"
+])
+def test_a_dxf_spline_through_bad_fit_points_names_the_point(tmp_path, capsys, bad, message):
+    import ezdxf
+
+    doc = ezdxf.new()
+    fit = [(1, 1)] * 4 if bad is None else [(0, 0), (1, bad), (2, 0), (3, 1)]
+    doc.modelspace().add_spline(fit)
+    f = tmp_path / "spline.dxf"
+    doc.saveas(f)
+    assert main(["bound", str(f), "--feed", "10mm/s"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()  # with a "skipped" warning before
+    assert message in err[-1] and not any("Traceback" in e for e in err)

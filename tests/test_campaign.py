@@ -619,7 +619,8 @@ def test_a_study_runs_every_path_as_run_does(tmp_path, feed, unit, cli_feed):
         # Independently of `run`: the motion takes at least the path's length at the
         # feed (the lower of the study's and the program's where the file has F words).
         machine = die_bonder()
-        contour = study_case._contour(row["path"], None, None, 0, 0.0, str(tmp_path), "xy")
+        contour = study_case._contour(row["path"], None, None, 0, 0.0, str(tmp_path),
+                                      "die-bonder")
         per_unit = machine.pulses_per_unit(contour.curve.units)
         speed = feed * {"mm/s": 1.0, "m/s": 1e3, "mm/min": 1 / 60}[unit] \
             * machine.pulses_per_unit("mm")
@@ -630,6 +631,50 @@ def test_a_study_runs_every_path_as_run_does(tmp_path, feed, unit, cli_feed):
         least = contour.curve.length * per_unit / fastest
         assert row["time_optimal_bound_s"] >= least * (1 - 1e-9)
         assert row["cycle_time_s"] >= least - 2 * machine.sample_period
+
+
+CHORD_STUDY = """
+name = "cam chords"
+paths = ["cam.ngc"]
+feeds = [100]
+feed_unit = "mm/s"
+interpolators = ["paper", "planned"]
+"""
+
+
+def test_a_study_joins_cam_chords_as_run_does(tmp_path, capsys):
+    """Regression (issue 37): a study read a CAM program's 300 chords as 300 corners
+    while ``run`` joins them within the path tolerance, so the same case gave another
+    path and another time. Every row equals ``run`` of its case, and the motion is the
+    joined one: near the length at the feed, which stopping at 300 corners is far from
+    (``bound --path-tolerance 0``)."""
+    import json
+
+    from test_chords import wave
+
+    V = wave(300)
+    (tmp_path / "cam.ngc").write_text(
+        "G21 G90 G17\nG0 X0 Y0\nF6000\n"
+        + "".join(f"G1 X{x:.4f} Y{y:.4f}\n" for x, y in V[1:]) + "M2\n")
+    study = load_study(write_study(tmp_path, CHORD_STUDY))
+    result = run_study(study, tmp_path / "out", workers=1, progress=False)
+    rows = read_rows(tmp_path / "out").to_pylist()
+    assert result.failed == 0 and len(rows) == 2
+    length = float(np.sum(np.linalg.norm(np.diff(V, axis=0), axis=1)))  # [mm]
+    for row in rows:
+        out = tmp_path / f"run-{row['case_id']}"
+        assert main(["run", str(tmp_path / "cam.ngc"), "--feed", "100mm/s",
+                     "--interpolator", row["interpolator"], "--no-figures", "--no-trace",
+                     "--quiet", "--out", str(out)]) == 0
+        ran = json.loads((out / "summary.json").read_text())
+        assert ran["chords_joined"] == 300
+        for key in ("cycle_time_s", "max_contour_error", "time_optimal_bound_s", "feed",
+                    "settle_time_s"):
+            assert row[key] == pytest.approx(ran[key], rel=1e-12), (row["interpolator"], key)
+        assert length / 100.0 <= row["time_optimal_bound_s"] <= 1.05 * length / 100.0
+    capsys.readouterr()
+    assert main(["bound", str(tmp_path / "cam.ngc"), "--path-tolerance", "0"]) == 0
+    assert float(capsys.readouterr().out) > 2 * rows[0]["time_optimal_bound_s"]
 
 
 def test_a_bad_study_is_refused_before_any_case_runs(tmp_path, capsys, monkeypatch):

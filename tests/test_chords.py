@@ -209,3 +209,20 @@ def test_no_run_of_a_joined_program_settles_below_the_sampled_bound(tmp_path, ca
     data = json.loads((out / "summary.json").read_text())
     if sum(data["saturated_samples"].values()) == 0:
         assert data["settle_time_s"] >= sampled
+
+
+def test_interpolate_reads_a_cam_program_as_run_does(tmp_path, capsys):
+    """Regression (issue 37): ``interpolate`` read a CAM program's chords as programmed
+    while ``run`` joins them. Its setpoints now follow the joined curve, within the
+    default tolerance (1 pulse = 0.001 mm) of the chords, and it says so; with
+    ``--path-tolerance 0`` nothing is joined."""
+    f, V = _program(tmp_path, 300)
+    out = tmp_path / "joined"
+    assert main(["interpolate", str(f), "--out", str(out)]) == 0
+    assert "path: 300 chords joined into 1 smooth curve within 0.001 mm" in capsys.readouterr().err
+    table = np.loadtxt(out / "setpoints.csv", delimiter=",", skiprows=1)
+    setpoints = table[:, 2:4]
+    assert np.max(distance_to_segments(setpoints, V)) <= 1e-3 + 1e-9
+    kept = tmp_path / "kept"
+    assert main(["interpolate", str(f), "--out", str(kept), "--path-tolerance", "0"]) == 0
+    assert "joined" not in capsys.readouterr().err

@@ -286,8 +286,8 @@ def test_bound_prints_the_time_optimal_bound(capsys):
 def test_bound_sampled_prints_the_sampled_stop_bound(capsys):
     """``bound --sampled``: the library's sampled bound of the Pi (no feed needed), a
     whole number of samples below the time-optimal bound at 1 m/s; a closed path without
-    corners gets 0 (the bound ignores the path's shape, and the loop lets an interpolator
-    move the plant from sample 0)."""
+    corners gets the time to reach its farthest point and come back, where it printed 0
+    (issue 37)."""
     from nurbsmotion.loop import to_pulses
     from nurbsmotion.machine import die_bonder
     from nurbsmotion.planning import sampled_stop_bound
@@ -299,7 +299,11 @@ def test_bound_sampled_prints_the_sampled_stop_bound(capsys):
     assert got / machine.sample_period == pytest.approx(round(got / machine.sample_period))
     assert got < 0.1153
     assert main(["bound", "butterfly", "--sampled"]) == 0
-    assert float(capsys.readouterr().out) == 0.0
+    got = float(capsys.readouterr().out)
+    assert got == pytest.approx(
+        sampled_stop_bound(to_pulses(nm.make_butterfly(), machine), machine))
+    assert got > 0.0 and got / machine.sample_period == pytest.approx(
+        round(got / machine.sample_period))
 
 
 def test_run_defaults_to_planned_and_reports_in_mm(tmp_path, capsys):
@@ -565,7 +569,9 @@ def test_the_docs_need_no_package_that_is_not_installed():
 
 # ------------------------------------------------------- no run beats `bound --sampled`
 def _sampled_bound_cases():
+    """(name, path, feed [path units/s], planned's options) per case."""
     from nurbsmotion.paths.random_paths import random_path
+    from test_chords import wave
 
     pi = nm.make_die_bonder_pi()
     corners = nm.make_polyline([[0, 0], [3000, 0], [3000, 2000], [6000, 2500]])
@@ -573,29 +579,36 @@ def _sampled_bound_cases():
     curl = random_path("sharp_corners", [37, 2], n_axes=2, length=5000.0)
     # at 5e4 pulse/s every interpolator stays within Umax on the first three; at the
     # higher feeds only planned does (the others saturate, which the bound does not cover)
-    return [("die-bonder-pi", pi, 5e4), ("corners", corners, 5e4), ("sharp_corners", curl, 5e4),
-            ("corners", corners, 5e5), ("short_moves", short, 1e6),
-            ("sharp_corners", curl, 3e5)]
+    # 300 CAM chords of 0.01 mm as programmed (`--path-tolerance 0`): planned passes
+    # their joints moving, within a fraction of a pulse, and beat the bound that counted
+    # every joint as a stop at a sample instant (issue 37)
+    chords = nm.make_polyline(wave(300), units="mm")
+    return [("die-bonder-pi", pi, 5e4, {}), ("corners", corners, 5e4, {}),
+            ("sharp_corners", curl, 5e4, {}), ("corners", corners, 5e5, {}),
+            ("short_moves", short, 1e6, {}), ("sharp_corners", curl, 3e5, {}),
+            ("cam-chords", chords, 100.0, {"path_tolerance": 0.0})]
 
 
 @pytest.mark.parametrize("interpolator", ["taylor1", "taylor2", "paper", "planned"])
 def test_no_run_within_the_drive_limit_settles_below_the_sampled_bound(interpolator, capsys):
     """`bound --sampled` is a lower bound on the move-and-settle time of any motion of the
-    sampled loop that stops at every sharp corner: no run that keeps its drive within
-    Umax settles sooner (a run that saturates may: it is not a motion the bound covers)."""
+    sampled loop along the path: no run that keeps its drive within Umax settles sooner
+    (a run that saturates may: it is not a motion the bound covers), on CAM chords as
+    programmed too."""
     from nurbsmotion.loop import run, to_pulses
     from nurbsmotion.machine import die_bonder
     from nurbsmotion.planning import sampled_stop_bound
 
     machine = die_bonder()
     checked = 0
-    for name, curve, feed in _sampled_bound_cases():
+    for name, curve, feed, options in _sampled_bound_cases():
         path = to_pulses(curve, machine)
         bound = sampled_stop_bound(path, machine)
         if name == "die-bonder-pi":
             assert main(["bound", name, "--sampled"]) == 0  # the command prints the same
             assert float(capsys.readouterr().out) == pytest.approx(bound, abs=1e-12)
-        trace = run(curve, machine, feed, interpolator)
+        trace = run(curve, machine, feed, interpolator,
+                    interpolator_options=options if interpolator == "planned" else None)
         metrics = trace.metrics()
         if metrics.total_saturated_samples or not metrics.settled:
             continue

@@ -96,7 +96,6 @@ def test_project_must_name_the_machines_axes(capsys):
 # every one but those whose own content is the reason (LinuxCNC refuses them too, or they
 # move nothing).
 NOT_LISTED = {
-    "estlcam_BackPlate.nc",  # a nested comment, which LinuxCNC refuses too
     "freecad_test_centroid_00.ngc",  # no F word at all
     "factorial.ngc", "gosper.ngc", "helix.ngc", "m70m72-demo.ngc", "offsets.ngc",  # no feed move
     "metric_wrench.ngc",  # needs a HAL pin of a running plasma machine

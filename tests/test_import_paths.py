@@ -147,3 +147,24 @@ def test_identify():
 
     assert callable(package.identify)  # the function, not a submodule of that name
     assert set(package.__all__) <= set(dir(package))
+
+
+def test_plant():
+    # plant.py became the subpackage plant/ (issue 31): every public name of the module
+    # is still at nurbsmotion.plant, the very object of its new home.
+    _same_each("nurbsmotion.plant", {
+        "oscillator": "nurbsmotion.plant.two_mass",
+        "x_minus_one_minus_exp": "nurbsmotion.plant.two_mass",
+        "N_PARAM": "nurbsmotion.plant.two_mass", "N_COEF": "nurbsmotion.plant.two_mass",
+        "MAX_EVENTS": "nurbsmotion.plant.friction",
+        "TAYLOR_TERMS": "nurbsmotion.plant.friction", "SCRATCH": "nurbsmotion.plant.friction",
+        "PlantStage": "nurbsmotion.plant.stage", "IdleStage": "nurbsmotion.plant.stage",
+        "PlantState": "nurbsmotion.plant.stage", "is_active": "nurbsmotion.plant.stage",
+        "make_stage": "nurbsmotion.plant.stage", "inactive_stage": "nurbsmotion.plant.stage",
+        "new_plant_state": "nurbsmotion.plant.stage",
+        "sample_step": "nurbsmotion.plant.step", "stage_arrays": "nurbsmotion.plant.step",
+        "stage_response": "nurbsmotion.plant.step",
+        "measure": "nurbsmotion.plant.measure", "noise_draw": "nurbsmotion.plant.measure",
+        "positions": "nurbsmotion.plant.measure",
+        "continuous_model": "nurbsmotion.plant.linear",
+        "linear_loop_poles": "nurbsmotion.plant.linear"})

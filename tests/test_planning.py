@@ -172,7 +172,7 @@ def test_sampled_stop_bound_of_a_line(L):
 
 
 def test_sampled_stop_bound_is_below_every_run():
-    """On the Pi (three stop corners): ``planned``'s and ``paper``'s move-and-settle are
+    """On the Pi: ``planned``'s and ``paper``'s move-and-settle are
     never below the sampled bound, which is itself below the continuous one at 1 m/s
     (whose pieces it rounds up to samples but whose path and feed it ignores); a window
     that is not a finite number >= 0 is refused."""
@@ -188,6 +188,37 @@ def test_sampled_stop_bound_is_below_every_run():
     for bad in (-1.0, math.nan, math.inf):
         with pytest.raises(ValueError, match="settle_window"):
             sampled_stop_bound(curve, MACHINE, settle_window=bad)
+
+
+def test_sampled_bound_of_an_out_and_back_move_is_the_time_to_turn_and_return():
+    """Out along x by L and back to the start (a closed path; it printed 0, issue 37):
+    its turn is no sample-instant rest (x reverses, and may within a sample), so the
+    bound is the full-drive time out to L less the window, where x turns, plus back to
+    within the window of the end, from scipy's root of the closed form
+    ``V (t - tau (1 - exp(-t / tau)))``, in whole samples; and no run within the drive
+    limit settles sooner."""
+    from scipy.optimize import brentq
+    from nurbsmotion.planning import rest_corners, sampled_stop_bound
+    L, window = 20_000.0, 1.0
+    path = nm.make_polyline([[0.0, 0.0], [L, 0.0], [0.0, 0.0]])
+    assert path.sharp_corners().size == 1 and rest_corners(path).size == 0
+    tau = MACHINE.tau[0]
+    V = MACHINE.max_drive * MACHINE.Kc[0] * MACHINE.Ke[0]
+
+    def reach(d):
+        return brentq(lambda t: V * (t - tau * (1 - math.exp(-t / tau))) - d, 0.0, 10.0,
+                      xtol=1e-15)
+
+    Ts = MACHINE.sample_period
+    expected = math.ceil((reach(L - window) + reach(L - 2 * window)) / Ts - 1e-9) * Ts
+    bound = sampled_stop_bound(path, MACHINE, settle_window=window)
+    assert bound == pytest.approx(expected, abs=1e-12)
+    for method in ("planned", "paper"):
+        tr = simulate(make_interpolator(method, path, MACHINE, 5e5), MACHINE,
+                      settle_time=0.05)
+        metrics = tr.metrics()
+        if metrics.total_saturated_samples == 0:
+            assert metrics.settle_time_s >= bound, method
 
 
 def test_profile_rests_at_corners_and_ends():
@@ -1249,6 +1280,42 @@ def test_warm_started_programs_match_scipy_linprog(seed):
     # x[0] >= 2 within |x| <= 1: no program
     infeasible = sparse.csr_matrix(np.eye(1, n) * -1.0)
     assert program.solve(cost, infeasible, np.array([-2.0]), A_eq, bounds) is None
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_programs_that_grow_are_warm_started_to_scipys_optimum(seed):
+    """Step 6's programs (issue 35) add rows and columns as a round holds more points: the
+    rows and columns named as in the last program keep their basis status, the new ones
+    start basic (rows) or at a bound (columns); HiGHS still reaches the optimum scipy's
+    ``linprog`` finds cold, and the same after rows are dropped again."""
+    from scipy import sparse
+    from scipy.optimize import linprog
+    from nurbsmotion.interpolators.planned.shorten import _WarmProgram
+
+    rng = np.random.default_rng(seed)
+    n, m_ub, m_eq = 40, 90, 8
+    A_all = rng.normal(size=(m_ub, n + 21))           # rows of every point, 20 extra columns
+    A_eq_all = rng.normal(size=(m_eq, n + 21))
+    A_eq_all[:, -1] = 0.0
+    program = _WarmProgram()
+    for rows, extra in ((np.arange(0, 90, 3), 0), (np.arange(0, 90, 2), 8),
+                        (np.arange(90), 20), (np.arange(0, 90, 5), 4)):
+        cols = np.r_[np.arange(n - 1), n - 1 + 1 + np.arange(extra), n - 1 + 21]
+        # the last column (E) last, as step 6 orders them; its key is the same throughout
+        A = A_all[np.ix_(rows, cols)] + 0.02 * rng.normal(size=(len(rows), len(cols)))
+        A[:, -1] = -1.0
+        A_ub, A_eq = sparse.csr_matrix(A), sparse.csr_matrix(A_eq_all[:, cols])
+        b_ub = rng.uniform(0.5, 1.5, len(rows))
+        bounds = np.column_stack([np.full(len(cols), -1.0), np.full(len(cols), 1.0)])
+        bounds[-1] = (0.0, np.inf)
+        cost = np.r_[rng.normal(size=len(cols) - 1) * 0.01, 1.0]
+        row_keys = np.r_[rows, 1000 + np.arange(m_eq)]
+        x = program.solve(cost, A_ub, b_ub, A_eq, bounds, row_keys, cols)
+        ref = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=np.zeros(m_eq),
+                      bounds=bounds, method="highs")
+        assert ref.status == 0 and x is not None
+        assert cost @ x == pytest.approx(ref.fun, rel=1e-7, abs=1e-9)
+        assert np.all(A_ub @ x <= b_ub + 1e-7) and np.allclose(A_eq @ x, 0.0, atol=1e-7)
 
 
 def test_a_single_count_does_not_throw_the_identification():

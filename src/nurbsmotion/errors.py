@@ -67,6 +67,7 @@ class PathFileError(NurbsmotionError, ValueError):
     """
 
     def __init__(self, message: str, source: str | None = None, line: int | None = None):
+        self.message = message
         self.source = source
         self.line = line
         where = ""

@@ -601,6 +601,12 @@ class Machine:
         for key in ("axes", "max_drive", "sample_period"):
             if key not in data:
                 raise PathFileError(f"machine field {key!r} is missing", source)
+        umax = data["max_drive"]
+        if isinstance(umax, float) and not math.isfinite(umax):
+            # an ideal drive is a library value (max_drive=math.inf), not a machine's:
+            # planned plans within +-Umax and diverged on one (issue 37)
+            raise PathFileError(f"machine field 'max_drive' must be a finite number > 0 [V], "
+                                f"got {umax!r}", source)
         if not isinstance(data["axes"], list):
             raise PathFileError("machine field 'axes' must be a list of axis tables", source)
         pid = data.get("controller") == "pid"
@@ -727,6 +733,6 @@ def load_machine(spec: str | Path) -> Machine:
     if suffix not in (".toml", ".json"):
         raise PathFileError("machine files must end in .toml or .json", str(path))
     text = read_text_file(path, MAX_MACHINE_FILE_BYTES)
-    # JSON has no inf; Infinity (as json.dumps writes it) stands for an ideal drive.
+    # JSON has no inf; Infinity (as json.dumps writes it) is read, and refused by name.
     data = parse_json_or_toml(text, toml=suffix == ".toml", source=str(path), constants=True)
     return Machine.from_dict(data, str(path))

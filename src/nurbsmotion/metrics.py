@@ -31,7 +31,7 @@ from .loop.closed_loop import SETTLE_WINDOW
 from .stepping import Status
 from .units import in_pulses
 
-__all__ = ["Metrics", "RunningMetrics", "trace_metrics", "AtRest", "RunningAtRest",
+__all__ = ["check_settle_window", "Metrics", "RunningMetrics", "trace_metrics", "AtRest", "RunningAtRest",
            "trace_at_rest", "feed_fluctuation", "contour_error",
            "nearest_parameter", "settle_time", "overshoot", "SATURATION_TOLERANCE", "SETTLE_WINDOW"]
 
@@ -446,6 +446,27 @@ def settle_time(t: np.ndarray, position: np.ndarray, end: np.ndarray,
     _check_window(window)
     first = _settled_from(_last_outside(position, end, window), len(t))
     return math.inf if first is None else float(t[first])
+
+
+def check_settle_window(window: float, curve: NurbsCurve, name: str = "settle window") -> None:
+    """Refuse a settle window [pulse] that is not below the farthest distance of ``curve``
+    [pulse] from its end point: a motion on the path would be within it from the start,
+    "settled" at 0 s whatever it did (``--settle-window 1e300``, issue 37).
+
+    Raises
+    ------
+    InvalidArgumentError
+        Naming ``name``, the window and that distance.
+    """
+    from .errors import InvalidArgumentError
+
+    _check_window(window)
+    u = np.union1d(np.linspace(0.0, 1.0, 4097), curve.breakpoints)
+    farthest = float(np.max(distances_to(curve(u), curve(1.0))))
+    if window >= farthest:
+        raise InvalidArgumentError(
+            f"{name} {window:g} pulse is not below the path's farthest distance from its end "
+            f"point ({farthest:.6g} pulse): the motion would be settled from the start")
 
 
 def _check_window(window: float) -> None:

@@ -633,6 +633,19 @@ class NurbsCurve:
                 f"degenerate curve: all {len(P)} control points coincide at {P[0].tolist()} "
                 "(zero length)"
             )
+        # A knot span whose p + 1 control points coincide is a piece of zero length (the
+        # curve stands still over it): it has no tangent, and a run refused it late while
+        # bound and the figures divided by its zero speed (issue 37). Exact, as the
+        # polyline's check: with positive weights a span is one point only then.
+        p, U = self.degree, self.knots
+        window = np.lib.stride_tricks.sliding_window_view(P, p + 1, axis=0)  # (n - p, axes, p + 1)
+        still = np.all(np.ptp(window, axis=2) == 0.0, axis=1) & (U[p + 1:len(P) + 1] > U[p:len(P)])
+        if np.any(still):
+            i = int(np.flatnonzero(still)[0])
+            raise InvalidCurveError(
+                f"degenerate curve: knot span [{U[i + p]:.6g}, {U[i + p + 1]:.6g}] is a piece of "
+                f"zero length (its {p + 1} control points {i}..{i + p} coincide at "
+                f"{P[i].tolist()}); remove the repeated control point")
 
     @property
     def zero_speed_points(self) -> np.ndarray:

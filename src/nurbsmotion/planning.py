@@ -687,24 +687,100 @@ def _least_samples(reach, distance: float, max_samples: int = 1 << 40) -> int:
     return hi
 
 
+STILL_TANGENT = 1e-9
+"""An axis whose component of the unit tangent on one side of a corner is at most this
+[1] is still there (:func:`rest_corners`): a line along the other axes, drawn exactly."""
+
+EXTENT_POINTS = 4097
+"""Even parameters at which :func:`sampled_stop_bound` looks for the path's farthest
+points, besides every breakpoint (any point of the path gives a valid bound; more only
+tighten it)."""
+
+
+def rest_corners(curve: NurbsCurve) -> np.ndarray:
+    """The sharp corners at which a sampled motion that follows ``curve`` without cutting
+    a corner is at rest at a sample instant: those where every axis is still on at least
+    one side (it stops there for good or starts there from rest, as the die-bonder
+    Pi's axes do), shape (n,) [curve parameter].
+
+    Under a held drive (ZOH) an axis speed is monotone within a sample: an axis cannot
+    come to rest between samples and stay, nor start from rest between them; so at such a
+    corner the last axis arrives at a sample instant and the next starts at one no earlier
+    (sooner cuts the corner). Where some axis moves on both sides, the motion need not
+    rest at a sample instant: the axis passes the corner moving or reverses within a
+    sample, and a sampled motion passes such a corner (a CAM chord joint, turning by a
+    fraction of a degree) within a fraction of a pulse of it, as ``planned``'s does.
+    The continuous motion of :func:`time_optimal_bound` and of ``planned``'s plan stops
+    at every sharp corner (:meth:`NurbsCurve.sharp_corners`); these are the ones of them
+    where the sampled motion stops too."""
+    corners = curve.sharp_corners()
+    if corners.size == 0:
+        return corners
+    left = np.abs(curve.tangent(corners, "left")) <= STILL_TANGENT
+    right = np.abs(curve.tangent(corners, "right")) <= STILL_TANGENT
+    return corners[np.all(left | right, axis=1)]
+
+
+def _reach_time(distance: np.ndarray, tau: float, top_speed: float) -> np.ndarray:
+    """The least time [s] in which an axis moves ``distance`` [pulse] from rest under
+    ``|u| <= Umax``: under full drive, ``theta(t) = V (t - tau (1 - exp(-t/tau)))`` with
+    ``V = Umax Kc Ke`` [pulse/s] ``top_speed`` (no drive moves it farther by any time).
+    Found by bisection; the lower end is returned, so the time is never over-stated."""
+    x = np.maximum(np.asarray(distance, dtype=float), 0.0) / top_speed  # [s]
+    lo, hi = x, x + tau   # theta(t)/V lies in [t - tau, t]
+    for _ in range(64):
+        mid = 0.5 * (lo + hi)
+        below = mid + tau * np.expm1(-mid / tau) < x
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    return lo
+
+
+def _extent_time(curve: NurbsCurve, machine: Machine, window: float) -> float:
+    """A lower bound [s] on the time of a motion from rest at the start to within
+    ``window`` [pulse] of the end that passes within ``window`` of every point of
+    ``curve``. Where a point q lies beyond the start and the end on an axis (not between
+    them), the axis goes out at least as far as q (less the window), turns there (its
+    speed is 0 at that instant) and comes back to the end: each leg from a speed of 0
+    takes at least the full-drive time from rest (:func:`_reach_time`). Any axis also
+    moves from its start to its end from rest. So a closed path gets the time to reach
+    its farthest point and come back, where the corners alone give 0."""
+    if not math.isfinite(machine.max_drive):
+        return 0.0
+    u = np.union1d(np.linspace(0.0, 1.0, EXTENT_POINTS), curve.breakpoints)
+    points = curve(u)
+    start, end = curve(0.0), curve(1.0)
+    best = 0.0
+    for j, (tau, kc, ke) in enumerate(zip(machine.tau, machine.Kc, machine.Ke)):
+        top_speed = machine.max_drive * kc * ke
+        beyond = (points[:, j] - start[j]) * (points[:, j] - end[j]) > 0
+        q = points[beyond, j]
+        out = _reach_time(np.abs(q - start[j]) - window, tau, top_speed)
+        back = _reach_time(np.abs(q - end[j]) - 2.0 * window, tau, top_speed)
+        through = _reach_time(np.abs(end[j] - start[j]) - window, tau, top_speed)
+        best = max(best, float(np.max(out + back, initial=0.0)), float(through))
+    return best
+
+
 def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
                        settle_window: float = 1.0, max_samples: int = 1 << 40) -> float:
     """A lower bound [s] on the move-and-settle time of any motion of the sampled loop along
-    ``curve`` that stops at every sharp corner.
+    ``curve`` that does not cut its corners, within ``|u| <= Umax``.
 
     :func:`time_optimal_bound` lets the drive change at any instant; the loop's drive is
-    held for a sample (ZOH), and a plant at rest at a corner is there at a sample instant
-    (under a held drive it cannot come to rest between samples and stay). So the motion
-    takes a whole number of samples per corner-free piece, each at least
-    what the slowest axis needs to move its displacement across the piece from rest to
+    held for a sample (ZOH). At a corner where every axis stops or starts
+    (:func:`rest_corners`) the plant is at rest at a sample instant, so the motion takes
+    a whole number of samples between such corners, each stretch at least
+    what the slowest axis needs to move its displacement across it from rest to
     rest under ``|u| <= Umax`` (:func:`_rest_to_rest_reach`, exact for the ZOH plant of
-    docs/model.md#servo-axis). The last piece only has to end within ``settle_window`` of the end
+    docs/model.md#servo-axis). The last stretch only has to end within ``settle_window`` of the end
     on each axis, and slow enough to be within it at the next sample too: a motor speed
     w moves the axis by at least ``c*|w| - b1*Umax`` over a sample, so ``|w| <= (2*window
-    + b1*Umax)/c``.
-    The path's shape and the feed are ignored (they only lengthen a motion; a closed path
-    without corners gets 0), so this is a bound, not a plan: no interpolator beats it,
-    however it treats the path between the corners. (An interpolator whose setpoint of
+    + b1*Umax)/c``. The whole motion also takes at least the time to reach the path's
+    farthest points and come back (:func:`_extent_time`: a closed path gets more than 0),
+    in whole samples.
+    The feed is ignored (it only lengthens a motion), so this is a bound, not a plan: no
+    interpolator beats it while it keeps the drive within Umax and passes within the
+    settle window of the path. (An interpolator whose setpoint of
     sample 0 is the start, :func:`nurbsmotion.stepping.first_sample`, takes a sample
     more: its first drive u[0] is 0.)
 
@@ -728,7 +804,7 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
         raise InvalidArgumentError(f"settle_window must be finite and >= 0, got "
                                    f"{settle_window!r}")
     Ts, umax = machine.sample_period, machine.max_drive
-    ends = np.concatenate([[0.0], curve.sharp_corners(), [1.0]])
+    ends = np.concatenate([[0.0], rest_corners(curve), [1.0]])
     stops = curve(ends)
     axes = list(zip(*zoh_coefficients(machine.tau, machine.Kc, machine.Ke, Ts)))
     samples = 0
@@ -745,7 +821,14 @@ def sampled_stop_bound(curve: NurbsCurve, machine: Machine, *,
                 lambda n: umax * _rest_to_rest_reach(a, b0, c, b1, n, slack), distance,
                 max_samples))
         samples += need
-    return samples * Ts
+    extent = _extent_time(curve, machine, settle_window) / Ts  # [samples]
+    if not extent <= max_samples:  # inf where an axis barely moves (Ke = 1e-300)
+        raise WorkLimitError(
+            f"the path's extent takes at least {extent:.3g} samples at full drive, more than "
+            f"the sample limit of {max_samples:.3g} (--max-samples): the drive barely moves "
+            "an axis")
+    # whole samples, never rounded up past the time itself (a lower bound)
+    return max(samples, math.ceil(extent * (1.0 - 1e-12))) * Ts
 
 
 def time_optimal_bound(curve: NurbsCurve, machine: Machine, feed: float, *,

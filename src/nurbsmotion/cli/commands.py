@@ -115,13 +115,20 @@ def _cmd_interpolate(args) -> int:
     from ..loop import interpolate
     from ..plots import plot_setpoints
 
-    contour = _contour(args)
+    machine = load_machine(args.machine)
+    contour = _contour(args, machine)  # as run reads it: chord runs joined
     curve = contour.curve
     cap = None if args.feed is None else units.feed_in_path_units(args.feed, curve)
     feed, note = _feed_used(args, contour, cap, 1.0, f"{curve.units}/s")
     if args.method == "uniform" and not isinstance(feed, (int, float)):
         feed, note = feed.lowest, f"{note}: its lowest value (uniform steps have one feed)"
     lowest = feed if isinstance(feed, (int, float)) else feed.lowest
+    highest = feed if isinstance(feed, (int, float)) else feed.highest
+    if not highest * args.sample_period < curve.length:  # "cannot advance from u = 0"
+        raise InvalidArgumentError(
+            f"at {highest:g} {curve.units or 'path units'}/s a sample of "
+            f"{args.sample_period:g} s moves {highest * args.sample_period:g}, not less than "
+            f"the whole path ({curve.length:.6g}): check the feed and --sample-period")
     check_samples(estimate_samples(curve.length, lowest, args.sample_period),
                   limit=args.max_samples, n_axes=curve.n_axes,
                   what=f"interpolating {curve.length:.6g} {curve.units or 'path units'} "
@@ -139,6 +146,7 @@ def _cmd_interpolate(args) -> int:
     fl_max, fl_rms = series.feed_fluctuation()
     print(f"{args.method}: {len(series.t)} samples, cycle time {series.cycle_time:.6g} s, "
           f"feed fluctuation max {fl_max:.3%} RMS {fl_rms:.3%}; feed: {note} -> {out}")
+    _print_joined(contour, machine)
     return 0
 
 
@@ -210,6 +218,7 @@ def _cmd_run(args) -> int:
 
 def _run(args, precompiler) -> int:
     from ..loop import check_run_arguments, run, to_pulses
+    from ..metrics import check_settle_window
     from ..report import TRACE_FILES, summary, write_json
 
     machine = load_machine(args.machine)
@@ -238,6 +247,11 @@ def _run(args, precompiler) -> int:
     if eps and args.interpolator != "planned":
         raise InvalidArgumentError(
             f"--corner-tolerance applies to the planned interpolator, not {args.interpolator}")
+    extent = math.dist(*path.bounding_box())  # [pulse]
+    if eps >= extent:  # the blends could leave the whole path: no corner left to mean
+        raise InvalidArgumentError(
+            f"--corner-tolerance {args.corner_tolerance} ({eps:g} pulse) is not below the "
+            f"path's extent (its bounding box's diagonal, {extent:.6g} pulse)")
     options = {"corner_tolerance": eps} if eps else {}
     path_tolerance = contour.joined.tolerance * machine.pulses_per_unit(curve.units)
     if args.path_tolerance is not None and args.interpolator == "planned":
@@ -246,6 +260,7 @@ def _run(args, precompiler) -> int:
                                     bare_unit="pulse")
     if window <= 0:
         raise InvalidArgumentError(f"--settle-window must be > 0, got {args.settle_window!r}")
+    check_settle_window(window, path, f"--settle-window {args.settle_window}:")
     lowest = feed if isinstance(feed, (int, float)) else feed.lowest
     if "pvt" in (args.export or ()):
         check_samples(estimate_samples(path.length, lowest, args.pvt_period),
@@ -269,6 +284,10 @@ def _run(args, precompiler) -> int:
         # The bound first: a path it cannot be computed for is refused before the run.
         bound = time_optimal_bound(path, machine, feed)
         _check_bound(bound, machine, curve, args.max_samples)
+        if "pvt" in exports and not args.pvt_period < bound:  # a table of one row
+            raise InvalidArgumentError(
+                f"--pvt-period {args.pvt_period:g} s is not shorter than the move (its "
+                f"time-optimal bound is {bound:.6g} s): the PVT table would hold one row")
         bar.update()
         stage(stages[1])
         expected = estimate_samples(path.length, lowest, machine.sample_period)
@@ -654,15 +673,15 @@ def _cmd_excite(args) -> int:
         travel = units.length_in_pulses(args.travel, None, machine, "--travel",
                                         bare_unit="pulse")
     suffix = out.suffix.lower()
-    if suffix in (".csv", ".ngc", ".nc", ".gcode"):
-        out.parent.mkdir(parents=True, exist_ok=True)
     if suffix == ".csv":
         t, drive = excitation(machine, travel=travel, seed=args.seed)
+        out.parent.mkdir(parents=True, exist_ok=True)  # once there is something to write
         write_excitation_csv(t, drive, machine.axis_names, out, overwrite=args.overwrite)
         print(f"{len(t)} samples ({t[-1]:.3g} s) of drive commands within +-"
               f"{abs(drive).max():.3g} V -> {out}")
     elif suffix in (".ngc", ".nc", ".gcode"):
         text = excitation_gcode(machine, travel=travel)
+        out.parent.mkdir(parents=True, exist_ok=True)
         write_output(out, lambda h: h.write(text), overwrite=args.overwrite)
         print(f"position moves -> {out} (run it: nurbsmotion run {out} --machine "
               f"{args.machine} --out DIR, then nurbsmotion identify DIR/trace.csv)")

@@ -51,15 +51,22 @@ def _version() -> str:
         return __version__
 
 
-def _positive_float(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
-    return value
+def _float_above(low: float, inclusive: bool):
+    """argparse type: a finite number > ``low`` (>= with ``inclusive``)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not (math.isfinite(value) and (value >= low if inclusive else value > low)):
+            raise argparse.ArgumentTypeError(
+                f"must be finite and {'>=' if inclusive else '>'} {low:g}, got {text!r}")
+        return value
+    return parse
+
+
+_positive_float = _float_above(0.0, inclusive=False)
+_non_negative_float = _float_above(0.0, inclusive=True)
 
 
 def _sample_period(text: str) -> float:
@@ -72,26 +79,22 @@ def _sample_period(text: str) -> float:
     return value
 
 
-def _non_negative_float(text: str) -> float:
-    """argparse type: a finite number >= 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"must be finite and >= 0, got {text!r}")
-    return value
+def _int_at_least(low: int):
+    """argparse type: an integer >= ``low`` (a seed >= 0: NumPy's "expected non-negative
+    integer" leaked for -1; a count >= 1)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low}, got {text!r}")
+        return value
+    return parse
 
 
-def _positive_int(text: str) -> int:
-    """argparse type: an integer >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
-    return value
+_non_negative_int = _int_at_least(0)
+_positive_int = _int_at_least(1)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -161,14 +164,25 @@ def _parser() -> argparse.ArgumentParser:
                            help="no progress bar (there is none either when stderr is not "
                            "a terminal)")
 
+    def path_input(c, machine=True):
+        """The path, its machine, feed, units and projection, as run reads them."""
+        c.add_argument("path", help=path_help)
+        if machine:
+            c.add_argument("--machine", default="die-bonder", help=machine_help)
+        c.add_argument("--feed", type=parse_feed, help=feed_help)
+        c.add_argument("--units", choices=PATH_UNITS, help=units_help)
+        c.add_argument("--project", metavar="AXES",
+                       help="read a G-code file's moves as their projection on the "
+                       "machine's axes (e.g. xy: a helix becomes its circle, a Z move is "
+                       "dropped) instead of refusing moves that change other axes with them")
+
     i = command("interpolate", "open-loop setpoints of a path at a constant feed")
-    i.add_argument("path", help=path_help)
-    i.add_argument("--feed", type=parse_feed, help=feed_help)
-    i.add_argument("--units", choices=PATH_UNITS, help=units_help)
-    i.add_argument("--project", metavar="AXES",
-                   help="read a G-code file's moves as their projection on the machine's axes "
-                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
-                   "refusing moves that change other axes with them")
+    path_input(i, machine=False)  # its --machine says what it is for here
+    i.add_argument("--machine", default="die-bonder",
+                   help=machine_help + ": the path is read on it as run reads it (the "
+                   "axes of G-code and DXF, rotary axes, the pulse of --path-tolerance); "
+                   "the setpoints stay in the path's units")
+    i.add_argument("--path-tolerance", help=path_tolerance_help)
     i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
                    help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
     i.add_argument("--sample-period", type=_sample_period, default=1e-3,
@@ -180,14 +194,7 @@ def _parser() -> argparse.ArgumentParser:
     i.set_defaults(func=_cmd_interpolate)
 
     r = command("run", "closed-loop servo simulation of a path on a machine")
-    r.add_argument("path", help=path_help)
-    r.add_argument("--machine", default="die-bonder", help=machine_help)
-    r.add_argument("--feed", type=parse_feed, help=feed_help)
-    r.add_argument("--units", choices=PATH_UNITS, help=units_help)
-    r.add_argument("--project", metavar="AXES",
-                   help="read a G-code file's moves as their projection on the machine's axes "
-                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
-                   "refusing moves that change other axes with them")
+    path_input(r)
     r.add_argument("--interpolator", choices=LOOP_METHODS, default=DEFAULT_INTERPOLATOR,
                    help="planned: plans the actual motion within ±Umax and steers the plant "
                    "along it; paper: Yeh & Sun (2008), saturation-aware one step ahead; "
@@ -237,20 +244,14 @@ def _parser() -> argparse.ArgumentParser:
 
     b = command("bound", "print the time-optimal bound of a path [s]: the least time at "
                 "rest at both ends within the drive limits and the feed")
-    b.add_argument("path", help=path_help)
-    b.add_argument("--machine", default="die-bonder", help=machine_help)
-    b.add_argument("--feed", type=parse_feed, help=feed_help)
-    b.add_argument("--units", choices=PATH_UNITS, help=units_help)
-    b.add_argument("--project", metavar="AXES",
-                   help="read a G-code file's moves as their projection on the machine's axes "
-                   "(e.g. xy: a helix becomes its circle, a Z move is dropped) instead of "
-                   "refusing moves that change other axes with them")
+    path_input(b)
     b.add_argument("--path-tolerance", help=path_tolerance_help)
     b.add_argument("--sampled", action="store_true",
-                   help="print instead a lower bound for any sampled motion that stops at "
-                   "every sharp corner [s]: whole samples per "
-                   "piece, each at least what the slowest axis needs from rest to rest "
-                   "(ignores the feed and the path's shape; within 1 pulse of the end)")
+                   help="print instead a lower bound for any sampled motion along the path "
+                   "within Umax [s]: whole samples between the corners where every axis "
+                   "stops or starts, each stretch at least what the slowest axis needs from "
+                   "rest to rest, and at least the time out to the farthest point and back "
+                   "(ignores the feed; within 1 pulse of the path and the end)")
     b.add_argument("--max-samples", type=_positive_int, default=MAX_SAMPLES,
                    help="refuse, as run does, a move estimated (or bounded) to take more "
                    "samples than this")
@@ -311,7 +312,8 @@ def _parser() -> argparse.ArgumentParser:
     x.add_argument("--out", required=True, help="excitation.csv or excitation.ngc")
     x.add_argument("--travel", help="bound of the excursion from the start, a length "
                    "(20mm) or pulses (default: 20 mm)")
-    x.add_argument("--seed", type=int, default=0, help="seed of the random binary part")
+    x.add_argument("--seed", type=_non_negative_int, default=0,
+                   help="seed of the random binary part (an integer >= 0)")
     x.add_argument("--overwrite", action="store_true", help="replace an existing file")
     x.set_defaults(func=_cmd_excite)
     return p

@@ -149,7 +149,13 @@ def excitation(machine: Machine, *, travel: float | None = None, seed: int = 0
             level *= 0.7
             prbs = prbs * 0.7
         pieces += [prbs, rest, rest]
-        columns.append(_returning(pieces, tau, gain, Ts, 0.05 * umax, rest))
+        column = _returning(pieces, tau, gain, Ts, 0.05 * umax, rest)
+        reach = float(np.max(np.abs(_rigid_positions(tau, gain, column, Ts))))
+        if reach > travel:  # its shortest pieces go farther (--travel 1e-300 ran anyway)
+            raise InvalidArgumentError(
+                f"travel {travel:g} pulse is too short for the test move: its shortest pieces "
+                f"take axis {machine.axis_names[j]!r} {reach:.4g} pulse from its start")
+        columns.append(column)
     n = max(len(c) for c in columns)
     drive = np.zeros((n, machine.n_axes))
     for j, c in enumerate(columns):

@@ -5,13 +5,16 @@ The steps (docs/identify.md):
 1. An ARX regression on the position increments (the exact sampled model of a first-order
    lag, a few input taps and a sign(speed) term) gives tau, G = Ke*Kc and the Coulomb
    friction to start from.
-2. Stiction from the breakaways: the drive that held the axis at rest just before it
-   moved, and the drive that moved it.
-3. The delay by a search over fractions of a sample, then an output-error fit
-   (:func:`scipy.optimize.least_squares`) of the simulated increments against the logged
-   ones: tau, G, delay and Coulomb friction.
-4. A mode: started from the peak of the residual's spectrum, kept when it lowers the
-   residual clearly; then the stiction by a scan of the same residual.
+2. The delay by a search over fractions of a sample (and a few starts of tau), then an
+   output-error fit (:func:`least_squares`, Levenberg-Marquardt) of the simulated
+   increments against the logged ones: tau, G, delay and Coulomb friction.
+3. A mode: started from the peak of the residual's spectrum above the rigid body's band
+   (from the rigid fit and from the delay search's start), kept when it lowers the
+   residual clearly.
+4. The stiction by a scan of the same residual, bounded by the breakaways (the largest
+   drive an axis held at rest); the rest refitted to it.
+5. Steps 2-4 again holding the stiction the last scan found, until a scan no longer moves
+   it (a fixed point, :func:`fit_axis`); the least residual is kept.
 
 The residual is on the increments ``y[k+1] - y[k]`` [pulse per sample] rather than on the
 positions: the simulated speed does not drift, the position of an open-loop simulation
@@ -208,10 +211,30 @@ log's first this many samples; a longer log then refines the parameters in a few
 iterations on all of it."""
 
 
+STICTION_PASSES = 3
+"""Fits at most per axis with friction, each holding the stiction the previous one's scan
+found (see :func:`fit_axis`)."""
+
+
+STICTION_SHIFT = 1e-3
+"""A scan that moves the stiction by less than this share of Umax ends the passes (the
+share below which a friction is taken as zero, as in :func:`_fit_once`)."""
+
+
 def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
              max_drive: float = 10.0, base: dict | None = None,
              screen: int | None = SCREEN_SAMPLES) -> AxisFit:
     """Fit one axis (see the module docstring).
+
+    The stiction is not a parameter of the least-squares fits (the residual steps with
+    it: an axis held at rest breaks away only where the drive crosses it), but it shapes
+    every stop and breakaway, and on a two-mass axis the motor stops every half period
+    of the mode: a fit holding the stiction at the Coulomb friction bends tau, Ke*Kc and
+    the friction to mimic it, and can run off (tau at its bound). So the fit is a fixed
+    point in the stiction: the whole fit is repeated holding the stiction the previous
+    fit's scan found, while that scan moves it by more than :data:`STICTION_SHIFT` of
+    Umax (at most
+    :data:`STICTION_PASSES` fits), and the fit with the least residual is kept.
 
     Parameters
     ----------
@@ -223,10 +246,14 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         Sample period [s].
     noise : float
         A first guess of the reading noise [pulse] (for the rest detection).
+    max_drive : float
+        Umax [V], the bound of the friction.
     base : dict, optional
         ``time_constant`` and ``gain`` to fall back on where the data say nothing.
+    screen : int, optional
+        On a longer log the structure is chosen on its first this many samples
+        (:data:`SCREEN_SAMPLES`); None fits the whole log.
     """
-    notes: list[str] = []
     if screen is not None and len(y) > screen:
         head = fit_axis(u[:screen], y[:screen], Ts, noise=noise, max_drive=max_drive,
                         base=base, screen=None)
@@ -235,6 +262,34 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         sol = least_squares(fn, sol.x, bounds=bounds, max_iterations=6)
         return _finish(u, y, Ts, sol, names, fixed, fn, speed0, head.notes,
                        head.identified, head.sigma["stiction"], bounds)
+    # The first fit holds the stiction at the Coulomb friction (S = F while F moves);
+    # the next ones hold it at the value the previous scan found (F may then move
+    # below it).
+    held = None
+    best = fit = _fit_once(u, y, Ts, noise, max_drive, base, 0.0)
+    for _ in range(STICTION_PASSES - 1):
+        if not fit.identified["stiction"]:
+            break
+        found = fit.values["stiction"]
+        if held is not None and not abs(found - held) > STICTION_SHIFT * max_drive:
+            break  # the fixed point
+        held = found
+        # The mode shows in the spectrum whatever the stiction: a later fit looks for it
+        # only where the first found it (the mode search is most of a fit's work).
+        sign = (math.copysign(1.0, best.values["coupling"]) if best.identified["resonance"]
+                else 0.0)
+        fit = _fit_once(u, y, Ts, noise, max_drive, base, held, sign)
+        if fit.residual_rms < best.residual_rms:
+            best = fit
+    return best
+
+
+def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> AxisFit:
+    """One fit of :func:`fit_axis`, holding the stiction at ``stiction`` [V] (read as
+    the Coulomb friction where below it) until its scan at the end. ``mode_sign``: None
+    searches a mode with the encoder on the motor and on the load; 1.0 or -1.0 only
+    there (+1 the motor); 0.0 searches none."""
+    notes: list[str] = []
     dy = np.diff(y)
     speed0 = 0.0
     if np.all(np.abs(dy[:3]) > 1.0 + 4.0 * noise) and np.ptp(np.sign(dy[:3])) == 0:
@@ -267,7 +322,7 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         # model between stuck and sliding at 0 (with friction), and its finite-difference
         # derivative misleads the fit into a valley of its own.
         lower[3] = upper[3] = 0.0
-    fixed = {"stiction": 0.0}  # the stiction is scanned once the rest is fitted
+    fixed = {"stiction": stiction}  # the stiction is scanned once the rest is fitted
     if friction_ok:
         names.append("coulomb_friction")
         x0.append(min(friction0, 0.5 * max_drive))
@@ -300,7 +355,8 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
     # whose sticking makes the residual kink: started near its optimum, the fit stays in
     # the right valley.
     linear = names[:4]
-    fn = _residual_fn(u, dy, Ts, speed0, dict(fixed, coulomb_friction=0.0), linear)
+    fn = _residual_fn(u, dy, Ts, speed0, dict(fixed, coulomb_friction=0.0, stiction=0.0),
+                      linear)
     sol = least_squares(fn, x0[:4], bounds=(lower[:4], upper[:4]))
     if friction_ok:
         fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
@@ -317,19 +373,23 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
     mode_sol = None
     residual = sol.fun
     n = residual.size
-    if n >= 64:
+    if n >= 64 and (mode_sign is None or mode_sign != 0.0):
         spectrum = np.abs(np.fft.rfft(residual * np.hanning(n))) ** 2
         freqs = np.fft.rfftfreq(n, Ts)
-        band = (freqs > max(5.0 / (2 * math.pi * math.exp(sol.x[0])), 5.0)) & (
+        # A strong mode can pull the rigid fit's tau to a few samples (and its delay
+        # up), mimicking the mode's fast rise: the rigid body's band then reaches from
+        # the longer of its tau and the delay search's start, and the mode is started
+        # from both (and from the ARX's friction: with friction, a strong mode misleads
+        # the rigid fit, tau run off to its bound).
+        tau_rigid = max(math.exp(sol.x[0]), math.exp(x0[0]))
+        band = (freqs > max(5.0 / (2 * math.pi * tau_rigid), 5.0)) & (
             freqs < 0.45 / Ts)
         if np.any(band):
             f0 = float(freqs[band][np.argmax(spectrum[band])])
             best_mode = None
-            # With friction, the rigid part starts from the rigid fit and from the delay
-            # search's start: a strong mode misleads the rigid fit with friction (tau
-            # run off to its bound), less the ARX's start.
-            rigid_starts = [list(sol.x)] + ([list(x0)] if friction_ok else [])
-            for rigid0, coupling0 in [(r0, c0) for r0 in rigid_starts for c0 in (1.0, -1.0)]:
+            rigid_starts = [list(sol.x)] + ([list(x0)] if list(x0) != list(sol.x) else [])
+            signs = (1.0, -1.0) if mode_sign is None else (mode_sign,)
+            for rigid0, coupling0 in [(r0, c0) for r0 in rigid_starts for c0 in signs]:
                 # The friction acts on the motor: with the encoder on the load (coupling
                 # about -1) the motor's share of the twist, hence the load fraction, is a
                 # parameter of its own (on the motor it is the coupling's c / (1 + c)).
@@ -419,6 +479,9 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
         stiction_sigma = float(fine[1] - fine[0])
         identified["stiction"] = True
         fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+        if abs(fixed["stiction"] - max(stiction, friction)) > STICTION_SHIFT * max_drive:
+            # the rest refitted to the stiction found, from where it is
+            sol = least_squares(fn, sol.x, bounds=bounds, max_iterations=20)
     elif friction_ok:
         notes.append("stiction: not identifiable, the axis never left a rest (of 5 samples "
                      "or more) in the log; add a slow drive ramp from rest")

@@ -108,6 +108,34 @@ MAX_EVENTS = 64
 motor is held for the rest of it (as :data:`nurbsmotion.plant.MAX_EVENTS`)."""
 
 
+@njit(cache=True, inline="always")
+def _illinois(lo, hi, g_lo, g_hi, t, g_t, past, side):
+    """One bracket update of the Illinois method (regula falsi that halves the value kept
+    at the end that stays twice in a row): the root lies in (lo, hi] with values g_lo,
+    g_hi; ``t`` with value ``g_t`` is ``past`` the root or not. Returns the new
+    ``(lo, hi, g_lo, g_hi, side)``."""
+    if past:
+        if side == 1:
+            g_lo *= 0.5
+        return lo, t, g_lo, g_t, 1
+    if side == -1:
+        g_hi *= 0.5
+    return t, hi, g_t, g_hi, -1
+
+
+@njit(cache=True, inline="always")
+def _held_drive(drive, k, piece, lag, frac, Ts):
+    """The drive [V] and its duration [s] over piece 0 or 1 of sample k of a loop whose
+    drive arrives ``lag`` whole samples and ``frac`` of a sample late: piece 0 is the
+    first ``frac*Ts`` of the sample, where drive[k - lag - 1] still holds, piece 1 the
+    rest, under drive[k - lag] (0 before the log's first drive)."""
+    if piece == 0:
+        j, h = k - lag - 1, frac * Ts
+    else:
+        j, h = k - lag, (1.0 - frac) * Ts
+    return (drive[j] if j >= 0 else 0.0), h
+
+
 @njit(cache=True)
 def _two_mass_friction(drive, Ts, lag, frac, tau, gain, coulomb, S, omega, zeta, coupling,
                        motor_share, speed0, out):
@@ -143,15 +171,9 @@ def _two_mass_friction(drive, Ts, lag, frac, tau, gain, coulomb, S, omega, zeta,
     out[0] = 0.0
     for k in range(n - 1):
         for piece in range(2):
-            if piece == 0:
-                j = k - lag - 1
-                h = frac * Ts
-            else:
-                j = k - lag
-                h = (1.0 - frac) * Ts
+            u, h = _held_drive(drive, k, piece, lag, frac, Ts)
             if h <= 0.0:
                 continue
-            u = drive[j] if j >= 0 else 0.0
             events = 0
             left = h
             # equal check steps over the piece, so that their coefficients repeat
@@ -186,16 +208,8 @@ def _two_mass_friction(drive, Ts, lag, frac, tau, gain, coulomb, S, omega, zeta,
                             ec, es = oscillator(sa1, sa0, t)
                             xt, xdt = _oscillate(x, xd, ec, es, sa1, sa0, 0.0)
                             gt = abs(u - spring * (a0 * xt + 2.0 * zeta * omega * xdt)) - S
-                            if gt > 0.0:
-                                hi, ghi = t, gt
-                                if side == 1:
-                                    glo *= 0.5
-                                side = 1
-                            else:
-                                lo, glo = t, gt
-                                if side == -1:
-                                    ghi *= 0.5
-                                side = -1
+                            lo, hi, glo, ghi, side = _illinois(lo, hi, glo, ghi, t, gt,
+                                                               gt > 0.0, side)
                             if hi - lo <= 1e-13 * Ts:
                                 break
                         dt = hi
@@ -232,16 +246,8 @@ def _two_mass_friction(drive, Ts, lag, frac, tau, gain, coulomb, S, omega, zeta,
                         ec, es = oscillator(a1, a0, t)
                         _, xdt = _oscillate(x, xd, ec, es, a1, a0, force)
                         wt = (vinf + (v - vinf) * et + m * xdt) * sgn
-                        if wt <= 0.0:
-                            hi, whi = t, wt
-                            if side == 1:
-                                wlo *= 0.5
-                            side = 1
-                        else:
-                            lo, wlo = t, wt
-                            if side == -1:
-                                whi *= 0.5
-                            side = -1
+                        lo, hi, wlo, whi, side = _illinois(lo, hi, wlo, whi, t, wt, wt <= 0.0,
+                                                           side)
                         if hi - lo <= 1e-13 * Ts:
                             break
                     dt = hi
@@ -318,15 +324,9 @@ def simulate_axis(drive, sample_period, delay, tau, gain, coulomb, stiction, ome
     out[0] = 0.0
     for k in range(n - 1):
         for piece in range(2):
-            if piece == 0:
-                j = k - lag - 1
-                h = frac * Ts
-            else:
-                j = k - lag
-                h = (1.0 - frac) * Ts
+            u, h = _held_drive(drive, k, piece, lag, frac, Ts)
             if h <= 0.0:
                 continue
-            u = drive[j] if j >= 0 else 0.0
             left = h
             while left > 0.0:
                 if stuck:

@@ -380,7 +380,11 @@ def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=SETTLE_
                                     float(settle_window), n_settle, hold,
                                     max(n_limit, n_settle), int(max_samples))
     guess = (curve.length / machine.max_axis_speed.min() if duration is None else duration)
-    capacity = int(min(1.2 * guess / Ts + n_settle + hold + 64, 1 << 22))
+    # A plant with effects may hunt or limit-cycle at the end until the settle limit:
+    # room for that from the start (rows not written are never touched, so not
+    # resident) instead of growing the rows, copying them, several times on the way.
+    wait = n_limit if plant.effects is not None else 0
+    capacity = int(min(1.2 * guess / Ts + n_settle + hold + wait + 64, 1 << 22))
     tally = _Tally(machine.max_drive)
 
     def counted(first, rows, finished, last):

@@ -201,7 +201,7 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
     tool = pstate.tool
     # the stage's arrays and numbers, taken out of their tuples once (a tuple of arrays
     # passed to a function costs a reference count of each array at every call)
-    P, X, origin, scratch, y = stage.param, pstate.x, pstate.origin, pstate.scratch, pstate.y
+    P, X, origin, scratch = stage.param, pstate.x, pstate.origin, pstate.scratch
     noise, seed, counts = stage.noise, stage.seed, stage.counts
     C, F, DT, DD = stage.coef, stage.friction, stage.disturbance_time, stage.disturbance_drive
     dac_step, dac_levels, n_delay = stage.dac_step, stage.dac_levels, stage.delay_samples
@@ -269,15 +269,16 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
             if record_bounds:
                 rows.bounds[i, j, 0] = bounds[j, 0]
                 rows.bounds[i, j, 1] = bounds[j, 1]
-            if real:
-                sample_step(P, C, F, DT, DD, dac_step, dac_levels, n_delay, split, Tp, X, D,
-                            LINE, ND, k, j, applied, scratch, y)
+            if real:  # every axis's plant at once, below
                 axes.position_prev[j] = position[j]
                 continue
             w, th = plant_step(Ad, Bd, j, axes.speed[j], axes.position[j], applied)
             axes.position_prev[j] = position[j]
             axes.speed[j] = w
             axes.position[j] = th
+        if real:
+            sample_step(P, C, F, DT, DD, dac_step, dac_levels, n_delay, split, Tp, X, D, LINE,
+                        ND, k, rows.drive_applied, i, scratch)
         loop.u[0] = u
         dist2 = 0.0
         for j in range(n_axes):

@@ -87,7 +87,8 @@ def _read(path: Path):
                             source=str(path)) from None
     except (ezdxf.DXFError, OSError, UnicodeError, ValueError, TypeError, KeyError, IndexError,
             AttributeError, EOFError, ArithmeticError, RuntimeError) as exc:
-        raise PathFileError(f"cannot read DXF: {_one_line(exc)}", source=str(path)) from None
+        raise PathFileError(f"cannot read DXF: {_one_line(exc)} (open the drawing in a CAD program and "
+                            "save it again as DXF)", source=str(path)) from None
 
 
 def _one_line(exc: BaseException) -> str:
@@ -225,6 +226,9 @@ def _pieces(entity) -> list[NurbsCurve]:
             points = _wcs(entity.control_points)
             weights = np.asarray(list(entity.weights), dtype=float) if len(entity.weights) else None
         else:  # fit points only: ezdxf's own construction of the curve through them
+            fit = _wcs(entity.fit_points)  # checked first: NaN gave "Singular matrix"
+            if np.ptp(fit, axis=0).max(initial=0.0) == 0.0:  # "list index out of range"
+                return []
             tool = entity.construction_tool()
             degree = int(tool.degree)
             knots = np.asarray(tool.knots(), dtype=float)
@@ -247,7 +251,7 @@ def _pieces(entity) -> list[NurbsCurve]:
         radius = _number(entity, entity.dxf.radius, "radius")
         if not 0 < radius <= MAX_COORDINATE:
             raise InvalidCurveError(f"{label}: radius {radius:g} must be > 0 and at most "
-                                    f"{MAX_COORDINATE:g}")
+                                    f"{MAX_COORDINATE:g}: correct or delete the entity in the drawing")
         center = np.array([_number(entity, v, "centre") for v in entity.dxf.center])
         if kind == "CIRCLE":
             a0, a1 = 0.0, 2 * math.pi

@@ -26,20 +26,23 @@ __all__ = ["case_trace", "run_case"]
 
 @lru_cache(maxsize=64)
 def _contour(path: str, family: str | None, path_seed: int | None, n_axes: int,
-             length: float, base_dir: str, axes: str):
+             length: float, base_dir: str, machine_spec: str):
     """The case's path and its programmed feed (a ``Contour``; kept per worker: its
-    arc-length table serves every case on it), read as ``nurbsmotion run`` reads it
-    (:func:`nurbsmotion.study.run_input.load_run_contour`; G-code and DXF on ``axes``)."""
+    arc-length table serves every case on it), read on the machine ``machine_spec`` by
+    the function ``nurbsmotion run`` reads its path with
+    (:func:`nurbsmotion.study.run_input.load_run_contour`: G-code and DXF on its axes,
+    rotary axes rescaled, runs of CAM chords joined within the default path tolerance).
+    A random path (``family``) is made, not read: it is used as drawn."""
     if family is not None:
         from ..paths import Contour
         from ..paths.random_paths import random_path
 
         return Contour(random_path(family, path_seed, n_axes, length), None, path)
     from ..nurbs import BUILTIN_PATHS
-    from ..paths import resolve_contour
+    from .run_input import load_run_contour
 
     spec = path if path.split("#")[0] in BUILTIN_PATHS else str(Path(base_dir) / path)
-    return resolve_contour(spec, axes=axes)
+    return load_run_contour(spec, _machine(machine_spec, base_dir))
 
 
 _PATH_ERRORS: dict = {}
@@ -52,9 +55,8 @@ def _path(case: Case, machine: Machine):
     took more than the case's time limit, fails the worker's other cases on it at once,
     with the same error."""
     from ..planning import check_path_size
-    from .run_input import path_axes
 
-    key = _path_key(case) + (path_axes(machine),)
+    key = _path_key(case) + (case.machine,)
     if key in _PATH_ERRORS:
         raise _PATH_ERRORS[key]
     try:
@@ -123,7 +125,7 @@ def case_trace(case: Case):
     changes).
     """
     from ..loop import run
-    from ..metrics import trace_metrics
+    from ..metrics import check_settle_window, trace_metrics
     from ..report import summary
     from ..servo import ServoPlant
 
@@ -132,6 +134,7 @@ def case_trace(case: Case):
     machine = _machine(case.machine, case.base_dir)
     contour, pulses = _path(case, machine)
     machine.check_path(contour.curve.n_axes)
+    check_settle_window(case.settle_window, pulses, "settle_window")
     # What `nurbsmotion run PATH --feed F` runs: the path in pulses, the feed in pulse/s
     # (per piece where the file programs one, capped by the study's feed).
     feed = run_feed(_feed_text(case), contour, machine)

@@ -120,14 +120,24 @@ def join_run_chords(contour, machine: Machine, path_tolerance=None):
     Raises
     ------
     InvalidArgumentError
-        If ``path_tolerance`` is not a length >= 0.
+        If ``path_tolerance`` is not a length >= 0 below the path's extent (the diagonal
+        of its bounding box).
     """
     from ..chords import ChordJoin, join_chords
+
+    import math
 
     curve = contour.curve
     tol = DEFAULT_PATH_TOLERANCE if path_tolerance is None else units.length_in_pulses(
         path_tolerance, curve, machine, "--path-tolerance", bare_unit="pulse")
-    tol /= machine.pulses_per_unit(curve.units)  # [path units]
+    per_unit = machine.pulses_per_unit(curve.units)
+    extent = math.dist(*curve.bounding_box()) * per_unit  # [pulse]
+    if path_tolerance is not None and tol > 0 and tol >= extent:
+        # the run (and planned's short moves) could leave the whole path (1e300 overflowed)
+        raise InvalidArgumentError(
+            f"--path-tolerance {path_tolerance} ({tol:g} pulse) is not below the path's "
+            f"extent (its bounding box's diagonal, {extent:.6g} pulse)")
+    tol /= per_unit  # [path units]
     if contour.feed_ratio is not None:  # LinuxCNC's feed rule is per programmed piece: kept
         return replace(contour, joined=ChordJoin(curve, contour.feed, tol))
     joined = join_chords(curve, tol, contour.feed)

@@ -78,13 +78,16 @@ is built offline in six steps:
    (along the normals; with 3 axes and more, along directions around the path and, where
    a round found a point outside the tolerance, along its own offset), within a trust
    region (as far as the feed goes in a sample; failing that, as far as the
-   linearisation stays within the tolerance). N runs down while one is found, from a
-   sample after the piece's continuous time-optimal duration if one is found there,
-   else from the plan's arrival (where the landing could not put the plan at rest and
-   it rings about the end by more than ``path_tolerance``, from the first of the
-   arrival and the samples after it, up to where the ringing dies down, at which one
-   is); the programs of one N are warm-started from the last one's basis (HiGHS'
-   dual simplex through ``highspy``). The nearest path points of the motion found move
+   linearisation stays within the tolerance). N starts a sample after the piece's
+   continuous time-optimal duration (rounded up) and runs down while one is found, to
+   that duration (below it only as a short try); where none is found at the start
+   within a few rounds, N runs down from the plan's arrival while one is found (the
+   start sample again only within as few rounds; where the landing could not put the
+   plan at rest and it rings about the end by more than ``path_tolerance``, from the
+   first of the arrival and the samples after it, up to where the ringing dies down, at
+   which one is). Each program is
+   warm-started from the last one's basis (HiGHS' dual simplex through ``highspy``),
+   where a round holds more points as well. The nearest path points of the motion found move
    by at most ``F*Ts +`` :data:`FEED_SLACK` a sample.
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.

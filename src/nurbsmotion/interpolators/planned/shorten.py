@@ -44,10 +44,21 @@ and, at the earliest arrival, never come within the tolerance."""
 SHORTEN_START = 1
 """Step 6 starts its search for a piece's arrival this many samples after the piece's
 continuous time-optimal duration (rounded up; :func:`planning.speed_profile` before any
-easing), not at the plan's arrival, and runs down from there: a short move's earliest
+easing), not at the plan's arrival, and runs down from there to that duration; where
+none is found at the start, down from the plan's arrival: a short move's earliest
 arrival lies within a sample or two of that duration, and each sample it need not step
 down from costs one or more linear programs (on six 60-120 mm free-form moves at 1.7 m/s
-the plan arrived 1-10 samples later, and the search from there took 10-71 programs)."""
+the plan arrived 1-10 samples later, and the search from there took 10-71 programs; on
+the first 300 cases of ``benchmarks/planner_sweep.py``, searched all the way down, 11 of
+294 pieces arrived a sample before the duration rounded up, and one two samples before)."""
+
+SHORTEN_BELOW_ROUNDS = 2
+"""Most linear programs step 6 solves, per trust region, for an arrival sample before the
+piece's continuous time-optimal duration (rounded up to whole samples): the plant then
+has to leave the path by up to the path tolerance to arrive sooner, which the first
+program, started from the motion found a sample later and compressed by one, finds at
+once or, after one re-linearisation, in the second; past that the rounds only spend
+programs on a sample that a motion on the path cannot have."""
 
 DEFAULT_PATH_TOLERANCE = 1.0
 """How far [pulse] from the path step 6 may take a short move's motion by default: one
@@ -144,25 +155,34 @@ def _silent(Highs):
 
 class _WarmProgram:
     """The linear programs of one arrival sample of step 6, solved by HiGHS' dual simplex
-    (Huangfu & Hall 2018, through ``highspy``), each from the last one's optimal basis
-    where it has the same rows and columns: a round re-linearises the path at new points,
-    which changes the numbers but not the shape, and the last basis is then a few tens of
-    pivots from the new optimum instead of about a thousand (10-30 x fewer iterations on
-    the rounds of a 78 mm move at 1.7 m/s, 85 samples)."""
+    (Huangfu & Hall 2018, through ``highspy``), each from the last one's optimal basis:
+    a round re-linearises the path at new points, which changes the numbers but not the
+    shape, and the last basis is then a few tens of pivots from the new optimum instead of
+    about a thousand (10-30 x fewer iterations on the rounds of a 78 mm move at 1.7 m/s,
+    85 samples). A round that holds more points than the last adds rows and columns: the
+    rows and columns the programs share (named by ``row_keys`` and ``col_keys``) keep
+    their status, the new rows are basic (their slacks, as a cutting-plane method
+    restarts its dual simplex) and the new columns at their lower bounds."""
 
     def __init__(self):
         self.highs = None
         self.basis = None
-        self.shape = None
+        self.keys = None
 
-    def solve(self, cost, A_ub, b_ub, A_eq, bounds):
+    def solve(self, cost, A_ub, b_ub, A_eq, bounds, row_keys=None, col_keys=None):
         """Minimise ``cost @ x`` subject to ``A_ub @ x <= b_ub``, ``A_eq @ x = 0`` and the
-        ``bounds`` (n, 2) of x; the optimal x, or None where there is none."""
+        ``bounds`` (n, 2) of x; the optimal x, or None where there is none. ``row_keys``
+        (rows of A_ub then A_eq,) and ``col_keys`` (n,), integers, name the rows and
+        columns that the next program may share (default: by position)."""
         from scipy import sparse
 
         highspy, Highs = _highs()
 
         A = sparse.vstack([A_ub, A_eq]).tocsc()
+        if row_keys is None:
+            row_keys = np.arange(A.shape[0])
+        if col_keys is None:
+            col_keys = np.arange(A.shape[1])
         lp = highspy.HighsLp()
         lp.num_col_, lp.num_row_ = A.shape[1], A.shape[0]
         lp.col_cost_ = np.asarray(cost, dtype=float)
@@ -180,21 +200,75 @@ class _WarmProgram:
             self.highs = _silent(Highs)
         h = self.highs
         h.passModel(lp)
-        warm = self.basis is not None and self.shape == A.shape
-        h.setOptionValue("presolve", "off" if warm else "choose")
-        if warm:
-            h.setBasis(self.basis)
+        basis = self._mapped_basis(highspy, row_keys, col_keys)
+        h.setOptionValue("presolve", "off" if basis is not None else "choose")
+        if basis is not None:
+            h.setBasis(basis)
         h.run()
+        if basis is not None and h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            # a carried-over basis is a start, never a verdict: the program decides cold
+            h.clearSolver()
+            h.setOptionValue("presolve", "choose")
+            h.run()
         if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
             self.basis = None
             return None
-        self.basis, self.shape = h.getBasis(), A.shape
+        status = h.getBasis()
+        self.basis = (np.fromiter(map(int, status.row_status), np.int8, A.shape[0]),
+                      np.fromiter(map(int, status.col_status), np.int8, A.shape[1]))
+        self.keys = (np.asarray(row_keys), np.asarray(col_keys))
         return np.array(h.getSolution().col_value)
+
+    def _mapped_basis(self, highspy, row_keys, col_keys):
+        """The last optimal basis carried over to rows ``row_keys`` and columns
+        ``col_keys``, or None (no last basis, or it shares no row)."""
+        if self.basis is None:
+            return None
+        kinds = list(highspy.HighsBasisStatus.__members__.values())
+        basic, lower = int(highspy.HighsBasisStatus.kBasic), int(highspy.HighsBasisStatus.kLower)
+        status = []
+        for keys, old_keys, old, new in zip((row_keys, col_keys), self.keys, self.basis,
+                                            (basic, lower)):
+            if len(keys) == len(old_keys) and np.array_equal(keys, old_keys):
+                status.append(old)
+                continue
+            order = np.argsort(old_keys, kind="stable")
+            at = np.minimum(np.searchsorted(old_keys, keys, sorter=order), len(order) - 1)
+            hit = old_keys[order[at]] == keys
+            status.append(np.where(hit, old[order[at]], new))
+        rows, cols = status
+        basis = highspy.HighsBasis()
+        basis.row_status = [kinds[k] for k in rows.tolist()]
+        basis.col_status = [kinds[k] for k in cols.tolist()]
+        basis.valid = True
+        # an added row's slack is basic: as many basic as rows where the programs differ
+        # by added rows and columns alone; HiGHS completes any other (an alien basis)
+        basis.alien = int(np.count_nonzero(rows == basic) + np.count_nonzero(cols == basic)) \
+            != len(rows)
+        return basis
+
+
+def _keys(f: np.ndarray, r: int, n_fixed: int, n_eq: int):
+    """Names of the rows and columns of a program of :func:`_shorten_at` whose held points
+    are the fine points ``f`` (m,), with ``r`` normal directions each, ``n_fixed`` drive
+    and state columns and ``n_eq`` dynamics rows, in the order that builds them; the
+    programs of one arrival sample share a row or a column where it has the same name
+    (:class:`_WarmProgram`)."""
+    f = np.asarray(f, dtype=np.int64)
+    span = np.int64(16 << 32)                            # more than 16 x any fine index
+    point = f[:, None] * 16 + np.arange(r)              # (m, r)
+    blocks = [point.ravel(), point.ravel() + span] + [f * 16 + b * span
+                                                       for b in range(2, 6)]
+    blocks += [f[:-1] * 16 + 6 * span, f[:-1] * 16 + 7 * span,
+               np.array([8 * span]), np.array([9 * span]), 10 * span + np.arange(n_eq)]
+    cols = np.concatenate([np.arange(n_fixed), n_fixed + 1 + f, [-1]])
+    return np.concatenate(blocks), cols
 
 
 def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
                 s: np.ndarray, limit: float, tolerance: float, tangent: np.ndarray, feed,
-                Ts: float, wide: bool, most_rounds: int = SHORTEN_ROUNDS):
+                Ts: float, wide: bool, most_rounds: int = SHORTEN_ROUNDS,
+                program: "_WarmProgram | None" = None):
     """One arrival sample N of step 6 (:func:`_shorten`) along the ``span`` of the curve
     from stop to stop (the plant at rest on its start at sample 0): drives u[LEAD] .. u[N-1]
     (|u| <= ``limit`` [V]) that keep the model's ``plant`` (at rest at the start) within
@@ -257,7 +331,7 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
     has_cut = np.zeros(len(fine), bool)
     reach, previous = 1.0, math.inf
     closest, stalled = math.inf, 0  # the least of the farthest points so far; rounds since
-    program = _WarmProgram()
+    program = program or _WarmProgram()
     for rounds in range(most_rounds):
         m = len(held)
         col_step = n_fixed + np.arange(m)
@@ -331,7 +405,8 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         # a tie-break: of the motions with the least E, the one whose nearest points
         # move least (the chord is exact there); moving all by the trust costs E/16
         cost[col_step] = tolerance / (16.0 * m * trust)
-        x = program.solve(cost, A_ub, b_ub, A_eq, bounds)
+        x = program.solve(cost, A_ub, b_ub, A_eq, bounds, *_keys(f, normals.shape[1],
+                                                                 n_fixed, A_eq.shape[0]))
         if x is None:
             return None
         u = np.zeros((N, n_axes))
@@ -405,12 +480,18 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
     ``tolerance`` either).
 
     N runs down from ``arrival - 1`` while one is found (where none is, and the plan so
-    leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one is);
-    given the ``earliest`` sample worth trying first (:data:`SHORTEN_START`), from there
-    if one is found there within :data:`SHORTEN_STALL` rounds, else from the top. The first guess of the nearest
-    points is the plan's (its parameters ``param``, shape (n,)), compressed in time to
-    arrive at N; each later N starts from the last motion found, compressed by a sample.
-    The programs of one N are warm-started (:class:`_WarmProgram`).
+    leaves the end, from the first of ``arrival``, ``arrival + 1``, ... at which one
+    is); given the ``earliest`` sample worth trying first (:data:`SHORTEN_START`), from
+    there if one is found there within :data:`SHORTEN_STALL` rounds, down to the piece's
+    continuous duration ``earliest - SHORTEN_START`` and below it by tries of
+    :data:`SHORTEN_BELOW_ROUNDS` rounds; else from the top, the probed N again within
+    :data:`SHORTEN_STALL` rounds only (searching up from it instead, each N from the
+    plan's guess, arrived 1-3 samples later on ``examples/study.toml``'s closed path at
+    1 m/s than coming down, each N from the motion found a sample later). The first
+    guess of the nearest points is the plan's (its parameters ``param``, shape (n,)),
+    compressed in time to arrive at N; each later N starts from the last motion found,
+    compressed by a sample. The programs of one N are warm-started
+    (:class:`_WarmProgram`).
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
     Ts = machine.sample_period
@@ -455,31 +536,55 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
             # a trust region as wide as the feed goes in a sample, failing that as wide
             # as the linearisation stays within the tolerance
             found = None
+            # (the narrow region is the fallback: it starts from the wide one's basis and
+            # runs as many rounds; capped at SHORTEN_STALL, its pace test gave up on case
+            # 88 of benchmarks/planner_sweep.py, which arrived 2 samples later)
+            program = _WarmProgram()
             for wide in (True, False):
                 found = found or _shorten_at(curve, span, plant, zoh, N,
                                              np.maximum.accumulate(guess),
                                              limit, tolerance, tangent, feed, Ts, wide,
-                                             most_rounds)
+                                             most_rounds, program)
             if found is not None:
                 best = (N, *found, zoh)
                 known[:] = [np.concatenate([[float(LEAD)], t, [N]]),
                             np.concatenate([[span.s0], found[1], [span.s1]])]
             return found is not None
 
-        # from the estimate down while one is found; where none is found there within
-        # SHORTEN_STALL rounds (a probe: from the plan's guess, compressed by several
-        # samples, a program that does not converge soon seldom does), from the top down
-        # (each from the motion found a sample later)
-        N = top if earliest is None else min(max(earliest, LEAD + 2), top)
-        if N == top or not found_at(N, SHORTEN_STALL):
-            N = top + 1
-        while N > LEAD + 2 and found_at(N - 1):
+        # From the estimate (a sample after the piece's continuous duration) down while
+        # one is found, each from the motion found a sample later; below the continuous
+        # duration only as a short try (SHORTEN_BELOW_ROUNDS). Where none is found at the
+        # estimate within SHORTEN_STALL rounds (a probe: from the plan's guess, compressed
+        # by several samples, a program that does not converge soon seldom does), from
+        # the top down, the probed sample again only within as many rounds (failures
+        # cost the most: up to SHORTEN_ROUNDS programs each, against a few for a
+        # success; each N from the motion found a sample later, which the probe lacked).
+        low, probe = LEAD + 2, None
+        if earliest is None:
+            N, floor = top + 1, low
+        else:
+            # (a motion as far from the path as the plan may arrive well before the
+            # continuous duration: no floor then; 5 ms for a duration of 7 ms seen)
+            floor = max(earliest - SHORTEN_START, low) if tolerance <= path_tolerance else low
+            N = min(max(earliest, low), top)
+            if not found_at(N, SHORTEN_STALL if N < top else SHORTEN_ROUNDS):
+                if N == top:
+                    return None    # the top, in full: no motion found to start from
+                N, probe = top + 1, N
+
+        def rounds_at(N):
+            if N == probe:
+                return SHORTEN_STALL
+            return SHORTEN_ROUNDS if N >= floor else SHORTEN_BELOW_ROUNDS
+
+        while N > low and found_at(N - 1, rounds_at(N - 1)):
             N -= 1
         return best
 
     # within the path tolerance; failing that, no farther from the path than the plan;
     # failing both, a plan at rest at the arrival or later, before this one settles, if
     # this one rings about the end
+    path_tolerance = tolerance
     tops = [arrival - 1] + list(range(arrival, settled))
     tries = [(top, t) for top in tops
              for t in dict.fromkeys([tolerance, max(tolerance, own)]) if t > 0]

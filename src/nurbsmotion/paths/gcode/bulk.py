@@ -48,7 +48,8 @@ class _Bulk:
     def lean(self) -> bool:
         """Whether :meth:`read`'s lean path (and so :meth:`read_rows`'s bulk) applies."""
         return (self.block is None and self.units is not None and self.absolute
-                and not self.inverse_time and not self.per_rev and self.identity_frame())
+                and not self.inverse_time and not self.per_rev and self.identity_frame()
+                and self.comp is None and self.comp_exit is None)
 
     def apply_rows(self, run: "_RunColumns", state: "_RunState", s: int, t: int) -> None:
         """Apply rows ``s .. t - 1`` of a run as :meth:`read` would, one by one."""

@@ -25,7 +25,7 @@ PECK_CLEARANCE_INCH = 0.010
 versions default to 0.050 inch or 1 mm, set in the INI file or by a ``D`` word)."""
 _COORD_SYSTEMS = {54.0: 1, 55.0: 2, 56.0: 3, 57.0: 4, 58.0: 5, 59.0: 6, 59.1: 7, 59.2: 8, 59.3: 9}
 _SKIPPED_G = {
-    4.0: "G4 dwell", 40.0: None, 43.0: "G43 tool length offset (not applied)",
+    4.0: "G4 dwell", 43.0: "G43 tool length offset (not applied)",
     43.1: "G43.1 tool length offset (not applied)", 43.2: "G43.2 tool length offset (not applied)",
     49.0: None, 61.0: None, 61.1: None, 64.0: "G64 path blending tolerance",
     94.0: None, 96.0: "G96 constant surface speed", 97.0: "G97 spindle RPM mode",
@@ -33,12 +33,11 @@ _SKIPPED_G = {
     17.0: None, 18.0: None, 19.0: None,
 }  # fmt: skip
 _REFUSED_G = {
-    41.0: "cutter radius compensation changes the path", 42.0: "cutter radius compensation changes the path",
-    41.1: "cutter radius compensation changes the path", 42.1: "cutter radius compensation changes the path",
-    17.1: "the UVW planes are not read", 18.1: "the UVW planes are not read", 19.1: "the UVW planes are not read",
+    **dict.fromkeys((17.1, 18.1, 19.1), "the UVW planes are not read: write the arcs in G17, G18 or G19"),
     76.0: "the G76 threading cycle is not read (its passes follow the spindle, which the "
-          "path cannot; write the passes as G33 or G1 moves)", 38.2: "probing is not read", 38.3: "probing is not read",
-    38.4: "probing is not read", 38.5: "probing is not read",
+          "path cannot; write the passes as G33 or G1 moves)",
+    **dict.fromkeys((38.2, 38.3, 38.4, 38.5), "probing is not read (its moves end where the probe touches "
+                    "the part): remove the probing lines, or write the moves they make"),
 }  # fmt: skip
 _END_M = {2.0, 30.0}
 _PLAIN_G = {(0.0,): "G0", (1.0,): "G1"}

@@ -50,14 +50,13 @@ def helix(center, radius0: float, radius1: float, a0: float, sweep: float, start
 class _Curves:
     """The reader's curved moves (mixed into :class:`~nurbsmotion.paths.gcode.reader._Reader`)."""
 
-    def arc(self, w: dict, start: list, end: list) -> None:
-        """G2/G3 in the selected plane, computed in program coordinates as LinuxCNC does:
-        an exact arc when only the plane's axes move, else a helix; a spiral when the
-        end radius differs from the start radius within LinuxCNC's tolerance."""
+    def arc_centre(self, w: dict, sx: float, sy: float, ex: float, ey: float) -> tuple:
+        """Centre (program coordinates of the plane's axes) and turns of a G2/G3 from
+        (sx, sy) to (ex, ey) by its words (R, or the centre offsets; P), with LinuxCNC's
+        checks of the words and of the radii to the start and the end."""
         clockwise = self.motion == "G2"
         k = self.scale()
-        line = self.line
-        i1, i2, lin, o1, o2 = _PLANES[self.plane]
+        _, _, lin, o1, o2 = _PLANES[self.plane]
         turns = w.get("P", 1.0)
         if turns != int(turns) or turns < 1:
             raise self.error(f"arc turns P{turns:g} must be a whole number >= 1")
@@ -67,18 +66,18 @@ class _Curves:
         wrong = "IJK"[lin]
         if wrong in w:
             raise self.error(f"{wrong} word not allowed with an arc in the {_g_name(self.plane)} plane")
-        ps, pe = self.to_program(start), self.to_program(end)
-        sx, sy, ex, ey = ps[i1], ps[i2], pe[i1], pe[i2]
         if "R" in w:
             if o1 in w or o2 in w:
-                raise self.error("arc with both R and a centre offset")
+                raise self.error("arc with both R and a centre offset: give one of them")
             r = k * self.value("R", w["R"])
             dx, dy = ex - sx, ey - sy
             d = math.hypot(dx, dy)
             if d == 0.0:
-                raise self.error("a radius-format arc cannot end where it starts")
+                raise self.error("a radius-format arc cannot end where it starts: write a full circle "
+                                 "with its centre (I/J/K)")
             if d > 2 * abs(r) * (1 + 1e-9):
-                raise self.error(f"arc radius {abs(r):g} is too small for the chord of length {d:g}")
+                raise self.error(f"arc radius {abs(r):g} is too small for the chord of length {d:g}: "
+                                 f"give a radius of at least {d / 2:g} or correct the end point")
             h = math.sqrt(max(r * r - d * d / 4, 0.0)) * (1.0 if (not clockwise) == (r > 0) else -1.0)
             cx, cy = (sx + ex) / 2 - h * dy / d, (sy + ey) / 2 + h * dx / d
         else:
@@ -91,14 +90,30 @@ class _Curves:
             cx, cy = (off1, off2) if self.arc_absolute else (sx + off1, sy + off2)
         r1, r2 = math.hypot(sx - cx, sy - cy), math.hypot(ex - cx, ey - cy)
         if r1 == 0.0:
-            raise self.error(f"arc centre {[cx, cy]} coincides with its start point")
+            raise self.error(f"arc centre {[cx, cy]} coincides with its start point: correct the "
+                             "centre offsets")
         # LinuxCNC's check (interp_arc.cc): |r2 - r1| > 100 tol, or > tol and > 0.1 %
         tol = (2 * 0.01 * math.sqrt(2)) * (1.0 if self.units == "mm" else 1.0 / _INCH)
         diff = abs(r2 - r1)
         if diff > 100 * tol or (diff > tol and diff / max(r1, r2) > 0.001):
             raise self.error(
                 f"radius to end of arc differs from radius to start: start {[sx, sy]} "
-                f"centre {[cx, cy]} end {[ex, ey]} r1 {r1:.6g} r2 {r2:.6g}")
+                f"centre {[cx, cy]} end {[ex, ey]} r1 {r1:.6g} r2 {r2:.6g} (LinuxCNC refuses it too): "
+                "correct the arc's end point or centre")
+        return cx, cy, int(turns)
+
+    def arc(self, w: dict, start: list, end: list) -> None:
+        """G2/G3 in the selected plane, computed in program coordinates as LinuxCNC does:
+        an exact arc when only the plane's axes move, else a helix; a spiral when the
+        end radius differs from the start radius within LinuxCNC's tolerance."""
+        clockwise = self.motion == "G2"
+        line = self.line
+        i1, i2, lin, o1, o2 = _PLANES[self.plane]
+        ps, pe = self.to_program(start), self.to_program(end)
+        sx, sy, ex, ey = ps[i1], ps[i2], pe[i1], pe[i2]
+        cx, cy, turns = self.arc_centre(w, sx, sy, ex, ey)
+        r1, r2 = math.hypot(sx - cx, sy - cy), math.hypot(ex - cx, ey - cy)
+        diff = abs(r2 - r1)
         if i1 not in self.axes or i2 not in self.axes:
             if self.auto:
                 raise _NeedAxes({_AXES[i1], _AXES[i2]})

@@ -23,8 +23,12 @@ What is read (LinuxCNC 2.9 manual, chapters "G-code overview" and "O codes")
       ``call [arg]...`` (args become ``#1``.. ``#30``, local to the call with the named
       locals), ``return [value]`` (sets ``#<_value>`` and ``#<_value_returned>``),
       ``if``/``elseif``/``else``/``endif``, ``while``/``endwhile``, ``do``/``while``,
-      ``repeat``/``endrepeat``, ``break``, ``continue``. Only subroutines defined in the
-      same file can be called.
+      ``repeat``/``endrepeat``, ``break``, ``continue``. A subroutine is defined in the
+      program, or in a file ``name.ngc`` that the motion layer appends to the program's
+      lines (:func:`~nurbsmotion.paths.gcode.reader.load_gcode`'s ``subroutine_path``).
+    * A nested comment ``(a (b) c)``, which LinuxCNC refuses, is read as one comment; its
+      lines are listed in :attr:`Program.nested_comments`. ``#<_hal[...]>`` and
+      ``#<_ini[...]>`` (a running LinuxCNC's HAL pins and INI file) are refused.
 
 Limits (documented refusals, each a :class:`~nurbsmotion.errors.PathFileError` naming the
 line): a number literal of more than :data:`MAX_NUMBER_CHARS` characters; subroutine calls
@@ -243,8 +247,11 @@ _BINARY = [  # (binding, operators), loosest first
 _OP_NAMES = sorted({op for group in _BINARY for op in group if op.isalpha()}, key=len, reverse=True)
 
 
-def _clean(text: str, source: str, line: int) -> str:
-    """Lower case without spaces and comments (LinuxCNC's read_text/close_and_downcase)."""
+def _clean(text: str, source: str, line: int, nested: list | None = None) -> str:
+    """Lower case without spaces and comments (LinuxCNC's read_text/close_and_downcase).
+    A nested comment ``(a (b) c)``, which LinuxCNC refuses but CAM posts write (Estlcam:
+    ``(HSS Twist Drill, 3mm (R))``), is read as one comment and its line appended to
+    ``nested`` (the caller warns); without ``nested`` it is refused."""
     out = []
     i, n = 0, len(text)
     while i < n:
@@ -254,9 +261,23 @@ def _clean(text: str, source: str, line: int) -> str:
         if ch == "(":
             close = text.find(")", i + 1)
             if close < 0:
-                raise PathFileError("comment '(' is not closed on this line", source, line)
+                raise PathFileError("comment '(' is not closed on this line: close it with ')'",
+                                    source, line)
             if "(" in text[i + 1: close]:
-                raise PathFileError("nested comments are not allowed", source, line)
+                depth, j = 0, i
+                while j < n:
+                    depth += (text[j] == "(") - (text[j] == ")")
+                    if depth == 0:
+                        break
+                    j += 1
+                if depth:
+                    raise PathFileError("comment '(' is not closed on this line: close it with ')'",
+                                        source, line)
+                if nested is None:
+                    raise PathFileError("nested comments are not allowed (LinuxCNC refuses them): "
+                                        "remove the inner parentheses", source, line)
+                nested.append(line)
+                close = j
             i = close + 1
             continue
         if ch not in " \t":
@@ -413,6 +434,9 @@ class Program:
         # lines are read once, in bulk, into the word table: a program of millions of
         # lines costs about 17 bytes per word and 16 per line.
         self.parsed: dict = {}  # index -> ("o", label, kw, args) | ("w", words, assigns) | ("skip", why)
+        self.nested_comments: list = []  # lines with a nested comment, read as one comment
+        self.called: set = set()  # labels of the subroutines called
+        self.search_note = ""  # where subroutine files were looked for (for the error)
         self.olabels: dict = {}  # label -> sorted list of (index, keyword)
         start, stop = 0, len(lines)
         first = next((i for i, t in enumerate(lines) if t.strip()), None)
@@ -458,7 +482,7 @@ class Program:
                                         f"at most {MAX_NUMBER_CHARS} are read", self.source, line)
                 words.append((letter, ("n", float(number))))
             return ("w", words, ())
-        code = _clean(text, self.source, line)
+        code = _clean(text, self.source, line, self.nested_comments)
         if code.startswith("/"):
             code = code[1:]
         if not code or code == "%":
@@ -478,7 +502,8 @@ class Program:
                 self.olabels.setdefault(label, []).append((line - 1, kw))
                 return ("o", label, kw, tuple(args))
             raise p.error(f"cannot read the O-word {code[:20]!r} (expected o<name> or o123 "
-                          "followed by sub, call, if, while, ...)")
+                          "followed by sub, call, if, while, ...): write the keyword apart from any "
+                          "other word, as o<name> call")
         if (code.startswith("$") and not _DOLLAR_WORD.match(code)) or code in _CONSOLE:
             return ("skip", "console command")
         words, assigns = p.words()
@@ -499,7 +524,13 @@ class Program:
             for scope in (self.frames[-1],):
                 if name in scope:
                     return scope[name]
-        raise self.error(f"named parameter #<{name}> is not defined", line)
+        if name.startswith(("_hal[", "_ini[")):
+            what = "a HAL pin of a running LinuxCNC" if name.startswith("_hal[") else \
+                "the INI file of a LinuxCNC configuration"
+            raise self.error(f"#<{name}> reads {what}, which a program file alone does not give: "
+                             f"replace it with its value (a number) in the program", line)
+        raise self.error(f"named parameter #<{name}> is not defined: assign it (#<{name}> = value) "
+                         "before this line", line)
 
     def set_named(self, name: str, value: float) -> None:
         (self.globals if name.startswith("_") else self.frames[-1])[name] = value
@@ -638,14 +669,16 @@ class Program:
                 pc = self._next_mark(label, here, ("endsub",), line)[0] + 1
             elif kw == "call":
                 if label not in self.subs:
-                    raise self.error(f"o{label} call: no subroutine o{label} in this file "
-                                     "(only subroutines of the same file are read)", line)
+                    raise self.error(f"o{label} call: no subroutine o{label} in this file{self.search_note}: "
+                                     f"define it here or put it in a file {label.strip('<>')}.ngc "
+                                     "beside the program (or on subroutine_path)", line)
                 if len(calls) >= MAX_CALL_DEPTH:
                     raise self.error(f"subroutine calls nested deeper than {MAX_CALL_DEPTH}", line)
                 values = [self.eval(a, line) for a in args]
                 if len(values) > 30:
                     raise self.error(f"o{label} call with {len(values)} arguments; at most 30", line)
                 calls.append((pc, numbered[1:31], label))
+                self.called.add(label)
                 numbered[1:31] = values + [0.0] * (30 - len(values))
                 self.frames.append({})
                 self.globals["_value_returned"] = 0.0

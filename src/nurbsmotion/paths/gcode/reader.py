@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import warnings
 from array import array
 from pathlib import Path
@@ -15,10 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from ..._runtime.io import check_input_file
-from ...errors import InvalidCurveError, PathFileError
+from ...errors import InvalidArgumentError, InvalidCurveError, PathFileError
 from ...nurbs import NurbsCurve
 from ..pieces import PieceChain
 from .bulk import _Bulk
+from .compensation import _Compensation, read_tool_table
 from .codes import (_AXES, _AXIS_INDEX, _COORD_SYSTEMS, _CYCLES, _END_M, _INCH, _MOTION,
                     _MOTION_WORDS, _PLAIN_G, _PLAIN_WORDS, _REFUSED_G, _SKIPPED_G, _SKIPPED_WORDS,
                     MAX_COORDINATE, MIN_MOVE, _g_name, _NeedAxes, _picker, _skipped_m)
@@ -31,11 +33,12 @@ from .program import GcodeContour, GcodeProgram, GcodeWarning
 __all__ = ["load_gcode"]
 
 
-class _Reader(_Frames, _Curves, _Cycles, _Bulk):
+class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
     """The motion layer: executes blocks from :class:`ngc.Program` and collects pieces."""
 
-    def __init__(self, source: str, axes: str):
+    def __init__(self, source: str, axes: str, tool_table: dict | None = None, table_scale: float | None = None):
         self.source = source
+        self.comp_init(tool_table, table_scale)
         self.axes = [_AXES.index(a.upper()) for a in axes]
         self.units: str | None = None  # output units
         self.units_source = "assumed: no G20/G21"  # where self.units came from
@@ -120,7 +123,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
     def value(self, letter: str, v: float) -> float:
         if not abs(v) <= MAX_COORDINATE:
             raise self.error(f"{letter}{v:g} is beyond the largest coordinate read, "
-                             f"{MAX_COORDINATE:g} (MAX_COORDINATE)")
+                             f"{MAX_COORDINATE:g} (MAX_COORDINATE): check the number and its units")
         return v
 
     def lengths(self) -> list:
@@ -168,7 +171,8 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
         end = self.axis_words(words, cur, cur if base is None else self.to_program(base))
         if "@" in words or "^" in words:
             if "X" in words or "Y" in words:
-                raise self.error("polar coordinates @ ^ cannot be given with X or Y")
+                raise self.error("polar coordinates @ ^ cannot be given with X or Y: give the point "
+                                 "one way or the other")
             r0, t0 = math.hypot(cur[0], cur[1]), math.degrees(math.atan2(cur[1], cur[0]))
             r = k[0] * self.value("@", words["@"]) + (0.0 if self.absolute else r0) if "@" in words else r0
             t = self.value("^", words["^"]) + (0.0 if self.absolute else t0) if "^" in words else t0
@@ -188,7 +192,8 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
             raise self.error("feed per revolution (G95) needs a turning spindle: an S word and "
                              "M3/M4 before the move", line)
         if feed <= 0:
-            raise self.error("feed move without a feed rate: no F word (or F0) before it", line)
+            raise self.error("feed move without a feed rate: no F word (or F0) before it; give the feed "
+                             "with an F word on or before this line", line)
         return feed
 
     def open_chain(self) -> PieceChain:
@@ -274,7 +279,8 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
         line, gs, ms, words = block
         self.line = line
         if (not ms and (not gs or gs in _PLAIN_G) and words.keys() <= _PLAIN_WORDS
-                and self.block is None and self.units is not None and self.identity_frame()):
+                and self.block is None and self.units is not None and self.identity_frame()
+                and self.comp is None and self.comp_exit is None):
             kind = _PLAIN_G[gs] if gs else self.motion
             if kind == "G0" or kind == "G1":  # the lines of CAM output: a lean path
                 self.motion = kind
@@ -293,6 +299,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
             return True
         motion = None
         special = None  # a non-modal G code of group 0 that uses the axis words
+        comp_code = None  # G40, G41, G42, G41.1 or G42.1
         for g in block.g:
             if g not in _MOTION:  # G1, G01 and G1.0 are read as 1.0 exactly; others may be computed
                 g = round(g, 4)
@@ -301,9 +308,12 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
                     motion = motion if g == 80.0 else _MOTION[g]
                     continue
                 if motion is not None:
-                    raise self.error(f"two motion codes on one line: {motion} and {_g_name(g)}")
+                    raise self.error(f"two motion codes on one line: {motion} and {_g_name(g)}; write "
+                                     "them on two lines")
                 motion = _MOTION[g]
             elif g in (20.0, 21.0):
+                if self.comp is not None and self.input_inch is not None and (g == 20.0) != self.input_inch:
+                    self.comp_refuse(f"changing units ({_g_name(g)})")
                 self.input_inch = g == 20.0
                 self._k = None
                 if self.units is None:
@@ -318,24 +328,35 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
                     self.feed = self.feed_per_rev = 0.0  # LinuxCNC's convert_feed_mode: F anew
                 self.inverse_time, self.per_rev = g == 93.0, g == 95.0
             elif g in (17.0, 18.0, 19.0):
+                if g != 17.0:
+                    self.comp_refuse(f"leaving the XY plane ({_g_name(g)})")
                 self.plane = g
             elif g in (98.0, 99.0):
                 self.retract_old_level = g == 98.0
             elif g in _COORD_SYSTEMS:
+                self.comp_refuse(f"changing the coordinate system ({_g_name(g)})")
                 self.program.numbered[5220] = float(_COORD_SYSTEMS[g])
                 self.frame_changes += 1
             elif g in (10.0, 28.0, 28.1, 30.0, 30.1, 53.0, 92.0, 92.1, 92.2, 92.3):
                 if special is not None:
-                    raise self.error(f"two codes of group 0 on one line: {_g_name(special)} and {_g_name(g)}")
+                    raise self.error(f"two codes of group 0 on one line: {_g_name(special)} and "
+                                     f"{_g_name(g)}; write them on two lines")
                 special = g
+            elif g in (40.0, 41.0, 41.1, 42.0, 42.1):
+                if comp_code is not None:
+                    raise self.error(f"two cutter compensation codes on one line: {_g_name(comp_code)} "
+                                     f"and {_g_name(g)}")
+                comp_code = g
             elif g in _REFUSED_G:
                 raise self.error(f"{_g_name(g)}: {_REFUSED_G[g]}")
             elif g in _SKIPPED_G:
+                if g in (61.0, 61.1, 64.0):
+                    self.comp_refuse(f"changing the path control mode ({_g_name(g)})")
                 if _SKIPPED_G[g]:
                     self.warn(f"{_SKIPPED_G[g]} skipped: it does not change the path", _g_name(g))
                 if g == 4.0:
                     rest.pop("P", None)
-                    self.end_contour()
+                    self.comp_stop()
                 elif g == 64.0:
                     rest.pop("P", None), rest.pop("Q", None)
                 elif g in (43.0, 43.2):
@@ -344,15 +365,23 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
                     for a in "XYZABCUVW":
                         rest.pop(a, None)
             else:
-                raise self.error(f"{_g_name(g)} is not a LinuxCNC G code this reader knows")
+                raise self.error(f"{_g_name(g)} is not a LinuxCNC G code this reader knows: remove it, or "
+                                 "write the moves it stands for as G0/G1/G2/G3")
+        if "T" in rest:  # selected before M6 on the same line, as in LinuxCNC
+            self.tool_selected = int(rest["T"])
         for m in block.m:
             if m in _END_M:
                 continue
             if m in (3.0, 4.0, 5.0):
                 self.spindle_on = m != 5.0
+            elif m == 6.0:
+                self.tool_in_spindle = self.tool_selected
+            elif m == 61.0 and "Q" in rest:
+                self.tool_in_spindle = self.tool_selected = int(rest["Q"])
             name = _skipped_m(m)
             if name is None:
-                raise self.error(f"M{m:g} is not an M code this reader knows")
+                raise self.error(f"M{m:g} is not an M code this reader knows: remove it (M codes of "
+                                 "LinuxCNC, M0-M9, M30, M48-M68, M70-M73, M100-M199, are read)")
             self.warn(f"{name} skipped: it does not change the path", name)
             if m >= 48:  # the words of M48-M53, M61-M68 (P, Q, E, L, R) go with them
                 for letter in "PEQLR":
@@ -363,6 +392,8 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
             self.spindle_rpm = rest["S"]
             if self.per_rev:
                 self.feed = self.feed_per_rev * self.spindle_rpm
+        if comp_code is not None:
+            self.cutter_comp(comp_code, rest)
         if not rest.keys().isdisjoint(_SKIPPED_WORDS):
             for letter, what in _SKIPPED_WORDS.items():
                 if letter in rest:
@@ -380,6 +411,9 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
         previous = self.motion
         if motion is not None:
             self.motion = motion
+        if self.comp is not None and self.motion not in (None, "G0", "G1", "G2", "G3", "G80") \
+                and (motion is not None or rest):
+            self.comp_refuse(self.motion)
         if special is not None:
             self.non_modal(special, rest)
             self.frame_changes += 1
@@ -408,6 +442,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
                 raise self.error("G53 needs absolute mode G90")
             self.move(w, machine=True)
         elif g in (28.0, 30.0):
+            self.comp_refuse(_g_name(g))
             home = 5161 if g == 28.0 else 5181
             self.end_contour()
             if w:
@@ -417,6 +452,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
             home = 5161 if g == 28.1 else 5181
             n[home: home + 9] = list(self.position / self.lengths())
         elif g == 92.0:
+            self.comp_refuse("G92")
             if not w:
                 raise self.error("G92 needs at least one axis word")
             _, g92, _ = self.frame()
@@ -435,8 +471,13 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
         else:  # G10
             L = w.pop("L", None)
             if L in (1.0, 10.0, 11.0):
-                self.warn(f"G10 L{L:g} tool table entries skipped: tool offsets are not applied", "G10 tool")
+                self.set_tool_entry(w)  # its R: the radius cutter compensation uses
+                if set(w) - {"P", "R"}:
+                    self.warn(f"G10 L{L:g} tool table entries skipped: tool offsets are not applied",
+                              "G10 tool")
                 return
+            if L in (2.0, 20.0):
+                self.comp_refuse(f"G10 L{L:g} (a coordinate system's offsets)")
             if L not in (2.0, 20.0):
                 raise self.error(f"G10 L{L if L is None else format(L, 'g')} is not read (G10 L2/L20 are)")
             p = w.pop("P", 0.0)
@@ -465,7 +506,13 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
             raise self.error(f"axis words {sorted(w)} without a motion mode (G0/G1/...)")
         if not w.keys() <= _MOTION_WORDS[kind]:
             extra = sorted(set(w) - _MOTION_WORDS[kind])
-            raise self.error(f"word(s) {', '.join(extra)} not read with {kind}")
+            raise self.error(f"word(s) {', '.join(extra)} not read with {kind}: remove them")
+        if self.comp is not None or self.comp_exit is not None:
+            if kind in ("G0", "G1", "G2", "G3") and (self.comp_active() or self.comp_exit is not None):
+                self.comp_move(kind, w, machine)
+                return
+            if kind not in ("G0", "G1", "G2", "G3"):
+                self.comp_refuse(kind)
         if kind in ("G5", "G5.1") and self.plane != 17.0:
             raise self.error(f"{kind} is only allowed in the XY plane (G17), as in LinuxCNC")
         if kind in ("G33", "G33.1"):
@@ -549,24 +596,97 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk):
     def finish(self) -> None:
         if self.block is not None and self.block["kind"] == "G5.2":
             raise self.error(f"the G5.2 block opened on line {self.block['line']} is never closed "
-                             "with G5.3 (truncated program?)", self.block["line"])
+                             "with G5.3 (truncated program?): close it with G5.3", self.block["line"])
         if self.block is not None:
             self.close_g6()
+        self.dequeue()
         self.end_contour()
 
 
 
-def _read_program(path: Path, axes: str, project: bool, auto: bool, rapids: bool = False) -> _Reader:
-    reader = _Reader(str(path), axes)
+_CALL = re.compile(r"O\s*<([^>]*)>\s*CALL")
+_SUB = re.compile(r"^\s*O\s*<([^>]*)>\s*(SUB|ENDSUB)\b")
+
+
+def _label(text: str) -> str:
+    return "".join(text.split()).lower()
+
+
+def _subroutine_files(lines: list, path: Path, search: tuple) -> tuple[list, list, str]:
+    """The program's lines with the subroutines it calls from files appended: for each
+    ``o<name> call`` of a name the text does not define, the ``o<name> sub`` ..
+    ``o<name> endsub`` lines of the first ``name.ngc`` in the program's folder, then in
+    ``search`` (LinuxCNC's SUBROUTINE_PATH), and so on for the calls in those. Returns the
+    lines, the parts appended as (first index, end index, file, first index in the file),
+    and a note of the folders looked in."""
+    folders = [path.parent] + [Path(d) for d in search]
+    note = " nor a file in " + ", ".join(str(f) for f in folders)
+
+    def scan(text_lines):
+        calls = {_label(m.group(1)) for t in text_lines if "CALL" in t for m in _CALL.finditer(t)}
+        subs = {_label(m.group(1)) for t in text_lines if "SUB" in t
+                for m in [_SUB.match(t)] if m and m.group(2) == "SUB"}
+        return calls, subs
+
+    calls, defined = scan(lines)
+    first = next((i for i, t in enumerate(lines) if t.strip()), None)
+    at = len(lines)
+    if first is not None and lines[first].strip() == "%":
+        at = next((i for i in range(first + 1, len(lines)) if lines[i].strip() == "%"), len(lines))
+    parts, added = [], []
+    todo = sorted(calls - defined)
+    while todo:
+        name = todo.pop(0)
+        if name in defined:
+            continue
+        defined.add(name)
+        file = next((f / f"{name}.ngc" for f in folders if (f / f"{name}.ngc").is_file()), None)
+        if file is None:
+            continue  # the call refuses when it runs, naming the folders
+        sub_lines = split_lines(file.read_bytes(), str(file), upper=True)
+        marks = [(i, m.group(2)) for i, t in enumerate(sub_lines) for m in [_SUB.match(t)]
+                 if m and _label(m.group(1)) == name]
+        begin = next((i for i, kw in marks if kw == "SUB"), None)
+        end = next((i for i, kw in marks if kw == "ENDSUB" and begin is not None and i > begin), None)
+        if begin is None or end is None:
+            raise PathFileError(f"the subroutine file defines no o<{name}> sub .. o<{name}> endsub: "
+                                "wrap its lines in them, as LinuxCNC reads a subroutine file",
+                                str(file), 1)
+        body = sub_lines[begin: end + 1]
+        parts.append((at + len(added), at + len(added) + len(body), str(file), begin))
+        added.extend(body)
+        more, subs = scan(body)
+        todo.extend(sorted(more - defined))
+    if added:
+        lines = lines[:at] + added + lines[at:]
+    return lines, parts, note
+
+
+def _read_program(path: Path, axes: str, project: bool, auto: bool, rapids: bool = False,
+                  tools: tuple = (None, None), search: tuple = ()) -> _Reader:
+    reader = _Reader(str(path), axes, *tools)
     reader.project, reader.auto, reader.rapids_as_path = project, auto, rapids
     lines = split_lines(path.read_bytes(), str(path), upper=True)
-    program = Program(lines, str(path), reader.system_parameter)  # upper-cased: plain lines in bulk
-    del lines  # the program keeps what it needs
-    reader.program = program
-    for item in program.blocks(runs=True):
-        if not (reader.read_rows(item) if isinstance(item, Rows) else reader.read(item)):
-            break
-    reader.finish()
+    lines, parts, note = _subroutine_files(lines, path, search)
+    try:
+        program = Program(lines, str(path), reader.system_parameter)  # upper-cased: plain lines in bulk
+        program.search_note = note
+        del lines  # the program keeps what it needs
+        reader.program = program
+        for item in program.blocks(runs=True):
+            if not (reader.read_rows(item) if isinstance(item, Rows) else reader.read(item)):
+                break
+        reader.finish()
+    except PathFileError as exc:
+        for a, b, file, begin in parts:  # a line of a subroutine file: name that file's line
+            if exc.source == str(path) and exc.line is not None and a < exc.line <= b:
+                raise PathFileError(f"{exc.message} (in o<{Path(file).stem}>, called from {path.name})",
+                                    file, exc.line - a + begin) from None
+        raise
+    for line in program.nested_comments[:1]:
+        reader.line = line
+        reader.warn(f"nested comment read as one comment ({len(program.nested_comments)} line(s)); "
+                    "LinuxCNC refuses it: remove the inner parentheses for LinuxCNC")
     return reader
 
 
@@ -576,7 +696,9 @@ def _project(contour: GcodeContour, cols: list) -> GcodeContour:
     return GcodeContour(curve, contour.piece_edges, contour.programmed_feed, contour.lines)
 
 
-def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: bool = False) -> GcodeProgram:
+def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: bool = False,
+               tool_table: str | os.PathLike | None = None, tool_table_units: str | None = None,
+               subroutine_path: tuple = ()) -> GcodeProgram:
     """Read the contours of a G-code program (see the module docstring).
 
     Parameters
@@ -592,6 +714,19 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
     project : bool
         Read a feed move of other axes together with path axes as its projection on the
         path axes (``--project xy``: a helix becomes its circle) instead of refusing it.
+    tool_table : str or path-like, optional
+        A LinuxCNC tool table (``.tbl``): the tool diameters ``G41 D<tool>`` / ``G42`` (the
+        tool in the spindle) compensate with. Without it, ``G41.1/G42.1 D<diameter>`` and
+        ``G10 L1 P<tool> R<radius>`` in the program give the radius, or a table named like
+        the program beside it (``part.tbl``), read with a warning when a radius is needed.
+    tool_table_units : {"mm", "inch"} or None
+        The unit of the table's diameters (LinuxCNC: the machine's linear units); None: the
+        program's units (its first G20/G21).
+    subroutine_path : sequence of str or path-like
+        Folders where ``o<name> call`` finds ``name.ngc`` when the program does not define
+        ``o<name>`` (after the program's own folder; LinuxCNC's ``SUBROUTINE_PATH``). The
+        lines of a called file are numbered after the program's own in ``GcodeContour.lines``;
+        an error in one names that file and its line.
 
     Returns
     -------
@@ -608,6 +743,14 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
         read, naming the file, the line and the value.
     """
     path = check_input_file(file)
+    if tool_table_units not in ("mm", "inch", None):
+        raise InvalidArgumentError(f"tool_table_units {tool_table_units!r} must be 'mm', 'inch' or None "
+                                   "(the program's units)")
+    scale = None if tool_table_units is None else _INCH if tool_table_units == "inch" else 1.0
+    tools = (None, scale)
+    if tool_table is not None:
+        tools = (read_tool_table(check_input_file(tool_table), str(path)), scale)
+    search = tuple(subroutine_path)
     auto = axes is None
     axes = "XYZ" if auto else str(axes).upper()
     if not axes or len(set(axes)) != len(axes) or not set(axes) <= set(_AXES):
@@ -617,7 +760,7 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
         with warnings.catch_warnings(record=True) as caught:  # shown once, from the last pass
             warnings.simplefilter("always")
             try:
-                reader = _read_program(path, axes, project, auto, rapids)
+                reader = _read_program(path, axes, project, auto, rapids, tools, search)
             except _NeedAxes as exc:
                 axes = "".join(a for a in _AXES if a in set(axes) | exc.letters)
                 continue
@@ -650,7 +793,17 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
         reader.warnings.append(text)
         warnings.warn(text, GcodeWarning, stacklevel=2)
     if not contours:
-        raise PathFileError(f"the program has no feed move of the path axes {axes} to make a path from",
+        subs = sorted(set(reader.program.subs) - reader.program.called)
+        if subs and not reader.program.called:
+            remedy = (f"it only defines {', '.join('o' + s for s in subs)} (a subroutine file): call it "
+                      f"from a program (o{subs[0]} call [arguments]) and read that program")
+        elif reader.fed_outside:
+            outside = "".join(_AXES[i] for i in sorted(reader.fed_outside))
+            remedy = f"its feed moves change only {outside}: read it on axes that include {outside}"
+        else:
+            remedy = "it sets modes, offsets or tools only; read a program with G1/G2/G3 moves"
+        raise PathFileError(f"the program has no feed move of the path axes {axes} to make a path from: "
+                            f"{remedy}",
                             str(path))
     return GcodeProgram(tuple(contours), reader.units or "mm", str(path), tuple(reader.warnings), axes,
                         reader.units_source, rapids)

@@ -1,0 +1,126 @@
+"""The axis's linear continuous model and the poles of its closed loop with its delay
+and its mode (no clamps, friction or quantisers): what a machine is refused for (the
+model: :mod:`nurbsmotion.plant`).
+
+Glossary
+--------
+See :mod:`nurbsmotion.plant`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .two_mass import _mode
+
+__all__ = ["continuous_model", "linear_loop_poles"]
+
+
+def split_delay(delay: float, sample_period: float) -> tuple[int, float]:
+    """A delay [s] as whole samples and the rest [s], ``delay = whole*Ts + split`` with
+    ``0 <= split < Ts``; a rest within 1e-12 Ts of 0 or of Ts is rounded to the whole
+    sample (a delay given as ``k*Ts`` in floating point is k whole samples)."""
+    Ts = float(sample_period)
+    whole = int(math.floor(delay / Ts))
+    split = delay - whole * Ts
+    if split <= 1e-12 * Ts:
+        split = 0.0
+    elif split >= Ts * (1.0 - 1e-12):
+        whole, split = whole + 1, 0.0
+    return whole, split
+
+def continuous_model(tau: float, Kc: float, Ke: float, resonance_frequency: float = 0.0,
+                     resonance_damping: float = 0.0, load_fraction: float = 0.5):
+    """The axis's linear continuous model in physical coordinates
+    ``[w_motor, theta_motor, w_load, theta_load]`` (speeds [rad/s], positions [pulse]):
+    ``(A, B)``, shapes (4, 4) and (4,), input the drive [V]. A rigid axis is two equal
+    halves locked together (returned as the 2-state ``[w, theta]``)."""
+    if resonance_frequency <= 0:
+        return (np.array([[-1.0 / tau, 0.0], [Ke, 0.0]]), np.array([Kc / tau, 0.0]))
+    lam = load_fraction
+    sig, w2, c, mu = _mode(tau, lam, resonance_frequency, resonance_damping)
+    k = w2 * mu
+    Jm, Jl = (1.0 - lam) * tau, lam * tau
+    bm, bl = 1.0 - lam, lam
+    # spring on the angle difference [rad] = (theta_m - theta_l)/Ke
+    A = np.array([[-(bm + c) / Jm, -k / (Ke * Jm), c / Jm, k / (Ke * Jm)],
+                  [Ke, 0.0, 0.0, 0.0],
+                  [c / Jl, k / (Ke * Jl), -(bl + c) / Jl, -k / (Ke * Jl)],
+                  [0.0, 0.0, Ke, 0.0]])
+    B = np.array([Kc / Jm, 0.0, 0.0, 0.0])
+    return A, B
+
+
+def linear_loop_poles(gains, tau: float, Kc: float, Ke: float, sample_period: float,
+                      feedback_deriv: bool, delay: float = 0.0,
+                      resonance_frequency: float = 0.0, resonance_damping: float = 0.0,
+                      load_fraction: float = 0.5, encoder_on: str = "motor") -> np.ndarray:
+    """Poles of one axis's closed loop, linear (no clamps, friction or quantisers), with
+    its delay and its mode: the sampled plant over the two intervals of a sample
+    (``scipy.linalg.expm`` of the augmented matrix), the drives on their way as states,
+    and the law of :func:`nurbsmotion.control.loop_poles`.
+
+    Returns
+    -------
+    ndarray, complex
+    """
+    from scipy.linalg import expm
+
+    A, B = continuous_model(tau, Kc, Ke, resonance_frequency, resonance_damping,
+                            load_fraction)
+    nx = A.shape[0]
+    pos = np.zeros(nx)
+    spd = np.zeros(nx)
+    if nx == 2 or encoder_on == "motor":
+        pos[1], spd[0] = 1.0, Ke
+    else:
+        pos[3], spd[2] = 1.0, Ke
+    Ts = float(sample_period)
+    whole, split = split_delay(delay, Ts)
+
+    def zoh(h):
+        M = np.zeros((nx + 1, nx + 1))
+        M[:nx, :nx], M[:nx, nx] = A, B
+        E = expm(M * h)
+        return E[:nx, :nx], E[:nx, nx]
+
+    P1, G1 = zoh(split) if split > 0 else (np.eye(nx), np.zeros(nx))
+    P2, G2 = zoh(Ts - split)
+    P, I, D = gains.Pgain, gains.Igain, gains.Dgain
+    nd = whole + 1  # d_1 .. d_{n+1}: drives of samples k-1 .. k-n-1
+    # state z = [x (nx), y_prev, errorI, d_1 .. d_nd]
+    nz = nx + 2 + nd
+    law = np.zeros(nz)
+    if feedback_deriv:
+        law[:nx] = -D * spd - (P + I * Ts) * pos
+    else:
+        law[:nx] = -(P + I * Ts + D / Ts) * pos
+        law[nx] = D / Ts
+    law[nx + 1] = I
+
+    def drive_of(m):  # the row giving u[k - m]
+        row = np.zeros(nz)
+        if m == 0:
+            row[:] = law
+        else:
+            row[nx + 1 + m] = 1.0
+        return row
+
+    T = np.zeros((nz, nz))
+    T[:nx, :nx] = P2 @ P1
+    T[:nx] += np.outer(P2 @ G1, drive_of(whole + 1)) + np.outer(G2, drive_of(whole))
+    T[nx, :nx] = pos
+    T[nx + 1, :nx] = -Ts * pos
+    T[nx + 1, nx + 1] = 1.0
+    T[nx + 2] = law
+    for i in range(1, nd):
+        T[nx + 2 + i, nx + 1 + i] = 1.0
+    keep = list(range(nx))
+    if not feedback_deriv:
+        keep.append(nx)
+    if I != 0.0:
+        keep.append(nx + 1)
+    keep += list(range(nx + 2, nz))
+    return np.linalg.eigvals(T[np.ix_(keep, keep)])
