@@ -167,8 +167,11 @@ def online_step(plan, state, position, umax, out_setpoint):
         th = plan_position[i0, j] * (1.0 - f) + plan_position[i1, j] * f
         e_th = th - position[j]
         ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], gains[0, j])
-        w_last = (hist[3, j] - b1e * hist[0, j]) / ce
-        w_now = ae * w_last + b0e * hist[0, j]
+        # the drive the plant gets besides the one asked for (a load, friction while the
+        # axis moves one way): the regression's delta = (b1' + beta')*d [pulse]
+        d = est[3, j] / (b1e + ce * b0e - ae * b1e)
+        w_last = (hist[3, j] - b1e * (hist[0, j] + d)) / ce
+        w_now = ae * w_last + b0e * (hist[0, j] + d)
         w_ref = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi, j, a[j], log_a[j],
                                b0[j])
         e_w = w_ref * rate_old - w_now
@@ -198,6 +201,10 @@ def online_step(plan, state, position, umax, out_setpoint):
             w_land = al * w_last + g0w * hist[0, j] + g1w * hist[1, j]
             u = -(landing[7, j] * w_land - landing[8, j] * e_end + landing[9, j] * hist[0, j]
                   + landing[10, j] * landing[11, j])
+            # the integral (z[k+1] = z[k] - e[k], :func:`.identify._landing_law`) only
+            # while the drive is within Umax (no wind-up)
+            if abs(u) <= umax:
+                landing[11, j] += e_end
         else:
             uf = (w_next * rate - ae * w_ref * rate_old) / b0e
             kpe, kde = _pole_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
@@ -221,7 +228,7 @@ def online_step(plan, state, position, umax, out_setpoint):
             target = hi if side > 0.0 else lo
             if guarded and math.isfinite(target):
                 u = _short_of_stop(u, position[j], w_now, target, side, ae, b0e, ce, b1e,
-                                   umax, bisections)
+                                   umax, bisections, d)
         hist[1, j] = hist[0, j]
         hist[0, j] = u
         # 4. the setpoint that produces exactly this drive
