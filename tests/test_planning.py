@@ -703,7 +703,55 @@ def test_identification_is_not_thrown_by_an_unknown_constant_drive(load):
         # delta within 10 %
         assert abs(est[0, j] - a) <= 0.15 * (1 - a)
         np.testing.assert_allclose(est[1:3, j], [b1, c * b0 - a * b1], rtol=1e-2)
-        np.testing.assert_allclose(est[3, j], (b1 + c * b0 - a * b1) * load, rtol=0.1)
+        np.testing.assert_allclose(est[4, j], (b1 + c * b0 - a * b1) * load, rtol=0.1)
+
+
+@pytest.mark.parametrize("tau_scale, kc_scale, delay", [(1.0, 1.0, 0.5), (0.7, 1.4, 0.3)])
+def test_identification_with_a_known_delay_finds_the_delayed_plant(tau_scale, kc_scale,
+                                                                   delay):
+    """A plant whose drive arrives ``delay`` samples late (RK45 on the continuous plant,
+    the drive held over each sample and shifted by the delay) under a random drive: its
+    position increments are exactly linear in dth[k-1], u[k-1], u[k-2], u[k-3] (numpy's
+    least squares on them leaves a residual of the integration's error only), with the
+    weights :func:`_drive_weights` gives on scipy's ZOH of the plant; and the online
+    step's filter, told the delay, converges to those weights (a, then p1, p2, p3)."""
+    from scipy.integrate import solve_ivp
+
+    from nurbsmotion.interpolators.planned.identify import _drive_weights, _identify
+    from nurbsmotion.interpolators.planned.interpolator import _prior_estimate
+
+    j, n = 1, 400
+    ts = MACHINE.sample_period
+    tau, kc, ke = MACHINE.tau[j] * tau_scale, MACHINE.Kc[j] * kc_scale, MACHINE.Ke[j]
+    drive = np.random.default_rng(5).uniform(-8, 8, n)
+    drive[0] = 0.0
+    y = np.zeros(2)                       # (w [rad/s], theta [pulse]), at rest
+    position = np.zeros(n + 1)
+    for k in range(n):
+        for t0, t1, u in ((0.0, delay, drive[k - 1] if k else 0.0), (delay, 1.0, drive[k])):
+            y = solve_ivp(lambda t, x: [(-x[0] + kc * u) / tau, ke * x[0]],
+                          (t0 * ts, t1 * ts), y, rtol=1e-12, atol=1e-12,
+                          method="RK45").y[:, -1]
+        position[k + 1] = y[1]
+    a, b0, c, b1 = _scipy_zoh(j, tau_scale, kc_scale)
+    weights = _drive_weights(a, b0, c, b1, delay)
+    dth = np.diff(position)   # dth[k] = th[k + 1] - th[k], over sample k: u[k], u[k-1]...
+    k = np.arange(3, n)
+    X = np.column_stack([dth[k - 1], drive[k], drive[k - 1], drive[k - 2]])
+    fit, *_ = np.linalg.lstsq(X, dth[k], rcond=None)
+    np.testing.assert_allclose(fit, [a, *weights], rtol=1e-6)
+    assert abs(sum(weights) - (c * b0 + (1 - a) * b1)) <= 1e-12 * abs(c * b0 + (1 - a) * b1)
+
+    it = PlannedInterpolator(PI, MACHINE, 1e6)
+    plan = it.plan._replace(delay=delay)
+    est = _prior_estimate(plan, MACHINE.max_drive)
+    hist = np.zeros((HIST_ROWS, 2))
+    for k in range(1, n + 1):
+        _identify(est, hist, j, position[k], plan.a[j], plan.b0[j], plan.c[j], plan.b1[j])
+        hist[5, j], hist[1, j], hist[0, j] = hist[1, j], hist[0, j], drive[k] if k < n else 0.0
+    assert abs(est[0, j] - a) <= 0.02 * (1 - a)
+    np.testing.assert_allclose(est[1:4, j], weights, rtol=0,
+                               atol=1e-3 * np.max(np.abs(weights)))
 
 
 @pytest.mark.parametrize("tau_scale, kc_scale", [(0.5, 2.0), (2.0, 0.5), (1.2, 0.8)])

@@ -25,10 +25,10 @@ def _gains(est, j, a, b0, c, b1, gain_range):
     """The estimated plant's drive over the model's for the plan's acceleration part (``ga =
     b0/b0'``) and speed part (``gv = Kc/Kc'``), each within [1/gain_range, gain_range] (the
     plan's ``gain_range``, :data:`GAIN_RANGE` by default); ``est`` holds axis j's identified
-    (a', b1', beta') (:func:`_identify`), and ``b1 + beta = Ke*Ts*b0`` for every ZOH plant
-    of this form."""
+    (a', p1', p2', p3') (:func:`_identify`), and ``p1 + p2 + p3 = b1 + beta = Ke*Ts*b0``
+    for every ZOH plant of this form, delayed or not (:func:`_drive_weights`)."""
     s_model = b1 + c * b0 - a * b1
-    s_est = est[1, j] + est[2, j]
+    s_est = est[1, j] + est[2, j] + est[3, j]
     ga = s_model / s_est if s_est > s_model / gain_range else gain_range
     ga = min(max(ga, 1.0 / gain_range), gain_range)
     gv = ga * (1.0 - est[0, j]) / (1.0 - a)
@@ -42,6 +42,25 @@ def _estimated_plant(est, j, b0, ga):
     ae, b1e = est[0, j], est[1, j]
     b0e = b0 / ga
     return ae, b0e, (est[2, j] + ae * b1e) / b0e, b1e
+
+
+@njit(cache=True)
+def _estimated_delayed_plant(est, j, a, b0, c, b1, ga, gain_range):
+    """Axis j's identified ZOH plant ``(a', b0', c', b1')`` when the drive is delayed
+    (:func:`_identify` regresses the delayed plant's drive weights, :func:`_drive_weights`,
+    which do not give c' and b1' one by one): the plant of the model's form whose
+    ``a = exp(-Ts/tau)`` is a' (its tau within ``gain_range`` of the model's, as
+    :func:`_gains` bounds the gains: a' within [a^gain_range, a^(1/gain_range)]) and
+    whose steady position gain per sample of drive ``s = (1 - a)*Ke*Kc*Ts`` is the
+    model's over ga (:func:`_gains`), with ``b0' = b0/ga``:
+    ``c' = Ke*tau*(1 - a') = -s*(1 - a')/(ln(a')*b0')`` and ``b1' = (s - c'*b0')/(1 - a')``
+    (on the model's plant: the model's own)."""
+    ae = min(max(est[0, j], a ** gain_range), a ** (1.0 / gain_range))
+    q = 1.0 - ae
+    b0e = b0 / ga
+    s = (b1 + c * b0 - a * b1) / ga
+    ce = -s * q / (math.log(ae) * b0e)
+    return ae, b0e, ce, (s - ce * b0e) / q
 
 
 @njit(cache=True)
@@ -76,11 +95,11 @@ def _landing_gains(a, b0, c, b1, pole):
     return k_theta, k_w, k_i
 
 
-HIST_ROWS = 5
+HIST_ROWS = 6
 """Rows of the identification's memory per axis (:func:`_identify`)."""
 
-N_PARAMETERS = 4
-"""The identification's parameters (a, b1, beta, delta) (:func:`_identify`)."""
+N_PARAMETERS = 5
+"""The identification's parameters (a, p1, p2, p3, delta) (:func:`_identify`)."""
 
 EST_ROWS = N_PARAMETERS * (1 + N_PARAMETERS)
 """Rows of the estimate per axis: the parameters, then their covariance row-major."""
@@ -93,6 +112,15 @@ def _zoh_part(a, kc, ke_tau, kekc_ts, h):
     ``b1_h = Ke*Kc*(h*Ts - tau*(1 - a_h))``."""
     ah = a ** h
     return ah, kc * (1.0 - ah), ke_tau * (1.0 - ah), kekc_ts * h - ke_tau * kc * (1.0 - ah)
+
+
+@njit(cache=True)
+def _plant_part(a, b0, c, b1, h):
+    """The ZOH plant ``(a, b0, c, b1)`` (one sample Ts) over a part ``h`` of the sample
+    (0 < h <= 1): :func:`_zoh_part` with the plant's Kc, Ke*tau and Ke*Kc*Ts from ``b0 =
+    Kc*(1 - a)``, ``c = Ke*tau*(1 - a)``, ``b1 = Ke*Kc*Ts - c*Kc``."""
+    ke_tau = c / (1.0 - a)
+    return _zoh_part(a, b0 / (1.0 - a), ke_tau, b1 + ke_tau * b0, h)
 
 
 @njit(cache=True)
@@ -114,36 +142,49 @@ def _delayed_zoh(a, b0, c, b1, delay):
     return b0_late, b1_late, a_late * b0_held, c_late * b0_held + b1_held
 
 
-LAW_ROWS = 10
+@njit(cache=True)
+def _drive_weights(a, b0, c, b1, delay):
+    """The weights ``(p1, p2, p3)`` of u[k-1], u[k-2], u[k-3] in the position increment of
+    the ZOH plant ``(a, b0, c, b1)`` whose drive arrives ``delay`` samples late
+    (0 <= delay < 1, :func:`_delayed_zoh`'s ``g0, g1``): from ``x[k+1] = A x[k] + g0 u[k]
+    + g1 u[k-1]``,
+
+        dth[k] = a*dth[k-1] + g0th*u[k-1] + (g1th - a*g0th + c*g0w)*u[k-2]
+                 + (c*g1w - a*g1th)*u[k-3];
+
+    without a delay ``(b1, beta, 0)``, ``beta = c*b0 - a*b1``. Their sum is ``c*b0 + (1 -
+    a)*b1`` whatever the delay (a constant drive moves the plant alike)."""
+    if delay <= 0.0:
+        return b1, c * b0 - a * b1, 0.0
+    g0w, g0th, g1w, g1th = _delayed_zoh(a, b0, c, b1, delay)
+    return g0th, g1th - a * g0th + c * g0w, c * g1w - a * g1th
+
+
+LAW_ROWS = 13
 """Rows of :func:`_landing_law`'s output."""
 
 
 @njit(cache=True)
 def _landing_law(a, b0, c, b1, delay, pole, out):
     """The landing's law on the ZOH plant ``(a, b0, c, b1)`` whose drive arrives
-    ``delay`` samples late (0 <= delay < 1, :func:`_delayed_zoh`), written to ``out``
-    (:data:`LAW_ROWS`): the plant ``a, c, g0w, g0th, g1w, g1th`` and the gains
-    ``K = (k_w, k_e, k_u, k_z)`` of ``u[k] = -K . (w[k], e[k], u[k-1], z[k])``, e = theta -
-    end [pulse], ``z[k+1] = z[k] - e[k]``. All four poles (the plant, the drive in flight
-    and the integrator) at ``pole`` (Ackermann's formula, ``K = [0, 0, 0, 1] C^-1
-    (A - pole*I)^4``, C the controllability matrix); without a delay the drive in flight
-    is no state (k_u = 0) and the other three are :func:`_landing_gains`."""
+    ``delay`` samples late (0 <= delay < 1), written to ``out`` (:data:`LAW_ROWS`): the
+    delayed plant ``a, c, g0w, g0th, g1w, g1th`` (:func:`_delayed_zoh`: the speed from
+    the last position increment and the drives that made it), the plant over the delay
+    ``a_h, b0_h, c_h, b1_h`` (:func:`_plant_part`; ``1, 0, 0, 0`` without a delay: the
+    state the next drive meets, predicted from the drive in flight) and the gains
+    ``k_theta, k_w, k_i`` of :func:`_landing_gains`, applied to that predicted state: from
+    it the drive acts for a whole sample, so the undelayed plant's three poles (plant and
+    integrator) are placed at ``pole`` and the delay adds a pole at 0 (a predictor: a
+    state whose drive in flight brings it to rest on the end gets no drive, where a law
+    on the delayed state with all four poles at ``pole`` answered it and overshot the end
+    by 34 pulses on the Pi at 0.2 m/s with 0.5 ms of delay)."""
     g0w, g0th, g1w, g1th = _delayed_zoh(a, b0, c, b1, delay)
     out[0], out[1], out[2], out[3], out[4], out[5] = a, c, g0w, g0th, g1w, g1th
-    if delay <= 0.0:
-        k_theta, k_w, k_i = _landing_gains(a, b0, c, b1, pole)
-        out[6], out[7], out[8], out[9] = k_w, k_theta, 0.0, -k_i
-        return
-    A = np.array([[a, 0.0, g1w, 0.0], [c, 1.0, g1th, 0.0], [0.0, 0.0, 0.0, 0.0],
-                  [0.0, -1.0, 0.0, 1.0]])
-    col = np.array([g0w, g0th, 1.0, 0.0])
-    C = np.empty((4, 4))
-    for i in range(4):
-        C[:, i] = col
-        col = A @ col
-    M = A - pole * np.eye(4)
-    K = np.linalg.solve(C.T, np.array([0.0, 0.0, 0.0, 1.0])) @ (M @ M @ M @ M)
-    out[6], out[7], out[8], out[9] = K[0], K[1], K[2], K[3]
+    if delay > 0.0:
+        out[6], out[7], out[8], out[9] = _plant_part(a, b0, c, b1, delay)
+    else:
+        out[6], out[7], out[8], out[9] = 1.0, 0.0, 0.0, 0.0
+    out[10], out[11], out[12] = _landing_gains(a, b0, c, b1, pole)
 
 
 @njit(cache=True)
@@ -151,23 +192,27 @@ def _identify(est, hist, j, position, a, b0, c, b1, dead_zone=0.0, gain_range=GA
               follow=0.0):
     """Update axis j's estimate of its sampled plant from the position measured now.
 
-    Every plant of the model's form (docs/model.md#servo-axis, ZOH) driven by the drive u
-    plus a drive d it does not know (a load; Coulomb friction while the axis moves one
-    way) obeys, in measured positions and applied drives only,
+    Every plant of the model's form (docs/model.md#servo-axis, ZOH) driven by the drive u,
+    arriving a known fraction of a sample late, plus a drive d it does not know (a load;
+    Coulomb friction while the axis moves one way) obeys, in measured positions and
+    applied drives only,
 
-        dth[k] = a*dth[k-1] + b1*u[k-1] + beta*u[k-2] + delta,
-        beta = c*b0 - a*b1,  delta = (b1 + beta)*d,
+        dth[k] = a*dth[k-1] + p1*u[k-1] + p2*u[k-2] + p3*u[k-3] + delta,
+        delta = (p1 + p2 + p3)*d,
 
-    with ``dth[k] = th[k] - th[k-1]``: an exact linear regression in (a, b1, beta, delta)
+    with ``dth[k] = th[k] - th[k-1]`` and the drive weights of :func:`_drive_weights`
+    (without a delay p1 = b1, p2 = beta = c*b0 - a*b1, p3 = 0, and the prior's zero
+    variance of p3 keeps it 0): an exact linear regression in (a, p1, p2, p3, delta)
     whatever tau, Kc and a constant d are (no speed is differenced, so the nominal plant's
     estimate stays on the model; without delta a load was read as a plant of a quarter of
     the gain, and a law placed on that plant was unstable). A Kalman filter of these four
     with the plant's three constant and delta a random walk (d may change: a load step,
     friction reversing with the motion) whose variance per sample is
     ``follow**2`` times the residual's (:func:`_position_noise`): delta is followed with
-    a gain of about ``follow`` per sample. ``est`` rows 0-3 hold (a, b1, beta, delta),
-    rows 4-19 their covariance (row-major 4x4); ``hist`` (:data:`HIST_ROWS` rows) u[k-1],
-    u[k-2] [V], th[k-1] [pulse], dth[k-1] [pulse] and 1 once th[k-1] is known.
+    a gain of about ``follow`` per sample. ``est`` rows 0-4 hold (a, p1, p2, p3, delta),
+    rows 5-29 their covariance (row-major 5x5); ``hist`` (:data:`HIST_ROWS` rows) u[k-1],
+    u[k-2] [V], th[k-1] [pulse], dth[k-1] [pulse], 1 once th[k-1] is known, and u[k-3]
+    [V].
 
     ``dead_zone`` [pulse] (:func:`reading_knowledge`): the largest residual the reading
     alone can make (encoder counts, noise, DAC); a residual within it carries no
@@ -180,7 +225,7 @@ def _identify(est, hist, j, position, a, b0, c, b1, dead_zone=0.0, gain_range=GA
     est[n + n * (n - 1) + n - 1, j] += follow * follow * noise
     if hist[4, j] > 0.0:
         y = position - hist[2, j]
-        x = (hist[3, j], hist[0, j], hist[1, j], 1.0)
+        x = (hist[3, j], hist[0, j], hist[1, j], hist[5, j], 1.0)
         err = y
         for r in range(n):
             err -= est[r, j] * x[r]
@@ -190,14 +235,15 @@ def _identify(est, hist, j, position, a, b0, c, b1, dead_zone=0.0, gain_range=GA
             if abs(err) <= dead_zone:
                 return _gains(est, j, a, b0, c, b1, gain_range)
             err -= math.copysign(dead_zone, err)
-        p0 = p1 = p2 = p3 = 0.0
+        p0 = p1 = p2 = p3 = p4 = 0.0
         for q in range(n):
             p0 += est[n + q, j] * x[q]
             p1 += est[2 * n + q, j] * x[q]
             p2 += est[3 * n + q, j] * x[q]
             p3 += est[4 * n + q, j] * x[q]
-        p = (p0, p1, p2, p3)
-        gain = 1.0 / (noise + x[0] * p0 + x[1] * p1 + x[2] * p2 + x[3] * p3)
+            p4 += est[5 * n + q, j] * x[q]
+        p = (p0, p1, p2, p3, p4)
+        gain = 1.0 / (noise + x[0] * p0 + x[1] * p1 + x[2] * p2 + x[3] * p3 + x[4] * p4)
         for r in range(n):
             est[r, j] += p[r] * gain * err
             for q in range(n):
@@ -225,19 +271,21 @@ def reading_knowledge(machine: Machine, a, b0, c, b1) -> dict:
     count plus 3 sigma of the noise, 0 for an exact reading.
 
     The regression's residual (:func:`_identify`) reads positions with weights 1,
-    -(1 + a), a and drives with b1, beta; a reading within q/2 of the position (q = one
-    count [pulse]) and with Gaussian noise sigma [pulse], and a drive within half a DAC
-    step of the one asked for, leave a residual of at most
-    ``(q/2 + 3*sigma)*(1 + |1 + a| + |a|) + (|b1| + |beta|)*lsb/2`` (3 sigma: the noise's
-    bound but for 0.3 % of the samples), the worst axis."""
+    -(1 + a), a and drives with p1, p2, p3 (:func:`_drive_weights`, with the machine's
+    delay); a reading within q/2 of the position (q = one count [pulse]) and with
+    Gaussian noise sigma [pulse], and a drive within half a DAC step of the one asked
+    for, leave a residual of at most
+    ``(q/2 + 3*sigma)*(1 + |1 + a| + |a|) + (|p1| + |p2| + |p3|)*lsb/2`` (3 sigma: the
+    noise's bound but for 0.3 % of the samples), the worst axis."""
     q = 1.0 if machine.encoder == "counts" else 0.0
     sigma = float(machine.measurement_noise)
     lsb = (2.0 * machine.max_drive / 2.0 ** machine.dac_bits
            if machine.dac_bits is not None else 0.0)
     a, b0, c, b1 = (np.asarray(v, dtype=float) for v in (a, b0, c, b1))
-    beta = c * b0 - a * b1
+    delay = machine.delay / machine.sample_period
+    weights = np.array([_drive_weights(*v, delay) for v in zip(a, b0, c, b1)])
     reading = (0.5 * q + 3.0 * sigma) * (1.0 + np.abs(1.0 + a) + np.abs(a))
-    drive = (np.abs(b1) + np.abs(beta)) * 0.5 * lsb
+    drive = np.abs(weights).sum(axis=1) * 0.5 * lsb
     dead_zone = float(np.max(reading + drive)) if q or sigma or lsb else 0.0
     # the landing's band (:func:`.step.online_step`, step 3'): how far the reading alone
     # can put the measured position from the true one; an error within it carries no

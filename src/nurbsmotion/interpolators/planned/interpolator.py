@@ -6,7 +6,6 @@ which builds both from the offline plan (:func:`.plan.plan_motion`) and register
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -20,7 +19,8 @@ from ...nurbs import NurbsCurve
 from ..base import Interpolator, positive_feed
 from .governor import RATE_BISECTIONS, RATE_WINDOW, SUPPORT_BLOCK, SUPPORT_DIRECTIONS, _support
 from .guards import _sample_extremes, _stop_guards
-from .identify import EST_ROWS, GAIN_RANGE, HIST_ROWS, N_PARAMETERS, reading_knowledge
+from .identify import (EST_ROWS, GAIN_RANGE, HIST_ROWS, N_PARAMETERS, _drive_weights,
+                       reading_knowledge)
 from .inverse import axis_zoh
 from .plan import plan_motion
 from .shorten import DEFAULT_PATH_TOLERANCE
@@ -230,18 +230,17 @@ def machine_knowledge(machine: Machine, a, b0, c, b1, tracking_pole: float) -> d
     dead zone and the landing's band), the model's ``delay`` [samples] and the landing's
     poles ``landing_pole``.
 
-    - With a delay the identification is off (``dead_zone`` infinite): its regression
-      (:func:`.identify._identify`) has no delay in it, and on a delayed drive it reads a
-      plant that is none (a' of 1.75 on the die bonder at half a sample); the online step
-      keeps the model's plant, and the landing's law holds the delay
+    - The delay (a fraction of a sample) is in the identification's regression (its
+      drive weights, :func:`.identify._drive_weights`: without it, on a delayed drive it
+      read a plant that is none, a' of 1.75 on the die bonder at half a sample), in the
+      tracking (the state the drive will meet, predicted over the delay, step 1b of
+      :func:`.step.online_step`) and in the landing's law
       (:func:`.identify._landing_law`).
     - The landing's poles are at ``tracking_pole``: deadbeat (poles at 0), as it was,
       closes what a plant unlike the model has left of the move in three samples, but
       on the same plant with a load, friction or a mode the model does not know it
       limit-cycled or never settled (benchmarks/real_planned_item1.md)."""
     known = reading_knowledge(machine, a, b0, c, b1)
-    if machine.delay > 0.0:
-        known["dead_zone"] = math.inf
     return dict(known, delay=machine.delay / machine.sample_period,
                 landing_pole=float(tracking_pole))
 
@@ -257,18 +256,20 @@ def _path_steps(desired: np.ndarray) -> np.ndarray:
 
 
 def _prior_estimate(plan: PlannedPlan, umax: float) -> np.ndarray:
-    """The identification's start (:func:`_identify`): the model's (a, b1, beta) and no
-    unknown drive (delta = 0), shape (EST_ROWS, n_axes) with the covariance. Prior
-    standard deviations: 1 - a for a (a plant whose tau is half or twice the model's has
-    1 - a about twice or half the model's), the plan's ``gain_range`` times b1 and beta
-    (the drive's effect, proportional to Kc/tau), and for delta an unknown drive of up to
-    ``umax`` [V] through the model's ``b1 + beta``."""
+    """The identification's start (:func:`_identify`): the model's a and drive weights
+    (p1, p2, p3) with its delay (:func:`.identify._drive_weights`; without a delay (b1,
+    beta, 0)) and no unknown drive (delta = 0), shape (EST_ROWS, n_axes) with the
+    covariance. Prior standard deviations: 1 - a for a (a plant whose tau is half or
+    twice the model's has 1 - a about twice or half the model's), the plan's
+    ``gain_range`` times each drive weight (the drive's effect, proportional to Kc/tau;
+    0 for p3 without a delay: it stays 0), and for delta an unknown drive of up to
+    ``umax`` [V] through the model's ``p1 + p2 + p3``."""
     a, b0, c, b1 = plan.a, plan.b0, plan.c, plan.b1
-    beta = c * b0 - a * b1
+    weights = np.array([_drive_weights(*v, plan.delay) for v in zip(a, b0, c, b1)]).T
     est = np.zeros((EST_ROWS, len(a)))
-    est[0], est[1], est[2] = a, b1, beta
+    est[0], est[1:4] = a, weights
     n = N_PARAMETERS
-    for r, sigma in enumerate((1.0 - a, plan.gain_range * b1, plan.gain_range * beta,
-                               (b1 + beta) * umax)):
+    for r, sigma in enumerate((1.0 - a, *(plan.gain_range * weights),
+                               (weights[0] + weights[1] + weights[2]) * umax)):
         est[n + n * r + r] = sigma ** 2
     return est

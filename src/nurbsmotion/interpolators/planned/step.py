@@ -15,14 +15,15 @@ from ... import stepping
 from ...control import pid_affine, pid_output
 from .governor import _demand, _rate_room, _support_at, _window_rate
 from .guards import _guarded, _short_of_stop
-from .identify import LAW_ROWS, _estimated_plant, _identify, _landing_law, _pole_gains
+from .identify import (LAW_ROWS, _delayed_zoh, _estimated_delayed_plant, _estimated_plant,
+                       _identify, _landing_law, _plant_part, _pole_gains)
 
 __all__ = ["online_step", "planned_step", "LANDING_ROWS"]
 
-LANDING_ROWS = 12
+LANDING_ROWS = 2 + LAW_ROWS
 """Rows of the landing's state per axis (:func:`online_step`, step 3'): 1 once the landing
 has begun, the law placed then on the identified plant (:func:`.identify._landing_law`,
-rows 1-10) and the integral of the error beyond the reading's band [pulse*samples]."""
+rows 1-13) and the integral of the error beyond the reading's band [pulse*samples]."""
 
 
 @njit(cache=True)
@@ -106,6 +107,7 @@ def online_step(plan, state, position, umax, out_setpoint):
     headroom, rate_gain, rest = plan.headroom, plan.rate_gain, plan.rest
     guards, guard_offsets, dead_zone = plan.guards, plan.guard_offsets, plan.dead_zone
     bisections, gain_range = plan.rate_bisections, plan.gain_range
+    delay = plan.delay
     n = plan_position.shape[0]
     n_axes = position.shape[0]
     i0 = min(int(phi), n - 1)
@@ -162,16 +164,32 @@ def online_step(plan, state, position, umax, out_setpoint):
     excess = 0.0
     for j in range(n_axes):
         # 1b. deviation from the plan's state: position measured; the plant's speed from
-        # its last position increment and drive (hist rows 3 and 0, :func:`_identify`)
-        # through the identified plant (exact when it is the true one)
+        # its last position increment and the drives that made it (hist rows 3, 0 and 1,
+        # :func:`_identify`) through the identified plant (exact when it is the true
+        # one), with the drive it gets besides the one asked for (a load, friction while
+        # the axis moves one way: the regression's delta = (p1 + p2 + p3)*d [pulse])
         th = plan_position[i0, j] * (1.0 - f) + plan_position[i1, j] * f
-        e_th = th - position[j]
-        ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], gains[0, j])
-        # the drive the plant gets besides the one asked for (a load, friction while the
-        # axis moves one way): the regression's delta = (b1' + beta')*d [pulse]
-        d = est[3, j] / (b1e + ce * b0e - ae * b1e)
-        w_last = (hist[3, j] - b1e * (hist[0, j] + d)) / ce
-        w_now = ae * w_last + b0e * (hist[0, j] + d)
+        if delay > 0.0:
+            ae, b0e, ce, b1e = _estimated_delayed_plant(est, j, a[j], b0[j], c[j], b1[j],
+                                                        gains[0, j], gain_range)
+        else:
+            ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], gains[0, j])
+        d = est[4, j] / (b1e + ce * b0e - ae * b1e)
+        u1, u2 = hist[0, j] + d, hist[1, j] + d
+        g0w, g0th, g1w, g1th = _delayed_zoh(ae, b0e, ce, b1e, delay)
+        w_last = (hist[3, j] - g0th * u1 - g1th * u2) / ce
+        w_now = ae * w_last + g0w * u1 + g1w * u2
+        th_now = position[j]
+        if delay > 0.0:
+            # the state this sample's drive will meet, `delay` samples on, the last
+            # drive acting meanwhile: from there the drive acts for a whole sample, so the
+            # deviation dynamics, the feedback's gains and the stop guards are the
+            # undelayed plant's (a predictor: the plan's state at the clock is where the
+            # drive starts, and the run follows the plan `delay` late)
+            ah, b0h, ch, b1h = _plant_part(ae, b0e, ce, b1e, delay)
+            th_now += ch * w_now + b1h * u1
+            w_now = ah * w_now + b0h * u1
+        e_th = th - th_now
         w_ref = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi, j, a[j], log_a[j],
                                b0[j])
         e_w = w_ref * rate_old - w_now
@@ -185,26 +203,30 @@ def online_step(plan, state, position, umax, out_setpoint):
             # 3'. landing (docs/model.md#planned-on-a-real-machine): the plan rests on the
             # end. At the hand-over the identified plant is frozen (the move excited it;
             # at rest nothing does, and the estimate would drift on the reading) and the
-            # law placed on it with the model's delay, the plant and an integral of the
-            # error beyond what the reading can tell (plan.landing_band: a count's edge or
-            # the noise is neither chased nor integrated), poles at plan.landing_pole
+            # law placed on it (:func:`.identify._landing_law`): the state the drive will
+            # meet, the model's delay on, and an integral of the error beyond what the
+            # reading can tell (plan.landing_band: a count's edge or the noise is neither
+            # chased nor integrated), poles at plan.landing_pole
             if landing[0, j] == 0.0:
                 landing[0, j] = 1.0
-                _landing_law(ae, b0e, ce, b1e, plan.delay, plan.landing_pole,
+                _landing_law(ae, b0e, ce, b1e, delay, plan.landing_pole,
                              landing[1:LAW_ROWS + 1, j])
-            e_end = plan_position[n - 1, j] - position[j]
-            e_end -= min(max(e_end, -band), band)
-            # the speed from the last position increment and the drives that made it
+            # the speed from the last position increment and the drives that made it,
+            # then the state after the drive in flight
             al, cl, g0w, g0th = landing[1, j], landing[2, j], landing[3, j], landing[4, j]
             g1w, g1th = landing[5, j], landing[6, j]
             w_last = (hist[3, j] - g0th * hist[0, j] - g1th * hist[1, j]) / cl
             w_land = al * w_last + g0w * hist[0, j] + g1w * hist[1, j]
-            u = -(landing[7, j] * w_land - landing[8, j] * e_end + landing[9, j] * hist[0, j]
-                  + landing[10, j] * landing[11, j])
-            # the integral (z[k+1] = z[k] - e[k], :func:`.identify._landing_law`) only
+            e_end = plan_position[n - 1, j] - (position[j] + landing[9, j] * w_land
+                                               + landing[10, j] * hist[0, j])
+            w_land = landing[7, j] * w_land + landing[8, j] * hist[0, j]
+            e_end -= min(max(e_end, -band), band)
+            u = (landing[11, j] * e_end - landing[12, j] * w_land
+                 + landing[13, j] * landing[14, j])
+            # the integral (z[k+1] = z[k] + e[k], :func:`.identify._landing_gains`) only
             # while the drive is within Umax (no wind-up)
             if abs(u) <= umax:
-                landing[11, j] += e_end
+                landing[14, j] += e_end
         else:
             uf = (w_next * rate - ae * w_ref * rate_old) / b0e
             kpe, kde = _pole_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
@@ -227,8 +249,9 @@ def online_step(plan, state, position, umax, out_setpoint):
         for side in (-1.0, 1.0) if w_now >= 0.0 else (1.0, -1.0):
             target = hi if side > 0.0 else lo
             if guarded and math.isfinite(target):
-                u = _short_of_stop(u, position[j], w_now, target, side, ae, b0e, ce, b1e,
+                u = _short_of_stop(u, th_now, w_now, target, side, ae, b0e, ce, b1e,
                                    umax, bisections, d)
+        hist[5, j] = hist[1, j]
         hist[1, j] = hist[0, j]
         hist[0, j] = u
         # 4. the setpoint that produces exactly this drive
