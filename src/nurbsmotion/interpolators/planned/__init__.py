@@ -30,15 +30,17 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    must be, just before it accelerates or brakes, not over the whole way to the next stop;
 3. the drive is the identified plant's drive from the plan's speed at the clock (times the
    rate it had) to the plan's speed at the next clock (times the new rate), both exact
-   between samples (:func:`_plan_speed_at`), plus a state feedback on the deviation and
-   its integral whose gains put the three poles of the *identified* plant with the
-   integrator at ``tracking_pole`` (:func:`_landing_gains`; the identification regresses
-   increments, so a constant drive the model does not know, a load or friction while the
-   axis moves one way, neither throws the estimate nor, through the integral, leaves a
-   deviation). Once the plan's clock has reached the plan's rest on the end, the
-   identified plant is frozen and the same law lands the axis on the end (step 3' of
-   :func:`online_step`), on the error beyond what the reading can tell (half a count and
-   3 sigma of the noise), with no stop guard. The drive is
+   between samples (:func:`_plan_speed_at`), plus a state feedback on the deviation whose
+   gains put both poles of the *identified* plant's deviation dynamics at
+   ``tracking_pole`` (:func:`_pole_gains`; the identification regresses increments with
+   an unknown drive, so a load or friction while the axis moves one way does not throw
+   the estimate, and the speed estimate and the stop guards take that drive). With a
+   known delay (under one sample) the deviation is taken at the state the drive will
+   meet, predicted over the delay: the run is the plan, the delay late. Once the plan's
+   clock has reached the plan's rest on the end, the identified plant is frozen and a law
+   with an integral lands the axis on the end (step 3' of :func:`online_step`,
+   :func:`.identify._landing_law`), on the error beyond what the reading can tell (half
+   a count and 3 sigma of the noise). The drive is
    clipped to +-Umax: *every drive is within the limit by construction*, whatever the
    true plant. Once the plan moves an axis only towards a stop (a stop corner or the
    end), the drive also leaves the identified plant able to stop before it, braking at
