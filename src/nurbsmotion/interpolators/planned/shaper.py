@@ -219,7 +219,7 @@ def shape_plan(plan, machine, curve):
     y = plan.desired
     n = len(y)
     stops = plan.stop_times
-    cuts = [int(k) for k in plan.stop_indices]
+    cuts = sorted({int(k) for k in plan.stop_indices if 0 < k < n})
     corner_u = curve.sharp_corners()
     points = []
     for k in cuts:  # the corner within the sample's step to the stop's first sample
