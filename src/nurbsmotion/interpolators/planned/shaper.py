@@ -16,10 +16,10 @@ unshaped, at a true mode +-10 % off the model's):
 
 - ZV (2 impulses, half a period): up to 15.6 % at +-10 %; too sensitive.
 - ZVD (3 impulses, one period): up to 2.4 % at +-10 % (0 at the model's mode).
-- EI at 5 % (3 impulses, one period): 5 % at the model's mode, 1.9-2.4 % at +-10 %.
+- EI at 5 % (3 impulses, one period): 5 % at the model's mode, 2.4 % at +-10 %.
 
-ZVD and EI add the same time (one period); over the whole band +-10 % ZVD's worst case is
-half of EI's, so ZVD. Several modes: their shapers are convolved (one per distinct mode).
+ZVD and EI add the same time (one period) and leave the same at the band's edges; within
+the band +-10 % ZVD's worst case is half of EI's, so ZVD. Several modes: their shapers are convolved (one per distinct mode).
 
 Shaping keeps the plan within the drive limit: a shaped drive is a convex combination of
 the plan's drives (``h >= 0``, ``sum h = 1``), so ``|u_s| <= max |u|``. The rigid plant
