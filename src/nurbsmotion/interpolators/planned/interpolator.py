@@ -22,6 +22,7 @@ from .guards import _sample_extremes, _stop_guards
 from .identify import (EST_ROWS, GAIN_RANGE, HIST_ROWS, N_PARAMETERS, _drive_weights,
                        reading_knowledge)
 from .inverse import axis_zoh
+from .mode_law import MODE_LAW_ROWS, mode_landing_law
 from .plan import plan_motion
 from .shaper import encoder_offset, shape_plan
 from .shorten import DEFAULT_PATH_TOLERANCE
@@ -74,6 +75,9 @@ class PlannedPlan(NamedTuple):
     rate_bisections: int = RATE_BISECTIONS  # bisections of a largest rate or drive
     gain_range: float = GAIN_RANGE          # the estimated plant's drive, model's x[1/g, g]
     drive_match: float = DRIVE_MATCH        # the law's output matches a drive (x Umax)
+    # (MODE_LAW_ROWS, n_axes): per axis whose model declares a mode, 1 and the landing's
+    # law designed with it (.mode_law.mode_landing_law); zeros: the rigid landing
+    mode_law: np.ndarray = np.zeros((MODE_LAW_ROWS, 0))
 
 
 class PlannedState(NamedTuple):
@@ -250,10 +254,15 @@ def machine_knowledge(machine: Machine, a, b0, c, b1, tracking_pole: float) -> d
     - The landing's poles are at ``tracking_pole``: deadbeat (poles at 0), as it was,
       closes what a plant unlike the model has left of the move in three samples, but
       on the same plant with a load, friction or a mode the model does not know it
-      limit-cycled or never settled (benchmarks/real_planned_item1.md)."""
+      limit-cycled or never settled (benchmarks/real_planned_item1.md).
+    - On an axis whose model declares a mode, the landing's law is the one designed with
+      the mode, its delay and the model's tau, Kc and mode each +-10 % off
+      (``mode_law``, :func:`.mode_law.mode_landing_law`); the rigid placement on the
+      identified plant left the mode unplaced and limit-cycled at rest."""
     known = reading_knowledge(machine, a, b0, c, b1)
     return dict(known, delay=machine.delay / machine.sample_period,
-                landing_pole=float(tracking_pole))
+                landing_pole=float(tracking_pole),
+                mode_law=mode_landing_law(machine, tracking_pole))
 
 
 def _path_steps(desired: np.ndarray) -> np.ndarray:

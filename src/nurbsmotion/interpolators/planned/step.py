@@ -169,12 +169,20 @@ def online_step(plan, state, position, umax, out_setpoint):
         # one), with the drive it gets besides the one asked for (a load, friction while
         # the axis moves one way: the regression's delta = (p1 + p2 + p3)*d [pulse])
         th = plan_position[i0, j] * (1.0 - f) + plan_position[i1, j] * f
-        if delay > 0.0:
-            ae, b0e, ce, b1e = _estimated_delayed_plant(est, j, a[j], b0[j], c[j], b1[j],
-                                                        gains[0, j], gain_range)
+        moded = plan.mode_law[0, j] != 0.0
+        if moded:
+            # a mode declared: the model's plant, the laws designed with its mode on it
+            # (:func:`.mode_law.mode_landing_law`; a rigid regression reads the mode's
+            # twist as a plant that is none)
+            ae, b0e, ce, b1e = a[j], b0[j], c[j], b1[j]
+            d = 0.0
         else:
-            ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], gains[0, j])
-        d = est[4, j] / (b1e + ce * b0e - ae * b1e)
+            if delay > 0.0:
+                ae, b0e, ce, b1e = _estimated_delayed_plant(est, j, a[j], b0[j], c[j],
+                                                            b1[j], gains[0, j], gain_range)
+            else:
+                ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], gains[0, j])
+            d = est[4, j] / (b1e + ce * b0e - ae * b1e)
         u1, u2 = hist[0, j] + d, hist[1, j] + d
         g0w, g0th, g1w, g1th = _delayed_zoh(ae, b0e, ce, b1e, delay)
         w_last = (hist[3, j] - g0th * u1 - g1th * u2) / ce
@@ -209,8 +217,13 @@ def online_step(plan, state, position, umax, out_setpoint):
             # chased nor integrated), poles at plan.landing_pole
             if landing[0, j] == 0.0:
                 landing[0, j] = 1.0
-                _landing_law(ae, b0e, ce, b1e, delay, plan.landing_pole,
-                             landing[1:LAW_ROWS + 1, j])
+                if moded:
+                    # a mode declared: the law designed with it on the model
+                    # (:func:`.mode_law.mode_landing_law`), not the identified plant's
+                    landing[1:LAW_ROWS + 1, j] = plan.mode_law[1:LAW_ROWS + 1, j]
+                else:
+                    _landing_law(ae, b0e, ce, b1e, delay, plan.landing_pole,
+                                 landing[1:LAW_ROWS + 1, j])
             # the speed from the last position increment and the drives that made it,
             # then the state after the drive in flight
             al, cl, g0w, g0th = landing[1, j], landing[2, j], landing[3, j], landing[4, j]
@@ -229,7 +242,10 @@ def online_step(plan, state, position, umax, out_setpoint):
                 landing[14, j] += e_end
         else:
             uf = (w_next * rate - ae * w_ref * rate_old) / b0e
-            kpe, kde = _pole_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
+            if moded:
+                kpe, kde = plan.mode_law[LAW_ROWS + 1, j], plan.mode_law[LAW_ROWS + 2, j]
+            else:
+                kpe, kde = _pole_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
             u = uf + kpe * e_th + kde * e_w
         if abs(u) > umax:
             excess = max(excess, abs(u) / umax - 1.0)
@@ -242,10 +258,12 @@ def online_step(plan, state, position, umax, out_setpoint):
                  _guarded(guards, lo_g, hi_g, i1, 1.0))
         lo = min(_guarded(guards, lo_g, hi_g, i0, -1.0),
                  _guarded(guards, lo_g, hi_g, i1, -1.0))
-        # (in the landing only on an exact reading and an immediate drive: the end's
-        # guard read on a count or noise past it would brake at Umax, and it brakes a
-        # plant with no delay)
-        guarded = phi < rest or (band == 0.0 and plan.delay == 0.0)
+        # (in the landing only on an exact reading, an immediate drive and a rigid
+        # model: the end's guard read on a count or noise past it would brake at Umax,
+        # it brakes a plant with no delay, and its speed estimate is the rigid plant's,
+        # which a mode's twist throws: it held the landing against the end, 2,766
+        # samples at Umax in one run)
+        guarded = phi < rest or (band == 0.0 and plan.delay == 0.0 and not moded)
         for side in (-1.0, 1.0) if w_now >= 0.0 else (1.0, -1.0):
             target = hi if side > 0.0 else lo
             if guarded and math.isfinite(target):
