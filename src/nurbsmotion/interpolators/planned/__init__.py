@@ -40,7 +40,10 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    clock has reached the plan's rest on the end, the identified plant is frozen and a law
    with an integral lands the axis on the end (step 3' of :func:`online_step`,
    :func:`.identify._landing_law`), on the error beyond what the reading can tell (half
-   a count and 3 sigma of the noise). The drive is
+   a count and 3 sigma of the noise). On an axis whose model declares a mode, both laws
+   run on the model's plant with gains designed with the mode, its delay and the law's own
+   speed estimate, stable with tau, Kc and the mode each 10 % off
+   (:func:`.mode_law.mode_landing_law`). The drive is
    clipped to +-Umax: *every drive is within the limit by construction*, whatever the
    true plant. Once the plan moves an axis only towards a stop (a stop corner or the
    end), the drive also leaves the identified plant able to stop before it, braking at

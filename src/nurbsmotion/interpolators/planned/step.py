@@ -60,13 +60,18 @@ def online_step(plan, state, position, umax, out_setpoint):
         speed between samples (:func:`_plan_speed_at`); ``headroom``, the fraction of
         Umax the governor keeps for the feedback; ``rate_gain``, the largest change of
         the rate per sample (``1 - rate_gain`` is the tracking pole); ``rest``, the plan
-        sample from which the plan rests on the end (from there on the feedback is
-        deadbeat); ``guards`` and ``guard_offsets``, shapes (n_guards, 4) and
+        sample from which the plan rests on the end (from there on the landing's law with
+        its integral, step 3', :func:`.identify._landing_law`); ``guards`` and ``guard_offsets``, shapes (n_guards, 4) and
         (n_axes + 1,), where the plant must be able to stop (:func:`_stop_guards`: while
         the clock lies between two plan samples that a guard both holds, the drive keeps
         the plant able to stop before its position, :func:`_short_of_stop`);
         ``dead_zone``, the identification's dead zone [pulse] (:func:`_identify`,
-        :func:`reading_knowledge`).
+        :func:`reading_knowledge`); ``landing_band`` [pulse], ``landing_pole`` and
+        ``delay`` [samples], the landing's law (step 3'); ``mode_law``, shape
+        (MODE_LAW_ROWS, n_axes), per axis whose model declares a mode the landing's
+        law and the tracking's gains designed with the mode
+        (:func:`.mode_law.mode_landing_law`), used on the model's plant in place of the
+        identified plant's laws (zeros: a rigid axis, the identified plant's).
     state : PlannedState
         Read: ``phi[0]``, the plan's clock at this sample [samples]; ``rate[0]``, the
         clock's rate over the last sample, in (0, 1]; ``excess[0]``, how far the last
