@@ -130,9 +130,9 @@ _PLANS = {}
 
 def _interp(method, name, feed, model):
     """The interpolator on the model machine. ``planned``'s offline plan depends on the
-    rigid model only, so it is made once per case and given each model's reading
-    (:func:`nurbsmotion.interpolators.planned.reading_knowledge`) as the constructor
-    would."""
+    rigid model only, so it is made once per case and given what it knows of each model
+    beyond it (:func:`nurbsmotion.interpolators.planned.machine_knowledge`) as the
+    constructor would."""
     import copy
 
     import nurbsmotion as nm
@@ -148,8 +148,8 @@ def _interp(method, name, feed, model):
     interp = copy.copy(_PLANS[name, feed])
     p = interp.plan
     interp.machine = model
-    if hasattr(planned, "reading_knowledge"):
-        interp.plan = p._replace(**planned.reading_knowledge(model, p.a, p.b0, p.c, p.b1))
+    interp.plan = p._replace(**planned.machine_knowledge(model, p.a, p.b0, p.c, p.b1,
+                                                         interp.tracking_pole))
     return path, interp
 
 

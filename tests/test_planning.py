@@ -17,6 +17,7 @@ from scipy.optimize import brentq
 import nurbsmotion as nm
 from nurbsmotion.errors import InfeasibleError, InvalidCurveError, InvalidFeedError
 from nurbsmotion.interpolators import LOOP_METHODS, make_interpolator
+from nurbsmotion.interpolators.planned.identify import HIST_ROWS
 from nurbsmotion.interpolators.planned import PlannedInterpolator
 from nurbsmotion.loop import simulate, to_pulses
 from nurbsmotion.metrics import contour_error
@@ -651,12 +652,12 @@ def test_identification_finds_the_true_sampled_plant(tau_scale, kc_scale):
     it = PlannedInterpolator(PI, MACHINE, 1e6)
     plant = ServoPlant.of_machine(MACHINE, PI(0.0), time_constant_scale=tau_scale,
                                   electrical_gain_scale=kc_scale)
-    drive = np.random.default_rng(3).uniform(-10, 10, (200, 2))
+    drive = np.random.default_rng(3).uniform(-10, 10, (600, 2))
     drive[0] = 0.0  # as in the loop: u[0] = 0, the plant still at rest at sample 1
     _, position = plant.response(drive)
-    est = _prior_estimate(it.plan)
-    hist = np.zeros((5, 2))
-    for k in range(1, 200):
+    est = _prior_estimate(it.plan, MACHINE.max_drive)
+    hist = np.zeros((HIST_ROWS, 2))
+    for k in range(1, 600):
         for j in range(2):
             _identify(est, hist, j, position[k, j], it.plan.a[j], it.plan.b0[j],
                       it.plan.c[j], it.plan.b1[j])
@@ -666,6 +667,91 @@ def test_identification_finds_the_true_sampled_plant(tau_scale, kc_scale):
         # 1 - a sets the speed part of the drive: within 2 % of it
         assert abs(est[0, j] - a) <= 0.02 * (1 - a)
         np.testing.assert_allclose(est[1:3, j], [b1, c * b0 - a * b1], rtol=1e-3)
+
+
+@pytest.mark.parametrize("load", [0.5, -2.0])
+def test_identification_is_not_thrown_by_an_unknown_constant_drive(load):
+    """A constant drive the model does not know (a load of ``load`` V on every axis from
+    sample 60 on) under the same random drive: the regression in increments still
+    converges to the true plant's ZOH coefficients (scipy's expm) and its unknown drive
+    delta = (b1 + beta)*load; without delta the regression read such a load as a plant
+    of another gain."""
+    from nurbsmotion.interpolators.planned import DEFAULT_TRACKING_POLE, GAIN_RANGE
+    from nurbsmotion.interpolators.planned.identify import _identify
+    from nurbsmotion.interpolators.planned.interpolator import _prior_estimate
+
+    it = PlannedInterpolator(PI, MACHINE, 1e6)
+    plant = ServoPlant.of_machine(MACHINE, PI(0.0), time_constant_scale=0.7,
+                                  electrical_gain_scale=1.4)
+    drive = np.random.default_rng(4).uniform(-8, 8, (600, 2))
+    drive[0] = 0.0
+    applied = drive.copy()
+    applied[60:] += load
+    _, position = plant.response(applied)
+    est = _prior_estimate(it.plan, MACHINE.max_drive)
+    hist = np.zeros((HIST_ROWS, 2))
+    for k in range(1, 600):
+        for j in range(2):
+            _identify(est, hist, j, position[k, j], it.plan.a[j], it.plan.b0[j],
+                      it.plan.c[j], it.plan.b1[j], 0.0, GAIN_RANGE,
+                      1.0 - DEFAULT_TRACKING_POLE)
+            hist[1, j], hist[0, j] = hist[0, j], drive[k, j]
+    for j in range(2):
+        a, b0, c, b1 = _scipy_zoh(j, 0.7, 1.4)
+        # delta follows a random walk (the filter keeps adapting to it): the plant within
+        # 15 % of 1 - a (the speed part of the drive) and 1 % of b1, beta, the load's
+        # delta within 10 %
+        assert abs(est[0, j] - a) <= 0.15 * (1 - a)
+        np.testing.assert_allclose(est[1:3, j], [b1, c * b0 - a * b1], rtol=1e-2)
+        np.testing.assert_allclose(est[4, j], (b1 + c * b0 - a * b1) * load, rtol=0.1)
+
+
+@pytest.mark.parametrize("tau_scale, kc_scale, delay", [(1.0, 1.0, 0.5), (0.7, 1.4, 0.3)])
+def test_identification_with_a_known_delay_finds_the_delayed_plant(tau_scale, kc_scale,
+                                                                   delay):
+    """A plant whose drive arrives ``delay`` samples late (RK45 on the continuous plant,
+    the drive held over each sample and shifted by the delay) under a random drive: its
+    position increments are exactly linear in dth[k-1], u[k-1], u[k-2], u[k-3] (numpy's
+    least squares on them leaves a residual of the integration's error only), with the
+    weights :func:`_drive_weights` gives on scipy's ZOH of the plant; and the online
+    step's filter, told the delay, converges to those weights (a, then p1, p2, p3)."""
+    from scipy.integrate import solve_ivp
+
+    from nurbsmotion.interpolators.planned.identify import _drive_weights, _identify
+    from nurbsmotion.interpolators.planned.interpolator import _prior_estimate
+
+    j, n = 1, 400
+    ts = MACHINE.sample_period
+    tau, kc, ke = MACHINE.tau[j] * tau_scale, MACHINE.Kc[j] * kc_scale, MACHINE.Ke[j]
+    drive = np.random.default_rng(5).uniform(-8, 8, n)
+    drive[0] = 0.0
+    y = np.zeros(2)                       # (w [rad/s], theta [pulse]), at rest
+    position = np.zeros(n + 1)
+    for k in range(n):
+        for t0, t1, u in ((0.0, delay, drive[k - 1] if k else 0.0), (delay, 1.0, drive[k])):
+            y = solve_ivp(lambda t, x: [(-x[0] + kc * u) / tau, ke * x[0]],
+                          (t0 * ts, t1 * ts), y, rtol=1e-12, atol=1e-12,
+                          method="RK45").y[:, -1]
+        position[k + 1] = y[1]
+    a, b0, c, b1 = _scipy_zoh(j, tau_scale, kc_scale)
+    weights = _drive_weights(a, b0, c, b1, delay)
+    dth = np.diff(position)   # dth[k] = th[k + 1] - th[k], over sample k: u[k], u[k-1]...
+    k = np.arange(3, n)
+    X = np.column_stack([dth[k - 1], drive[k], drive[k - 1], drive[k - 2]])
+    fit, *_ = np.linalg.lstsq(X, dth[k], rcond=None)
+    np.testing.assert_allclose(fit, [a, *weights], rtol=1e-6)
+    assert abs(sum(weights) - (c * b0 + (1 - a) * b1)) <= 1e-12 * abs(c * b0 + (1 - a) * b1)
+
+    it = PlannedInterpolator(PI, MACHINE, 1e6)
+    plan = it.plan._replace(delay=delay)
+    est = _prior_estimate(plan, MACHINE.max_drive)
+    hist = np.zeros((HIST_ROWS, 2))
+    for k in range(1, n + 1):
+        _identify(est, hist, j, position[k], plan.a[j], plan.b0[j], plan.c[j], plan.b1[j])
+        hist[5, j], hist[1, j], hist[0, j] = hist[1, j], hist[0, j], drive[k] if k < n else 0.0
+    assert abs(est[0, j] - a) <= 0.02 * (1 - a)
+    np.testing.assert_allclose(est[1:4, j], weights, rtol=0,
+                               atol=1e-3 * np.max(np.abs(weights)))
 
 
 @pytest.mark.parametrize("tau_scale, kc_scale", [(0.5, 2.0), (2.0, 0.5), (1.2, 0.8)])
@@ -699,14 +785,16 @@ def test_a_weaker_plant_is_slowed_only_where_it_must_be(butterfly, tau_scale, kc
 def test_a_weaker_plant_lands_on_the_pi_within_its_margin(tau_scale, kc_scale):
     """Issue 10 item 4 on the Pi at 1 m/s, the plants that cannot follow the plan at full
     rate (they arrived 5-16 um short or long and crept in at the tracking pole, 1.11-1.17x
-    the bound): the deadbeat feedback once the plan rests on the end lands them within
-    1.15x the nominal bound, within 25 um of the path and never beyond Umax."""
+    the bound): the landing on the plant identified during the move lands them within
+    1.25x the nominal bound (1.17-1.22x; within 1.15x with deadbeat poles, which
+    limit-cycled or never settled with an unknown load, friction or mode:
+    benchmarks/real_planned_item1.md), within 25 um of the path and never beyond Umax."""
     it, _ = _planned_pi(1e6)
     plant = ServoPlant.of_machine(MACHINE, PI(0.0), time_constant_scale=tau_scale,
                                   electrical_gain_scale=kc_scale)
     trace = simulate(it, MACHINE, plant=plant, settle_time=0.1)
     _check_run(it, trace)
-    assert settle_time(trace) <= 1.15 * time_optimal_bound(PI, MACHINE, 1e6)
+    assert settle_time(trace) <= 1.25 * time_optimal_bound(PI, MACHINE, 1e6)
     assert np.max(contour_error(PI, trace.position)) <= 25.0
 
 
@@ -723,10 +811,10 @@ def test_a_plant_unlike_the_model_stops_short_of_the_place_position(tau_scale, k
     _check_run(it, trace)
     place = trace.position[:, 0] > PI(1.0)[0] - 1.0   # on the place line, x = 60000
     passed = max(0.0, -float(np.min(trace.position[place, 1] - PI(1.0)[1])))
-    # the guard brakes the plant it has identified, not the true one: 2x2 passes by 1e-5
-    # pulse (a hundred-thousandth of the encoder's resolution)
-    assert passed <= 1e-3
-    assert trace.metrics().end_overshoot <= 1e-3
+    # the guard brakes the plant it has identified, not the true one: 2x2 passes by
+    # 1.4e-3 pulse (a thousandth of the encoder's resolution)
+    assert passed <= 1e-2
+    assert trace.metrics().end_overshoot <= 1e-2
     assert settle_time(trace) <= 1.15 * time_optimal_bound(PI, MACHINE, 1e6)
 
 
@@ -1313,15 +1401,16 @@ def test_a_single_count_does_not_throw_the_identification():
 
     it = PlannedInterpolator(PI, MACHINE, 1e6)
     p = it.plan
-    assert reading_knowledge(MACHINE, p.a, p.b0, p.c, p.b1) == {"dead_zone": 0.0}
+    assert reading_knowledge(MACHINE, p.a, p.b0, p.c, p.b1) == {"dead_zone": 0.0,
+                                                               "landing_band": 0.0}
     dz = reading_knowledge(MACHINE.with_options(encoder="counts"), p.a, p.b0, p.c,
                            p.b1)["dead_zone"]
     # a count's residual: 1 + |1 + a| at most (positions weighted 1, -(1 + a), a)
     assert 1.0 + abs(1.0 + p.a[0]) <= 2.0 * dz
     for zone, moved in ((dz, False), (0.0, True)):
-        est = _prior_estimate(p)
+        est = _prior_estimate(p, MACHINE.max_drive)
         prior = est.copy()
-        hist = np.zeros((5, 2))
+        hist = np.zeros((HIST_ROWS, 2))
         for k in range(40):
             _identify(est, hist, 0, float(k % 2), p.a[0], p.b0[0], p.c[0], p.b1[0], zone)
         assert (not np.array_equal(est[:, 0], prior[:, 0])) == moved
@@ -1345,8 +1434,8 @@ def test_identification_on_counts_stays_near_the_true_plant():
     drive[0] = 0.0
     _, position = plant.response(drive)
     counts = np.floor(position - position[0]) + position[0]
-    est = _prior_estimate(p)
-    hist = np.zeros((5, 2))
+    est = _prior_estimate(p, MACHINE.max_drive)
+    hist = np.zeros((HIST_ROWS, 2))
     for k in range(1, 400):
         for j in range(2):
             ga, _ = _identify(est, hist, j, counts[k, j], p.a[j], p.b0[j], p.c[j],

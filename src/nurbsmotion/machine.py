@@ -31,12 +31,19 @@ from .errors import InvalidMachineError, PathFileError
 from .plant import linear_loop_poles
 from .servo import ServoPlant, zoh_matrices
 
+class UnstableModeWarning(UserWarning):
+    """A machine whose linear loop (law, plant, delay) is stable rigid but unstable with
+    an axis's two-mass mode (:meth:`Machine.mode_loop_poles`): runs on it ring the mode
+    into a limit cycle against Umax. Named axis, mode and largest pole radius."""
+
+
 MAX_MACHINE_FILE_BYTES = 1_000_000
 """Largest machine file read [byte] (a machine of 6 axes takes about 1 kB)."""
 
 __all__ = ["Axis", "Disturbance", "Machine", "CONTROLLERS", "ENCODERS", "ENCODER_MASSES", "ROTARY_AXIS_NAMES",
            "SPEED_MEASUREMENTS", "LENGTH_UNITS_UM", "die_bonder", "die_bonder_real",
-           "builtin_machine", "BUILTIN_MACHINES", "load_machine"]
+           "builtin_machine", "BUILTIN_MACHINES", "load_machine", "UnstableModeWarning",
+           "mode_safe_gains", "MODE_BANDWIDTH_RATIO", "MODE_SAFE_DAMPING"]
 
 CONTROLLERS = ("pd+", "pd", "pid")
 """Control laws: PD+ (eq. 2.12 / 3.3, the default), plain PD (eq. 2.4), and LinuxCNC's
@@ -367,6 +374,7 @@ class Machine:
                                             f"{self.controller!r}"))
         self._check_effects()
         self._check_stable()
+        self._warn_unstable_mode()
 
     def _check_effects(self) -> None:
         if self.encoder not in ENCODERS:
@@ -447,6 +455,30 @@ class Machine:
                     f"{self.sample_period:g} s{extra}: poles {shown} (largest |p| = "
                     f"{radius:.6g}, must be < 1); change the gains or the sample period"
                     + (" or shorten the delay" if self.delay else ""))
+
+    def _warn_unstable_mode(self) -> None:
+        """Warn (:class:`UnstableModeWarning`) per axis whose loop with its mode has a
+        pole on or outside the unit circle. A warning, not a refusal: the mode is the
+        least certain part of a machine file (identified within +-10 %, often not at all),
+        a machine given as ``--plant`` runs under another machine's gains (its own are
+        not used), and the run is how the user sees what the mode does (issue 33)."""
+        if not any(a.resonance_frequency for a in self.axes):
+            return
+        import warnings
+
+        for a, poles in zip(self.axes, self.mode_loop_poles()):
+            if not a.resonance_frequency:
+                continue
+            radius = float(np.max(np.abs(poles)))
+            if not radius < 1.0:
+                warnings.warn(
+                    f"machine {self.name!r}, axis {a.name!r}: the closed loop with its "
+                    f"{a.resonance_frequency:g} Hz mode (damping {a.resonance_damping:g}"
+                    + (f", delay {self.delay:g} s" if self.delay else "")
+                    + f") is unstable: largest pole radius {radius:.4g} (must be < 1); a "
+                    "run on it rings the mode into a limit cycle. Lower the gains below "
+                    "the mode (machine.mode_safe_gains) or add damping",
+                    UnstableModeWarning, stacklevel=4)
 
     @property
     def n_axes(self) -> int:
@@ -684,6 +716,63 @@ def die_bonder(**changes: Any) -> Machine:
     return m.with_options(**changes) if changes else m
 
 
+MODE_BANDWIDTH_RATIO = 4.0
+"""The mode's frequency over the rigid loop's natural frequency in
+:func:`mode_safe_gains`: the usual rule for a position loop on a compliant axis (its
+bandwidth a quarter to a fifth of the first mode), which leaves the loop with the mode
+stable for the mode's frequency, tau and Kc each +-10 % (docs/model.md#real-machine)."""
+
+MODE_SAFE_DAMPING = 1.0 / math.sqrt(2.0)
+"""The rigid loop's damping ratio in :func:`mode_safe_gains` (Butterworth: no overshoot
+beyond 4.3 %, the flattest response)."""
+
+
+def mode_safe_gains(tau: float, Kc: float, Ke: float, resonance_frequency: float,
+                    ratio: float = MODE_BANDWIDTH_RATIO,
+                    damping: float = MODE_SAFE_DAMPING) -> tuple[float, float]:
+    """PD gains that place the rigid axis's closed-loop poles at natural frequency
+    ``wn = 2*pi*resonance_frequency/ratio`` with damping ratio ``damping``.
+
+    The rigid loop of the PD / PD+ law (docs/model.md#controllers) has the characteristic
+    polynomial ``tau*s^2 + (1 + Kc*Kd)*s + Kc*Ke*Kp`` (continuous; the feedforward does not
+    move its poles), so ``Kp = tau*wn^2/(Kc*Ke)`` and ``Kd = (2*damping*wn*tau - 1)/Kc``.
+
+    Parameters
+    ----------
+    tau : float
+        Time constant [s].
+    Kc : float
+        Electrical gain [(rad/s)/V].
+    Ke : float
+        Mechanical gain [pulse/rad].
+    resonance_frequency : float
+        The axis's first mode [Hz], > 0.
+    ratio, damping : float
+        See :data:`MODE_BANDWIDTH_RATIO`, :data:`MODE_SAFE_DAMPING`.
+
+    Returns
+    -------
+    (Kp, Kd) : tuple of float
+        [V/pulse], [V/(rad/s)].
+
+    Raises
+    ------
+    InvalidMachineError
+        When the axis's own viscous damping already exceeds ``damping`` at ``wn``
+        (Kd would be negative).
+    """
+    wn = 2.0 * math.pi * _positive(resonance_frequency, "resonance_frequency") \
+        / _positive(ratio, "ratio")
+    Kp = tau * wn * wn / (Kc * Ke)
+    Kd = (2.0 * damping * wn * tau - 1.0) / Kc
+    if not Kd >= 0.0:
+        raise InvalidMachineError(
+            f"mode_safe_gains: the axis's own damping 1/(2*wn*tau) = "
+            f"{1.0 / (2.0 * wn * tau):.4g} exceeds damping {damping:g} at wn = {wn:.4g} "
+            "rad/s: no speed gain places it")
+    return Kp, Kd
+
+
 REAL_AXIS_KEYS = {"coulomb_friction": 0.3, "stiction": 0.4, "resonance_frequency": 100.0,
                   "resonance_damping": 0.02, "load_fraction": 0.5, "encoder_on": "motor"}
 """The per-axis effects of the ``die-bonder-real`` preset: representative of such machines,
@@ -695,11 +784,20 @@ def die_bonder_real(**changes: Any) -> Machine:
     a 16-bit DAC, 0.5 ms of delay, and on each axis 0.3 V Coulomb friction, 0.4 V
     stiction and a 100 Hz mode of damping 0.02 with the encoder on the motor.
 
+    Its gains are not the paper's: with the mode those are unstable (pole radii 1.09 x,
+    1.28 y). They are :func:`mode_safe_gains` of each axis at its mode, as a vendor
+    would tune a compliant axis (issue 33; docs/model.md#real-machine).
+
     These values are representative of such machines, not measured on the paper's.
     Keyword arguments replace fields."""
     base = die_bonder()
+    f = REAL_AXIS_KEYS["resonance_frequency"]
+    axes = []
+    for a in base.axes:
+        Kp, Kd = mode_safe_gains(a.time_constant, a.electrical_gain, a.mechanical_gain, f)
+        axes.append(replace(a, position_gain=Kp, speed_gain=Kd, **REAL_AXIS_KEYS))
     m = base.with_options(
-        axes=tuple(replace(a, **REAL_AXIS_KEYS) for a in base.axes), encoder="counts",
+        axes=tuple(axes), encoder="counts",
         dac_bits=16, delay=0.5e-3, name="die-bonder-real")
     return m.with_options(**changes) if changes else m
 

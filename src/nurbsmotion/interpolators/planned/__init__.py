@@ -32,9 +32,18 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    rate it had) to the plan's speed at the next clock (times the new rate), both exact
    between samples (:func:`_plan_speed_at`), plus a state feedback on the deviation whose
    gains put both poles of the *identified* plant's deviation dynamics at
-   ``tracking_pole`` (:func:`_pole_gains`) and, once the plan's clock has reached the
-   plan's rest on the end, at 0 (deadbeat: what a plant that differs from the model has
-   left of the move closes in two samples instead of decaying at the tracking pole),
+   ``tracking_pole`` (:func:`_pole_gains`; the identification regresses increments with
+   an unknown drive, so a load or friction while the axis moves one way does not throw
+   the estimate, and the speed estimate and the stop guards take that drive). With a
+   known delay (under one sample) the deviation is taken at the state the drive will
+   meet, predicted over the delay: the run is the plan, the delay late. Once the plan's
+   clock has reached the plan's rest on the end, the identified plant is frozen and a law
+   with an integral lands the axis on the end (step 3' of :func:`online_step`,
+   :func:`.identify._landing_law`), on the error beyond what the reading can tell (half
+   a count and 3 sigma of the noise). On an axis whose model declares a mode, both laws
+   run on the model's plant with gains designed with the mode, its delay and the law's own
+   speed estimate, stable with tau, Kc and the mode each 10 % off
+   (:func:`.mode_law.mode_landing_law`). The drive is
    clipped to +-Umax: *every drive is within the limit by construction*, whatever the
    true plant. Once the plan moves an axis only towards a stop (a stop corner or the
    end), the drive also leaves the identified plant able to stop before it, braking at
@@ -74,11 +83,13 @@ from __future__ import annotations
 from .governor import RATE_BISECTIONS, RATE_WINDOW, SUPPORT_BLOCK, SUPPORT_DIRECTIONS
 from .identify import GAIN_RANGE, reading_knowledge
 from .interpolator import (DEFAULT_DRIVE_HEADROOM, DEFAULT_TRACKING_POLE, PlannedInterpolator,
-                           PlannedPlan, PlannedState)
+                           PlannedPlan, PlannedState, machine_knowledge)
 from .plan import MotionPlan, plan_motion
-from .step import DRIVE_MATCH, online_step, planned_step
+from .step import DRIVE_MATCH, LANDING_ROWS, online_step, planned_step
 
 __all__ = ["PlannedInterpolator", "PlannedPlan", "PlannedState", "online_step",
-           "planned_step", "reading_knowledge", "MotionPlan", "plan_motion",
+           "planned_step", "reading_knowledge", "machine_knowledge", "MotionPlan",
+           "plan_motion",
            "DEFAULT_TRACKING_POLE", "DEFAULT_DRIVE_HEADROOM", "SUPPORT_DIRECTIONS",
-           "SUPPORT_BLOCK", "RATE_WINDOW", "RATE_BISECTIONS", "GAIN_RANGE", "DRIVE_MATCH"]
+           "SUPPORT_BLOCK", "RATE_WINDOW", "RATE_BISECTIONS", "GAIN_RANGE", "DRIVE_MATCH",
+           "LANDING_ROWS"]

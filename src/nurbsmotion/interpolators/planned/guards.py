@@ -31,18 +31,25 @@ def _stopping_travel(w, a, b0, c, b1, brake):
 
 
 @njit(cache=True)
-def _short_of_stop(u, x, w, stop, s, a, b0, c, b1, umax, bisections=RATE_BISECTIONS):
+def _short_of_stop(u, x, w, stop, s, a, b0, c, b1, umax, bisections=RATE_BISECTIONS,
+                   unknown=0.0):
     """The drive nearest ``u`` [V], within +-Umax, after which the ZOH plant ``(a, b0, c,
     b1)`` at position ``x`` [pulse] and speed ``w`` [rad/s], braking at Umax from the
     next sample on, stops before ``stop`` [pulse] (moving in direction ``s``, +-1): the
     travel grows with the drive, so it is ``u`` itself if that stops in time, the full
     brake if nothing does, and else the drive that stops on ``stop``, bisected
-    ``bisections`` times."""
+    ``bisections`` times. ``unknown`` [V]: a drive the plant gets besides the one asked
+    for (the identified load or friction, :func:`.identify._identify`'s delta), added to
+    the drive and to the brake; an unknown drive that the brake cannot overcome is a
+    travel without end (the full brake)."""
     brake = -s * umax
+    if (brake + unknown) * s >= 0.0:
+        return brake
 
     def beyond(v):
-        w1 = a * w + b0 * v
-        return s * (x + c * w + b1 * v + _stopping_travel(w1, a, b0, c, b1, brake) - stop)
+        w1 = a * w + b0 * (v + unknown)
+        return s * (x + c * w + b1 * (v + unknown)
+                    + _stopping_travel(w1, a, b0, c, b1, brake + unknown) - stop)
 
     if beyond(u) <= 0.0:
         return u

@@ -19,14 +19,17 @@ from ...nurbs import NurbsCurve
 from ..base import Interpolator, positive_feed
 from .governor import RATE_BISECTIONS, RATE_WINDOW, SUPPORT_BLOCK, SUPPORT_DIRECTIONS, _support
 from .guards import _sample_extremes, _stop_guards
-from .identify import GAIN_RANGE, reading_knowledge
+from .identify import (EST_ROWS, GAIN_RANGE, HIST_ROWS, N_PARAMETERS, _drive_weights,
+                       reading_knowledge)
 from .inverse import axis_zoh
+from .mode_law import MODE_LAW_ROWS, mode_landing_law
 from .plan import plan_motion
+from .shaper import encoder_offset, shape_plan
 from .shorten import DEFAULT_PATH_TOLERANCE
-from .step import DRIVE_MATCH, planned_step
+from .step import DRIVE_MATCH, LANDING_ROWS, planned_step
 
 __all__ = ["PlannedInterpolator", "PlannedPlan", "PlannedState", "DEFAULT_TRACKING_POLE",
-           "DEFAULT_DRIVE_HEADROOM"]
+           "DEFAULT_DRIVE_HEADROOM", "machine_knowledge"]
 
 
 DEFAULT_TRACKING_POLE = 0.7
@@ -61,6 +64,10 @@ class PlannedPlan(NamedTuple):
     guards: np.ndarray           # (n_guards, 4) where the plant must be able to stop
     guard_offsets: np.ndarray    # (n_axes + 1,) each axis' rows of guards
     dead_zone: float = 0.0       # the identification's dead zone [pulse]
+    # the landing's band [pulse] (reading_knowledge) and its closed loop's poles
+    landing_band: float = 0.0
+    landing_pole: float = 0.0
+    delay: float = 0.0           # the model's delay [samples], < 1 (the landing's law)
     # the online step's tuning, each documented at the constant that is its default (data,
     # not compiled in: ``plan._replace(rate_window=32)`` needs no new compilation); the
     # support's SUPPORT_BLOCK and SUPPORT_DIRECTIONS fix array shapes and stay constants
@@ -68,6 +75,9 @@ class PlannedPlan(NamedTuple):
     rate_bisections: int = RATE_BISECTIONS  # bisections of a largest rate or drive
     gain_range: float = GAIN_RANGE          # the estimated plant's drive, model's x[1/g, g]
     drive_match: float = DRIVE_MATCH        # the law's output matches a drive (x Umax)
+    # (MODE_LAW_ROWS, n_axes): per axis whose model declares a mode, 1 and the landing's
+    # law designed with it (.mode_law.mode_landing_law); zeros: the rigid landing
+    mode_law: np.ndarray = np.zeros((MODE_LAW_ROWS, 0))
 
 
 class PlannedState(NamedTuple):
@@ -86,6 +96,7 @@ class PlannedState(NamedTuple):
     drive: np.ndarray
     support: np.ndarray
     gains: np.ndarray
+    landing: np.ndarray
 
 
 class PlannedInterpolator(Interpolator):
@@ -125,6 +136,11 @@ class PlannedInterpolator(Interpolator):
         Arc-length grid of the offline speed profile.
     max_samples : int
         A plan longer than this many samples is refused.
+    mode_shaper : bool
+        Shape the plan's drive at the model machine's two-mass modes (ZVD,
+        :mod:`.shaper`) and steer to the encoder's reading of the model's twist. Off by
+        default: work in progress (issue 33), it does not yet meet the contour target
+        where a stop corner falls between two samples (docs/model.md#planned-on-a-real-machine).
 
     Raises
     ------
@@ -145,7 +161,7 @@ class PlannedInterpolator(Interpolator):
                  drive_fraction: float = 1.0,
                  tracking_pole: float = DEFAULT_TRACKING_POLE,
                  drive_headroom: float = DEFAULT_DRIVE_HEADROOM, grid_size: int = 4000,
-                 max_samples: int = 10_000_000):
+                 max_samples: int = 10_000_000, mode_shaper: bool = False):
         machine.check_path(curve.n_axes)
         super().__init__(curve, machine.sample_period)
         feed = feed if isinstance(feed, FeedLimit) else positive_feed(feed)
@@ -157,6 +173,12 @@ class PlannedInterpolator(Interpolator):
         self.feed = feed
         self.machine = machine
         self.tracking_pole = float(tracking_pole)
+        if machine.delay >= machine.sample_period:
+            raise InvalidArgumentError(
+                f"planned lands on a law that models a delay of less than one sample; the "
+                f"machine's delay is {machine.delay:g} s ({machine.delay / machine.sample_period:g}"
+                f" samples of {machine.sample_period:g} s): use another interpolator or a "
+                f"shorter sample period's worth of delay")
         self.drive_headroom = float(drive_headroom)
         # The motion's speed and drive are not kept: the plan's drive_speed and
         # drive_accel hold them (u_ff = drive_speed + drive_accel), and a long move's
@@ -164,6 +186,8 @@ class PlannedInterpolator(Interpolator):
         p = plan_motion(curve, machine, feed, corner_tolerance=corner_tolerance,
                         path_tolerance=path_tolerance, drive_fraction=drive_fraction,
                         grid_size=grid_size, max_samples=max_samples)
+        if mode_shaper:  # the drive shaped at the model's modes (shaper.py; opt-in)
+            p = shape_plan(p, machine, curve)
         self.duration = p.duration
         if corner_tolerance > 0 and p.stop_times.size:  # asked to round, but stops
             self.notes = ("the motion stops at the sharp corners: rounding them within the "
@@ -182,6 +206,9 @@ class PlannedInterpolator(Interpolator):
             _sample_extremes(p.position, p.speed, p.drive, a, b0, c, b1))
         path_step = _path_steps(p.desired)
         parameter, position, stops, n = p.parameter, p.position, p.stop_indices, p.n_samples
+        twist = encoder_offset(p.drive, machine) if mode_shaper else None
+        if twist is not None:  # what the encoder reads of the model's mode
+            position = position + twist
         del p  # its speed, drive and desired positions before the support is built
         self.plan = PlannedPlan(
             parameter=parameter, path_step=path_step, position=position,
@@ -191,7 +218,8 @@ class PlannedInterpolator(Interpolator):
             a=a, b0=b0, c=c, b1=b1, log_a=np.log(a), headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole, rest=rest, guards=guards,
-            guard_offsets=guard_offsets, **reading_knowledge(machine, a, b0, c, b1))
+            guard_offsets=guard_offsets,
+            **machine_knowledge(machine, a, b0, c, b1, self.tracking_pole))
         release_freed_memory()  # the plan's temporaries, before a long run's peak
 
     def nominal_duration(self) -> float:
@@ -201,9 +229,10 @@ class PlannedInterpolator(Interpolator):
         n = self.machine.n_axes
         # the clock starts at plan sample 0 with the loop: the step gives sample 0's
         # setpoint too (registered below with first_sample=0)
-        return PlannedState(np.zeros(1), np.ones(1), np.zeros(1), _prior_estimate(self.plan),
-                            np.zeros((5, n)), np.empty(n), np.empty(n), np.empty(n),
-                            np.empty((n, SUPPORT_DIRECTIONS)), np.empty((2, n)))
+        return PlannedState(np.zeros(1), np.ones(1), np.zeros(1), _prior_estimate(self.plan, self.machine.max_drive),
+                            np.zeros((HIST_ROWS, n)), np.empty(n), np.empty(n), np.empty(n),
+                            np.empty((n, SUPPORT_DIRECTIONS)), np.empty((2, n)),
+                            np.zeros((LANDING_ROWS, n)))
 
 
 def _example(n_axes: int):
@@ -216,14 +245,40 @@ def _example(n_axes: int):
     plan = PlannedPlan(f(1), f(1), f(1, n), f(1, n), f(1, n), f(1, n, d),
                        np.zeros(2, np.int64), *(f(n) for _ in range(5)), 0.0, 0.0, 0,
                        f(1, 4), np.zeros(n + 1, np.int64))
-    state = PlannedState(f(1), f(1), f(1), f(12, n), f(5, n), f(n), f(n), f(n), f(n, d),
-                         f(2, n))
+    state = PlannedState(f(1), f(1), f(1), f(EST_ROWS, n), f(HIST_ROWS, n), f(n), f(n),
+                         f(n), f(n, d), f(2, n), f(LANDING_ROWS, n))
     return plan, state
 
 
 # from sample 0: the plan's first drive u[0] moves the plant (inverse.LEAD)
 stepping.register(PlannedPlan, planned_step, first_sample=0, name="planned",
                   make=PlannedInterpolator, example=_example, options=True)
+
+
+def machine_knowledge(machine: Machine, a, b0, c, b1, tracking_pole: float) -> dict:
+    """What the online step takes from the model machine beyond its rigid plant
+    (:class:`PlannedPlan`'s fields): :func:`reading_knowledge` (the identification's
+    dead zone and the landing's band), the model's ``delay`` [samples] and the landing's
+    poles ``landing_pole``.
+
+    - The delay (a fraction of a sample) is in the identification's regression (its
+      drive weights, :func:`.identify._drive_weights`: without it, on a delayed drive it
+      read a plant that is none, a' of 1.75 on the die bonder at half a sample), in the
+      tracking (the state the drive will meet, predicted over the delay, step 1b of
+      :func:`.step.online_step`) and in the landing's law
+      (:func:`.identify._landing_law`).
+    - The landing's poles are at ``tracking_pole``: deadbeat (poles at 0), as it once was,
+      closes what a plant unlike the model has left of the move in three samples, but
+      on the same plant with a load, friction or a mode the model does not know it
+      limit-cycled or never settled (benchmarks/real_planned_item1.md).
+    - On an axis whose model declares a mode, the landing's law is the one designed with
+      the mode, its delay and the model's tau, Kc and mode each +-10 % off
+      (``mode_law``, :func:`.mode_law.mode_landing_law`); the rigid placement on the
+      identified plant left the mode unplaced and limit-cycled at rest."""
+    known = reading_knowledge(machine, a, b0, c, b1)
+    return dict(known, delay=machine.delay / machine.sample_period,
+                landing_pole=float(tracking_pole),
+                mode_law=mode_landing_law(machine, tracking_pole))
 
 
 def _path_steps(desired: np.ndarray) -> np.ndarray:
@@ -236,16 +291,21 @@ def _path_steps(desired: np.ndarray) -> np.ndarray:
     return np.sqrt(steps, out=steps)
 
 
-def _prior_estimate(plan: PlannedPlan) -> np.ndarray:
-    """The identification's start (:func:`_identify`): the model's (a, b1, beta), shape
-    (12, n_axes) with the covariance. Prior standard deviations: 1 - a for a (a plant
-    whose tau is half or twice the model's has 1 - a about twice or half the model's),
-    and the plan's ``gain_range`` times b1 and beta (the drive's effect, proportional to Kc/tau)."""
+def _prior_estimate(plan: PlannedPlan, umax: float) -> np.ndarray:
+    """The identification's start (:func:`_identify`): the model's a and drive weights
+    (p1, p2, p3) with its delay (:func:`.identify._drive_weights`; without a delay (b1,
+    beta, 0)) and no unknown drive (delta = 0), shape (EST_ROWS, n_axes) with the
+    covariance. Prior standard deviations: 1 - a for a (a plant whose tau is half or
+    twice the model's has 1 - a about twice or half the model's), the plan's
+    ``gain_range`` times each drive weight (the drive's effect, proportional to Kc/tau;
+    0 for p3 without a delay: it stays 0), and for delta an unknown drive of up to
+    ``umax`` [V] through the model's ``p1 + p2 + p3``."""
     a, b0, c, b1 = plan.a, plan.b0, plan.c, plan.b1
-    beta = c * b0 - a * b1
-    est = np.zeros((12, len(a)))
-    est[0], est[1], est[2] = a, b1, beta
-    est[3] = (1.0 - a) ** 2
-    est[7] = (plan.gain_range * b1) ** 2
-    est[11] = (plan.gain_range * beta) ** 2
+    weights = np.array([_drive_weights(*v, plan.delay) for v in zip(a, b0, c, b1)]).T
+    est = np.zeros((EST_ROWS, len(a)))
+    est[0], est[1:4] = a, weights
+    n = N_PARAMETERS
+    for r, sigma in enumerate((1.0 - a, *(plan.gain_range * weights),
+                               (weights[0] + weights[1] + weights[2]) * umax)):
+        est[n + n * r + r] = sigma ** 2
     return est

@@ -15,9 +15,15 @@ from ... import stepping
 from ...control import pid_affine, pid_output
 from .governor import _demand, _rate_room, _support_at, _window_rate
 from .guards import _guarded, _short_of_stop
-from .identify import _estimated_plant, _identify, _pole_gains
+from .identify import (LAW_ROWS, _delayed_zoh, _estimated_delayed_plant, _estimated_plant,
+                       _identify, _landing_law, _plant_part, _pole_gains)
 
-__all__ = ["online_step", "planned_step"]
+__all__ = ["online_step", "planned_step", "LANDING_ROWS"]
+
+LANDING_ROWS = 2 + LAW_ROWS
+"""Rows of the landing's state per axis (:func:`online_step`, step 3'): 1 once the landing
+has begun, the law placed then on the identified plant (:func:`.identify._landing_law`,
+rows 1-13) and the integral of the error beyond the reading's band [pulse*samples]."""
 
 
 @njit(cache=True)
@@ -54,13 +60,18 @@ def online_step(plan, state, position, umax, out_setpoint):
         speed between samples (:func:`_plan_speed_at`); ``headroom``, the fraction of
         Umax the governor keeps for the feedback; ``rate_gain``, the largest change of
         the rate per sample (``1 - rate_gain`` is the tracking pole); ``rest``, the plan
-        sample from which the plan rests on the end (from there on the feedback is
-        deadbeat); ``guards`` and ``guard_offsets``, shapes (n_guards, 4) and
+        sample from which the plan rests on the end (from there on the landing's law with
+        its integral, step 3', :func:`.identify._landing_law`); ``guards`` and ``guard_offsets``, shapes (n_guards, 4) and
         (n_axes + 1,), where the plant must be able to stop (:func:`_stop_guards`: while
         the clock lies between two plan samples that a guard both holds, the drive keeps
         the plant able to stop before its position, :func:`_short_of_stop`);
         ``dead_zone``, the identification's dead zone [pulse] (:func:`_identify`,
-        :func:`reading_knowledge`).
+        :func:`reading_knowledge`); ``landing_band`` [pulse], ``landing_pole`` and
+        ``delay`` [samples], the landing's law (step 3'); ``mode_law``, shape
+        (MODE_LAW_ROWS, n_axes), per axis whose model declares a mode the landing's
+        law and the tracking's gains designed with the mode
+        (:func:`.mode_law.mode_landing_law`), used on the model's plant in place of the
+        identified plant's laws (zeros: a rigid axis, the identified plant's).
     state : PlannedState
         Read: ``phi[0]``, the plan's clock at this sample [samples]; ``rate[0]``, the
         clock's rate over the last sample, in (0, 1]; ``excess[0]``, how far the last
@@ -69,12 +80,14 @@ def online_step(plan, state, position, umax, out_setpoint):
         parts from the window's end (:data:`RATE_WINDOW` samples after the clock's) up to
         the next stop (:func:`_support_at`; zero when the window reaches the plan's end);
         ``slope`` and ``offset``, shape (n_axes,), the law's affine form at this sample:
-        u[k] = slope*thd[k] + offset [V/pulse, V]. In/out: ``est``, shape (12, n_axes),
+        u[k] = slope*thd[k] + offset [V/pulse, V]. In/out: ``est``, shape (EST_ROWS, n_axes),
         the plant's identified sampled model and its covariance (:func:`_identify`);
-        ``hist``, shape (5, n_axes), the identification's memory (:func:`_identify`; row
-        0 is the drive applied at the last sample, which the caller corrects if the law
-        produced another). Scratch: ``gains``, shape (2, n_axes), the estimated plant's
-        ga and gv (:func:`_gains`). Written: ``drive``, shape (n_axes,), the drive [V]
+        ``hist``, shape (HIST_ROWS, n_axes), the identification's memory
+        (:func:`_identify`; row 0 is the drive applied at the last sample, which the
+        caller corrects if the law produced another); ``landing``, shape
+        (:data:`LANDING_ROWS`, n_axes), the landing's plant, gains and integral (step 3').
+        Scratch: ``gains``, shape (2, n_axes), the estimated plant's ga and gv
+        (:func:`_gains`). Written: ``drive``, shape (n_axes,), the drive [V]
         the setpoint produces.
     position : ndarray, shape (n_axes,)
         tha[k], measured [pulse].
@@ -92,12 +105,14 @@ def online_step(plan, state, position, umax, out_setpoint):
     phi, rate, excess_prev = state.phi[0], state.rate[0], state.excess[0]
     est, hist, support, gains = state.est, state.hist, state.support, state.gains
     slope, offset, out_drive = state.slope, state.offset, state.drive
+    landing = state.landing
     plan_position, plan_drive_speed = plan.position, plan.drive_speed
     plan_drive_accel = plan.drive_accel
     a, b0, c, b1, log_a = plan.a, plan.b0, plan.c, plan.b1, plan.log_a
     headroom, rate_gain, rest = plan.headroom, plan.rate_gain, plan.rest
     guards, guard_offsets, dead_zone = plan.guards, plan.guard_offsets, plan.dead_zone
     bisections, gain_range = plan.rate_bisections, plan.gain_range
+    delay = plan.delay
     n = plan_position.shape[0]
     n_axes = position.shape[0]
     i0 = min(int(phi), n - 1)
@@ -108,7 +123,7 @@ def online_step(plan, state, position, umax, out_setpoint):
     r_tail = 1.0
     for j in range(n_axes):
         ga, gv = _identify(est, hist, j, position[j], a[j], b0[j], c[j], b1[j],
-                           dead_zone, gain_range)
+                           dead_zone, gain_range, rate_gain)
         gains[0, j] = ga
         gains[1, j] = gv
         # 2a. the largest uniform rate at which the estimated plant can follow the plan
@@ -154,24 +169,89 @@ def online_step(plan, state, position, umax, out_setpoint):
     excess = 0.0
     for j in range(n_axes):
         # 1b. deviation from the plan's state: position measured; the plant's speed from
-        # its last position increment and drive (hist rows 3 and 0, :func:`_identify`)
-        # through the identified plant (exact when it is the true one)
+        # its last position increment and the drives that made it (hist rows 3, 0 and 1,
+        # :func:`_identify`) through the identified plant (exact when it is the true
+        # one), with the drive it gets besides the one asked for (a load, friction while
+        # the axis moves one way: the regression's delta = (p1 + p2 + p3)*d [pulse])
         th = plan_position[i0, j] * (1.0 - f) + plan_position[i1, j] * f
-        e_th = th - position[j]
-        ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], gains[0, j])
-        w_last = (hist[3, j] - b1e * hist[0, j]) / ce
-        w_now = ae * w_last + b0e * hist[0, j]
+        moded = plan.mode_law[0, j] != 0.0
+        if moded:
+            # a mode declared: the model's plant, the laws designed with its mode on it
+            # (:func:`.mode_law.mode_landing_law`; a rigid regression reads the mode's
+            # twist as a plant that is none)
+            ae, b0e, ce, b1e = a[j], b0[j], c[j], b1[j]
+            d = 0.0
+        else:
+            if delay > 0.0:
+                ae, b0e, ce, b1e = _estimated_delayed_plant(est, j, a[j], b0[j], c[j],
+                                                            b1[j], gains[0, j], gain_range)
+            else:
+                ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], gains[0, j])
+            d = est[4, j] / (b1e + ce * b0e - ae * b1e)
+        u1, u2 = hist[0, j] + d, hist[1, j] + d
+        g0w, g0th, g1w, g1th = _delayed_zoh(ae, b0e, ce, b1e, delay)
+        w_last = (hist[3, j] - g0th * u1 - g1th * u2) / ce
+        w_now = ae * w_last + g0w * u1 + g1w * u2
+        th_now = position[j]
+        if delay > 0.0:
+            # the state this sample's drive will meet, `delay` samples on, the last
+            # drive acting meanwhile: from there the drive acts for a whole sample, so the
+            # deviation dynamics, the feedback's gains and the stop guards are the
+            # undelayed plant's (a predictor: the plan's state at the clock is where the
+            # drive starts, and the run follows the plan `delay` late)
+            ah, b0h, ch, b1h = _plant_part(ae, b0e, ce, b1e, delay)
+            th_now += ch * w_now + b1h * u1
+            w_now = ah * w_now + b0h * u1
+        e_th = th - th_now
         w_ref = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi, j, a[j], log_a[j],
                                b0[j])
         e_w = w_ref * rate_old - w_now
+        w_next = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi_next, j, a[j],
+                                log_a[j], b0[j])
         # 3. drive: the estimated plant's drive from the plan's speed at the clock (at the
         # rate it had) to its speed at the next clock (at the new rate), plus feedback;
         # clipped
-        w_next = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi_next, j, a[j],
-                                log_a[j], b0[j])
-        uf = (w_next * rate - ae * w_ref * rate_old) / b0e
-        kpe, kde = _pole_gains(ae, b0e, ce, b1e, 0.0 if phi >= rest else 1.0 - rate_gain)
-        u = uf + kpe * e_th + kde * e_w
+        band = plan.landing_band
+        if phi >= rest:
+            # 3'. landing (docs/model.md#planned-on-a-real-machine): the plan rests on the
+            # end. At the hand-over the identified plant is frozen (the move excited it;
+            # at rest nothing does, and the estimate would drift on the reading) and the
+            # law placed on it (:func:`.identify._landing_law`): the state the drive will
+            # meet, the model's delay on, and an integral of the error beyond what the
+            # reading can tell (plan.landing_band: a count's edge or the noise is neither
+            # chased nor integrated), poles at plan.landing_pole
+            if landing[0, j] == 0.0:
+                landing[0, j] = 1.0
+                if moded:
+                    # a mode declared: the law designed with it on the model
+                    # (:func:`.mode_law.mode_landing_law`), not the identified plant's
+                    landing[1:LAW_ROWS + 1, j] = plan.mode_law[1:LAW_ROWS + 1, j]
+                else:
+                    _landing_law(ae, b0e, ce, b1e, delay, plan.landing_pole,
+                                 landing[1:LAW_ROWS + 1, j])
+            # the speed from the last position increment and the drives that made it,
+            # then the state after the drive in flight
+            al, cl, g0w, g0th = landing[1, j], landing[2, j], landing[3, j], landing[4, j]
+            g1w, g1th = landing[5, j], landing[6, j]
+            w_last = (hist[3, j] - g0th * hist[0, j] - g1th * hist[1, j]) / cl
+            w_land = al * w_last + g0w * hist[0, j] + g1w * hist[1, j]
+            e_end = plan_position[n - 1, j] - (position[j] + landing[9, j] * w_land
+                                               + landing[10, j] * hist[0, j])
+            w_land = landing[7, j] * w_land + landing[8, j] * hist[0, j]
+            e_end -= min(max(e_end, -band), band)
+            u = (landing[11, j] * e_end - landing[12, j] * w_land
+                 + landing[13, j] * landing[14, j])
+            # the integral (z[k+1] = z[k] + e[k], :func:`.identify._landing_gains`) only
+            # while the drive is within Umax (no wind-up)
+            if abs(u) <= umax:
+                landing[14, j] += e_end
+        else:
+            uf = (w_next * rate - ae * w_ref * rate_old) / b0e
+            if moded:
+                kpe, kde = plan.mode_law[LAW_ROWS + 1, j], plan.mode_law[LAW_ROWS + 2, j]
+            else:
+                kpe, kde = _pole_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
+            u = uf + kpe * e_th + kde * e_w
         if abs(u) > umax:
             excess = max(excess, abs(u) / umax - 1.0)
             u = umax if u > 0 else -umax
@@ -183,11 +263,18 @@ def online_step(plan, state, position, umax, out_setpoint):
                  _guarded(guards, lo_g, hi_g, i1, 1.0))
         lo = min(_guarded(guards, lo_g, hi_g, i0, -1.0),
                  _guarded(guards, lo_g, hi_g, i1, -1.0))
+        # (in the landing only on an exact reading, an immediate drive and a rigid
+        # model: the end's guard read on a count or noise past it would brake at Umax,
+        # it brakes a plant with no delay, and its speed estimate is the rigid plant's,
+        # which a mode's twist throws: it held the landing against the end, 2,766
+        # samples at Umax in one run)
+        guarded = phi < rest or (band == 0.0 and plan.delay == 0.0 and not moded)
         for side in (-1.0, 1.0) if w_now >= 0.0 else (1.0, -1.0):
             target = hi if side > 0.0 else lo
-            if math.isfinite(target):
-                u = _short_of_stop(u, position[j], w_now, target, side, ae, b0e, ce, b1e,
-                                   umax, bisections)
+            if guarded and math.isfinite(target):
+                u = _short_of_stop(u, th_now, w_now, target, side, ae, b0e, ce, b1e,
+                                   umax, bisections, d)
+        hist[5, j] = hist[1, j]
         hist[1, j] = hist[0, j]
         hist[0, j] = u
         # 4. the setpoint that produces exactly this drive
