@@ -844,11 +844,13 @@ def _chebyshev_roots(coef: np.ndarray, tol: np.ndarray) -> np.ndarray:
 def curvature_from_derivatives(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
     """Curvature from first and second derivatives, in any dimension.
 
-    ``kappa = sqrt(|d1|^2 |d2|^2 - (d1 . d2)^2) / |d1|^3``.
+    ``kappa = sqrt(|d1|^2 |d2|^2 - (d1 . d2)^2) / |d1|^3``; NaN where ``d1`` vanishes
+    (the parametrisation stops there: the curvature is not defined by these derivatives).
     """
     n1 = np.sum(d1 * d1, axis=-1)
     cross2 = np.maximum(n1 * np.sum(d2 * d2, axis=-1) - np.sum(d1 * d2, axis=-1) ** 2, 0.0)
-    return np.sqrt(cross2) / n1**1.5
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(n1 > 0.0, np.sqrt(cross2) / n1**1.5, np.nan)[()]
 
 
 # ---------------------------------------------------------------------- factories
