@@ -641,13 +641,27 @@ def test_stopping_travel_and_the_drive_that_stops_on_the_end(tau_scale, kc_scale
     assert _short_of_stop(0.0, 0.0, w0, 2.0 * after(0.0), s, a, b0, c, b1, umax) == 0.0
 
 
+def _identified(it, position, drive, *options):
+    """The online identification's estimate after feeding it ``position`` (n, 2) [pulse]
+    read under ``drive`` (n, 2) [V] sample by sample, as the loop does."""
+    from nurbsmotion.interpolators.planned.identify import _identify
+    from nurbsmotion.interpolators.planned.interpolator import _prior_estimate
+
+    est = _prior_estimate(it.plan, MACHINE.max_drive)
+    hist = np.zeros((HIST_ROWS, 2))
+    for k in range(1, len(drive)):
+        for j in range(2):
+            _identify(est, hist, j, position[k, j], it.plan.a[j], it.plan.b0[j],
+                      it.plan.c[j], it.plan.b1[j], *options)
+            hist[1, j], hist[0, j] = hist[0, j], drive[k, j]
+    return est
+
+
 @pytest.mark.parametrize("tau_scale, kc_scale", [(0.6, 1.7), (1.9, 0.55)])
 def test_identification_finds_the_true_sampled_plant(tau_scale, kc_scale):
     """The recursive least squares of the online step, fed the positions of a plant
     whose tau and Kc differ from the model (ServoPlant, matrix exponential) under a
     random drive, converges to that plant's ZOH coefficients (scipy's expm)."""
-    from nurbsmotion.interpolators.planned.identify import _identify
-    from nurbsmotion.interpolators.planned.interpolator import _prior_estimate
 
     it = PlannedInterpolator(PI, MACHINE, 1e6)
     plant = ServoPlant.of_machine(MACHINE, PI(0.0), time_constant_scale=tau_scale,
@@ -655,13 +669,7 @@ def test_identification_finds_the_true_sampled_plant(tau_scale, kc_scale):
     drive = np.random.default_rng(3).uniform(-10, 10, (600, 2))
     drive[0] = 0.0  # as in the loop: u[0] = 0, the plant still at rest at sample 1
     _, position = plant.response(drive)
-    est = _prior_estimate(it.plan, MACHINE.max_drive)
-    hist = np.zeros((HIST_ROWS, 2))
-    for k in range(1, 600):
-        for j in range(2):
-            _identify(est, hist, j, position[k, j], it.plan.a[j], it.plan.b0[j],
-                      it.plan.c[j], it.plan.b1[j])
-            hist[1, j], hist[0, j] = hist[0, j], drive[k, j]
+    est = _identified(it, position, drive)
     for j in range(2):
         a, b0, c, b1 = _scipy_zoh(j, tau_scale, kc_scale)
         # 1 - a sets the speed part of the drive: within 2 % of it
@@ -677,8 +685,6 @@ def test_identification_is_not_thrown_by_an_unknown_constant_drive(load):
     delta = (b1 + beta)*load; without delta the regression read such a load as a plant
     of another gain."""
     from nurbsmotion.interpolators.planned import DEFAULT_TRACKING_POLE, GAIN_RANGE
-    from nurbsmotion.interpolators.planned.identify import _identify
-    from nurbsmotion.interpolators.planned.interpolator import _prior_estimate
 
     it = PlannedInterpolator(PI, MACHINE, 1e6)
     plant = ServoPlant.of_machine(MACHINE, PI(0.0), time_constant_scale=0.7,
@@ -688,14 +694,7 @@ def test_identification_is_not_thrown_by_an_unknown_constant_drive(load):
     applied = drive.copy()
     applied[60:] += load
     _, position = plant.response(applied)
-    est = _prior_estimate(it.plan, MACHINE.max_drive)
-    hist = np.zeros((HIST_ROWS, 2))
-    for k in range(1, 600):
-        for j in range(2):
-            _identify(est, hist, j, position[k, j], it.plan.a[j], it.plan.b0[j],
-                      it.plan.c[j], it.plan.b1[j], 0.0, GAIN_RANGE,
-                      1.0 - DEFAULT_TRACKING_POLE)
-            hist[1, j], hist[0, j] = hist[0, j], drive[k, j]
+    est = _identified(it, position, drive, 0.0, GAIN_RANGE, 1.0 - DEFAULT_TRACKING_POLE)
     for j in range(2):
         a, b0, c, b1 = _scipy_zoh(j, 0.7, 1.4)
         # delta follows a random walk (the filter keeps adapting to it): the plant within
