@@ -1447,3 +1447,25 @@ def test_identification_on_counts_stays_near_the_true_plant():
         ga_true = s_model / (b1 + c * b0 - a * b1)
         assert abs(est[1, j] + est[2, j] - (b1 + c * b0 - a * b1)) <= 0.1 * abs(
             b1 + c * b0 - a * b1), (j, ga_true)
+
+
+def test_a_path_of_too_many_corners_is_refused_before_its_arc_length(monkeypatch):
+    """Regression (issue 37, work refused late): a zigzag of 100,001 points has 99,999
+    sharp corners, whose pieces need at least 51 grid points each, more than
+    MAX_GRID_POINTS: refused from the corners alone, before the arc length (seconds on a
+    million points) is computed."""
+    from nurbsmotion.planning import MAX_GRID_POINTS
+
+    n = 100_001
+    points = np.column_stack([np.arange(n) * 10.0, (np.arange(n) % 2) * 10.0])
+    knots = np.concatenate([[0.0], np.arange(n, dtype=float), [n - 1.0]])
+    zigzag = NurbsCurve(1, knots, points)
+    assert 51 * (n - 1) > MAX_GRID_POINTS
+
+    def no_arc_length(*args, **kwargs):
+        raise AssertionError("arc length computed before the corner check")
+
+    monkeypatch.setattr(NurbsCurve, "arc_length", no_arc_length)
+    monkeypatch.setattr(NurbsCurve, "length", property(no_arc_length))
+    with pytest.raises(InfeasibleError, match="99999 sharp corners"):
+        speed_profile(zigzag, MACHINE, 1e5)

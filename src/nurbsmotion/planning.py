@@ -569,17 +569,21 @@ def speed_profile(curve: NurbsCurve, machine: Machine, feed: float, *,
     machine.check_path(curve.n_axes)
     M = machine.max_drive * machine.Kc * machine.Ke
     tau = machine.tau
-    L = curve.length
     ends = _piece_bounds(curve)
+
+    def check_grid(least: int) -> None:
+        if least > MAX_GRID_POINTS:
+            raise InfeasibleError(
+                f"the path has {len(ends) - 2} sharp corners; its {len(ends) - 1} corner-free "
+                f"pieces need at least {least:.3g} grid points (51 a piece), more than the "
+                f"limit of {MAX_GRID_POINTS:.3g} (planning.MAX_GRID_POINTS); smooth the path "
+                "or join its nearly collinear segments")
+
+    check_grid(51 * (len(ends) - 1))  # before the arc length, which costs seconds there
+    L = curve.length
     s_ends = curve.arc_length(ends)
     s_ends[0], s_ends[-1] = 0.0, L
-    least = int(np.sum(np.maximum(50, np.ceil(grid_size * np.diff(s_ends) / L)) + 1))
-    if least > MAX_GRID_POINTS:
-        raise InfeasibleError(
-            f"the path has {len(ends) - 2} sharp corners; its {len(ends) - 1} corner-free "
-            f"pieces need at least {least:.3g} grid points (51 a piece), more than the limit "
-            f"of {MAX_GRID_POINTS:.3g} (planning.MAX_GRID_POINTS); smooth the path or join "
-            "its nearly collinear segments")
+    check_grid(int(np.sum(np.maximum(50, np.ceil(grid_size * np.diff(s_ends) / L)) + 1)))
     pieces = []
     total_points = 0
     for k in range(len(ends) - 1):
