@@ -20,10 +20,24 @@ from .identify import (LAW_ROWS, _delayed_zoh, _estimated_delayed_plant, _estima
 
 __all__ = ["online_step", "planned_step", "LANDING_ROWS"]
 
-LANDING_ROWS = 2 + LAW_ROWS
+LANDING_ROWS = 3 + LAW_ROWS
 """Rows of the landing's state per axis (:func:`online_step`, step 3'): 1 once the landing
 has begun, the law placed then on the identified plant (:func:`.identify._landing_law`,
-rows 1-13) and the integral of the error beyond the reading's band [pulse*samples]."""
+rows 1-13), the integral of the error beyond the reading's band [pulse*samples] and the
+sign of the error at which the axis was last found stuck beyond :data:`HOLD_PULSES` of the
+end (0: not since the integral's last reset; the stick-slip rule of step 3')."""
+
+HOLD_PULSES = 0.5
+"""Beyond the reading's band, how far from the end [pulse] an axis held at rest by a drive
+(stuck by friction the model does not know) is left alone by the landing's integral: half
+a pulse, the rounding of the commanded position. Within it, the axis not moving and its
+drive at least the law's at the hold's edge (k_theta*(band + HOLD_PULSES): more than the
+error asks, so something the model does not know holds it), the integral holds (it would
+otherwise wind the drive through zero to the opposite breakaway and hunt, stick-slip,
+about the end); beyond it the integral goes on until the axis breaks away, and once the
+error has crossed the end the integral, which carried the axis over it, is reset to zero
+(the Coulomb friction and the law's damping stop it). A frictionless axis never rests
+beyond it nor under such a drive, so on the model's own plant neither rule acts."""
 
 
 @njit(cache=True)
@@ -241,10 +255,33 @@ def online_step(plan, state, position, umax, out_setpoint):
             e_end -= min(max(e_end, -band), band)
             u = (landing[11, j] * e_end - landing[12, j] * w_land
                  + landing[13, j] * landing[14, j])
+            # stick-slip (:data:`HOLD_PULSES`): the axis is gripped when its reading moved
+            # by no more than the reading alone can (twice the band; 0 on an exact one)
+            # under a drive beyond the law's at the hold's edge, and drives that would
+            # have moved it from rest by more than that on the model; then its error is
+            # the measured one (the model's prediction of the drive in flight moving it
+            # is what the friction holds back)
+            hold = band + HOLD_PULSES
+            e_int = e_end
+            push = g0th * hist[0, j] + g1th * hist[1, j]
+            if (abs(hist[3, j]) <= 2.0 * band and abs(u) >= landing[11, j] * hold
+                    and abs(push) > 2.0 * band):
+                e_meas = plan_position[n - 1, j] - position[j]
+                if abs(e_meas) <= hold:
+                    e_int = 0.0   # held within the hold: the integral holds
+                else:
+                    e_int = e_meas - min(max(e_meas, -band), band)
+                    landing[15, j] = 1.0 if e_meas > 0.0 else -1.0
+            elif landing[15, j] * e_end < 0.0:
+                # it broke away and crossed the end since it was gripped beyond the hold:
+                # the integral that broke it away and carried it over is spent
+                landing[14, j] = 0.0
+                landing[15, j] = 0.0
+                u = landing[11, j] * e_end - landing[12, j] * w_land
             # the integral (z[k+1] = z[k] + e[k], :func:`.identify._landing_gains`) only
             # while the drive is within Umax (no wind-up)
             if abs(u) <= umax:
-                landing[14, j] += e_end
+                landing[14, j] += e_int
         else:
             uf = (w_next * rate - ae * w_ref * rate_old) / b0e
             if moded:
