@@ -161,3 +161,21 @@ def test_a_known_mode_lands_without_a_limit_cycle(load):
     assert not any(rest.limit_cycle.values())
     assert max(rest.drive_chatter_rms.values()) <= 0.05
     assert np.max(np.abs(tr.position[-300:] - np.array(LINE[1]))) <= 2.0
+
+
+@pytest.mark.parametrize("case", [314, 448])
+def test_a_placement_asking_for_a_negative_gain_is_designed_not_a_crash(case):
+    """Regression (issue 33's random real machines, 7 of 1,000): where the rigid placement
+    of a model with a declared mode asks for a negative gain, its logarithm was NaN and the
+    design crashed in NumPy's eigvals ("Array must not contain infs or NaNs"). The law is
+    designed with each gain's sign kept: finite, and stable on every corner of the
+    model's uncertainty (the design's own check raises InfeasibleError otherwise)."""
+    from nurbsmotion.interpolators.planned import DEFAULT_TRACKING_POLE
+    from nurbsmotion.random_machines import random_machine, random_model
+
+    true = random_machine([33, case], int(np.random.default_rng([33, case]).integers(2, 4)),
+                          real=True)
+    model = random_model(true, [33, case, 1])
+    law = mode_landing_law(model, DEFAULT_TRACKING_POLE)
+    assert law.shape == (MODE_LAW_ROWS, model.n_axes)
+    assert np.isfinite(law).all() and law[0].any()

@@ -155,8 +155,10 @@ def uncertainty_corners(tau, Kc, Ke, sample_period, delay, frequency, damping,
 
 
 def _radius(law, corners, encoder_on, integral=True) -> float:
-    return max(float(np.max(np.abs(np.linalg.eigvals(
-        landing_loop(law, c, encoder_on, integral))))) for c in corners)
+    loops = [landing_loop(law, c, encoder_on, integral) for c in corners]
+    if not all(np.isfinite(m).all() for m in loops):  # gains beyond a double: unstable
+        return math.inf
+    return max(float(np.max(np.abs(np.linalg.eigvals(m)))) for m in loops)
 
 
 @functools.lru_cache(maxsize=64)
@@ -174,22 +176,29 @@ def _designed(tau, Kc, Ke, sample_period, delay, frequency, damping, load_fracti
     corners = uncertainty_corners(tau, Kc, Ke, sample_period, delay, frequency, damping,
                                   load_fraction)
 
-    def radius(log_gains):
-        law[10:13] = np.exp(log_gains)
+    def radius(gains):
+        law[10:13] = gains
         return _radius(law, corners, encoder_on)
 
     def descend(radius, rigid, powers):
-        starts = [np.log(rigid * s ** powers) for s in SLOWING]
-        best = minimize(radius, min(starts, key=radius), method="Nelder-Mead",
+        # in the gains' logarithms, each keeping the rigid placement's sign (a slow plant's
+        # placement can ask for a negative gain: its logarithm was NaN, a crash in eigvals)
+        signs = np.where(rigid < 0.0, -1.0, 1.0)
+
+        def of_log(log_gains):
+            return radius(signs * np.exp(log_gains))
+
+        starts = [np.log(np.abs(rigid) * s ** powers) for s in SLOWING]
+        best = minimize(of_log, min(starts, key=of_log), method="Nelder-Mead",
                         options=dict(xatol=1e-4, fatol=1e-6, maxiter=MAX_DESCENT))
-        worst = radius(best.x)
+        worst = of_log(best.x)
         if not worst < 1.0:
             raise InfeasibleError(
                 f"no {'landing' if len(rigid) == 3 else 'tracking'} law of planned's form "
                 f"is stable on the {frequency:g} Hz mode (damping {damping:g}) with tau = "
                 f"{tau:g} s, Kc = {Kc:g} and the mode each +-{MODEL_SPREAD:.0%}: its best "
                 f"largest pole radius is {worst:.4g}")
-        return np.exp(best.x), worst
+        return signs * np.exp(best.x), worst
 
     landing, worst = descend(radius, rigid, np.array([1.0, 0.5, 1.5]))
     law[10:13] = landing
@@ -199,8 +208,8 @@ def _designed(tau, Kc, Ke, sample_period, delay, frequency, damping, load_fracti
     # placement of both poles at ``pole`` (:func:`_pole_gains`)
     track = law.copy()
 
-    def track_radius(log_gains):
-        track[10:12] = np.exp(log_gains)
+    def track_radius(gains):
+        track[10:12] = gains
         return _radius(track, corners, encoder_on, integral=False)
 
     gains, track_worst = descend(track_radius, np.array(_pole_gains(a, b0, c, b1, pole)),
