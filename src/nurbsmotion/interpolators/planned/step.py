@@ -126,7 +126,7 @@ def online_step(plan, state, position, umax, out_setpoint):
     headroom, rate_gain, rest = plan.headroom, plan.rate_gain, plan.rest
     guards, guard_offsets, dead_zone = plan.guards, plan.guard_offsets, plan.dead_zone
     bisections, gain_range = plan.rate_bisections, plan.gain_range
-    delay = plan.delay
+    delay, band = plan.delay, plan.landing_band
     n = plan_position.shape[0]
     n_axes = position.shape[0]
     i0 = min(int(phi), n - 1)
@@ -220,12 +220,9 @@ def online_step(plan, state, position, umax, out_setpoint):
         w_ref = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi, j, a[j], log_a[j],
                                b0[j])
         e_w = w_ref * rate_old - w_now
-        w_next = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi_next, j, a[j],
-                                log_a[j], b0[j])
         # 3. drive: the estimated plant's drive from the plan's speed at the clock (at the
         # rate it had) to its speed at the next clock (at the new rate), plus feedback;
         # clipped
-        band = plan.landing_band
         if phi >= rest:
             # 3'. landing (docs/model.md#planned-on-a-real-machine): the plan rests on the
             # end. At the hand-over the identified plant is frozen (the move excited it;
@@ -283,6 +280,8 @@ def online_step(plan, state, position, umax, out_setpoint):
             if abs(u) <= umax:
                 landing[14, j] += e_int
         else:
+            w_next = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi_next, j, a[j],
+                                    log_a[j], b0[j])
             uf = (w_next * rate - ae * w_ref * rate_old) / b0e
             if moded:
                 kpe, kde = plan.mode_law[LAW_ROWS + 1, j], plan.mode_law[LAW_ROWS + 2, j]
@@ -305,7 +304,7 @@ def online_step(plan, state, position, umax, out_setpoint):
         # it brakes a plant with no delay, and its speed estimate is the rigid plant's,
         # which a mode's twist throws: it held the landing against the end, 2,766
         # samples at Umax in one run)
-        guarded = phi < rest or (band == 0.0 and plan.delay == 0.0 and not moded)
+        guarded = phi < rest or (band == 0.0 and delay == 0.0 and not moded)
         for side in (-1.0, 1.0) if w_now >= 0.0 else (1.0, -1.0):
             target = hi if side > 0.0 else lo
             if guarded and math.isfinite(target):
