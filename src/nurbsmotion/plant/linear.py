@@ -15,7 +15,7 @@ import numpy as np
 
 from .two_mass import _mode
 
-__all__ = ["continuous_model", "linear_loop_poles"]
+__all__ = ["continuous_model", "linear_loop_poles", "split_sample"]
 
 
 def split_delay(delay: float, sample_period: float) -> tuple[int, float]:
@@ -53,6 +53,32 @@ def continuous_model(tau: float, Kc: float, Ke: float, resonance_frequency: floa
     return A, B
 
 
+def split_sample(A: np.ndarray, B: np.ndarray, first: float, second: float):
+    """The linear plant ``x' = A x + B u`` sampled over a period ``first + second`` [s]
+    whose drive changes ``first`` into it (a delay's split): ``x[k+1] = Phi x[k] +
+    g1 u[k-1] + g0 u[k]`` (``scipy.linalg.expm`` of the augmented matrix on each part).
+
+    Returns
+    -------
+    Phi : ndarray, shape (nx, nx)
+    g1, g0 : ndarray, shape (nx,)
+        Zero ``g1`` when ``first`` is 0.
+    """
+    from scipy.linalg import expm
+
+    nx = A.shape[0]
+
+    def zoh(h):
+        M = np.zeros((nx + 1, nx + 1))
+        M[:nx, :nx], M[:nx, nx] = A, B
+        E = expm(M * h)
+        return E[:nx, :nx], E[:nx, nx]
+
+    P1, G1 = zoh(first) if first > 0 else (np.eye(nx), np.zeros(nx))
+    P2, G2 = zoh(second)
+    return P2 @ P1, P2 @ G1, G2
+
+
 def linear_loop_poles(gains, tau: float, Kc: float, Ke: float, sample_period: float,
                       feedback_deriv: bool, delay: float = 0.0,
                       resonance_frequency: float = 0.0, resonance_damping: float = 0.0,
@@ -66,8 +92,6 @@ def linear_loop_poles(gains, tau: float, Kc: float, Ke: float, sample_period: fl
     -------
     ndarray, complex
     """
-    from scipy.linalg import expm
-
     A, B = continuous_model(tau, Kc, Ke, resonance_frequency, resonance_damping,
                             load_fraction)
     nx = A.shape[0]
@@ -79,15 +103,7 @@ def linear_loop_poles(gains, tau: float, Kc: float, Ke: float, sample_period: fl
         pos[3], spd[2] = 1.0, Ke
     Ts = float(sample_period)
     whole, split = split_delay(delay, Ts)
-
-    def zoh(h):
-        M = np.zeros((nx + 1, nx + 1))
-        M[:nx, :nx], M[:nx, nx] = A, B
-        E = expm(M * h)
-        return E[:nx, :nx], E[:nx, nx]
-
-    P1, G1 = zoh(split) if split > 0 else (np.eye(nx), np.zeros(nx))
-    P2, G2 = zoh(Ts - split)
+    Phi, g1, g0 = split_sample(A, B, split, Ts - split)
     P, I, D = gains.Pgain, gains.Igain, gains.Dgain
     nd = whole + 1  # d_1 .. d_{n+1}: drives of samples k-1 .. k-n-1
     # state z = [x (nx), y_prev, errorI, d_1 .. d_nd]
@@ -109,8 +125,8 @@ def linear_loop_poles(gains, tau: float, Kc: float, Ke: float, sample_period: fl
         return row
 
     T = np.zeros((nz, nz))
-    T[:nx, :nx] = P2 @ P1
-    T[:nx] += np.outer(P2 @ G1, drive_of(whole + 1)) + np.outer(G2, drive_of(whole))
+    T[:nx, :nx] = Phi
+    T[:nx] += np.outer(g1, drive_of(whole + 1)) + np.outer(g0, drive_of(whole))
     T[nx, :nx] = pos
     T[nx + 1, :nx] = -Ts * pos
     T[nx + 1, nx + 1] = 1.0

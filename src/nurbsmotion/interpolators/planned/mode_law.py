@@ -26,6 +26,7 @@ import numpy as np
 from ...errors import InfeasibleError
 from ...machine import Machine
 from ...plant import continuous_model
+from ...plant.linear import split_sample
 from .identify import LAW_ROWS, _landing_law, _pole_gains
 
 __all__ = ["mode_landing_law", "landing_loop", "sampled_axis", "uncertainty_corners",
@@ -79,20 +80,8 @@ def sampled_axis(tau: float, Kc: float, Ke: float, sample_period: float, delay: 
         [pulse/V, (rad/s)/V per state]; nx = 2 (``[w, theta]``) rigid, 4
         (``[w_motor, theta_motor, w_load, theta_load]``) with a mode.
     """
-    from scipy.linalg import expm
-
     A, B = continuous_model(tau, Kc, Ke, frequency, damping, load_fraction)
-    nx = A.shape[0]
-
-    def zoh(h):
-        M = np.zeros((nx + 1, nx + 1))
-        M[:nx, :nx], M[:nx, nx] = A, B
-        E = expm(M * h)
-        return E[:nx, :nx], E[:nx, nx]
-
-    P1, G1 = zoh(delay * sample_period) if delay > 0 else (np.eye(nx), np.zeros(nx))
-    P2, G2 = zoh((1.0 - delay) * sample_period)
-    return P2 @ P1, P2 @ G1, G2
+    return split_sample(A, B, delay * sample_period, (1.0 - delay) * sample_period)
 
 
 def _law_rows(law: np.ndarray):
