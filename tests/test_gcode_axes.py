@@ -70,6 +70,17 @@ def test_a_helix_on_two_axes_is_refused_or_projected_when_asked(tmp_path):
     assert curve.length == pytest.approx(2 * 2 * np.pi * 10, rel=1e-6)  # two turns
 
 
+def test_a_refused_move_names_every_axis_the_program_moves(tmp_path):
+    """A Z move refused on XY, with an A move further down: the message names XYZA (what
+    `contours` lists), not only this line's XYZ, which would be refused at the A move."""
+    text = "G21 G90 G17\nG0 X0 Y0 Z0 A0\nG1 X5 Y0 Z1 F100\nG1 X9 Y2 Z1 A30\nM2\n"
+    with pytest.raises(PathFileError, match=r"line 3: G1 moves Z together with the path axes XY; "
+                       r"the program moves XYZA: a machine with those axes can follow it \(or "
+                       r"read the path's projection on XY: --project xy\)"):
+        load(tmp_path, text, axes="xy")
+    assert load(tmp_path, text, axes=None)[0].axes == "XYZA"
+
+
 def test_contours_lists_the_files_axes_without_a_flag(capsys):
     assert main(["contours", str(CORPUS / "tp_helix_slowdown.ngc")]) == 0
     out = capsys.readouterr().out

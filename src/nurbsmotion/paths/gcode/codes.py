@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from operator import itemgetter
 
+from ...errors import PathFileError
+
 _INCH = 25.4  # [mm / inch]
 
 _AXES = "XYZABCUVW"
@@ -86,6 +88,46 @@ def _picker(indices: list):
         return lambda p: (p[i],)
     return itemgetter(*indices) if indices else (lambda p: ())
 
+
+
+class AxesOutsidePath(PathFileError):
+    """A feed move changes axes outside the path together with the path axes (a machine's
+    axes given): the message names the axes a machine needs to follow it, and, where the
+    program moves more (:func:`load_gcode` reads it again to find them), those too: a user
+    who adds only this line's axes would meet the next refusal further down.
+
+    Parameters
+    ----------
+    move : str
+        The motion, ``"G1"``, ``"G2"``, ...
+    path_axes, others : str
+        The path's axes, and the other axes the move changes (letters).
+    source : str
+        The file.
+    line : int
+        Its line.
+    program_axes : str, optional
+        Every axis the whole program moves, in ``XYZABCUVW`` order.
+    """
+
+    def __init__(self, move: str, path_axes: str, others: str, source: str, line: int,
+                 program_axes: str | None = None):
+        self.move, self.path_axes, self.others = move, path_axes, others
+        self.program_axes = program_axes
+        needed = "".join(a for a in _AXES if a in set(path_axes) | set(others))
+        if program_axes is None or set(program_axes) <= set(needed):
+            machine = f"a machine with the axes {needed} can follow it"
+        else:
+            machine = (f"the program moves {program_axes}: a machine with those axes can follow "
+                       f"it")
+        super().__init__(f"{move} moves {others} together with the path axes {path_axes}; "
+                         f"{machine} (or read the path's projection on {path_axes}: "
+                         f"--project {path_axes.lower()})", source, line)
+
+    def naming(self, program_axes: str) -> "AxesOutsidePath":
+        """The same refusal, naming every axis the program moves."""
+        return AxesOutsidePath(self.move, self.path_axes, self.others, self.source, self.line,
+                               program_axes)
 
 
 class _NeedAxes(Exception):

@@ -54,7 +54,7 @@ from pathlib import Path
 
 from ...errors import PathFileError
 from ..pieces import HELIX_TOLERANCE, arc_sweep
-from .codes import _AXES, _INCH, _PLANES, _NeedAxes
+from .codes import _AXES, _INCH, _PLANES, AxesOutsidePath, _NeedAxes
 
 __all__ = ["read_tool_table", "CORNER_TOLERANCE"]
 
@@ -708,11 +708,8 @@ class _Compensation:
         if others and not self.project:
             if self.auto:
                 raise _NeedAxes(set(others))
-            path = "".join(_AXES[i] for i in self.axes)
-            raise self.error(f"G{'2' if clockwise else '3'} moves {others} together with the path axes "
-                             f"{path}; a machine with the axes "
-                             f"{''.join(sorted(set(path) | set(others), key=_AXES.index))} can follow it "
-                             f"(or read the path's projection on {path}: --project {path.lower()})")
+            raise AxesOutsidePath(f"G{'2' if clockwise else '3'}", "".join(_AXES[i] for i in self.axes),
+                                  others, self.source, self.line)
         self.note_moved("G2", start, end)
         if c1 not in self.axes or c2 not in self.axes:
             if self.auto:

@@ -16,14 +16,14 @@ from pathlib import Path
 import numpy as np
 
 from ..._runtime.io import check_input_file
-from ...errors import InvalidArgumentError, InvalidCurveError, PathFileError
+from ...errors import InvalidArgumentError, InvalidCurveError, NurbsmotionError, PathFileError
 from ...nurbs import NurbsCurve
 from ..pieces import PieceChain
 from .bulk import _Bulk
 from .compensation import _Compensation, read_tool_table
 from .codes import (_AXES, _AXIS_INDEX, _COORD_SYSTEMS, _CYCLES, _END_M, _INCH, _MOTION,
                     _MOTION_WORDS, _PLAIN_G, _PLAIN_WORDS, _REFUSED_G, _SKIPPED_G, _SKIPPED_WORDS,
-                    MAX_COORDINATE, MIN_MOVE, _g_name, _NeedAxes, _picker, _skipped_m)
+                    MAX_COORDINATE, MIN_MOVE, AxesOutsidePath, _g_name, _NeedAxes, _picker, _skipped_m)
 from .curves import _Curves
 from .cycles import _Cycles
 from .frames import _Frames
@@ -579,10 +579,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
             path = "".join(_AXES[i] for i in self.axes)
             if self.auto:
                 raise _NeedAxes(set(others))
-            raise self.error(
-                f"{kind} moves {others} together with the path axes {path}; "
-                f"a machine with the axes {''.join(sorted(set(path) | set(others), key=_AXES.index))} "
-                f"can follow it (or read the path's projection on {path}: --project {path.lower()})")
+            raise AxesOutsidePath(kind, path, others, self.source, self.line)
         elif moves_other and not moves_path and kind not in ("G2", "G3"):
             self.end_contour()  # a plunge or lift of an axis outside the path ends the contour
         elif kind == "G1":
@@ -704,6 +701,18 @@ def _read_program(path: Path, axes: str, project: bool, auto: bool, rapids: bool
     return reader
 
 
+def _program_axes(path: Path, tool_table, tool_table_units, subroutine_path) -> str | None:
+    """Every axis the program moves (``load_gcode`` without axes), or None where that read
+    fails too (its own error is reported when those axes are given)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return load_gcode(path, None, tool_table=tool_table, tool_table_units=tool_table_units,
+                              subroutine_path=subroutine_path).axes
+    except NurbsmotionError:
+        return None
+
+
 def _project(contour: GcodeContour, cols: list) -> GcodeContour:
     c = contour.curve
     curve = NurbsCurve(c.degree, c.knots, c.control_points[:, cols], c.weights, name=c.name, units=c.units)
@@ -779,6 +788,9 @@ def load_gcode(file: str | os.PathLike, axes: str | None = "xy", *, project: boo
             except _NeedAxes as exc:
                 axes = "".join(a for a in _AXES if a in set(axes) | exc.letters)
                 continue
+            except AxesOutsidePath as exc:  # name every axis the program moves, not this line's
+                raise exc.naming(_program_axes(path, tool_table, tool_table_units,
+                                               subroutine_path)) from None
         if not reader.contours and not reader.fed_outside and not rapids and any(reader.moved):
             rapids = True  # no feed move at all: LinuxCNC's planner tests of rapids
             continue
