@@ -15,7 +15,7 @@ from typing import Callable
 import numpy as np
 
 from ..metrics import nearest_parameter
-from ..units import report_unit
+from ..units import OutputUnits
 from ._canvas import (
     _arrange, _axis_labels, _feed_text, _figure, _fit_in_view, _legend_below,
     _output_dir, _save, _STYLES, _title,
@@ -307,9 +307,10 @@ def _trace_title(trace, feed: float | None, per_unit: float, unit: str) -> str:
 
 
 def _units_of(trace, length_unit: str | None) -> tuple[str, float]:
-    """The report unit and pulses per it; ``length_unit`` None: by the path's units."""
-    unit = length_unit or report_unit(trace.curve.units)
-    return unit, trace.machine.pulses_per_unit(unit)
+    """The report unit and pulses per it (:class:`nurbsmotion.units.OutputUnits` of the
+    trace's path and machine); ``length_unit`` None: by the path's units."""
+    units = OutputUnits.of(trace.machine, trace.curve.units, length_unit or None)
+    return units.unit, units.pulses_per_unit
 
 
 def _drive_figure(runs: list[_Run], events, settle: float, title: str, path: Path,

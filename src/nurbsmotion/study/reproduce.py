@@ -119,7 +119,7 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
                 step(f"{name} {feed_m_s:g} m/s {method}")
             if figures:  # drawn once every run is done, in worker processes
                 jobs.append((group, out, _figure_prefix(name, feed_m_s),
-                             {"feed": feed, "length_unit": job.scale.report_unit}))
+                             {"feed": feed, "length_unit": job.scale.output.unit}))
                 labels.append(f"{name} {feed_m_s:g} m/s figures")
     if jobs:
         from ..plots import plot_comparisons
