@@ -45,7 +45,8 @@ def loop_example(interpolator: str) -> tuple | None:
     """``(kernel, arguments)``: :func:`nurbsmotion.loop.closed_loop.run_samples` and made-up
     arguments of the types a run with ``interpolator`` passes (kept equal by a test), or
     ``None`` for an interpolator without one."""
-    from ..loop.closed_loop import AxisState, LoopState, Settling, new_rows, run_samples
+    from ..loop.closed_loop import (AxisState, Block, Controller, LoopState, Scratch,
+                                    Settling, TruePlant, new_rows, run_samples)
     from ..control import PID_LAW, PID_STATE
     from ..interpolators import LOOP_METHODS  # noqa: F401  (every interpolator registered)
     from ..plant import inactive_stage, new_plant_state
@@ -59,12 +60,12 @@ def loop_example(interpolator: str) -> tuple | None:
     law = np.zeros(n, PID_LAW)
     law.flags.writeable = False
     ro = dict(writeable=False)
-    return run_samples, (plan, state, law, np.zeros(n, PID_STATE), f(n, 2, 2, **ro),
-                         f(n, 2, **ro), f(n, **ro), True, f(n, **ro),
-                         Settling(f(n, **ro), 0.0, 0, 0, 0, 0), LoopState.new(),
-                         AxisState(f(n), f(n), f(n)), new_rows(1, n, True), 0, 0, f(n), f(n),
-                         f(n), f(n, 2), inactive_stage(n),
-                         new_plant_state(inactive_stage(n), f(n)))
+    plant = TruePlant(f(n, 2, 2, **ro), f(n, 2, **ro), f(n, **ro), inactive_stage(n),
+                      new_plant_state(inactive_stage(n), f(n)))
+    return run_samples, (plan, state, Controller(law, np.zeros(n, PID_STATE), True), plant,
+                         f(n, **ro), Settling(f(n, **ro), 0.0, 0, 0, 0, 0), LoopState.new(),
+                         AxisState(f(n), f(n), f(n)), Block(new_rows(1, n, True), 0, 0),
+                         Scratch.new(n))
 
 
 def examples_here(interpolator: str) -> list[tuple]:

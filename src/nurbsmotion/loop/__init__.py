@@ -396,8 +396,8 @@ def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=SETTLE_
     code, rows, loop = closed_loop.run(
         interpolator.plan, interpolator.new_state(), machine.law(), pid_state(start), plant,
         machine.speed_measurement == "encoder", start, settling,
-        interpolator.records_bounds, capacity, progress,
-        None if sink is None else counted)
+        interpolator.records_bounds, capacity, progress=progress,
+        sink=None if sink is None else counted)
     if rows is not None:
         tally.add(rows)
     u = float(loop.u[0])
