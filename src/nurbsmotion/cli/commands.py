@@ -546,7 +546,7 @@ def _true_plant(plant_machine: Machine, machine: Machine):
 
 
 def _cmd_reproduce(args) -> int:
-    from ..study.reproduce import reproduce
+    from ..study.reproduce import run_experiment
 
     t0 = time.perf_counter()
     with _outputs(args) as staged, _progress(args, unit="run") as bar:
@@ -555,7 +555,7 @@ def _cmd_reproduce(args) -> int:
             bar.set_description(label)
             bar.update(done - bar.n)
 
-        result = reproduce(staged.staging, figures=not args.no_figures, progress=progress)
+        result = run_experiment(staged.staging, figures=not args.no_figures, progress=progress)
     if not args.quiet:
         print((Path(args.out) / "table.md").read_text())
     print(f"{len(result.rows)} runs, {len(result.files)} files in {args.out} "

@@ -21,7 +21,7 @@ from ..machine import Machine, die_bonder
 from ..nurbs import builtin_path
 from ..report import check_writable, markdown_table, write_json
 
-__all__ = ["PAPER_EXPERIMENT", "ExperimentResult", "reproduce", "reproduce_outputs"]
+__all__ = ["PAPER_EXPERIMENT", "ExperimentResult", "run_experiment", "reproduce_outputs"]
 
 PAPER_EXPERIMENT = {
     "die-bonder-pi": (0.2, 0.5, 1.0),
@@ -45,7 +45,7 @@ class ExperimentResult:
 
 def reproduce_outputs(machine: Machine | None = None, experiment=None,
                       figures: bool = True) -> list[str]:
-    """Names of every file :func:`reproduce` writes with these arguments."""
+    """Names of every file :func:`run_experiment` writes with these arguments."""
     machine = machine or die_bonder()
     names = ["table.md", "table.json"]
     if figures:
@@ -62,11 +62,13 @@ def _figure_prefix(name: str, feed_m_s: float) -> str:
     return f"{name}_{feed_m_s:g}ms"
 
 
-def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
-              interpolators=PAPER_INTERPOLATORS, overwrite: bool = False,
-              figures: bool = True,
-              progress: Callable[[int, int, str], None] | None = None) -> ExperimentResult:
-    """Run the experiment and write ``table.md``, ``table.json`` and the figures.
+def run_experiment(out_dir, *, machine: Machine | None = None, experiment=None,
+                   interpolators=PAPER_INTERPOLATORS, overwrite: bool = False,
+                   figures: bool = True,
+                   progress: Callable[[int, int, str], None] | None = None
+                   ) -> ExperimentResult:
+    """Run the experiment (``nurbsmotion reproduce``) and write ``table.md``,
+    ``table.json`` and the figures.
 
     Parameters
     ----------
@@ -129,3 +131,10 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
     table = markdown_table(rows)
     files.append(write_output(out / "table.md", lambda h: h.write(table), overwrite=overwrite))
     return ExperimentResult(rows, traces, files)
+
+
+reproduce = run_experiment
+"""The old name of :func:`run_experiment`, kept for ``from nurbsmotion.study.reproduce
+import reproduce`` and ``nurbsmotion.experiments.reproduce`` (not in ``__all__``): on the
+package :mod:`nurbsmotion.study` a function ``reproduce`` was hidden by this module's own
+name."""
