@@ -13,6 +13,12 @@
   the end point and of every sharp corner along the direction of arrival.
 
 All figures are taken over every sample of the trace, the settling tail included.
+
+Why one module of about 900 lines: every figure is computed twice over, on a whole trace
+(:func:`trace_metrics`, :func:`trace_at_rest`) and block by block as the rows stream
+(:class:`RunningMetrics`, :class:`RunningAtRest`), by the same compiled kernels (the
+nearest-point search, the settle and overshoot rules); kept together so that the two
+ways cannot drift apart (the tests compare them figure by figure).
 """
 
 from __future__ import annotations
@@ -24,8 +30,8 @@ import numpy as np
 from numba import njit
 
 from ._kernels import horner, power_basis, rational_horner
+from .errors import InvalidArgumentError
 from .geometry import distances_to
-
 from .nurbs import NurbsCurve
 from .loop.closed_loop import SETTLE_WINDOW
 from .stepping import Status
@@ -258,7 +264,7 @@ def nearest_parameter(curve: NurbsCurve, points: np.ndarray, grid_size: int = 20
     """
     pts = np.ascontiguousarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != curve.n_axes:
-        raise ValueError(f"points must have shape (m, {curve.n_axes}), got {pts.shape}")
+        raise InvalidArgumentError(f"points must have shape (m, {curve.n_axes}), got {pts.shape}")
     grid = _search_grid(curve, grid_size)
     best_u = np.empty(len(pts))
     best_d = np.empty(len(pts))
@@ -458,8 +464,6 @@ def check_settle_window(window: float, curve: NurbsCurve, name: str = "settle wi
     InvalidArgumentError
         Naming ``name``, the window and that distance.
     """
-    from .errors import InvalidArgumentError
-
     _check_window(window)
     u = np.union1d(np.linspace(0.0, 1.0, 4097), curve.breakpoints)
     farthest = float(np.max(distances_to(curve(u), curve(1.0))))
@@ -472,7 +476,7 @@ def check_settle_window(window: float, curve: NurbsCurve, name: str = "settle wi
 def _check_window(window: float) -> None:
     """A settle window [pulse] must be finite and > 0."""
     if not (math.isfinite(window) and window > 0):
-        raise ValueError(f"settle window must be finite and > 0 pulse, got {window!r}")
+        raise InvalidArgumentError(f"settle window must be finite and > 0 pulse, got {window!r}")
 
 
 def _last_outside(position: np.ndarray, end: np.ndarray, window: float) -> int:
@@ -599,7 +603,7 @@ class RunningMetrics:
         path's end (-1: none yet), ``last`` whether no rows follow (unused: the figures
         are complete after every block)."""
         if first != self.n:
-            raise ValueError(f"rows from sample {first} after {self.n} samples: blocks "
+            raise InvalidArgumentError(f"rows from sample {first} after {self.n} samples: blocks "
                              "must come in order")
         self._add(rows.u, rows.feed, rows.status, rows.command, rows.position, rows.drive,
                   finished)

@@ -14,6 +14,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import InvalidArgumentError
 from ..metrics import nearest_parameter
 from ..units import OutputUnits
 from ._canvas import (
@@ -617,14 +618,14 @@ def plot_comparison(traces: dict, out_dir, name: str, *, feed: float | None = No
         corners and the stop.
     """
     if not traces:
-        raise ValueError("plot_comparison needs at least one trace")
+        raise InvalidArgumentError("plot_comparison needs at least one trace")
     out = _output_dir(out_dir)
     items = list(traces.items())
     first = items[0][1]
     machine = first.machine
     names = machine.axis_names
     if axis is not None and not 0 <= axis < len(names):
-        raise ValueError(f"axis {axis} out of range for axes {names}")
+        raise InvalidArgumentError(f"axis {axis} out of range for axes {names}")
     shown = range(len(names)) if axis is None else [axis]
     unit, per_unit = _units_of(first, length_unit)
     if feed is None:

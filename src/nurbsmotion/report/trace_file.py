@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Callable, NamedTuple
 import numpy as np
 
 from .._runtime.io import atomic_output
+from ..errors import InvalidArgumentError
 
 if TYPE_CHECKING:
     from ..units import OutputUnits
@@ -106,7 +107,7 @@ def _kept(first: int, n: int, every: int, finished: int, last: bool) -> np.ndarr
     ``every``-th sample, the one where the end is reached and, in the run's last block,
     the last one."""
     if every < 1:
-        raise ValueError(f"trace_every must be >= 1, got {every}")
+        raise InvalidArgumentError(f"trace_every must be >= 1, got {every}")
     if every == 1:
         return np.arange(n)
     keep = np.arange((-first) % every, n, every)
@@ -268,15 +269,15 @@ class TraceWriter:
                  units: OutputUnits | None = None, overwrite: bool = False,
                  progress: Callable[[int], None] | None = None, threads: int | None = None):
         if fmt not in TRACE_FORMATS:
-            raise ValueError(f"trace format must be one of {TRACE_FORMATS}, got {fmt!r}")
+            raise InvalidArgumentError(f"trace format must be one of {TRACE_FORMATS}, got {fmt!r}")
         if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-            raise ValueError(f"trace_every must be an integer >= 1, got {every!r}")
+            raise InvalidArgumentError(f"trace_every must be an integer >= 1, got {every!r}")
         self.path, self.machine, self.fmt, self.every = Path(path), machine, fmt, every
         self.units = units
         self.overwrite, self.progress = overwrite, progress
         if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
                                     or threads < 0):
-            raise ValueError(f"threads must be an integer >= 0, got {threads!r}")
+            raise InvalidArgumentError(f"threads must be an integer >= 0, got {threads!r}")
         self.threads = max(1, min(2, os.cpu_count() or 1)) if threads is None else threads
         self.rows_written = 0
         self._first = None  # (columns, block, kept rows) of the first block, for the size
