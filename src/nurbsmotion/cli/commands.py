@@ -39,16 +39,16 @@ def _contour(args, machine: Machine | None = None):
                             tool_table=args.tool_table)
 
 
-def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float = 1.0,
-               shown_unit: str | None = None):
+def _feed_used(args, contour, cap, scale: float, unit: str, *,
+               shown: units.OutputUnits | None = None):
     """The feed a command runs at, and a sentence saying which it is.
 
     ``cap`` is ``--feed`` in the target unit (None if not given), ``scale`` converts the
     path's units to the target unit (``unit``, e.g. ``"pulse/s"``). Where the file gives a
     feed (G-code F), it is the limit along the path and ``--feed`` caps it (the lower of the
-    two per piece); where it gives none, ``--feed`` is required. With ``shown_unit`` (e.g.
-    ``"mm/s"``, ``per_shown`` target units per it) the sentence gives the feeds in that
-    unit first, then "= ..." in the target unit.
+    two per piece); where it gives none, ``--feed`` is required. With ``shown`` (a run's
+    units on the way out; the target unit is then pulse/s) the sentence gives the feeds in
+    its unit per second first, then "= ..." in the target unit.
 
     Returns
     -------
@@ -56,13 +56,13 @@ def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float 
     note : str
     """
     def speed(lo: float, hi: float | None = None) -> str:
-        def one(factor: float, u: str) -> str:
-            text = f"{lo / factor:.6g}" if hi is None or hi == lo else (
-                f"{lo / factor:.6g} to {hi / factor:.6g}")
+        def one(convert, u: str) -> str:
+            text = f"{convert(lo):.6g}" if hi is None or hi == lo else (
+                f"{convert(lo):.6g} to {convert(hi):.6g}")
             return f"{text} {u}"
-        if shown_unit is None:
-            return one(1.0, unit)
-        return f"{one(per_shown, shown_unit)} = {one(1.0, unit)}"
+        if shown is None:
+            return one(lambda x: x, unit)
+        return f"{one(shown.length, f'{shown.unit}/s')} = {one(lambda x: x, unit)}"
 
     from ..study.run_input import programmed_feed
 
@@ -193,9 +193,7 @@ def _cmd_bound(args) -> int:
         _print_joined(contour, machine)
         return 0
     cap = None if args.feed is None else scale.feed(args.feed)
-    feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s",
-                            per_shown=scale.output.pulses_per_unit,
-                            shown_unit=f"{scale.output.unit}/s")
+    feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s", shown=scale.output)
     # What `run` refuses, `bound` refuses: the same checks, and a bound no run could
     # reach within its samples.
     check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
@@ -214,7 +212,7 @@ def _print_joined(contour, machine: Machine) -> None:
     joined = contour.joined
     if joined is not None and joined.chords_joined:
         scale = units.Scale.of(contour.curve, machine)
-        shown = scale.factor / scale.output.pulses_per_unit  # report units per path unit
+        shown = scale.output.length(scale.factor)  # report units per path unit
         print("path: " + joined.describe(scale.output.unit, shown), file=sys.stderr)
 
 
@@ -244,8 +242,7 @@ def _run(args, precompiler) -> int:
     cap = None if args.feed is None else scale.feed(args.feed)
     shown = scale.output  # and of its results, on the way out
     unit = shown.unit
-    feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s",
-                            per_shown=shown.pulses_per_unit, shown_unit=f"{unit}/s")
+    feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s", shown=shown)
     job = Job(curve, machine, (feed, "pulse"), args.interpolator, name=args.path,
               max_samples=args.max_samples)
     path = job.pulses
@@ -364,7 +361,7 @@ def _run(args, precompiler) -> int:
                f"({metrics.settle_time_s / bound:.3f} x)" if metrics.settled
                else "not settled by the end of the run")
     source = f", {contour.units_source}" if contour.units_source else ""
-    joined = ("; path: " + contour.joined.describe(unit, scale.factor / shown.pulses_per_unit)
+    joined = ("; path: " + contour.joined.describe(unit, shown.length(scale.factor))
               if contour.joined.chords_joined else "")
     print(f"{args.interpolator} on {_machine_label(args.machine, machine)} at {at} (path in "
           f"{curve.units}{source}): cycle time {metrics.cycle_time_s:.4g} s "

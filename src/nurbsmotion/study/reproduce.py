@@ -94,7 +94,6 @@ def run_experiment(out_dir, *, machine: Machine | None = None, experiment=None,
     check_writable([out / f for f in reproduce_outputs(machine, experiment, figures)],
                    overwrite)
     out.mkdir(parents=True, exist_ok=True)
-    pulses_per_m = machine.pulses_per_unit("m")
     total = sum(len(f) for f in experiment.values()) * (len(interpolators) + bool(figures))
     done = 0
 
@@ -110,7 +109,7 @@ def run_experiment(out_dir, *, machine: Machine | None = None, experiment=None,
         path = Job(builtin_path(name), machine, None, name=name)  # the feed comes per feed
         path.pulses  # converted once, so its geometry serves every feed and interpolator
         for feed_m_s in feeds:
-            feed = feed_m_s * pulses_per_m
+            feed = feed_m_s * path.scale.pulses_per("m")
             job = path.with_options(feed=(feed, "pulse"))
             job = job.with_options(time_optimal_bound=job.bound())  # one per path and feed
             group: dict[str, Trace] = {}
