@@ -74,11 +74,12 @@ def examples_here(interpolator: str) -> list[tuple]:
     search and, for ``planned``, its motion plan's kernels; made-up arguments of the types
     a run passes (kept equal by a test)."""
     from ..interpolators.planned import blend, governor, inverse
-    from ..metrics import _nearest_points
+    from ..metrics import _GridArrays, _nearest_points
 
     f = _zeros
-    pairs = [(_nearest_points, (f(2), f(2, 1), f(2, 1), f(2, 1), f(1, 2, 2), f(1), f(2, 1),
-                                f(2, 1), 1, 0.0, f(0, 1), f(0), f(0), np.zeros(1, np.int64)))]
+    grid = _GridArrays(f(2), f(2, 1), f(2, 1), f(2, 1), f(1, 2, 2), f(1), f(2, 1), f(2, 1), 1,
+                       0.0)
+    pairs = [(_nearest_points, (grid, f(0, 1), f(0), f(0), np.zeros(1, np.int64)))]
     if interpolator == "planned":
         plant = inverse._InversePlant(f(1), f(1), f(1), f(1))
         sets = tuple(tuple(f(1, 1) for _ in range(3)) for _ in range(2))  # two (w, theta, u)
