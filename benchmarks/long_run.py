@@ -55,6 +55,7 @@ from nurbsmotion.loop import run
 from nurbsmotion.machine import die_bonder
 from nurbsmotion.planning import time_optimal_bound
 from nurbsmotion.report import write_trace
+from nurbsmotion.units import OutputUnits
 import nurbsmotion.cli
 t_import = time.perf_counter() - t_import
 m = die_bonder()
@@ -69,8 +70,7 @@ t0 = time.perf_counter(); time_optimal_bound(tr.curve, m, tr.feed.max())
 t["bound"] = time.perf_counter() - t0
 for fmt in ("csv", "parquet"):
     t0 = time.perf_counter()
-    f = write_trace(tr, out / f"trace.{fmt}", fmt=fmt, length_unit="mm",
-                    pulses_per_length_unit=1000.0)
+    f = write_trace(tr, out / f"trace.{fmt}", fmt=fmt, units=OutputUnits.of(m, unit="mm"))
     t[fmt] = time.perf_counter() - t0
     t[fmt + "_mb"] = f.stat().st_size / 1e6
 t["samples"] = len(tr.t)
@@ -90,7 +90,7 @@ from nurbsmotion.metrics import RunningMetrics
 from nurbsmotion.report import TraceWriter
 t0 = time.perf_counter(); ip = make_interpolator("planned", path, m, path.length / 600.0)
 running = RunningMetrics(path, m, 1.0)
-with TraceWriter(out / "streamed.csv", m, length_unit="mm", pulses_per_length_unit=1000.0,
+with TraceWriter(out / "streamed.csv", m, units=OutputUnits.of(m, unit="mm"),
                  threads=1) as writer:
     def sink(first, rows, finished, last):
         running.add(first, rows, finished, last)

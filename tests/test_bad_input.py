@@ -86,10 +86,10 @@ def test_every_file_a_command_writes_is_declared(tmp_path):
 
 
 def test_reproduce_declares_every_figure(tmp_path):
-    from nurbsmotion.study.reproduce import reproduce, reproduce_outputs
+    from nurbsmotion.study.reproduce import reproduce_outputs, run_experiment
 
     experiment = {"die-bonder-pi": (1.0,)}
-    reproduce(tmp_path, experiment=experiment, interpolators=("taylor1",))
+    run_experiment(tmp_path, experiment=experiment, interpolators=("taylor1",))
     assert sorted(os.listdir(tmp_path)) == sorted(reproduce_outputs(experiment=experiment))
 
 

@@ -209,10 +209,10 @@ def test_reproduce_writes_tables_and_figures(tmp_path):
 
 def test_reproduce_figures(tmp_path):
     """Per path and feed: the contour, and the speed and drive of every axis."""
-    from nurbsmotion.study.reproduce import reproduce
+    from nurbsmotion.study.reproduce import run_experiment
 
     seen = []
-    result = reproduce(tmp_path, experiment={"die-bonder-pi": (0.5,)},
+    result = run_experiment(tmp_path, experiment={"die-bonder-pi": (0.5,)},
                        interpolators=("taylor1", "planned"),
                        progress=lambda done, total, label: seen.append((done, total)))
     names = ["contour", "speed_x", "drive_x", "speed_y", "drive_y"]

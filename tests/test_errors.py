@@ -139,13 +139,7 @@ def test_infeasible_errors_are_not_argument_checks():
 
 
 PLAIN_RAISES = {
-    # module: plain ValueError/TypeError raises left, and why. Lower a count when you
-    # convert one; never raise one. These modules were being changed by others when the
-    # rule was written (issue 31).
-    "nurbsmotion/report/trace_file.py": 4,
-    "nurbsmotion/plots/_canvas.py": 1,
-    "nurbsmotion/plots/figures.py": 2,
-    "nurbsmotion/metrics.py": 3,
+    # module: plain ValueError/TypeError raises left, and why; never raise one.
     # internal signals, caught within the module and re-raised typed:
     "nurbsmotion/_runtime/io.py": 1,  # JSON's NaN/Infinity -> PathFileError
     "nurbsmotion/nurbs.py": 1,  # a non-number coordinate -> InvalidCurveError

@@ -24,15 +24,32 @@ def _same_each(old: str, new: dict[str, str]) -> None:
 def test_campaign():
     from nurbsmotion import campaign
 
-    # ``digest`` is also the name of its module: the function is the module's.
+    # ``digest``, the old name of make_digest, is kept by its module, not the package
     _same("nurbsmotion.campaign", "nurbsmotion.study", set(campaign.__all__) - {"digest"})
-    _same("nurbsmotion.campaign", "nurbsmotion.study.digest", ["digest"])
+    _same("nurbsmotion.campaign", "nurbsmotion.study.digest", ["digest", "make_digest"])
 
 
 def test_experiments():
     from nurbsmotion import experiments
 
     _same("nurbsmotion.experiments", "nurbsmotion.study.reproduce", experiments.__all__)
+    _same("nurbsmotion.experiments", "nurbsmotion.study", set(experiments.__all__)
+          - {"reproduce", "PAPER_INTERPOLATORS"})
+
+
+def test_digest_and_reproduce_are_modules_of_study_and_their_functions_have_names():
+    """Issue 31: ``study.digest`` and ``study.reproduce`` were both a module and a
+    function; the modules keep the names, the functions are ``make_digest`` and
+    ``run_experiment``, and the old function names still import from the modules."""
+    import types
+
+    import nurbsmotion.study as study
+    from nurbsmotion.study.digest import digest
+    from nurbsmotion.study.reproduce import reproduce
+
+    assert isinstance(study.digest, types.ModuleType)
+    assert isinstance(study.reproduce, types.ModuleType)
+    assert digest is study.make_digest and reproduce is study.run_experiment
 
 
 def test_run_input():
@@ -42,7 +59,8 @@ def test_run_input():
 
 
 @pytest.mark.parametrize("name", ["run_study", "run_case", "load_study", "read_rows",
-                                  "write_digest", "reproduce_outputs"])
+                                  "write_digest", "reproduce_outputs", "make_digest",
+                                  "run_experiment"])
 def test_study_package_exports(name):
     import nurbsmotion.study as study
 

@@ -18,6 +18,7 @@ from nurbsmotion.machine import die_bonder
 from nurbsmotion.metrics import RunningMetrics, trace_metrics
 from nurbsmotion.planning import time_optimal_bound
 from nurbsmotion.report import summary
+from nurbsmotion.units import OutputUnits
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -49,8 +50,9 @@ def test_a_path_in_mm_runs_as_the_stages_one_by_one(kept, line_mm, machine):
     assert kept.metrics == trace_metrics(trace)
     assert kept.summary() == summary(trace_metrics(trace), interpolator="paper", feed=1e5,
                                      machine=machine.name, path="line",
-                                     time_optimal_bound=kept.bound, length_unit="mm",
-                                     pulses_per_length_unit=1000.0)
+                                     time_optimal_bound=kept.bound,
+                                     units=OutputUnits("mm", 1000.0, ("mm", "mm"),
+                                                       np.array([1000.0, 1000.0])))
     # the end of the move back in the path's unit: the line's end, within the window
     end = kept.scale.to_report(kept.trace.position[-1])
     np.testing.assert_allclose(end, [20.0, 10.0], atol=1e-3)  # 1 pulse = 1e-3 mm

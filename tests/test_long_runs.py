@@ -136,7 +136,10 @@ def test_a_streamed_run_gives_the_figures_and_file_of_the_whole_run(
     from nurbsmotion.loop import run_streamed
     from nurbsmotion.metrics import RunningMetrics
 
+    from nurbsmotion.units import OutputUnits
+
     curve, m = nm.builtin_path(name), die_bonder()
+    mm = OutputUnits("mm", 1000.0, ("mm", "mm"), np.array([1000.0, 1000.0]))  # 1-um pulses
     whole = run(curve, m, feed, method)
     monkeypatch.setattr(closed_loop, "SINK_BLOCK_SAMPLES", 13)
     running = RunningMetrics(whole.curve, m, whole.settle_window)
@@ -144,8 +147,8 @@ def test_a_streamed_run_gives_the_figures_and_file_of_the_whole_run(
     files = {}
     with contextlib.ExitStack() as stack:
         writers = [stack.enter_context(report.TraceWriter(
-            tmp_path / f"s{every}.{fmt}", m, fmt=fmt, every=every, length_unit="mm",
-            pulses_per_length_unit=1000.0)) for fmt in report.TRACE_FORMATS for every in (1, 4)]
+            tmp_path / f"s{every}.{fmt}", m, fmt=fmt, every=every, units=mm))
+            for fmt in report.TRACE_FORMATS for every in (1, 4)]
 
         def sink(first, rows, finished, last):
             blocks.append((first, len(rows.u), finished, last))
@@ -164,8 +167,7 @@ def test_a_streamed_run_gives_the_figures_and_file_of_the_whole_run(
     for fmt in report.TRACE_FORMATS:
         for every in (1, 4):
             files = report.write_trace(whole, tmp_path / f"w{every}.{fmt}", fmt=fmt,
-                                       every=every, length_unit="mm",
-                                       pulses_per_length_unit=1000.0)
+                                       every=every, units=mm)
             if fmt == "csv":
                 assert (tmp_path / f"s{every}.csv").read_bytes() == files.read_bytes()
             else:

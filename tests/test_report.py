@@ -9,6 +9,10 @@ import nurbsmotion as nm
 from nurbsmotion import report
 from nurbsmotion.loop import run
 from nurbsmotion.machine import die_bonder
+from nurbsmotion.units import OutputUnits
+
+MM = OutputUnits("mm", 1000.0, ("mm", "mm"), np.array([1000.0, 1000.0]))
+"""The die-bonder's (1-um pulses) lengths in mm, written by hand."""
 
 
 @pytest.fixture(scope="module")
@@ -33,17 +37,15 @@ def test_streamed_trace_holds_the_trace_exactly(trace, tmp_path, monkeypatch, fm
     monkeypatch.setattr(report.trace_file, "TRACE_CHUNK_ROWS", 7)  # many chunks, a short last one
     written = []
     path = report.write_trace(trace, tmp_path / f"trace.{fmt}", fmt=fmt, every=every,
-                              length_unit="mm", pulses_per_length_unit=1000.0,
-                              progress=written.append)
+                              units=MM, progress=written.append)
     header, data = read_back(path, fmt)
-    ref_header, ref = report.trace_columns(trace, "mm", 1000.0)
+    ref_header, ref = report.trace_columns(trace, MM)
     rows = report.trace_rows(trace, every)
     assert header == ref_header
     np.testing.assert_array_equal(data, ref[rows])  # bit for bit, NaN where not computed
     assert sum(written) == len(rows) and max(written) <= 7
     assert trace.finished_index in rows and len(trace.t) - 1 in rows
-    estimate = report.estimate_trace_bytes(trace, fmt=fmt, every=every, length_unit="mm",
-                                           pulses_per_length_unit=1000.0)
+    estimate = report.estimate_trace_bytes(trace, fmt=fmt, every=every, units=MM)
     if fmt == "csv":  # Parquet's per-file overhead dominates so small a file
         assert estimate == pytest.approx(path.stat().st_size, rel=0.1)
 

@@ -109,10 +109,24 @@ def test_a_machine_without_pulses_per_degree_is_refused():
 
 def test_a_rotary_axis_trace_columns_are_in_degrees():
     from nurbsmotion.report.trace_file import _columns
+    from nurbsmotion.units import OutputUnits, Scale
 
-    names = [c.name for c in _columns(load_machine(GANTRY4A), True, "in", PULSES_PER_INCH)]
+    machine = load_machine(GANTRY4A)
+    units = OutputUnits.of(machine, "in")  # a path drawn in inches
+    assert Scale.of(None, machine).output.axis_units == ("mm", "mm", "mm", "deg")
+    # the one converter on the way out: lengths in inches, the A axis in degrees
+    assert units.unit == "in" and units.pulses_per_unit == PULSES_PER_INCH
+    assert units.axis_units == ("in", "in", "in", "deg")
+    np.testing.assert_array_equal(units.pulses_per_axis_unit, [PULSES_PER_INCH] * 3 + [PPD])
+    columns = _columns(machine, True, units)
+    names = [c.name for c in columns]
     assert {"x_cmd_in", "a_cmd_deg", "a_act_deg", "a_speed_max_deg_per_s"} <= set(names)
     assert not any(n.startswith("a_") and n.endswith(("_in", "_in_per_s")) for n in names)
+    # the values: 2,000 pulses of A are 2 deg, of X 2000/25400 in
+    block = type("Block", (), {"position_command": np.array([[2000.0, 0.0, 0.0, 2000.0]])})
+    read = {c.name: c.read for c in columns}
+    assert read["a_cmd_deg"](block, 0) == 2.0
+    assert read["x_cmd_in"](block, 0) == pytest.approx(2000.0 / PULSES_PER_INCH, rel=1e-15)
 
 
 @pytest.mark.skipif(linuxcnc_python() is None, reason="LinuxCNC's gcode module (linuxcnc-uspace) is not installed")

@@ -96,6 +96,20 @@ def test_scale_holds_a_factor_per_axis():
     assert scale.path(nm.make_die_bonder_pi().scaled(1.0, units="pulse")).units == "pulse"
 
 
+def test_the_scale_carries_the_results_units_out():
+    """:attr:`Scale.output`: the report unit of the path (inches for a path in inches,
+    mm otherwise) and the machine's pulses per it, 0.5-um pulses here."""
+    from nurbsmotion.units import OutputUnits, Scale
+
+    out = Scale.of(nm.make_butterfly(), MACHINE).output
+    assert isinstance(out, OutputUnits)
+    assert out.unit == "mm" and out.pulses_per_unit == 2000.0 and out.axis_units == ("mm", "mm")
+    assert out.length(3000.0) == 1.5 and out.factor == 1.0 / 2000.0
+    inches = Scale.of(nm.make_line([0.0, 0.0], [1.0, 1.0], units="in"), MACHINE).output
+    assert inches.unit == "in" and inches.pulses_per_unit == 25.4e3 / 0.5
+    assert Scale.of(None, MACHINE).output.unit == "mm"  # pulses are reported in mm
+
+
 def test_scale_refuses_a_length_along_axes_of_different_units():
     """A rotary axis beside linear ones (pulses per degree vs per mm): the curve scales
     axis by axis, but a feed along the path has no one factor and is refused, named."""

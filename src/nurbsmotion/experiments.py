@@ -2,7 +2,7 @@
 :mod:`nurbsmotion.study.reproduce`; this module re-exports its public names."""
 
 from .study.reproduce import (PAPER_EXPERIMENT, PAPER_INTERPOLATORS, ExperimentResult,
-                              reproduce, reproduce_outputs)
+                              reproduce, reproduce_outputs, run_experiment)
 
 __all__ = ["PAPER_EXPERIMENT", "PAPER_INTERPOLATORS", "ExperimentResult", "reproduce",
-           "reproduce_outputs"]
+           "run_experiment", "reproduce_outputs"]

@@ -33,7 +33,7 @@ from .machine import Machine
 from .metrics import AtRest, Metrics, RunningAtRest, RunningMetrics
 from .nurbs import NurbsCurve
 from .servo import ServoPlant
-from .units import Scale
+from .units import OutputUnits, Scale
 
 __all__ = ["Job", "RunResult"]
 
@@ -220,6 +220,12 @@ class RunResult:
         return self.job.scale
 
     @property
+    def output_units(self) -> OutputUnits:
+        """The results' units on the way out (:attr:`nurbsmotion.units.Scale.output`):
+        what the summary, the trace file and the figures convert pulses with."""
+        return self.job.scale.output
+
+    @property
     def feed(self) -> float:
         """The commanded feed as one number [pulse/s]: a per-piece feed's highest."""
         feed = self.job.feed_pulses
@@ -241,10 +247,11 @@ class RunResult:
         data = self.at_rest().to_dict()
         out = {"hold_window_s": data.pop("window_s"), **data}
         if in_report_unit:
-            unit, per_unit = self.scale.report_unit, self.scale.report_factor
+            units = self.output_units
             for key, suffix in (("peak_speed", "per_s"), ("peak_acceleration", "per_s2"),
                                 ("peak_jerk", "per_s3")):
-                out[f"{key}_{unit}_{suffix}"] = {a: v / per_unit for a, v in data[key].items()}
+                out[f"{key}_{units.unit}_{suffix}"] = {a: units.length(v)
+                                                       for a, v in data[key].items()}
         return out
 
     def summary(self, extra: dict | None = None, *, in_report_unit: bool = True) -> dict:
@@ -253,9 +260,7 @@ class RunResult:
         the report unit, then ``extra``."""
         from .report import summary
 
-        unit = self.scale.report_unit if in_report_unit else None
         return summary(self.metrics, interpolator=self.job.interpolator, feed=self.feed,
                        machine=self.job.machine.name, path=self.job.name,
-                       time_optimal_bound=self.bound, length_unit=unit,
-                       pulses_per_length_unit=self.scale.report_factor if unit else None,
-                       extra=extra)
+                       time_optimal_bound=self.bound,
+                       units=self.output_units if in_report_unit else None, extra=extra)

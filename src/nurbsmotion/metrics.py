@@ -13,19 +13,26 @@
   the end point and of every sharp corner along the direction of arrival.
 
 All figures are taken over every sample of the trace, the settling tail included.
+
+Why one module of about 900 lines: every figure is computed twice over, on a whole trace
+(:func:`trace_metrics`, :func:`trace_at_rest`) and block by block as the rows stream
+(:class:`RunningMetrics`, :class:`RunningAtRest`), by the same compiled kernels (the
+nearest-point search, the settle and overshoot rules); kept together so that the two
+ways cannot drift apart (the tests compare them figure by figure).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from ._kernels import horner, power_basis, rational_horner
+from .errors import InvalidArgumentError
 from .geometry import distances_to
-
 from .nurbs import NurbsCurve
 from .loop.closed_loop import SETTLE_WINDOW
 from .stepping import Status
@@ -157,6 +164,22 @@ _CHUNK = 65_536
 is seen within a fraction of a second); the search itself needs no memory per point."""
 
 
+class _GridArrays(NamedTuple):
+    """The arrays and numbers of a :class:`_SearchGrid`, as the compiled search takes
+    them (:func:`_nearest_points`)."""
+
+    u: np.ndarray              # (n_cells + 1,)
+    points: np.ndarray         # (n_cells + 1, n_axes) [path units]
+    tangent_right: np.ndarray  # (n_cells + 1, n_axes)
+    tangent_left: np.ndarray   # (n_cells + 1, n_axes)
+    coef: np.ndarray           # (n_cells, p + 1, n_axes + 1): each cell's power form
+    cell_length: np.ndarray    # (n_cells,) [path units], upper bounds
+    box_lo: np.ndarray         # (2 * leaves, n_axes) [path units]
+    box_hi: np.ndarray         # (2 * leaves, n_axes) [path units]
+    leaves: int
+    half_cell: float           # [path units]
+
+
 class _SearchGrid:
     """The grid the nearest-point search runs on, built once per curve.
 
@@ -209,6 +232,12 @@ class _SearchGrid:
             level = half
         self.box_lo, self.box_hi, self.leaves = lo, hi, leaves
 
+    def arrays(self) -> _GridArrays:
+        """The grid as :func:`_nearest_points` takes it."""
+        return _GridArrays(self.u, self.points, self.tangent_right, self.tangent_left,
+                           self.coef, self.cell_length, self.box_lo, self.box_hi,
+                           self.leaves, self.half_cell)
+
 
 def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle between rows of ``a`` and ``b`` [rad] (0 where either is zero)."""
@@ -258,24 +287,25 @@ def nearest_parameter(curve: NurbsCurve, points: np.ndarray, grid_size: int = 20
     """
     pts = np.ascontiguousarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != curve.n_axes:
-        raise ValueError(f"points must have shape (m, {curve.n_axes}), got {pts.shape}")
-    grid = _search_grid(curve, grid_size)
+        raise InvalidArgumentError(f"points must have shape (m, {curve.n_axes}), got {pts.shape}")
+    grid = _search_grid(curve, grid_size).arrays()
     best_u = np.empty(len(pts))
     best_d = np.empty(len(pts))
     hint = np.full(1, -1, dtype=np.int64)
     for lo in range(0, len(pts), _CHUNK):
         chunk = slice(lo, lo + _CHUNK)
-        _nearest_points(grid.u, grid.points, grid.tangent_right, grid.tangent_left,
-                        grid.coef, grid.cell_length, grid.box_lo, grid.box_hi, grid.leaves,
-                        grid.half_cell, pts[chunk], best_u[chunk], best_d[chunk], hint)
+        _nearest_points(grid, pts[chunk], best_u[chunk], best_d[chunk], hint)
     return best_u, best_d
 
 
 @njit(cache=True, nogil=True)  # a streamed run searches beside its loop
-def _nearest_points(gu, gp, tr, tl, coef, cell_length, box_lo, box_hi, leaves, h, pts,
-                    out_u, out_d, hint):
-    """:func:`nearest_parameter` for the rows of ``pts`` into ``out_u``, ``out_d``;
-    ``hint[0]`` is the cell to try first (-1: none) and is left at the last point's."""
+def _nearest_points(grid, pts, out_u, out_d, hint):
+    """:func:`nearest_parameter` for the rows of ``pts`` into ``out_u``, ``out_d`` on
+    ``grid`` (:class:`_GridArrays`); ``hint[0]`` is the cell to try first (-1: none) and
+    is left at the last point's."""
+    gu, gp, tr, tl, coef = grid.u, grid.points, grid.tangent_right, grid.tangent_left, grid.coef
+    cell_length, box_lo, box_hi = grid.cell_length, grid.box_lo, grid.box_hi
+    leaves, h = grid.leaves, grid.half_cell
     n_cells = gu.shape[0] - 1
     stack = np.empty(128, dtype=np.int64)
     for i in range(pts.shape[0]):
@@ -458,8 +488,6 @@ def check_settle_window(window: float, curve: NurbsCurve, name: str = "settle wi
     InvalidArgumentError
         Naming ``name``, the window and that distance.
     """
-    from .errors import InvalidArgumentError
-
     _check_window(window)
     u = np.union1d(np.linspace(0.0, 1.0, 4097), curve.breakpoints)
     farthest = float(np.max(distances_to(curve(u), curve(1.0))))
@@ -472,7 +500,7 @@ def check_settle_window(window: float, curve: NurbsCurve, name: str = "settle wi
 def _check_window(window: float) -> None:
     """A settle window [pulse] must be finite and > 0."""
     if not (math.isfinite(window) and window > 0):
-        raise ValueError(f"settle window must be finite and > 0 pulse, got {window!r}")
+        raise InvalidArgumentError(f"settle window must be finite and > 0 pulse, got {window!r}")
 
 
 def _last_outside(position: np.ndarray, end: np.ndarray, window: float) -> int:
@@ -599,7 +627,7 @@ class RunningMetrics:
         path's end (-1: none yet), ``last`` whether no rows follow (unused: the figures
         are complete after every block)."""
         if first != self.n:
-            raise ValueError(f"rows from sample {first} after {self.n} samples: blocks "
+            raise InvalidArgumentError(f"rows from sample {first} after {self.n} samples: blocks "
                              "must come in order")
         self._add(rows.u, rows.feed, rows.status, rows.command, rows.position, rows.drive,
                   finished)

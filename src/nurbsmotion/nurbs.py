@@ -35,6 +35,12 @@ References
 ----------
 Piegl & Tiller, *The NURBS Book*, 2nd ed., Springer 1997: A4.2 (rational derivatives),
 A7.1 (circular arcs).
+
+Why one module of about 1,000 lines: most of it is :class:`NurbsCurve` (about 600),
+one value object whose construction checks (knots, weights, the limits of double
+precision), evaluation, derivatives and operations (power form, arc length, corners,
+reverse, scale) share its private state; the ``make_*`` factories beside it are short.
+Splitting it would split the class.
 """
 
 from __future__ import annotations

@@ -33,6 +33,11 @@ acceleration [pulse/s^2]; b = sd^2; q1, q2 : first and second derivatives of the
 positions with respect to s [1, 1/pulse]; tau [s], Kc [(rad/s)/V], Ke [pulse/rad], Umax
 [V]: docs/model.md#units; M = Umax*Kc*Ke : the largest steady axis speed [pulse/s]; F : the
 commanded feed [pulse/s].
+
+Why one module of about 900 lines: it is one algorithm, the phase-plane passes above,
+used three ways (the look-ahead :func:`speed_profile`, the :func:`time_optimal_bound` and
+the :func:`sampled_stop_bound`) over the same arc-length grid, limits and compiled step;
+each part alone would be a module of helpers the others import.
 """
 
 from __future__ import annotations

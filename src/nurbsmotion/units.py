@@ -7,12 +7,15 @@ mm), or a text with a unit, ``"0.5m/s"``, ``"100mm/s"``, ``"600mm/min"``, ``"2e5
 
 Results are computed in pulses and reported in pulses *and* in a length unit a user reads
 (:func:`report_unit`): inches for a path drawn in inches, millimetres otherwise (a path in
-pulses is converted through the machine's pulse length).
+pulses is converted through the machine's pulse length); a rotary axis in degrees.
 
 :class:`Scale` is the one boundary: built once per path and machine, it holds the pulses
 per path unit of every axis and converts the path, a feed and a length into the machine's
-pulses where a run enters, and pulses back into the report unit on the way out. The
-functions below are its one-call forms.
+pulses where a run enters. On the way out its :attr:`Scale.output`, an
+:class:`OutputUnits` carried by the run's result
+(:attr:`nurbsmotion.job.RunResult.output_units`), is the one converter the summary, the
+trace file, the figures and the command line read lengths through. The functions below
+are their one-call forms.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from .feed import FeedLimit
 from .machine import LENGTH_UNITS_UM, Machine
 from .nurbs import NurbsCurve
 
-__all__ = ["Scale", "in_pulses", "curve_in_pulses", "InvalidFeedError", "parse_feed", "feed_in_pulses", "feed_in_path_units",
+__all__ = ["Scale", "OutputUnits", "in_pulses", "curve_in_pulses", "InvalidFeedError", "parse_feed", "feed_in_pulses", "feed_in_path_units",
            "length_in_pulses",
            "report_unit", "pulses_per_report_unit"]
 
@@ -101,6 +104,76 @@ _LENGTH = re.compile(r"^\s*([0-9.eE+-]+)\s*([a-z]*)\s*$")
 
 
 @dataclass(frozen=True, eq=False)
+class OutputUnits:
+    """The units a run's results are written in besides pulses: the one converter on the
+    way out.
+
+    Built once per run from its :class:`Scale` (:attr:`Scale.output`) and carried by its
+    result (:attr:`nurbsmotion.job.RunResult.output_units`) to ``summary.json``
+    (:func:`nurbsmotion.report.summary`), the trace file
+    (:class:`nurbsmotion.report.TraceWriter`), the figures and the command line's lines,
+    none of which converts a length otherwise. A length along the path (a contour error, a
+    feed, a tolerance) is in :attr:`unit`; each axis's positions and speeds in its own
+    entry of :attr:`axis_units`: the report unit for a linear axis, ``"deg"`` for a rotary
+    axis (one with ``pulses_per_degree``), so that degrees are never converted as a length.
+
+    Attributes
+    ----------
+    unit : str
+        The report unit (:func:`report_unit`): ``"mm"``, or ``"in"`` for a path drawn in
+        inches.
+    pulses_per_unit : float
+        Pulses per :attr:`unit` of a linear axis [pulse/mm or pulse/in], > 0.
+    axis_units : tuple of str, length n_axes
+        The unit of each axis's columns: :attr:`unit`, or ``"deg"`` for a rotary axis.
+    pulses_per_axis_unit : ndarray, shape (n_axes,)
+        Pulses per unit of each axis [pulse/axis unit]: :attr:`pulses_per_unit`, or the
+        rotary axis's ``pulses_per_degree`` [pulse/deg].
+    """
+
+    unit: str
+    pulses_per_unit: float
+    axis_units: tuple
+    pulses_per_axis_unit: np.ndarray
+
+    @classmethod
+    def of(cls, machine: Machine, path_units: str | None = None,
+           unit: str | None = None) -> "OutputUnits":
+        """The output units of a path drawn in ``path_units`` on ``machine``: its report
+        unit (:func:`report_unit`), or ``unit`` (one of :data:`LENGTH_UNITS_UM`) when given.
+
+        Raises
+        ------
+        InvalidArgumentError
+            If ``machine`` is not a :class:`Machine`.
+        InvalidMachineError
+            If ``unit`` is not a length unit the machine knows.
+        """
+        if not isinstance(machine, Machine):
+            raise InvalidArgumentError(f"machine must be a Machine, got {machine!r:.60}")
+        unit = report_unit(path_units) if unit is None else unit
+        return cls(unit, machine.pulses_per_unit(unit),
+                   tuple(unit if a.pulses_per_degree is None else "deg" for a in machine.axes),
+                   machine.pulses_per_axis_unit(unit))
+
+    @property
+    def factor(self) -> float:
+        """:attr:`unit` per pulse, ``1 / pulses_per_unit`` [mm/pulse or in/pulse]: the
+        multiplier of the summary's length keys."""
+        return 1.0 / self.pulses_per_unit
+
+    @property
+    def axis_factor(self) -> np.ndarray:
+        """Axis unit per pulse, shape (n_axes,) [mm/pulse, in/pulse or deg/pulse]: the
+        multiplier of the trace file's columns in the axes' units."""
+        return 1.0 / self.pulses_per_axis_unit
+
+    def length(self, pulses):
+        """A length along the path [pulse] (a scalar, or an array of them) in :attr:`unit`."""
+        return pulses / self.pulses_per_unit
+
+
+@dataclass(frozen=True, eq=False)
 class Scale:
     """Where a path meets a machine: its units and the machine's pulses, once per run.
 
@@ -126,6 +199,9 @@ class Scale:
         The length unit results are reported in besides pulses (:func:`report_unit`).
     pulses_per_report_unit : ndarray, shape (n_axes,)
         Pulses per report unit, per axis [pulse/mm or pulse/in].
+    output : OutputUnits or None
+        The results' units on the way out, rotary axes in degrees (built by :meth:`of`;
+        None for a scale made by hand).
     """
 
     path_units: str | None
@@ -133,6 +209,7 @@ class Scale:
     pulse_length_um: np.ndarray
     report_unit: str
     pulses_per_report_unit: np.ndarray
+    output: OutputUnits | None = None
 
     @classmethod
     def of(cls, curve: NurbsCurve | None, machine: Machine) -> "Scale":
@@ -161,7 +238,8 @@ class Scale:
             return np.full(n_axes, machine.pulses_per_unit(units))
 
         return cls(path_units, per_axis(path_units),
-                   np.full(n_axes, float(machine.pulse_length_um)), unit, per_axis(unit))
+                   np.full(n_axes, float(machine.pulse_length_um)), unit, per_axis(unit),
+                   OutputUnits.of(machine, path_units))
 
     @staticmethod
     def _common(per_axis: np.ndarray, what: str) -> float:

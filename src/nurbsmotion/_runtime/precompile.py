@@ -45,7 +45,8 @@ def loop_example(interpolator: str) -> tuple | None:
     """``(kernel, arguments)``: :func:`nurbsmotion.loop.closed_loop.run_samples` and made-up
     arguments of the types a run with ``interpolator`` passes (kept equal by a test), or
     ``None`` for an interpolator without one."""
-    from ..loop.closed_loop import AxisState, LoopState, Settling, new_rows, run_samples
+    from ..loop.closed_loop import (AxisState, Block, Controller, LoopState, Scratch,
+                                    Settling, TruePlant, new_rows, run_samples)
     from ..control import PID_LAW, PID_STATE
     from ..interpolators import LOOP_METHODS  # noqa: F401  (every interpolator registered)
     from ..plant import inactive_stage, new_plant_state
@@ -59,12 +60,12 @@ def loop_example(interpolator: str) -> tuple | None:
     law = np.zeros(n, PID_LAW)
     law.flags.writeable = False
     ro = dict(writeable=False)
-    return run_samples, (plan, state, law, np.zeros(n, PID_STATE), f(n, 2, 2, **ro),
-                         f(n, 2, **ro), f(n, **ro), True, f(n, **ro),
-                         Settling(f(n, **ro), 0.0, 0, 0, 0, 0), LoopState.new(),
-                         AxisState(f(n), f(n), f(n)), new_rows(1, n, True), 0, 0, f(n), f(n),
-                         f(n), f(n, 2), inactive_stage(n),
-                         new_plant_state(inactive_stage(n), f(n)))
+    plant = TruePlant(f(n, 2, 2, **ro), f(n, 2, **ro), f(n, **ro), inactive_stage(n),
+                      new_plant_state(inactive_stage(n), f(n)))
+    return run_samples, (plan, state, Controller(law, np.zeros(n, PID_STATE), True), plant,
+                         f(n, **ro), Settling(f(n, **ro), 0.0, 0, 0, 0, 0), LoopState.new(),
+                         AxisState(f(n), f(n), f(n)), Block(new_rows(1, n, True), 0, 0),
+                         Scratch.new(n))
 
 
 def examples_here(interpolator: str) -> list[tuple]:
@@ -73,11 +74,12 @@ def examples_here(interpolator: str) -> list[tuple]:
     search and, for ``planned``, its motion plan's kernels; made-up arguments of the types
     a run passes (kept equal by a test)."""
     from ..interpolators.planned import blend, governor, inverse
-    from ..metrics import _nearest_points
+    from ..metrics import _GridArrays, _nearest_points
 
     f = _zeros
-    pairs = [(_nearest_points, (f(2), f(2, 1), f(2, 1), f(2, 1), f(1, 2, 2), f(1), f(2, 1),
-                                f(2, 1), 1, 0.0, f(0, 1), f(0), f(0), np.zeros(1, np.int64)))]
+    grid = _GridArrays(f(2), f(2, 1), f(2, 1), f(2, 1), f(1, 2, 2), f(1), f(2, 1), f(2, 1), 1,
+                       0.0)
+    pairs = [(_nearest_points, (grid, f(0, 1), f(0), f(0), np.zeros(1, np.int64)))]
     if interpolator == "planned":
         plant = inverse._InversePlant(f(1), f(1), f(1), f(1))
         sets = tuple(tuple(f(1, 1) for _ in range(3)) for _ in range(2))  # two (w, theta, u)

@@ -39,16 +39,16 @@ def _contour(args, machine: Machine | None = None):
                             tool_table=args.tool_table)
 
 
-def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float = 1.0,
-               shown_unit: str | None = None):
+def _feed_used(args, contour, cap, scale: float, unit: str, *,
+               shown: units.OutputUnits | None = None):
     """The feed a command runs at, and a sentence saying which it is.
 
     ``cap`` is ``--feed`` in the target unit (None if not given), ``scale`` converts the
     path's units to the target unit (``unit``, e.g. ``"pulse/s"``). Where the file gives a
     feed (G-code F), it is the limit along the path and ``--feed`` caps it (the lower of the
-    two per piece); where it gives none, ``--feed`` is required. With ``shown_unit`` (e.g.
-    ``"mm/s"``, ``per_shown`` target units per it) the sentence gives the feeds in that
-    unit first, then "= ..." in the target unit.
+    two per piece); where it gives none, ``--feed`` is required. With ``shown`` (a run's
+    units on the way out; the target unit is then pulse/s) the sentence gives the feeds in
+    its unit per second first, then "= ..." in the target unit.
 
     Returns
     -------
@@ -56,13 +56,13 @@ def _feed_used(args, contour, cap, scale: float, unit: str, *, per_shown: float 
     note : str
     """
     def speed(lo: float, hi: float | None = None) -> str:
-        def one(factor: float, u: str) -> str:
-            text = f"{lo / factor:.6g}" if hi is None or hi == lo else (
-                f"{lo / factor:.6g} to {hi / factor:.6g}")
+        def one(convert, u: str) -> str:
+            text = f"{convert(lo):.6g}" if hi is None or hi == lo else (
+                f"{convert(lo):.6g} to {convert(hi):.6g}")
             return f"{text} {u}"
-        if shown_unit is None:
-            return one(1.0, unit)
-        return f"{one(per_shown, shown_unit)} = {one(1.0, unit)}"
+        if shown is None:
+            return one(lambda x: x, unit)
+        return f"{one(shown.length, f'{shown.unit}/s')} = {one(lambda x: x, unit)}"
 
     from ..study.run_input import programmed_feed
 
@@ -193,8 +193,7 @@ def _cmd_bound(args) -> int:
         _print_joined(contour, machine)
         return 0
     cap = None if args.feed is None else scale.feed(args.feed)
-    feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s",
-                            per_shown=scale.report_factor, shown_unit=f"{scale.report_unit}/s")
+    feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s", shown=scale.output)
     # What `run` refuses, `bound` refuses: the same checks, and a bound no run could
     # reach within its samples.
     check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
@@ -213,8 +212,8 @@ def _print_joined(contour, machine: Machine) -> None:
     joined = contour.joined
     if joined is not None and joined.chords_joined:
         scale = units.Scale.of(contour.curve, machine)
-        shown = scale.factor / scale.report_factor  # report units per path unit
-        print("path: " + joined.describe(scale.report_unit, shown), file=sys.stderr)
+        shown = scale.output.length(scale.factor)  # report units per path unit
+        print("path: " + joined.describe(scale.output.unit, shown), file=sys.stderr)
 
 
 TRACE_NOTICE_BYTES = 200e6
@@ -241,9 +240,9 @@ def _run(args, precompiler) -> int:
     machine.check_path(curve.n_axes)
     scale = units.Scale.of(curve, machine)  # the one conversion of this run's units
     cap = None if args.feed is None else scale.feed(args.feed)
-    unit, per_unit = scale.report_unit, scale.report_factor
-    feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s",
-                            per_shown=per_unit, shown_unit=f"{unit}/s")
+    shown = scale.output  # and of its results, on the way out
+    unit = shown.unit
+    feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s", shown=shown)
     job = Job(curve, machine, (feed, "pulse"), args.interpolator, name=args.path,
               max_samples=args.max_samples)
     path = job.pulses
@@ -319,7 +318,7 @@ def _run(args, precompiler) -> int:
             bar.update(2)
             stage(stages[3])
             if file is not None:
-                _write_trace(args, result.trace, file, scale)
+                _write_trace(args, result.trace, file, result.output_units)
             if exports:
                 _export_setpoints(result.trace, scale, exports, args)
             bar.update()
@@ -327,11 +326,11 @@ def _run(args, precompiler) -> int:
         stage(stages[4])
         extra = {"plant": machine.name if args.plant is None else args.plant,
                  "corner_tolerance": eps,
-                 f"corner_tolerance_{unit}": eps / per_unit,
-                 f"settle_window_{unit}": window / per_unit}
+                 f"corner_tolerance_{unit}": shown.length(eps),
+                 f"settle_window_{unit}": shown.length(window)}
         if args.interpolator == "planned" or contour.joined.chords_joined:
             extra.update({"path_tolerance": path_tolerance,
-                          f"path_tolerance_{unit}": path_tolerance / per_unit})
+                          f"path_tolerance_{unit}": shown.length(path_tolerance)})
         if contour.joined.chords_joined:  # what the path run is: said where it differs
             extra.update({"chords_joined": contour.joined.chords_joined,
                           "chord_runs": contour.joined.runs})
@@ -356,19 +355,19 @@ def _run(args, precompiler) -> int:
             bar.update()
     out = Path(args.out)
     sat = metrics.total_saturated_samples
-    at = (f"{feed / per_unit:.4g} {unit}/s ({feed:.4g} pulse/s)"
+    at = (f"{shown.length(feed):.4g} {unit}/s ({feed:.4g} pulse/s)"
           if contour.feed is None else note)
     settled = (f"settled at {metrics.settle_time_s:.4g} s "
                f"({metrics.settle_time_s / bound:.3f} x)" if metrics.settled
                else "not settled by the end of the run")
     source = f", {contour.units_source}" if contour.units_source else ""
-    joined = ("; path: " + contour.joined.describe(unit, scale.factor / per_unit)
+    joined = ("; path: " + contour.joined.describe(unit, shown.length(scale.factor))
               if contour.joined.chords_joined else "")
     print(f"{args.interpolator} on {_machine_label(args.machine, machine)} at {at} (path in "
           f"{curve.units}{source}): cycle time {metrics.cycle_time_s:.4g} s "
           f"({metrics.cycle_time_s / bound:.3f} x the time-optimal bound), {settled}, "
           "max contour error "
-          f"{metrics.max_contour_error / per_unit:.4g} {unit} "
+          f"{shown.length(metrics.max_contour_error):.4g} {unit} "
           f"({metrics.max_contour_error:.4g} pulse), {sat} saturated "
           f"sample{'s' if sat != 1 else ''}{joined} -> {out}")
     return 0
@@ -412,8 +411,7 @@ def _run_streamed(args, job, file: Path | None, expected: float):
     with contextlib.ExitStack() as stack:
         writer = None if file is None else stack.enter_context(TraceWriter(
             file, job.machine, fmt=args.trace_format, every=args.trace_every,
-            length_unit=job.scale.report_unit, pulses_per_length_unit=job.scale.report_factor,
-            overwrite=args.overwrite, threads=0))
+            units=job.scale.output, overwrite=args.overwrite, threads=0))
         samples = stack.enter_context(_progress(
             args, total=_total(expected), unit="sample", unit_scale=True,
             desc="closed loop" if writer is None else f"closed loop -> {file.name}"))
@@ -458,13 +456,12 @@ def _trace_notice(args, file: Path, rows: int, size: float, bar=None) -> None:
         bar.write(text, file=sys.stderr)
 
 
-def _write_trace(args, trace, file: Path, scale: units.Scale) -> None:
-    """Write the trace file of a whole run (lengths also in ``scale``'s report unit),
+def _write_trace(args, trace, file: Path, shown: units.OutputUnits) -> None:
+    """Write the trace file of a whole run (lengths also in ``shown``'s units),
     announcing its size first when it is large."""
     from ..report import estimate_trace_bytes, trace_rows, write_trace
 
-    options = dict(fmt=args.trace_format, every=args.trace_every,
-                   length_unit=scale.report_unit, pulses_per_length_unit=scale.report_factor)
+    options = dict(fmt=args.trace_format, every=args.trace_every, units=shown)
     rows = len(trace_rows(trace, args.trace_every))
     _trace_notice(args, file, rows, estimate_trace_bytes(trace, **options))
     with _progress(args, total=rows, unit="row", unit_scale=True,
@@ -546,7 +543,7 @@ def _true_plant(plant_machine: Machine, machine: Machine):
 
 
 def _cmd_reproduce(args) -> int:
-    from ..study.reproduce import reproduce
+    from ..study.reproduce import run_experiment
 
     t0 = time.perf_counter()
     with _outputs(args) as staged, _progress(args, unit="run") as bar:
@@ -555,7 +552,7 @@ def _cmd_reproduce(args) -> int:
             bar.set_description(label)
             bar.update(done - bar.n)
 
-        result = reproduce(staged.staging, figures=not args.no_figures, progress=progress)
+        result = run_experiment(staged.staging, figures=not args.no_figures, progress=progress)
     if not args.quiet:
         print((Path(args.out) / "table.md").read_text())
     print(f"{len(result.rows)} runs, {len(result.files)} files in {args.out} "

@@ -37,7 +37,7 @@ from ..nurbs import NurbsCurve
 from ..planning import check_feed_reachable, check_path_size
 from ..servo import ServoPlant
 from ..stepping import Status
-from ..units import Scale, feed_in_pulses
+from ..units import Scale
 from .sink import Sink, fan_out
 from .trace import RunOutcome, SetpointSeries, Trace
 
@@ -396,8 +396,8 @@ def _closed_loop(interpolator, machine, sink, *, plant=None, settle_time=SETTLE_
     code, rows, loop = closed_loop.run(
         interpolator.plan, interpolator.new_state(), machine.law(), pid_state(start), plant,
         machine.speed_measurement == "encoder", start, settling,
-        interpolator.records_bounds, capacity, progress,
-        None if sink is None else counted)
+        interpolator.records_bounds, capacity, progress=progress,
+        sink=None if sink is None else counted)
     if rows is not None:
         tally.add(rows)
     u = float(loop.u[0])
@@ -448,12 +448,13 @@ def run(curve: NurbsCurve, machine: Machine, feed, interpolator: str = DEFAULT_I
     Parameters
     ----------
     curve : NurbsCurve
-        The path, in any unit the machine knows (converted with :func:`to_pulses`).
+        The path, in any unit the machine knows (converted by its
+        :class:`~nurbsmotion.units.Scale`).
     machine : Machine
     feed : float or str
         Commanded feed F: a bare number in the path's units per second (pulse/s for a
         path in pulses), or a text with a unit such as ``"100mm/s"``
-        (:func:`nurbsmotion.units.feed_in_pulses`).
+        (:meth:`nurbsmotion.units.Scale.feed`).
     interpolator : str
         One of :data:`nurbsmotion.interpolators.LOOP_METHODS`; by default ``planned``
         (:data:`~nurbsmotion.interpolators.DEFAULT_INTERPOLATOR`, as the command's).
@@ -509,9 +510,10 @@ def _named_interpolator(curve, machine, feed, interpolator: str, max_samples: in
         raise InvalidArgumentError(f"curve must be a NurbsCurve, got {curve!r:.60}")
     if not isinstance(machine, Machine):
         raise InvalidArgumentError(f"machine must be a Machine, got {machine!r:.60}")
-    feed = feed_in_pulses(feed, curve, machine)
+    scale = Scale.of(curve, machine)  # the run's one conversion into pulses
+    feed = scale.feed(feed)
     check_run_arguments(curve, machine, feed, max_samples)
-    return make_interpolator(interpolator, to_pulses(curve, machine), machine, feed,
+    return make_interpolator(interpolator, scale.path(curve), machine, feed,
                              **(options or {}))
 
 

@@ -44,7 +44,8 @@ from ..control import pid_commit, pid_output
 from ..plant import is_active, measure, new_plant_state, positions, sample_step
 from ..servo import plant_step
 
-__all__ = ["Rows", "Settling", "LoopState", "AxisState", "DONE", "FULL", "FAILED",
+__all__ = ["Rows", "Settling", "LoopState", "AxisState", "Controller", "TruePlant", "Block",
+           "Scratch", "DONE", "FULL", "FAILED",
            "OUT_OF_SAMPLES", "PAUSED", "BLOCK_SAMPLES", "SINK_BLOCK_SAMPLES", "new_rows",
            "run_samples", "settle_hold_samples"]
 
@@ -132,6 +133,66 @@ class Settling(NamedTuple):
     max_samples: int
 
 
+class Controller(NamedTuple):
+    """The controller as the loop runs it: the law's numbers and memory, and how it reads
+    the axis's speed.
+
+    law : ndarray, shape (n_axes,), dtype PID_LAW -- :meth:`nurbsmotion.machine.Machine.law`;
+    state : ndarray, shape (n_axes,), dtype PID_STATE -- its memory, changed in place
+    (:func:`nurbsmotion.control.pid_state`);
+    encoder : bool -- velocity by encoder differencing (else the true speed)."""
+
+    law: np.ndarray
+    state: np.ndarray
+    encoder: bool
+
+
+class TruePlant(NamedTuple):
+    """The true plant as the loop advances it.
+
+    Ad, Bd : ndarray, shapes (n_axes, 2, 2), (n_axes, 2) -- its ZOH matrices
+    (:class:`nurbsmotion.servo.ServoPlant`);
+    Ke : ndarray, shape (n_axes,) -- its mechanical gains [pulse/rad] (its speed in
+    pulse/s is ``Ke*w``);
+    stage : nurbsmotion.plant.PlantStage -- its effects; when ``stage.active``, it runs in
+    place of ``Ad``, ``Bd``: the controller reads what :func:`nurbsmotion.plant.measure`
+    gives of the encoder's mass, the rows' ``position`` is the tool's true position and
+    the settle window is judged on it;
+    state : nurbsmotion.plant.PlantState -- the stage's state (unused when inactive)."""
+
+    Ad: np.ndarray
+    Bd: np.ndarray
+    Ke: np.ndarray
+    stage: tuple
+    state: tuple
+
+
+class Block(NamedTuple):
+    """Where one call of :func:`run_samples` writes: ``rows`` (:class:`Rows`), ``first``
+    the sample of its row 0, ``stop`` the sample before which it pauses
+    (:data:`PAUSED`)."""
+
+    rows: Rows
+    first: int
+    stop: int
+
+
+class Scratch(NamedTuple):
+    """The loop's per-sample scratch, per axis: the setpoint [pulse], the velocity the
+    controller reads [pulse/s], the position it reads [pulse], shapes (n_axes,); the step's
+    speed bounds [pulse/s], shape (n_axes, 2)."""
+
+    command: np.ndarray
+    velocity: np.ndarray
+    position: np.ndarray
+    bounds: np.ndarray
+
+    @classmethod
+    def new(cls, n_axes: int) -> "Scratch":
+        return cls(np.empty(n_axes), np.empty(n_axes), np.empty(n_axes),
+                   np.empty((n_axes, 2)))
+
+
 def new_rows(capacity: int, n_axes: int, with_bounds: bool, with_measured: bool = False) -> Rows:
     """Uninitialised rows for ``capacity`` samples (``measured`` only for a plant whose
     reading differs from its true position: otherwise it is ``position``)."""
@@ -144,43 +205,27 @@ def new_rows(capacity: int, n_axes: int, with_bounds: bool, with_measured: bool 
 
 
 @njit(cache=True, nogil=True)  # a sink's thread (metrics, trace file) runs meanwhile
-def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settling, loop,
-                axes, rows, first, stop, command, velocity, position, bounds, stage, pstate):
-    """Run the loop from ``loop.k[0]`` until it ends, ``rows`` are full or sample ``stop``
-    is reached; sample k goes to row ``k - first``.
+def run_samples(plan, state, controller, plant, start, settling, loop, axes, block, scratch):
+    """Run the loop from ``loop.k[0]`` until it ends, the block's rows are full or sample
+    ``block.stop`` is reached; sample k goes to row ``k - block.first``.
 
     Parameters
     ----------
     plan, state
         The interpolator's plan and state (:mod:`nurbsmotion.stepping`).
-    law : ndarray, shape (n_axes,), dtype PID_LAW
-    law_state : ndarray, shape (n_axes,), dtype PID_STATE
-    Ad, Bd : ndarray, shapes (n_axes, 2, 2), (n_axes, 2)
-        The true plant's ZOH matrices.
-    Ke : ndarray, shape (n_axes,)
-        The true plant's mechanical gains [pulse/rad] (its speed in pulse/s is ``Ke*w``).
-    encoder : bool
-        Velocity by encoder differencing (else the true speed).
+    controller : Controller
+        The law, its memory (changed) and how it reads the speed.
+    plant : TruePlant
+        The true plant (its state changed).
     start : ndarray, shape (n_axes,)
         The path's start [pulse]: the setpoint of sample 0 (where the step does not give
         it, :func:`nurbsmotion.stepping.first_sample`).
     settling : Settling
     loop : LoopState
     axes : AxisState
-    rows : Rows
-    first : int
-        The sample of row 0 of ``rows``.
-    stop : int
-        Return :data:`PAUSED` before running this sample.
-    command, velocity, position, bounds : ndarray
-        Scratch: shapes (n_axes,), (n_axes,), (n_axes,), (n_axes, 2).
-    stage : nurbsmotion.plant.PlantStage
-        The true plant's effects; when ``stage.active``, it runs in place of ``Ad``,
-        ``Bd``: the controller reads what :func:`nurbsmotion.plant.measure` gives of the
-        encoder's mass, the rows' ``position`` is the tool's true position and the settle
-        window is judged on it.
-    pstate : nurbsmotion.plant.PlantState
-        Its state (unused when the stage is inactive).
+    block : Block
+        The rows written, the sample of their row 0, the sample to pause before.
+    scratch : Scratch
 
     Returns
     -------
@@ -188,6 +233,12 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
         :data:`DONE`, :data:`FULL`, :data:`FAILED`, :data:`OUT_OF_SAMPLES` or
         :data:`PAUSED`.
     """
+    # every group taken apart once: the loop below reads plain arrays and numbers
+    law, law_state, encoder = controller.law, controller.state, controller.encoder
+    Ad, Bd, Ke, stage, pstate = plant.Ad, plant.Bd, plant.Ke, plant.stage, plant.state
+    rows, first, stop = block.rows, block.first, block.stop
+    command, velocity = scratch.command, scratch.velocity
+    position, bounds = scratch.position, scratch.bounds
     Ts = law[0]["period"]
     umax = law[0]["maxoutput"]
     n_axes = start.shape[0]
@@ -301,7 +352,7 @@ def run_samples(plan, state, law, law_state, Ad, Bd, Ke, encoder, start, settlin
 
 
 def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
-        settling: Settling, with_bounds: bool, capacity: int, progress=None, sink=None):
+        settling: Settling, with_bounds: bool, capacity: int, *, progress=None, sink=None):
     """:func:`run_samples` from sample 0 to the end, in blocks of :data:`BLOCK_SAMPLES`
     (:data:`SINK_BLOCK_SAMPLES` with a ``sink``).
 
@@ -348,12 +399,13 @@ def run(plan, state, law, law_state, plant, encoder: bool, start: np.ndarray,
     capacity = max(1, min(int(capacity), settling.max_samples))
     real = bool(is_active(stage))
     rows = new_rows(capacity, n_axes, with_bounds, real)
-    scratch = (np.empty(n_axes), np.empty(n_axes), np.empty(n_axes), np.empty((n_axes, 2)))
+    controller = Controller(law, law_state, encoder)
+    true_plant = TruePlant(plant.Ad, plant.Bd, plant.mechanical_gain, stage, pstate)
+    scratch = Scratch.new(n_axes)
     first = 0
     while True:
-        code = run_samples(plan, state, law, law_state, plant.Ad, plant.Bd,
-                           plant.mechanical_gain, encoder, start, settling, loop, axes, rows,
-                           first, int(loop.k[0]) + BLOCK_SAMPLES, *scratch, stage, pstate)
+        code = run_samples(plan, state, controller, true_plant, start, settling, loop, axes,
+                           Block(rows, first, int(loop.k[0]) + BLOCK_SAMPLES), scratch)
         k = int(loop.k[0])
         more = code in (PAUSED, FULL)
         if sink is not None:

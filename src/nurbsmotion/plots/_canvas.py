@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .._runtime.io import write_output
+from ..errors import InvalidArgumentError
 
 _DPI = 110
 
@@ -192,7 +193,7 @@ def _axis_labels(n_axes: int, axis_names=None) -> tuple[str, ...]:
     if axis_names is not None:
         names = tuple(str(a) for a in axis_names)
         if len(names) < n_axes:
-            raise ValueError(f"{n_axes} axes need {n_axes} axis_names, got {names}")
+            raise InvalidArgumentError(f"{n_axes} axes need {n_axes} axis_names, got {names}")
         return names[:n_axes]
     default = ("x", "y", "z")
     return tuple(default[j] if j < 3 else f"axis {j}" for j in range(n_axes))

@@ -14,8 +14,9 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import InvalidArgumentError
 from ..metrics import nearest_parameter
-from ..units import report_unit
+from ..units import OutputUnits
 from ._canvas import (
     _arrange, _axis_labels, _feed_text, _figure, _fit_in_view, _legend_below,
     _output_dir, _save, _STYLES, _title,
@@ -307,9 +308,10 @@ def _trace_title(trace, feed: float | None, per_unit: float, unit: str) -> str:
 
 
 def _units_of(trace, length_unit: str | None) -> tuple[str, float]:
-    """The report unit and pulses per it; ``length_unit`` None: by the path's units."""
-    unit = length_unit or report_unit(trace.curve.units)
-    return unit, trace.machine.pulses_per_unit(unit)
+    """The report unit and pulses per it (:class:`nurbsmotion.units.OutputUnits` of the
+    trace's path and machine); ``length_unit`` None: by the path's units."""
+    units = OutputUnits.of(trace.machine, trace.curve.units, length_unit or None)
+    return units.unit, units.pulses_per_unit
 
 
 def _drive_figure(runs: list[_Run], events, settle: float, title: str, path: Path,
@@ -616,14 +618,14 @@ def plot_comparison(traces: dict, out_dir, name: str, *, feed: float | None = No
         corners and the stop.
     """
     if not traces:
-        raise ValueError("plot_comparison needs at least one trace")
+        raise InvalidArgumentError("plot_comparison needs at least one trace")
     out = _output_dir(out_dir)
     items = list(traces.items())
     first = items[0][1]
     machine = first.machine
     names = machine.axis_names
     if axis is not None and not 0 <= axis < len(names):
-        raise ValueError(f"axis {axis} out of range for axes {names}")
+        raise InvalidArgumentError(f"axis {axis} out of range for axes {names}")
     shown = range(len(names)) if axis is None else [axis]
     unit, per_unit = _units_of(first, length_unit)
     if feed is None:

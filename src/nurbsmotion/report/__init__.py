@@ -26,7 +26,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Iterable
+from typing import TYPE_CHECKING, Iterable
 
 import numpy as np
 
@@ -35,6 +35,9 @@ from ..errors import OutputExistsError
 from .trace_file import (TRACE_FILES, TRACE_FORMATS, TraceWriter,
                          estimate_trace_bytes, trace_columns, trace_rows, write_trace,
                          write_trace_csv)
+
+if TYPE_CHECKING:
+    from ..units import OutputUnits
 
 __all__ = ["SUMMARY_KEYS", "SUMMARY_LENGTH_KEYS", "TRACE_FORMATS", "TRACE_FILES",
            "trace_columns", "TraceWriter", "write_trace", "write_trace_csv", "estimate_trace_bytes",
@@ -89,12 +92,12 @@ def check_writable(paths: Iterable[Path], overwrite: bool) -> None:
 
 
 def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
-            time_optimal_bound: float, length_unit: str | None = None,
-            pulses_per_length_unit: float | None = None, extra: dict | None = None) -> dict:
+            time_optimal_bound: float, units: OutputUnits | None = None,
+            extra: dict | None = None) -> dict:
     """The ``summary.json`` dictionary.
 
-    Keys: :data:`SUMMARY_KEYS` in that order; then, given a ``length_unit`` ``L``,
-    ``length_unit``, ``<key>_L`` for each of :data:`SUMMARY_LENGTH_KEYS` and
+    Keys: :data:`SUMMARY_KEYS` in that order; then, given ``units`` whose report unit is
+    ``L``, ``length_unit``, ``<key>_L`` for each of :data:`SUMMARY_LENGTH_KEYS` and
     ``feed_L_per_s``; last, ``units``: the unit of every other key
     (:func:`summary_units`).
 
@@ -110,10 +113,9 @@ def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
         ``cycle_time_ratio`` is the cycle time divided by it, ``move_and_settle_ratio``
         the settle time (docs/model.md#beyond-the-paper) divided by it (``inf`` when the motion did not
         settle).
-    length_unit : str, optional
-        The report unit (``"mm"``, ``"in"``; :func:`nurbsmotion.units.report_unit`).
-    pulses_per_length_unit : float, optional
-        Pulses per ``length_unit``; required with it.
+    units : OutputUnits, optional
+        The run's units on the way out (:attr:`nurbsmotion.job.RunResult.output_units`):
+        the length keys are repeated in its report unit (``"mm"``, ``"in"``); none without.
     extra : dict, optional
         Further keys of the run (``plant``, ``corner_tolerance``, ``path_tolerance``,
         ``feed_used``, ``notes``), added before ``units``.
@@ -124,8 +126,8 @@ def summary(metrics, *, interpolator: str, feed: float, machine: str, path: str,
                 cycle_time_ratio=metrics.cycle_time_s / time_optimal_bound,
                 move_and_settle_ratio=metrics.settle_time_s / time_optimal_bound)
     out = {k: data[k] for k in SUMMARY_KEYS}
-    if length_unit is not None:
-        k = 1.0 / pulses_per_length_unit
+    if units is not None:
+        k, length_unit = units.factor, units.unit
         out["length_unit"] = length_unit
         for key in SUMMARY_LENGTH_KEYS:
             v = out[key]

@@ -16,11 +16,15 @@ import sys
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, NamedTuple
+from typing import TYPE_CHECKING, Callable, NamedTuple
 
 import numpy as np
 
 from .._runtime.io import atomic_output
+from ..errors import InvalidArgumentError
+
+if TYPE_CHECKING:
+    from ..units import OutputUnits
 
 __all__ = ["TRACE_FORMATS", "TRACE_FILES", "TRACE_CHUNK_ROWS", "trace_columns", "TraceWriter",
            "write_trace", "write_trace_csv", "estimate_trace_bytes", "trace_rows"]
@@ -59,8 +63,7 @@ class _Block(NamedTuple):
     position_measured: np.ndarray | None = None
 
 
-def _columns(machine, with_bounds: bool, length_unit: str | None,
-             pulses_per_length_unit: float | None,
+def _columns(machine, with_bounds: bool, units: OutputUnits | None,
              with_measured: bool = False) -> list[_Column]:
     """The trace file's columns, in order (see the module docstring); ``a_meas`` (and
     ``a_meas_L``) only for a run on a true plant whose reading is not its position."""
@@ -77,12 +80,12 @@ def _columns(machine, with_bounds: bool, length_unit: str | None,
     if with_measured:  # after the existing columns: their places are a contract
         cols += [_Column(f"{a}_meas", lambda b, i, j=j: b.position_measured[i, j])
                  for j, a in enumerate(machine.axis_names)]
-    if length_unit is None:
+    if units is None:
         return cols
+    # each axis in its own unit: a rotary axis in degrees, the others in the report unit
+    axis_units, axis_factor = units.axis_units, units.axis_factor
     for j, a in enumerate(machine.axis_names):
-        # a rotary axis (pulses_per_degree) in degrees, the others in the path's unit
-        ppd = machine.axes[j].pulses_per_degree
-        L, k = (length_unit, 1.0 / pulses_per_length_unit) if ppd is None else ("deg", 1.0 / ppd)
+        L, k = axis_units[j], float(axis_factor[j])
         cols += [_Column(f"{a}_cmd_{L}", lambda b, i, j=j, k=k: b.position_command[i, j] * k),
                  _Column(f"{a}_act_{L}", lambda b, i, j=j, k=k: b.position[i, j] * k)]
         if with_bounds:
@@ -94,8 +97,7 @@ def _columns(machine, with_bounds: bool, length_unit: str | None,
             ]
     if with_measured:
         for j, a in enumerate(machine.axis_names):
-            ppd = machine.axes[j].pulses_per_degree
-            L, k = (length_unit, 1.0 / pulses_per_length_unit) if ppd is None else ("deg", 1.0 / ppd)
+            L, k = axis_units[j], float(axis_factor[j])
             cols.append(_Column(f"{a}_meas_{L}", lambda b, i, j=j, k=k: b.position_measured[i, j] * k))
     return cols
 
@@ -105,7 +107,7 @@ def _kept(first: int, n: int, every: int, finished: int, last: bool) -> np.ndarr
     ``every``-th sample, the one where the end is reached and, in the run's last block,
     the last one."""
     if every < 1:
-        raise ValueError(f"trace_every must be >= 1, got {every}")
+        raise InvalidArgumentError(f"trace_every must be >= 1, got {every}")
     if every == 1:
         return np.arange(n)
     keep = np.arange((-first) % every, n, every)
@@ -121,12 +123,11 @@ def trace_rows(trace, every: int = 1) -> np.ndarray:
     return _kept(0, len(trace.t), every, trace.finished_index, True)
 
 
-def trace_columns(trace, length_unit: str | None = None,
-                  pulses_per_length_unit: float | None = None) -> tuple[list[str], np.ndarray]:
+def trace_columns(trace, units: OutputUnits | None = None) -> tuple[list[str], np.ndarray]:
     """Header and data of the trace file, shape (n_samples, n_columns) (small traces; the
-    writers stream instead)."""
-    cols = _columns(trace.machine, trace.speed_bounds is not None, length_unit,
-                    pulses_per_length_unit, trace.position_measured is not None)
+    writers stream instead); with ``units``, the lengths also in its axes' units."""
+    cols = _columns(trace.machine, trace.speed_bounds is not None, units,
+                    trace.position_measured is not None)
     idx = np.arange(len(trace.t))
     return [c.name for c in cols], np.column_stack([c.read(trace, idx) for c in cols])
 
@@ -248,10 +249,10 @@ class TraceWriter:
         CSV (shortest text that reads back to the same double) or Parquet.
     every : int
         Keep one row in ``every`` (see :func:`trace_rows`).
-    length_unit : str, optional
-        Report unit (``"mm"``, ``"in"``) of the added length columns; none without it.
-    pulses_per_length_unit : float, optional
-        Pulses per ``length_unit``.
+    units : OutputUnits, optional
+        The run's units on the way out (:attr:`nurbsmotion.job.RunResult.output_units`):
+        the added length columns, each axis in its unit (``mm``, ``in``, ``deg``); none
+        without it.
     overwrite : bool
         Replace an existing file.
     progress : callable, optional
@@ -265,19 +266,18 @@ class TraceWriter:
     """
 
     def __init__(self, path, machine, *, fmt: str = "csv", every: int = 1,
-                 length_unit: str | None = None,
-                 pulses_per_length_unit: float | None = None, overwrite: bool = False,
+                 units: OutputUnits | None = None, overwrite: bool = False,
                  progress: Callable[[int], None] | None = None, threads: int | None = None):
         if fmt not in TRACE_FORMATS:
-            raise ValueError(f"trace format must be one of {TRACE_FORMATS}, got {fmt!r}")
+            raise InvalidArgumentError(f"trace format must be one of {TRACE_FORMATS}, got {fmt!r}")
         if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-            raise ValueError(f"trace_every must be an integer >= 1, got {every!r}")
+            raise InvalidArgumentError(f"trace_every must be an integer >= 1, got {every!r}")
         self.path, self.machine, self.fmt, self.every = Path(path), machine, fmt, every
-        self.unit, self.per_unit = length_unit, pulses_per_length_unit
+        self.units = units
         self.overwrite, self.progress = overwrite, progress
         if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
                                     or threads < 0):
-            raise ValueError(f"threads must be an integer >= 0, got {threads!r}")
+            raise InvalidArgumentError(f"threads must be an integer >= 0, got {threads!r}")
         self.threads = max(1, min(2, os.cpu_count() or 1)) if threads is None else threads
         self.rows_written = 0
         self._first = None  # (columns, block, kept rows) of the first block, for the size
@@ -322,8 +322,8 @@ class TraceWriter:
             raise RuntimeError("a TraceWriter writes inside its with block only")
         kept = _kept(first, len(block.u), self.every, finished, last)
         if self._chunks is None:
-            cols = _columns(self.machine, block.speed_bounds is not None, self.unit,
-                            self.per_unit, getattr(block, "position_measured", None) is not None)
+            cols = _columns(self.machine, block.speed_bounds is not None, self.units,
+                            getattr(block, "position_measured", None) is not None)
             make = _CsvChunks if self.fmt == "csv" else _ParquetChunks
             self._chunks = make(self._handle, cols, self.progress, self.threads)
             self._first = (cols, block, kept)
@@ -332,14 +332,12 @@ class TraceWriter:
 
 
 def write_trace(trace, path, *, fmt: str = "csv", every: int = 1,
-                length_unit: str | None = None, pulses_per_length_unit: float | None = None,
-                overwrite: bool = False,
+                units: OutputUnits | None = None, overwrite: bool = False,
                 progress: Callable[[int], None] | None = None) -> Path:
     """Write the trace file of a :class:`~nurbsmotion.loop.Trace`, streamed in chunks,
     atomically (see :class:`TraceWriter` for the parameters)."""
-    with TraceWriter(path, trace.machine, fmt=fmt, every=every, length_unit=length_unit,
-                     pulses_per_length_unit=pulses_per_length_unit, overwrite=overwrite,
-                     progress=progress) as writer:
+    with TraceWriter(path, trace.machine, fmt=fmt, every=every, units=units,
+                     overwrite=overwrite, progress=progress) as writer:
         writer._write(trace, 0, trace.finished_index, True)
     return Path(path)
 
@@ -350,11 +348,10 @@ def write_trace_csv(trace, path: Path, *, overwrite: bool = True) -> Path:
 
 
 def estimate_trace_bytes(trace, *, fmt: str = "csv", every: int = 1,
-                         length_unit: str | None = None,
-                         pulses_per_length_unit: float | None = None) -> int:
+                         units: OutputUnits | None = None) -> int:
     """Size the trace file would have [byte], from 2,000 of its rows spread over the run."""
-    cols = _columns(trace.machine, trace.speed_bounds is not None, length_unit,
-                    pulses_per_length_unit, trace.position_measured is not None)
+    cols = _columns(trace.machine, trace.speed_bounds is not None, units,
+                    trace.position_measured is not None)
     rows = trace_rows(trace, every)
     return int(_bytes_per_row(fmt, cols, trace, rows) * len(rows))
 

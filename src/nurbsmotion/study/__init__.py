@@ -10,14 +10,15 @@ its seed, and ``status`` (``"ok"`` or ``"error"``, with the error's type and mes
 local processes, or on a Dask cluster (:mod:`.execute`) — and appends the finished rows to
 ``OUT/rows/part-*.parquet`` (:mod:`.dataset`: a part file is written once, under a
 temporary name, and never rewritten), so a campaign that stops for any reason resumes
-where it was. :func:`digest` summarises the dataset (:mod:`.digest`).
+where it was. :func:`make_digest` summarises the dataset (:mod:`.digest`).
 
 Every random draw of a case (its random path, its random plant) comes from seeds derived
 from the study's seed and the case's index, never from a worker, so the rows are the same
 bit for bit however the cases are spread (only ``case_time_s`` and ``case_cpu_s``, the
 case's wall and CPU time, differ).
 
-:mod:`.reproduce` runs the paper's experiment (``nurbsmotion reproduce``); :mod:`.run_input`
+:func:`run_experiment` (:mod:`.reproduce`) runs the paper's experiment
+(``nurbsmotion reproduce``); :mod:`.run_input`
 reads a run's path and feed by one rule for ``nurbsmotion run`` and a study's cases.
 
 Names load with their module on first use (PEP 562); pyarrow, dask and tqdm are imported
@@ -35,14 +36,15 @@ _LAZY = {
     "read_rows": "dataset", "CAMPAIGN_OUTPUTS": "dataset",
     "DASK_SETTINGS": "execute",
     "CampaignResult": "run", "run_study": "run",
-    "SUMMARY_FIGURES": "digest", "write_digest": "digest", "digest_markdown": "digest",
+    "SUMMARY_FIGURES": "digest", "make_digest": "digest", "write_digest": "digest",
+    "digest_markdown": "digest",
     "PAPER_EXPERIMENT": "reproduce", "ExperimentResult": "reproduce",
-    "reproduce_outputs": "reproduce",
+    "run_experiment": "reproduce", "reproduce_outputs": "reproduce",
 }
-"""Public name -> the module of this package that holds it. The functions ``digest`` and
-``reproduce`` share their module's name, which the package's attribute means once the
-module is loaded: they are :func:`nurbsmotion.study.digest.digest` and
-:func:`nurbsmotion.study.reproduce.reproduce`."""
+"""Public name -> the module of this package that holds it. ``study.digest`` and
+``study.reproduce`` are the modules; their functions are :func:`make_digest` and
+:func:`run_experiment` (their old names, ``digest`` and ``reproduce``, which the modules'
+names hid on this package, stay importable from the modules)."""
 
 __all__ = list(_LAZY)
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import InvalidArgumentError
 from ..machine import Machine
+from ..units import Scale
 from .spec import STATUS_ERROR, STATUS_OK, Case, PlantGroup, _machine
 
 __all__ = ["case_trace", "run_case"]
@@ -66,7 +67,7 @@ def _path(case: Case, machine: Machine):
         raise _PATH_ERRORS[key]
     try:
         contour = _contour(*key)
-        pulses = _pulses(key, machine.pulses_per_unit(contour.curve.units))
+        pulses = _pulses(key, Scale.of(contour.curve, machine).factor)
         check_path_size(pulses)  # counted from the knots, before the tables
         pulses.length  # the tables every interpolator and figure reads
     except Exception as exc:

@@ -1,6 +1,6 @@
 """A campaign's digest: each group's figures summarised, and its failing cases.
 
-:func:`digest` takes the dataset's table (per group of interpolator, feed and plant: the
+:func:`make_digest` takes the dataset's table (per group of interpolator, feed and plant: the
 min / median / 95th percentile / max of :data:`SUMMARY_FIGURES`, and every failing case
 with the command that reproduces it); :func:`write_digest` writes it as ``digest.json``
 and ``digest.md``.
@@ -15,7 +15,7 @@ import numpy as np
 
 from .spec import STATUS_OK, Study
 
-__all__ = ["SUMMARY_FIGURES", "digest", "write_digest", "digest_markdown"]
+__all__ = ["SUMMARY_FIGURES", "make_digest", "write_digest", "digest_markdown"]
 
 SUMMARY_FIGURES = ("cycle_time_ratio", "max_contour_error", "max_following_error",
                    "max_drive_ratio", "saturated_samples", "move_and_settle_ratio",
@@ -42,7 +42,7 @@ def _figure(table, name: str) -> np.ndarray:
         return np.max(np.where(np.isnan(values), -np.inf, values), axis=0)
 
 
-def digest(table, study: Study, out_dir: str | os.PathLike = ".") -> dict:
+def make_digest(table, study: Study, out_dir: str | os.PathLike = ".") -> dict:
     """Per group (interpolator x feed x plant) the min / median / 95th percentile / max
     of :data:`SUMMARY_FIGURES` over its successful cases, and every failing case with
     the command that reproduces it.
@@ -80,6 +80,12 @@ def digest(table, study: Study, out_dir: str | os.PathLike = ".") -> dict:
         failing.append(case)
     return {"study": study.name, "cases": int(len(ok)), "ok": int(ok.sum()),
             "failed": int((~ok).sum()), "groups": groups, "failing_cases": failing}
+
+
+digest = make_digest
+"""The old name of :func:`make_digest`, kept for ``from nurbsmotion.study.digest import
+digest`` and ``nurbsmotion.campaign.digest`` (not in ``__all__``): on the package
+:mod:`nurbsmotion.study` a function ``digest`` was hidden by this module's own name."""
 
 
 def write_digest(data: dict, out_dir: str | os.PathLike) -> tuple[Path, Path]:

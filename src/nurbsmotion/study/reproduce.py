@@ -21,7 +21,7 @@ from ..machine import Machine, die_bonder
 from ..nurbs import builtin_path
 from ..report import check_writable, markdown_table, write_json
 
-__all__ = ["PAPER_EXPERIMENT", "ExperimentResult", "reproduce", "reproduce_outputs"]
+__all__ = ["PAPER_EXPERIMENT", "ExperimentResult", "run_experiment", "reproduce_outputs"]
 
 PAPER_EXPERIMENT = {
     "die-bonder-pi": (0.2, 0.5, 1.0),
@@ -45,7 +45,7 @@ class ExperimentResult:
 
 def reproduce_outputs(machine: Machine | None = None, experiment=None,
                       figures: bool = True) -> list[str]:
-    """Names of every file :func:`reproduce` writes with these arguments."""
+    """Names of every file :func:`run_experiment` writes with these arguments."""
     machine = machine or die_bonder()
     names = ["table.md", "table.json"]
     if figures:
@@ -62,11 +62,13 @@ def _figure_prefix(name: str, feed_m_s: float) -> str:
     return f"{name}_{feed_m_s:g}ms"
 
 
-def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
-              interpolators=PAPER_INTERPOLATORS, overwrite: bool = False,
-              figures: bool = True,
-              progress: Callable[[int, int, str], None] | None = None) -> ExperimentResult:
-    """Run the experiment and write ``table.md``, ``table.json`` and the figures.
+def run_experiment(out_dir, *, machine: Machine | None = None, experiment=None,
+                   interpolators=PAPER_INTERPOLATORS, overwrite: bool = False,
+                   figures: bool = True,
+                   progress: Callable[[int, int, str], None] | None = None
+                   ) -> ExperimentResult:
+    """Run the experiment (``nurbsmotion reproduce``) and write ``table.md``,
+    ``table.json`` and the figures.
 
     Parameters
     ----------
@@ -92,7 +94,6 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
     check_writable([out / f for f in reproduce_outputs(machine, experiment, figures)],
                    overwrite)
     out.mkdir(parents=True, exist_ok=True)
-    pulses_per_m = machine.pulses_per_unit("m")
     total = sum(len(f) for f in experiment.values()) * (len(interpolators) + bool(figures))
     done = 0
 
@@ -108,7 +109,7 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
         path = Job(builtin_path(name), machine, None, name=name)  # the feed comes per feed
         path.pulses  # converted once, so its geometry serves every feed and interpolator
         for feed_m_s in feeds:
-            feed = feed_m_s * pulses_per_m
+            feed = feed_m_s * path.scale.pulses_per("m")
             job = path.with_options(feed=(feed, "pulse"))
             job = job.with_options(time_optimal_bound=job.bound())  # one per path and feed
             group: dict[str, Trace] = {}
@@ -119,7 +120,7 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
                 step(f"{name} {feed_m_s:g} m/s {method}")
             if figures:  # drawn once every run is done, in worker processes
                 jobs.append((group, out, _figure_prefix(name, feed_m_s),
-                             {"feed": feed, "length_unit": job.scale.report_unit}))
+                             {"feed": feed, "length_unit": job.scale.output.unit}))
                 labels.append(f"{name} {feed_m_s:g} m/s figures")
     if jobs:
         from ..plots import plot_comparisons
@@ -129,3 +130,10 @@ def reproduce(out_dir, *, machine: Machine | None = None, experiment=None,
     table = markdown_table(rows)
     files.append(write_output(out / "table.md", lambda h: h.write(table), overwrite=overwrite))
     return ExperimentResult(rows, traces, files)
+
+
+reproduce = run_experiment
+"""The old name of :func:`run_experiment`, kept for ``from nurbsmotion.study.reproduce
+import reproduce`` and ``nurbsmotion.experiments.reproduce`` (not in ``__all__``): on the
+package :mod:`nurbsmotion.study` a function ``reproduce`` was hidden by this module's own
+name."""

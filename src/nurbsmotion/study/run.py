@@ -19,7 +19,7 @@ from .._runtime.io import write_output
 from ..errors import PathFileError
 from .case import run_case
 from .dataset import _LOCK, _RowWriter, _finished_ids, _locked, _remove_outputs, _schema, read_rows
-from .digest import digest, write_digest
+from .digest import make_digest, write_digest
 from .execute import _execute
 from .spec import STATUS_OK, Case, Study, study_cases
 
@@ -109,7 +109,7 @@ def run_study(study: Study, out_dir: str | os.PathLike, *, workers: int | None =
             writer.flush()
             bar(None)
         table = read_rows(out)
-        result_digest = digest(table, study, out) if table is not None else {}
+        result_digest = make_digest(table, study, out) if table is not None else {}
         if table is not None:
             write_digest(result_digest, out)
     failed = 0 if table is None else int(

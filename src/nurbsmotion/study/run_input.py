@@ -132,9 +132,10 @@ def join_run_chords(contour, machine: Machine, path_tolerance=None):
     import math
 
     curve = contour.curve
-    tol = DEFAULT_PATH_TOLERANCE if path_tolerance is None else units.length_in_pulses(
-        path_tolerance, curve, machine, "--path-tolerance", bare_unit="pulse")
-    per_unit = machine.pulses_per_unit(curve.units)
+    scale = units.Scale.of(curve, machine)
+    tol = DEFAULT_PATH_TOLERANCE if path_tolerance is None else scale.length(
+        path_tolerance, "--path-tolerance", bare_unit="pulse")
+    per_unit = scale.factor  # [pulse/path unit]
     extent = math.dist(*curve.bounding_box()) * per_unit  # [pulse]
     if path_tolerance is not None and tol > 0 and tol >= extent:
         # the run (and planned's short moves) could leave the whole path (1e300 overflowed)
@@ -265,7 +266,7 @@ def run_feed(feed, contour, machine: Machine):
     Parameters
     ----------
     feed : float or str or tuple or None
-        The user's feed as :func:`nurbsmotion.units.feed_in_pulses` reads it (a bare
+        The user's feed as :meth:`nurbsmotion.units.Scale.feed` reads it (a bare
         number in the path's units per second, ``"50mm/s"``, ...); None to run at the
         file's programmed feed.
     contour : Contour
@@ -277,7 +278,7 @@ def run_feed(feed, contour, machine: Machine):
     float or FeedLimit
         Commanded feed F [pulse/s], per piece where the file programs one.
     """
-    curve = contour.curve
-    cap = None if feed is None else units.feed_in_pulses(feed, curve, machine)
-    return programmed_feed(cap, contour.feed, machine.pulses_per_unit(curve.units),
-                           contour.source, contour.feed_ratio)
+    scale = units.Scale.of(contour.curve, machine)
+    cap = None if feed is None else scale.feed(feed)
+    return programmed_feed(cap, contour.feed, scale.factor, contour.source,
+                           contour.feed_ratio)
