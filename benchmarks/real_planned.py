@@ -130,9 +130,10 @@ _PLANS = {}
 
 def _interp(method, name, feed, model):
     """The interpolator on the model machine. ``planned``'s offline plan depends on the
-    rigid model only, so it is made once per case and given what it knows of each model
-    beyond it (:func:`nurbsmotion.interpolators.planned.machine_knowledge`) as the
-    constructor would."""
+    rigid model and its modes only, so it is made once per case and set of modes and
+    given what it knows of each model beyond it
+    (:func:`nurbsmotion.interpolators.planned.machine_knowledge`) as the constructor
+    would."""
     import copy
 
     import nurbsmotion as nm
@@ -143,9 +144,11 @@ def _interp(method, name, feed, model):
     path = to_pulses(nm.builtin_path(name), model)
     if method != "planned":
         return path, make_interpolator(method, path, model, feed)
-    if (name, feed) not in _PLANS:
-        _PLANS[name, feed] = make_interpolator(method, path, model, feed)
-    interp = copy.copy(_PLANS[name, feed])
+    # a model with a mode shapes the plan's time law at it (planned.shaper.time_law_shaper)
+    key = (name, feed, tuple((a.resonance_frequency, a.resonance_damping) for a in model.axes))
+    if key not in _PLANS:
+        _PLANS[key] = make_interpolator(method, path, model, feed)
+    interp = copy.copy(_PLANS[key])
     p = interp.plan
     interp.machine = model
     interp.plan = p._replace(**planned.machine_knowledge(model, p.a, p.b0, p.c, p.b1,

@@ -97,7 +97,8 @@ def _segment_acceleration(s, V, i):
     return (V[i + 1] * V[i + 1] - V[i] * V[i]) / (2 * ds) if ds > 0 else 0.0
 
 
-def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float):
+def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float,
+                   shaper: np.ndarray | None = None):
     """Per corner-free piece: its duration [s] and a function ``times -> (positions, u)``
     (``times`` [s] nondecreasing from the piece's start).
 
@@ -106,18 +107,29 @@ def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float):
     nothing at the Nyquist frequency. Sampled on a fine grid of :data:`OVERSAMPLE` points
     per sample that is streamed, never stored (:func:`_averaged_arc`), and mapped to the
     curve by the compiled arc-length inverse
-    (:meth:`nurbsmotion.geometry.CurveGeometry.parameter_at`, uncached)."""
+    (:meth:`nurbsmotion.geometry.CurveGeometry.parameter_at`, uncached).
+
+    ``shaper`` (taps h[n] >= 0 summing to 1, one per sample; :func:`.shaper.plan_shaper`):
+    the averaged s(t) is shaped as well, ``sum_n h[n]*s(t - n*Ts)`` (the *time law*, not
+    the axes, so the motion stays on the path; the piece lasts ``len(shaper) - 1``
+    samples longer; :func:`.shaper.shape_time_law`)."""
     out = []
     h = Ts / OVERSAMPLE
     geometry = curve.geometry
+    taps = () if shaper is None else tuple(enumerate(np.asarray(shaper, dtype=float)))
     for (s, u, V), t in zip(profile.pieces, profile.piece_times()):
         n_fine = int(math.ceil(t[-1] / h)) + 1
         duration = (n_fine + OVERSAMPLE - 1) * h
+        if taps:
+            duration += (len(taps) - 1) * Ts
 
-        def motion(times, s=s, u=u, V=V, t=t, n_fine=n_fine):
+        def motion(times, s=s, u=u, V=V, t=t, n_fine=n_fine, duration=duration):
             times = np.ascontiguousarray(times, dtype=float)  # nondecreasing
             sk = np.empty_like(times)
-            _averaged_arc(s, V, t, h, n_fine, OVERSAMPLE, times, sk)
+            if taps:
+                sk = _shaped_arc(s, V, t, h, n_fine, taps, Ts, times, duration)
+            else:
+                _averaged_arc(s, V, t, h, n_fine, OVERSAMPLE, times, sk)
             uk = np.interp(sk, s, u)
             inner = (sk > s[0]) & (sk < s[-1])
             if np.any(inner):
@@ -125,6 +137,23 @@ def _piece_motions(curve: NurbsCurve, profile: SpeedProfile, Ts: float):
                                     u[0], u[-1])
             return curve(uk), uk
         out.append((float(duration), motion))
+    return out
+
+
+def _shaped_arc(s, V, t, h, n_fine, taps, Ts, times, duration):
+    """The averaged time profile (:func:`_averaged_arc`) shaped by ``taps`` ((n, h[n])
+    pairs, h[n] >= 0 summing to 1): ``sum_n h[n]*s_avg(times - n*Ts)`` [pulse], exactly
+    the piece's start before ``times`` 0 and its end from ``duration`` [s] on (a convex
+    combination of the profile's positions, so within its ends)."""
+    out = np.zeros_like(times)
+    copy = np.empty_like(times)
+    for n, weight in taps:
+        if weight > 0:
+            _averaged_arc(s, V, t, h, n_fine, OVERSAMPLE, times - n * Ts, copy)
+            out += weight * copy
+    np.clip(out, s[0], s[-1], out=out)
+    out[times <= 0.0] = s[0]
+    out[times >= duration] = s[-1]
     return out
 
 
@@ -286,12 +315,13 @@ def _blend_starts(pieces, Ts: float, tolerance: float) -> list:
 
 
 def _desired_motion(curve: NurbsCurve, profile: SpeedProfile, Ts: float, tolerance: float,
-                    lead: int):
+                    lead: int, shaper: np.ndarray | None = None):
     """y[k] (sum of the pieces, blended at corners), the parameter of each sample, the
     time of every corner [samples] and, for the samples where more than one piece moves
     (a blend), the parameter of the earliest of them (NaN elsewhere). Piece 0 starts at
-    sample ``lead``."""
-    pieces = _piece_motions(curve, profile, Ts)
+    sample ``lead``; each piece's time law shaped by ``shaper`` if given
+    (:func:`_piece_motions`)."""
+    pieces = _piece_motions(curve, profile, Ts, shaper)
     starts = _blend_starts(pieces, Ts, tolerance)
     # a corner's time: midway between the next piece's start and its own piece's end
     corner_times = [lead + (t0 + s + dur) / (2 * Ts)

@@ -78,6 +78,9 @@ class PlannedPlan(NamedTuple):
     # (MODE_LAW_ROWS, n_axes): per axis whose model declares a mode, 1 and the landing's
     # law designed with it (.mode_law.mode_landing_law); zeros: the rigid landing
     mode_law: np.ndarray = np.zeros((MODE_LAW_ROWS, 0))
+    # (n, n_axes) [pulse]: what the encoder reads of the model's twist under the plan's
+    # drive (.shaper.encoder_offset), taken off the reading on a moded axis; (0, 0): none
+    twist: np.ndarray = np.zeros((0, 0))
 
 
 class PlannedState(NamedTuple):
@@ -137,10 +140,12 @@ class PlannedInterpolator(Interpolator):
     max_samples : int
         A plan longer than this many samples is refused.
     mode_shaper : bool
-        Shape the plan's drive at the model machine's two-mass modes (ZVD,
-        :mod:`.shaper`) and steer to the encoder's reading of the model's twist. Off by
-        default: work in progress (issue 33), it does not yet meet the contour target
-        where a stop corner falls between two samples (docs/model.md#planned-on-a-real-machine).
+        Shape the plan's drive *axis by axis* at the model machine's two-mass modes (ZVD,
+        :func:`.shaper.shape_plan`) and steer to the encoder's reading of the model's
+        twist. Off by default: it cuts curves. Without it a model with a mode already
+        gets its plan's *time law* shaped (:func:`.shaper.time_law_shaper`) and the
+        model's twist taken off the reading (``PlannedPlan.twist``); with it the axes are
+        shaped on top of that (docs/model.md#planned-on-a-real-machine).
 
     Raises
     ------
@@ -206,9 +211,10 @@ class PlannedInterpolator(Interpolator):
             _sample_extremes(p.position, p.speed, p.drive, a, b0, c, b1))
         path_step = _path_steps(p.desired)
         parameter, position, stops, n = p.parameter, p.position, p.stop_indices, p.n_samples
-        twist = encoder_offset(p.drive, machine) if mode_shaper else None
-        if twist is not None:  # what the encoder reads of the model's mode
+        twist = encoder_offset(p.drive, machine)  # None without a mode
+        if twist is not None and mode_shaper:  # what the encoder reads of the model's mode
             position = position + twist
+            twist = None
         del p  # its speed, drive and desired positions before the support is built
         self.plan = PlannedPlan(
             parameter=parameter, path_step=path_step, position=position,
@@ -219,6 +225,7 @@ class PlannedInterpolator(Interpolator):
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole, rest=rest, guards=guards,
             guard_offsets=guard_offsets,
+            **({} if twist is None else dict(twist=twist)),
             **machine_knowledge(machine, a, b0, c, b1, self.tracking_pole))
         release_freed_memory()  # the plan's temporaries, before a long run's peak
 

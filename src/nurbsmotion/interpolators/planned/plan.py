@@ -20,7 +20,11 @@ is built offline in six steps:
    desired positions ``y[k] = C(s(k*Ts))``: the ``planned`` interpolator gives the
    loop's setpoint from sample 0 on (:func:`nurbsmotion.stepping.first_sample`), so the
    first drive u[0] moves the plant over the first sample; the desired motion leaves
-   the start at sample 0 (:data:`LEAD`) and its first moving sample is y[1].
+   the start at sample 0 (:data:`LEAD`) and its first moving sample is y[1]. Where the
+   model machine declares a mode, the averaged time law is also shaped at it (ZVD,
+   :func:`.shaper.time_law_shaper`: on the path, the mode not excited), the rigid
+   motion leads the tool by the mode's lag across the path (:func:`.shaper.tool_lead`),
+   and steps 5-6 are skipped (their bang-bang drives ring the mode).
 2. **Corner blends** (``corner_tolerance`` eps > 0). The plant is linear, so motions can
    be superposed: the next piece starts before the current one has stopped, by the time
    it takes the current piece to cover its last eps plus the time the next one takes to
@@ -113,7 +117,8 @@ from ...planning import speed_profile
 from .blend import _desired_motion
 from .inverse import (END_REST, INVERSE_REACH, LEAD, PRECOMPENSATION_ROUNDS,
                       PRECOMPENSATION_TOLERANCE, _drive_sequence, axis_zoh)
-from .landing import _land_on_end
+from .landing import _arrival, _land_on_end
+from .shaper import time_law_shaper, tool_lead
 from .shorten import (DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES, SHORTEN_START,
                       _shorten_pieces, _unit, move_tolerance)
 
@@ -244,13 +249,24 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     options = dict(drive_fraction=drive_fraction, path_tolerance=path_tolerance,
                    grid_size=grid_size, max_samples=max_samples)
 
+    def shaped_or_rigid(tolerance):
+        # a mode declared: the time law shaped at it; where no shaped profile is within
+        # the drive limit (the easing of step 4 collapses on a sharp turn the shaper's
+        # length spans), the rigid plan, as for a machine without a mode
+        try:
+            return _plan_motion(curve, machine, feed, tolerance, **options)
+        except InfeasibleError:
+            if time_law_shaper(machine) is None:
+                raise
+        return _plan_motion(curve, machine, feed, tolerance, shape=False, **options)
+
     def stopping_plan():
-        return _plan_motion(curve, machine, feed, 0.0, **options)
+        return shaped_or_rigid(0.0)
 
     if corner_tolerance == 0:
         return stopping_plan()
     try:
-        plan = _plan_motion(curve, machine, feed, corner_tolerance, **options)
+        plan = shaped_or_rigid(corner_tolerance)
     except InfeasibleError as refused:
         try:
             return stopping_plan()
@@ -268,11 +284,15 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
 
 def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: float, *,
                  drive_fraction: float, path_tolerance: float, grid_size: int,
-                 max_samples: int) -> MotionPlan:
-    """:func:`plan_motion` for one corner tolerance (its arguments checked)."""
+                 max_samples: int, shape: bool = True) -> MotionPlan:
+    """:func:`plan_motion` for one corner tolerance (its arguments checked); ``shape``:
+    the time law shaped at the model's modes (:func:`.shaper.time_law_shaper`)."""
     Ts = machine.sample_period
     umax = machine.max_drive
     lead = LEAD
+    # None without a mode: the rigid plan as it was
+    shaper = time_law_shaper(machine) if shape else None
+    shaped_reach = 0 if shaper is None else len(shaper) - 1
     eases: list = []  # per round: (low, high [pulse], factor) arrays, by falling factor
     spacing = 2.0 * curve.length / grid_size
 
@@ -317,13 +337,15 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
                                               f"needed {last_use:.3g} x Umax) slowed it "
                                               "this far"))
         y, param, corners, earliest = _desired_motion(curve, profile, Ts, corner_tolerance,
-                                                     lead)
+                                                     lead, shaper)
         y = np.vstack([y, np.repeat(y[-1:], END_REST, axis=0)])
         param = np.concatenate([param, np.ones(END_REST)])
         earliest = np.concatenate([earliest, np.full(END_REST, np.nan)])
         # A round within the limit that is as near y as the best one, give or take what
         # the loop cannot see (PRECOMPENSATION_TOLERANCE), ends the easing.
-        plant, peaks = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS,
+        # a mode declared: the rigid motion leads the tool by what the mode lags it
+        target = y if shaper is None else y + tool_lead(y, machine, shaper, corners)
+        plant, peaks = _drive_sequence(target, machine, PRECOMPENSATION_ROUNDS,
                                        drive_fraction * umax * (1 + 1e-9),
                                        PRECOMPENSATION_TOLERANCE)
         if plant is not None:
@@ -345,7 +367,8 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
                 everywhere = True
             widen *= 2.0
         last_use = use
-        half = np.maximum(speed * Ts * (1 + INVERSE_REACH) * widen, spacing)
+        # (a shaped time law mixes the profile over the shaper's length as well)
+        half = np.maximum(speed * Ts * (1 + INVERSE_REACH + shaped_reach) * widen, spacing)
         # The first round's excess is the profile's own (its drive scales with its limit):
         # divided by it; what is left comes from further away (module docstring, step 4).
         factor = (drive_fraction / per_sample[k]) ** (1 + len(eases))
@@ -380,7 +403,7 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
     else:
         # The excess that easing could not remove comes from the pre-compensation's last
         # rounds (motion near the Nyquist frequency): keep its last round within the limit.
-        plant, peaks = _drive_sequence(y, machine, PRECOMPENSATION_ROUNDS,
+        plant, peaks = _drive_sequence(target, machine, PRECOMPENSATION_ROUNDS,
                                        drive_fraction * umax * (1 + 1e-9))
         if plant is None:
             use = float(np.max(peaks)) / umax
@@ -388,6 +411,16 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
                 f"the planned drive needs {use:.3g} x Umax after {DRIVE_FIT_ROUNDS} rounds "
                 "of easing the path speed's drive limit where it exceeds it")
     w, theta, u = plant
+    if shaper is not None:
+        # Steps 5 and 6 re-time the end and short moves at the rigid plant's limit: their
+        # bang-bang drives would ring the mode the shaped time law leaves alone.
+        landed = _arrival(y)
+        theta[-1] = y[-1]
+        w[-1] = 0.0
+        return MotionPlan(position=theta, speed=w, drive=u, parameter=param, desired=y,
+                          drive_fraction=drive_fraction, corner_times=corners,
+                          sample_period=Ts, arrival=landed,
+                          corner_tolerance=float(corner_tolerance))
     tangent = _unit(curve(1.0, 1, "left"))
     landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax, tangent, curve,
                           param, feed)

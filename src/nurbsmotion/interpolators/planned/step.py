@@ -15,6 +15,7 @@ from ... import stepping
 from ...control import pid_affine, pid_output
 from .governor import _demand, _rate_room, _support_at, _window_rate
 from .guards import _guarded, _short_of_stop
+from .shaper import twist_at
 from .identify import (LAW_ROWS, _delayed_zoh, _estimated_delayed_plant, _estimated_plant,
                        _identify, _landing_law, _plant_part, _pole_gains)
 
@@ -204,9 +205,16 @@ def online_step(plan, state, position, umax, out_setpoint):
             d = est[4, j] / (b1e + ce * b0e - ae * b1e)
         u1, u2 = hist[0, j] + d, hist[1, j] + d
         g0w, g0th, g1w, g1th = _delayed_zoh(ae, b0e, ce, b1e, delay)
-        w_last = (hist[3, j] - g0th * u1 - g1th * u2) / ce
+        # a mode declared: what the encoder reads of the model's twist under the plan's
+        # drive is taken off the reading (.shaper.encoder_offset), so the feedback acts
+        # on the deviation from the model's own response, not on the twist it plans
+        tw_now, tw_step = 0.0, 0.0
+        if moded and plan.twist.shape[0] > 0:
+            tw_now = twist_at(plan.twist, phi, j)
+            tw_step = tw_now - twist_at(plan.twist, phi - rate_old, j)
+        w_last = (hist[3, j] - tw_step - g0th * u1 - g1th * u2) / ce
         w_now = ae * w_last + g0w * u1 + g1w * u2
-        th_now = position[j]
+        th_now = position[j] - tw_now
         if delay > 0.0:
             # the state this sample's drive will meet, `delay` samples on, the last
             # drive acting meanwhile: from there the drive acts for a whole sample, so the
