@@ -160,6 +160,7 @@ def plan_only_case(i: int) -> dict:
         row["error"] = f"{type(exc).__name__}: {exc}"
         return row
     row["arrival"] = interp.plan.rest * m.sample_period
+    row["shorten_status"] = interp.shorten_status
     row["sampled_bound"] = sampled_stop_bound(curve, m)
     row["length"] = curve.length
     return row
