@@ -39,7 +39,9 @@ Run: PLANNER_SWEEP_CASES=1000 python benchmarks/planner_sweep.py   (default 1000
 line); ``PLANNER_SWEEP_REPORT=FILE`` prints the report of such a file's first
 ``PLANNER_SWEEP_CASES`` rows instead of running (a sweep stopped part-way);
 ``PLANNER_SWEEP_FIRST=k`` runs cases k, k + 1, ... (a part of the sweep in a second
-process).
+process); with ``PLANNER_SWEEP_PLAN_ONLY=1``, ``PLANNER_SWEEP_REFERENCE=FILE`` (a log of
+another tree) lists the cases whose arrival differs from that log's, and the report counts
+the plans whose step 6 stopped at its work budget (``shorten_work``).
 """
 
 from __future__ import annotations
@@ -160,6 +162,7 @@ def plan_only_case(i: int) -> dict:
         row["error"] = f"{type(exc).__name__}: {exc}"
         return row
     row["arrival"] = interp.plan.rest * m.sample_period
+    row["shorten_status"] = interp.shorten_status
     row["sampled_bound"] = sampled_stop_bound(curve, m)
     row["length"] = curve.length
     return row
@@ -215,6 +218,18 @@ def report_plan_only(rows: list) -> None:
           f"{np.mean(short) * 100:.1f} % of {len(short)}")
     below = [r for r in ran if r["arrival"] < r["sampled_bound"] - 1e-9]
     print(f"plans arriving before the sampled bound: {len(below)}")
+    budget = [r for r in ran if r.get("shorten_status") == "work budget"]
+    print(f"plans whose step 6 stopped at its work budget (shorten_work): {len(budget)}")
+    if os.environ.get("PLANNER_SWEEP_REFERENCE"):   # a log of the same cases, another tree
+        import json
+        with open(os.environ["PLANNER_SWEEP_REFERENCE"]) as f:
+            ref = {r["case"]: r for r in map(json.loads, f) if r["status"] == "ran"}
+        Ts = die_bonder().sample_period
+        later = [(r["case"], round((r["arrival"] - ref[r["case"]]["arrival"]) / Ts))
+                 for r in ran if r["case"] in ref]
+        moved = [(c, d) for c, d in later if d != 0]
+        print(f"arrival against the reference, of {len(later)} cases: {len(moved)} differ "
+              f"(case, samples later): {moved}")
     print("slowest plans:")
     for r in sorted(ran, key=lambda r: r["planning_cpu"])[-12:]:
         print(f"  case {r['case']} {r['family']} {r['n_axes']} axes {r['condition']}, "

@@ -1365,6 +1365,72 @@ def test_programs_that_grow_are_warm_started_to_scipys_optimum(seed):
         assert np.all(A_ub @ x <= b_ub + 1e-7) and np.allclose(A_eq @ x, 0.0, atol=1e-7)
 
 
+def test_a_program_stops_where_its_work_budget_runs_out():
+    """Step 6's work budget (issue 35) is counted in simplex pivots times the program's
+    rows: a program given less than it needs returns no motion and marks the budget
+    exhausted; given enough, it reaches scipy's ``linprog`` optimum and spends exactly
+    its pivots times its rows (HiGHS' own count), so the plan is the same on any machine
+    and at any load."""
+    from scipy import sparse
+    from scipy.optimize import linprog
+    from nurbsmotion.interpolators.planned.shorten import _WarmProgram, _Work
+
+    rng = np.random.default_rng(3)
+    n, m_ub, m_eq = 40, 60, 8
+    A_eq = sparse.csr_matrix(rng.normal(size=(m_eq, n)))
+    A_ub = sparse.csr_matrix(np.hstack([rng.normal(size=(m_ub, n - 1)), -np.ones((m_ub, 1))]))
+    b_ub = rng.uniform(0.5, 1.5, m_ub)
+    bounds = np.column_stack([np.full(n, -1.0), np.full(n, 1.0)])
+    bounds[-1] = (0.0, np.inf)
+    cost = np.r_[rng.normal(size=n - 1) * 0.01, 1.0]
+    rows = m_ub + m_eq
+    ample = _Work(1e9)
+    x = _WarmProgram(ample).solve(cost, A_ub, b_ub, A_eq, bounds)
+    ref = linprog(cost, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=np.zeros(m_eq),
+                  bounds=bounds, method="highs")
+    assert x is not None and not ample.exhausted
+    assert cost @ x == pytest.approx(ref.fun, rel=1e-7, abs=1e-9)
+    pivots = (1e9 - ample.left) / rows
+    assert pivots >= 1 and pivots == int(pivots)
+    short = _Work((pivots - 1) * rows)
+    assert _WarmProgram(short).solve(cost, A_ub, b_ub, A_eq, bounds) is None
+    assert short.exhausted
+
+
+def test_a_short_move_keeps_the_earliest_arrival_found_within_its_work_budget():
+    """Step 6's search (issue 35) under a work budget (``shorten_work``): with none the
+    search is complete; with one too small for any program the plan of steps 1-5 stays,
+    and with one that runs out on the way the plan arrives no sooner than without it but
+    no later than steps 1-5 alone; either way the plan says so and the interpolator's
+    notes (the run's message) too. A bad budget is refused by name."""
+    from nurbsmotion.errors import InvalidArgumentError
+    from nurbsmotion.paths.random_paths import random_path
+
+    curve = random_path("short_moves", [10, 7], n_axes=3)
+    machine, feed = _three_axes(), 1e6
+    full = plan_motion(curve, machine, feed, shorten_work=math.inf)
+    assert full.shorten_status == "complete"
+    assert plan_motion(curve, machine, feed).arrival == full.arrival
+    none = plan_motion(curve, machine, feed, shorten_work=1e-3)
+    assert none.shorten_status == "work budget"
+    assert none.arrival > full.arrival
+    for work in (3e3, 3e4):
+        plan = plan_motion(curve, machine, feed, shorten_work=work)
+        assert full.arrival <= plan.arrival <= none.arrival
+        if plan.shorten_status == "complete":
+            assert plan.arrival == full.arrival
+        assert np.max(np.abs(plan.drive)) <= machine.max_drive
+        np.testing.assert_array_equal(plan.position[plan.arrival:], np.broadcast_to(
+            curve(1.0), plan.position[plan.arrival:].shape))
+    interp = PlannedInterpolator(curve, machine, feed, shorten_work=1e-3)
+    assert interp.shorten_status == "work budget"
+    assert any("work budget" in note for note in interp.notes)
+    assert not PlannedInterpolator(curve, machine, feed).notes
+    for bad in (0, -1.0, True, "1e5", math.nan):
+        with pytest.raises(InvalidArgumentError, match="shorten_work"):
+            plan_motion(curve, machine, feed, shorten_work=bad)
+
+
 def test_the_narrow_trust_region_starts_its_programs_cold(monkeypatch):
     """Step 6 (issue 35): an arrival sample's narrow trust region, tried where the wide one
     finds no motion, starts from no basis: warm-started from the wide region's last one,

@@ -25,7 +25,7 @@ from .inverse import axis_zoh
 from .mode_law import MODE_LAW_ROWS, mode_landing_law
 from .plan import plan_motion
 from .shaper import encoder_offset, shape_plan
-from .shorten import DEFAULT_PATH_TOLERANCE
+from .shorten import DEFAULT_PATH_TOLERANCE, DEFAULT_SHORTEN_WORK
 from .step import DRIVE_MATCH, LANDING_ROWS, planned_step
 
 __all__ = ["PlannedInterpolator", "PlannedPlan", "PlannedState", "DEFAULT_TRACKING_POLE",
@@ -139,6 +139,10 @@ class PlannedInterpolator(Interpolator):
         Arc-length grid of the offline speed profile.
     max_samples : int
         A plan longer than this many samples is refused.
+    shorten_work : float
+        > 0: the simplex work a short move's search may spend per sample, in pivot-rows
+        (:data:`~.shorten.DEFAULT_SHORTEN_WORK`; ``math.inf``: no budget). Where it runs
+        out, the plan keeps the earliest arrival found so far and :attr:`notes` says so.
     mode_shaper : bool
         Shape the plan's drive *axis by axis* at the model machine's two-mass modes (ZVD,
         :func:`.shaper.shape_plan`) and steer to the encoder's reading of the model's
@@ -166,7 +170,8 @@ class PlannedInterpolator(Interpolator):
                  drive_fraction: float = 1.0,
                  tracking_pole: float = DEFAULT_TRACKING_POLE,
                  drive_headroom: float = DEFAULT_DRIVE_HEADROOM, grid_size: int = 4000,
-                 max_samples: int = 10_000_000, mode_shaper: bool = False):
+                 max_samples: int = 10_000_000, mode_shaper: bool = False,
+                 shorten_work: float = DEFAULT_SHORTEN_WORK):
         machine.check_path(curve.n_axes)
         super().__init__(curve, machine.sample_period)
         feed = feed if isinstance(feed, FeedLimit) else positive_feed(feed)
@@ -190,13 +195,20 @@ class PlannedInterpolator(Interpolator):
         # memory is mostly these per-sample arrays.
         p = plan_motion(curve, machine, feed, corner_tolerance=corner_tolerance,
                         path_tolerance=path_tolerance, drive_fraction=drive_fraction,
-                        grid_size=grid_size, max_samples=max_samples)
+                        grid_size=grid_size, max_samples=max_samples,
+                        shorten_work=shorten_work)
         if mode_shaper:  # the drive shaped at the model's modes (shaper.py; opt-in)
             p = shape_plan(p, machine, curve)
         self.duration = p.duration
+        self.shorten_status = p.shorten_status   # step 6's search (MotionPlan's)
         if corner_tolerance > 0 and p.stop_times.size:  # asked to round, but stops
-            self.notes = ("the motion stops at the sharp corners: rounding them within the "
-                          "corner tolerance would not arrive sooner",)
+            self.notes += ("the motion stops at the sharp corners: rounding them within the "
+                           "corner tolerance would not arrive sooner",)
+        if p.shorten_status == "work budget":
+            self.notes += (f"the short move's search for its earliest arrival stopped at its "
+                           f"work budget (shorten_work={shorten_work:g} pivot-rows a "
+                           f"sample): it arrives at sample {p.arrival}, the earliest found "
+                           f"before that",)
         a, b0, c, b1 = axis_zoh(machine)
         drive_speed = p.speed / machine.Kc
         drive_accel = np.zeros_like(p.speed)

@@ -92,7 +92,10 @@ is built offline in six steps:
    which one is). Each program but the first of a sample's trust region is
    warm-started from the last one's basis (HiGHS' dual simplex through ``highspy``),
    where a round holds more points as well. The nearest path points of the motion found move
-   by at most ``F*Ts +`` :data:`FEED_SLACK` a sample.
+   by at most ``F*Ts +`` :data:`FEED_SLACK` a sample. The search spends at most
+   ``shorten_work`` pivot-rows of simplex work per sample of a piece (a deterministic
+   budget, :data:`.shorten.DEFAULT_SHORTEN_WORK`); where that runs out, the piece keeps
+   the earliest arrival found so far and the plan's ``shorten_status`` says so.
 
 The plan is a :class:`MotionPlan`: arrays only, for the online step.
 
@@ -119,8 +122,8 @@ from .inverse import (END_REST, INVERSE_REACH, LEAD, PRECOMPENSATION_ROUNDS,
                       PRECOMPENSATION_TOLERANCE, _drive_sequence, axis_zoh)
 from .landing import _arrival, _land_on_end
 from .shaper import time_law_shaper, tool_lead
-from .shorten import (DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES, SHORTEN_START,
-                      _shorten_pieces, _unit, move_tolerance)
+from .shorten import (DEFAULT_PATH_TOLERANCE, DEFAULT_SHORTEN_WORK, SHORT_MOVE_SAMPLES,
+                      SHORTEN_START, _shorten_pieces, _unit, move_tolerance)
 
 __all__ = ["MotionPlan", "plan_motion", "axis_zoh", "move_tolerance"]
 
@@ -166,6 +169,11 @@ class MotionPlan:
         never leaves the start).
     corner_tolerance : float
         eps [pulse] the plan was made with (0: it stops at every sharp corner).
+    shorten_status : str
+        Step 6's search: ``"not run"`` (not a short move, or its corners blended),
+        ``"complete"``, or ``"work budget"`` (it stopped where its work budget ran out,
+        ``shorten_work`` of :func:`plan_motion`: ``arrival`` is the earliest found before
+        that, which a search without the budget may improve on).
     """
 
     position: np.ndarray
@@ -178,6 +186,7 @@ class MotionPlan:
     sample_period: float
     arrival: int
     corner_tolerance: float = 0.0
+    shorten_status: str = "not run"
 
     @property
     def stop_times(self) -> np.ndarray:
@@ -203,7 +212,8 @@ class MotionPlan:
 def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
                 corner_tolerance: float = 0.0, drive_fraction: float = 1.0,
                 path_tolerance: float = DEFAULT_PATH_TOLERANCE, grid_size: int = 4000,
-                max_samples: int = 10_000_000) -> MotionPlan:
+                max_samples: int = 10_000_000,
+                shorten_work: float = DEFAULT_SHORTEN_WORK) -> MotionPlan:
     """Plan the actual motion along ``curve`` and the drive that makes it (module docstring).
 
     Parameters
@@ -225,6 +235,10 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         Arc-length grid of the speed profile.
     max_samples : int
         A plan longer than this is refused.
+    shorten_work : float
+        > 0 (``math.inf``: no budget): the simplex work step 6 may spend on a piece, per
+        sample of the piece's plan, in pivot-rows (:data:`.shorten.DEFAULT_SHORTEN_WORK`);
+        the plan's ``shorten_status`` says whether it ran out.
 
     Returns
     -------
@@ -236,7 +250,8 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
     Raises
     ------
     InvalidArgumentError
-        If a tolerance is not finite and >= 0, or ``drive_fraction`` not in (0, 1].
+        If a tolerance is not finite and >= 0, ``drive_fraction`` not in (0, 1], or
+        ``shorten_work`` not > 0.
     InfeasibleError
         If the drive cannot move along the path or the plan is too long.
     """
@@ -246,8 +261,12 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
             raise InvalidArgumentError(f"{name} must be finite and >= 0, got {value!r}")
     if not (0 < drive_fraction <= 1):
         raise InvalidArgumentError(f"drive_fraction must lie in (0, 1], got {drive_fraction!r}")
+    if isinstance(shorten_work, bool) or not (isinstance(shorten_work, (int, float))
+                                              and shorten_work > 0):
+        raise InvalidArgumentError(f"shorten_work must be a number > 0 (math.inf: no "
+                                   f"budget), got {shorten_work!r}")
     options = dict(drive_fraction=drive_fraction, path_tolerance=path_tolerance,
-                   grid_size=grid_size, max_samples=max_samples)
+                   grid_size=grid_size, max_samples=max_samples, shorten_work=shorten_work)
 
     def shaped_or_rigid(tolerance):
         # a mode declared: the time law shaped at it; where no shaped profile is within
@@ -284,7 +303,7 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
 
 def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: float, *,
                  drive_fraction: float, path_tolerance: float, grid_size: int,
-                 max_samples: int, shape: bool = True) -> MotionPlan:
+                 max_samples: int, shorten_work: float, shape: bool = True) -> MotionPlan:
     """:func:`plan_motion` for one corner tolerance (its arguments checked); ``shape``:
     the time law shaped at the model's modes (:func:`.shaper.time_law_shaper`)."""
     Ts = machine.sample_period
@@ -426,15 +445,18 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
                           param, feed)
     y[landed:] = y[-1]       # the desired motion rests where the plan does
     param[landed:] = 1.0
+    shorten_status = "not run"
     if landed <= SHORT_MOVE_SAMPLES and (corners.size == 0 or corner_tolerance == 0):
         stops = np.array([piece[1][0] for piece in profile.pieces] + [1.0])
-        short = _shorten_pieces(curve, stops, corners, theta, param, landed, machine,
-                                drive_fraction * umax, path_tolerance, tangent, feed,
-                                estimate)
+        short, exhausted = _shorten_pieces(curve, stops, corners, theta, param, landed,
+                                           machine, drive_fraction * umax, path_tolerance,
+                                           tangent, feed, estimate, shorten_work)
+        shorten_status = "work budget" if exhausted else "complete"
         if short is not None:
             landed, y, param, w, theta, u, corners = short
     theta[-1] = y[-1]
     w[-1] = 0.0
     return MotionPlan(position=theta, speed=w, drive=u, parameter=param, desired=y,
                       drive_fraction=drive_fraction, corner_times=corners, sample_period=Ts,
-                      arrival=landed, corner_tolerance=float(corner_tolerance))
+                      arrival=landed, corner_tolerance=float(corner_tolerance),
+                      shorten_status=shorten_status)

@@ -60,6 +60,20 @@ program, started from the motion found a sample later and compressed by one, fin
 once or, after one re-linearisation, in the second; past that the rounds only spend
 programs on a sample that a motion on the path cannot have."""
 
+DEFAULT_SHORTEN_WORK = 3e5
+"""How much simplex work step 6 may spend on a piece, per sample of the piece's plan
+(a user parameter, ``shorten_work`` of :func:`.plan.plan_motion`), counted in pivots
+times the rows of the program pivoted (:class:`_Work`): a pivot's CPU time grows with the
+program's rows, and so the count follows the CPU time (correlation 0.96 over the 695
+programs of cases 0-119 of ``benchmarks/planner_sweep.py``, 5e-8 to 1e-7 s a pivot-row on
+the project's machine), but it is the same on any machine and at any load, so the plan is
+too. Where the budget runs out, the piece keeps the earliest arrival found so far (the
+plan's own if none) and the plan says so (:attr:`.plan.MotionPlan.shorten_status`).
+The default keeps a 3-axis move of 60-120 samples, whose programs have 2,400-8,000 rows,
+to about 1-2 s of CPU: on cases 0-119 of the sweep the largest planning time falls from
+10.3 to 2.0 s and 10 plans meet the budget, 4 of them arriving later (1, 1, 2 and 5
+samples); benchmarks/planner_sweep_plan_only.md has the 20 slowest cases."""
+
 DEFAULT_PATH_TOLERANCE = 1.0
 """How far [pulse] from the path step 6 may take a short move's motion by default: one
 pulse, the encoder's resolution (the plan it replaces is held within a quarter of it,
@@ -153,6 +167,25 @@ def _silent(Highs):
     return highs
 
 
+class _Work:
+    """Step 6's work budget for one piece (:data:`DEFAULT_SHORTEN_WORK`): ``left``
+    pivot-rows (a pivot of a program of R rows counts R), and whether a program ran out
+    of it (``exhausted``; the search then stops where it is)."""
+
+    def __init__(self, left: float = math.inf):
+        self.left = left
+        self.exhausted = False
+
+    def pivots(self, rows: int) -> int:
+        """The most pivots a program of ``rows`` rows may take (HiGHS' iteration limit)."""
+        if math.isinf(self.left):
+            return 2**31 - 1
+        return int(max(self.left, 0.0) // max(rows, 1))
+
+    def spend(self, pivots: int, rows: int) -> None:
+        self.left -= pivots * rows
+
+
 class _WarmProgram:
     """The linear programs of one arrival sample of step 6, solved by HiGHS' dual simplex
     (Huangfu & Hall 2018, through ``highspy``), each from the last one's optimal basis:
@@ -164,16 +197,18 @@ class _WarmProgram:
     their status, the new rows are basic (their slacks, as a cutting-plane method
     restarts its dual simplex) and the new columns at their lower bounds."""
 
-    def __init__(self):
+    def __init__(self, work: "_Work | None" = None):
         self.highs = None
         self.basis = None
         self.keys = None
+        self.work = work if work is not None else _Work()
 
     def solve(self, cost, A_ub, b_ub, A_eq, bounds, row_keys=None, col_keys=None):
         """Minimise ``cost @ x`` subject to ``A_ub @ x <= b_ub``, ``A_eq @ x = 0`` and the
-        ``bounds`` (n, 2) of x; the optimal x, or None where there is none. ``row_keys``
-        (rows of A_ub then A_eq,) and ``col_keys`` (n,), integers, name the rows and
-        columns that the next program may share (default: by position)."""
+        ``bounds`` (n, 2) of x; the optimal x, or None where there is none or where the
+        work budget (``work``, :class:`_Work`) runs out first (``work.exhausted``).
+        ``row_keys`` (rows of A_ub then A_eq,) and ``col_keys`` (n,), integers, name the
+        rows and columns that the next program may share (default: by position)."""
         from scipy import sparse
 
         highspy, Highs = _highs()
@@ -204,12 +239,23 @@ class _WarmProgram:
         h.setOptionValue("presolve", "off" if basis is not None else "choose")
         if basis is not None:
             h.setBasis(basis)
-        h.run()
-        if basis is not None and h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+        rows, work = A.shape[0], self.work
+        out_of_work = highspy.HighsModelStatus.kIterationLimit
+
+        def run():
+            h.setOptionValue("simplex_iteration_limit", work.pivots(rows))
+            h.run()
+            work.spend(h.getInfo().simplex_iteration_count, rows)
+            if h.getModelStatus() == out_of_work:
+                work.exhausted = True
+            return not work.exhausted
+
+        if (run() and basis is not None
+                and h.getModelStatus() != highspy.HighsModelStatus.kOptimal):
             # a carried-over basis is a start, never a verdict: the program decides cold
             h.clearSolver()
             h.setOptionValue("presolve", "choose")
-            h.run()
+            run()
         if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
             self.basis = None
             return None
@@ -467,7 +513,8 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
 
 def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarray,
              arrival: int, machine: Machine, limit: float, tolerance: float,
-             tangent: np.ndarray, feed, earliest: int | None = None):
+             tangent: np.ndarray, feed, earliest: int | None = None,
+             work: "_Work | None" = None):
     """Step 6 (module docstring): the plan ``theta`` (n, n_axes) of a move along the
     ``span`` of the curve that does not stop on the way, from rest on its start at
     sample 0 to rest on its end at ``arrival`` (<= :data:`SHORT_MOVE_SAMPLES`),
@@ -491,9 +538,12 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
     guess of the nearest points is the plan's (its parameters ``param``, shape (n,)),
     compressed in time to arrive at N; each later N starts from the last motion found,
     compressed by a sample. The programs of one N and trust region are warm-started
-    (:class:`_WarmProgram`; the narrow region's first program starts cold).
+    (:class:`_WarmProgram`; the narrow region's first program starts cold). Where the
+    ``work`` budget (:class:`_Work`) runs out, the search stops there with the earliest
+    N found so far (None if none).
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
+    work = work if work is not None else _Work()
     Ts = machine.sample_period
     start, end = curve(span.u0), curve(span.u1)
     plant = ServoPlant.of_machine(machine, start)
@@ -544,10 +594,11 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
             # pivots and 5 s of CPU through its unboundedness checks on case 71, where
             # presolve proves it infeasible cold in 0.13 s)
             for wide in (True, False):
-                found = found or _shorten_at(curve, span, plant, zoh, N,
-                                             np.maximum.accumulate(guess),
-                                             limit, tolerance, tangent, feed, Ts, wide,
-                                             most_rounds, _WarmProgram())
+                if found is None and not work.exhausted:
+                    found = _shorten_at(curve, span, plant, zoh, N,
+                                        np.maximum.accumulate(guess), limit, tolerance,
+                                        tangent, feed, Ts, wide, most_rounds,
+                                        _WarmProgram(work))
             if found is not None:
                 best = (N, *found, zoh)
                 known[:] = [np.concatenate([[float(LEAD)], t, [N]]),
@@ -571,7 +622,7 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
             floor = max(earliest - SHORTEN_START, low) if tolerance <= path_tolerance else low
             N = min(max(earliest, low), top)
             if not found_at(N, SHORTEN_STALL if N < top else SHORTEN_ROUNDS):
-                if N == top:
+                if N == top or work.exhausted:
                     return None    # the top, in full: no motion found to start from
                 N, probe = top + 1, N
 
@@ -593,9 +644,9 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
              for t in dict.fromkeys([tolerance, max(tolerance, own)]) if t > 0]
     for top, tolerance in tries:
         best = descend(tolerance, top)
-        if best is not None:
+        if best is not None or work.exhausted:
             break
-    else:
+    if best is None:
         return None
     N, u_moving, s_fine, zoh = best
     Q = zoh[0].shape[0] - 1
@@ -616,7 +667,7 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
 def _shorten_pieces(curve: NurbsCurve, stops: np.ndarray, corner_times: np.ndarray,
                     theta: np.ndarray, param: np.ndarray, arrival: int, machine: Machine,
                     limit: float, tolerance: float, tangent: np.ndarray, feed,
-                    earliest=None):
+                    earliest=None, work: float = DEFAULT_SHORTEN_WORK):
     """Step 6 from stop to stop: every piece of the plan ``theta`` (n, n_axes; its
     parameters ``param`` (n,), at rest on the end at ``arrival``) between the stops at
     the curve parameters ``stops`` (n_pieces + 1,: the start, the stop corners, the end),
@@ -628,9 +679,13 @@ def _shorten_pieces(curve: NurbsCurve, stops: np.ndarray, corner_times: np.ndarr
     from its first sample, and the online step knows an axis' plant only once it has
     seen it move (on the die-bonder's Pi, whose x starts at the first corner, plants
     with tau x0.8 and Kc x1.2 then went 71 um off the arch; the plan of the whole path
-    starts the x drive over the sample in which y still brakes). Returns
-    ``(N, y, param, w, theta, u, corner_times)``: the arrays as :func:`_shorten`'s, the
-    corner times whole samples."""
+    starts the x drive over the sample in which y still brakes). Each piece may spend
+    ``work`` pivot-rows per sample of its plan (:data:`DEFAULT_SHORTEN_WORK`).
+
+    Returns ``(short, exhausted)``: ``short`` is None (as above) or
+    ``(N, y, param, w, theta, u, corner_times)``, the arrays as :func:`_shorten`'s, the
+    corner times whole samples; ``exhausted`` says whether a piece's search stopped at its
+    work budget (it then has the earliest arrival found before it ran out)."""
     edges = np.concatenate([[0.0], corner_times, [float(arrival)]])
     # the plan's samples around each piece: from the last before its first stop to the
     # first after its next (the end: all, for the ringing after it)
@@ -641,29 +696,32 @@ def _shorten_pieces(curve: NurbsCurve, stops: np.ndarray, corner_times: np.ndarr
         before, moving = (np.ptp(theta[k:m], axis=0) > moves for k, m in ((0, a + 1),
                                                                           (a, b + 1)))
         if np.any(moving & ~before):
-            return None
+            return None, False
     parts = []
+    exhausted = False
     for i, (a, b) in enumerate(zip(first, after)):
         last = i == len(stops) - 2
+        budget = _Work(work * (b - a))
         piece = _shorten(curve, _Span.of(curve, stops[i], stops[i + 1]),
                          theta[a:] if last else theta[a:b + 1], param[a:b + 1], b - a,
                          machine, limit, tolerance,
                          tangent if last else _unit(curve(stops[i + 1], 1, "left")), feed,
-                         None if earliest is None else int(earliest[i]))
+                         None if earliest is None else int(earliest[i]), budget)
+        exhausted |= budget.exhausted
         if piece is None:
-            return None
+            return None, exhausted
         parts.append(piece)
     if len(parts) == 1:
-        return parts[0] + (corner_times,)
+        return parts[0] + (corner_times,), exhausted
     N = sum(part[0] for part in parts)
     if N >= arrival:
-        return None
+        return None, exhausted
     # piece by piece, each up to its arrival; the last with its rest on the end
     cut = [part[0] for part in parts[:-1]] + [len(parts[-1][1])]
     y, param, w, theta, u = (np.concatenate([part[q][:k] for part, k in zip(parts, cut)])
                              for q in range(1, 6))
     return (N, y, param, w, theta, u,
-            np.cumsum([part[0] for part in parts[:-1]]).astype(float))
+            np.cumsum([part[0] for part in parts[:-1]]).astype(float)), exhausted
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
