@@ -402,3 +402,41 @@ def test_hard_two_mass_axes_within_the_targets(truth, base_tau, base_kc):
         truth["resonance_frequency"], rel=0.02)
     assert est["resonance_damping"].value == pytest.approx(truth["resonance_damping"],
                                                            rel=0.30)
+
+
+@pytest.mark.parametrize("truth, base_tau, base_kc, delay, noise, seed", [
+    # The largest bin of the rigid fit's residual periodogram lay on the rigid misfit
+    # (a few Hz): the mode, started there alone, was never found, and tau came out 46 %
+    # short (benchmarks/identify_eval.py seed 101).
+    ({"time_constant": 0.45, "gain": 1283.9 * KE, "coulomb_friction": 0.498,
+      "stiction": 0.766, "resonance_frequency": 156.2, "resonance_damping": 0.073,
+      "load_fraction": 0.63, "encoder_on": "load"}, 0.496, 931.0, 1.33e-3, 0.33, 101),
+    # The stiction was scanned on a fit bent to the stiction held before (the Coulomb
+    # friction), found there again, and written as the Coulomb friction (31 % short),
+    # tau 1.8 % off (seed 82).
+    ({"time_constant": 0.3626, "gain": 2386.5 * KE, "coulomb_friction": 0.255,
+      "stiction": 0.374, "resonance_frequency": 89.66, "resonance_damping": 0.0158,
+      "load_fraction": 0.60, "encoder_on": "load"}, 0.312, 2139.0, 1.95e-3, 0.14, 82),
+])
+def test_encoder_on_the_load_with_stiction_within_the_targets(truth, base_tau, base_kc,
+                                                              delay, noise, seed):
+    """Two-mass axes with friction on the motor and the encoder on the load, whose
+    identification missed in the evaluation: the targets, and the stiction within the
+    Coulomb friction's 10 %."""
+    base = _one_axis(base_tau, base_kc)
+    _, drive = excitation(base, seed=seed)
+    y = simulate_log(truth, drive[:, 0], TS, delay=delay, encoder="counts", noise=noise,
+                     seed=seed, rtol=1e-9)
+    result = identify(log_from_arrays(drive, y[:, None], TS), base)
+    est = result.axes[0].estimates
+    assert est["time_constant"].value == pytest.approx(truth["time_constant"], rel=0.02)
+    assert est["electrical_gain"].value * KE == pytest.approx(truth["gain"], rel=0.02)
+    assert abs(est["delay"].value - delay) <= 0.1 * TS
+    assert est["coulomb_friction"].value == pytest.approx(truth["coulomb_friction"],
+                                                          rel=0.10)
+    assert est["stiction"].value == pytest.approx(truth["stiction"], rel=0.10)
+    assert est["resonance_frequency"].value == pytest.approx(
+        truth["resonance_frequency"], rel=0.02)
+    assert est["resonance_damping"].value == pytest.approx(truth["resonance_damping"],
+                                                           rel=0.30)
+    assert result.axes[0].encoder_on == "load"

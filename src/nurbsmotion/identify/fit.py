@@ -8,11 +8,12 @@ The steps (docs/identify.md):
 2. The delay by a search over fractions of a sample (and a few starts of tau), then an
    output-error fit (:func:`least_squares`, Levenberg-Marquardt) of the simulated
    increments against the logged ones: tau, G, delay and Coulomb friction.
-3. A mode: started from the peak of the residual's spectrum above the rigid body's band
-   (from the rigid fit and from the delay search's start), kept when it lowers the
-   residual clearly.
+3. A mode: started from the largest peaks of the residual's smoothed spectrum above the
+   rigid body's band (from the rigid fit and from the delay search's start; a few short
+   fits each, the best on to convergence), kept when it lowers the residual clearly.
 4. The stiction by a scan of the same residual, bounded by the breakaways (the largest
-   drive an axis held at rest); the rest refitted to it.
+   drive an axis held at rest); the rest refitted to it and the scan repeated on the
+   refit until it no longer moves the stiction.
 5. Steps 2-4 again holding the stiction the last scan found, until a scan no longer moves
    it (a fixed point, :func:`fit_axis`); the least residual is kept.
 
@@ -40,6 +41,19 @@ encoder on the load, friction on the motor)."""
 
 MAX_DELAY_SAMPLES = 8.0
 """Largest delay searched [sample periods]."""
+
+MODE_STARTS = 3
+"""Peaks of the residual's spectrum a mode is started from (the largest, in its band)."""
+
+MODE_SCREEN_ITERATIONS = 4
+"""Iterations of each start of the mode before the best one is fitted to convergence."""
+
+SPECTRUM_BINS = 5
+"""Bins of the moving average over the residual's periodogram before its peaks are
+picked. A raw periodogram's bins scatter by their own size (chi-squared with 2 degrees
+of freedom), so its largest bin is often beside the mode's peak or on the rigid fit's
+misfit; the average of 5 scatters sqrt(5) times less, and a mode that rings for several
+of the log's 1/duration bins keeps its place."""
 
 
 @dataclass
@@ -86,9 +100,15 @@ def least_squares(fn, x0, bounds, max_iterations: int = 60, **_ignored):
     nfev = 1
     lam = 1e-3
     J = None
+    # A parameter its bounds hold (lower == upper, as a log's initial speed at rest) has
+    # no column: its finite difference would step outside them (the speed off 0 jumps the
+    # model from stuck to sliding) and cost a simulation for nothing.
+    held = lower == upper
     for _ in range(max_iterations):
-        J = np.empty((r.size, x.size))
+        J = np.zeros((r.size, x.size))
         for i in range(x.size):
+            if held[i]:
+                continue
             h = 1e-6 * max(abs(x[i]), 1.0)
             xi = x.copy()
             xi[i] = x[i] + h if x[i] + h <= upper[i] else x[i] - h
@@ -100,7 +120,7 @@ def least_squares(fn, x0, bounds, max_iterations: int = 60, **_ignored):
         scale[scale <= 0] = 1.0
         # Parameters held at a bound by the gradient leave the step (an active set):
         # projecting a coupled step would spoil the others.
-        free = ~(((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0)))
+        free = ~(((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0)) | held)
         improved = False
         done = False
         for _ in range(12):
@@ -170,6 +190,25 @@ def _breakaways(u, y, Ts, noise):
             moved.append(float(abs(u[j - 1]) if j >= 1 else abs(u[j])))
         k = j
     return held, moved
+
+
+def _spectrum_peaks(spectrum, freqs, band, count: int = MODE_STARTS) -> list:
+    """The frequencies [Hz] of the ``count`` largest local maxima of the periodogram
+    ``spectrum`` (at ``freqs``) within ``band`` (a boolean mask), once smoothed over
+    :data:`SPECTRUM_BINS`; each peak more than that many bins from a larger one."""
+    width = SPECTRUM_BINS
+    smooth = np.convolve(spectrum, np.ones(width) / width, mode="same")
+    index = np.flatnonzero(band)
+    peaks = []
+    for i in index[np.argsort(smooth[index])[::-1]]:
+        if len(peaks) == count:
+            break
+        if all(abs(i - j) > width for j in peaks) and smooth[i] >= np.max(
+                smooth[max(i - width, 0):i + width + 1]):
+            peaks.append(int(i))
+    if not peaks:
+        peaks = [int(index[np.argmax(smooth[index])])]
+    return [float(freqs[i]) for i in peaks]
 
 
 def _real_mode(mode, rigid, lower, upper) -> bool:
@@ -275,20 +314,24 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
             break  # the fixed point
         held = found
         # The mode shows in the spectrum whatever the stiction: a later fit looks for it
-        # only where the first found it (the mode search is most of a fit's work).
-        sign = (math.copysign(1.0, best.values["coupling"]) if best.identified["resonance"]
-                else 0.0)
-        fit = _fit_once(u, y, Ts, noise, max_drive, base, held, sign)
+        # only where the first found it, and from its frequency (the mode search is most
+        # of a fit's work).
+        found_mode = best.identified["resonance"]
+        sign = math.copysign(1.0, best.values["coupling"]) if found_mode else 0.0
+        fit = _fit_once(u, y, Ts, noise, max_drive, base, held, sign,
+                        best.values["resonance_frequency"] if found_mode else None)
         if fit.residual_rms < best.residual_rms:
             best = fit
     return best
 
 
-def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> AxisFit:
+def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None,
+              mode_frequency=None) -> AxisFit:
     """One fit of :func:`fit_axis`, holding the stiction at ``stiction`` [V] (read as
     the Coulomb friction where below it) until its scan at the end. ``mode_sign``: None
     searches a mode with the encoder on the motor and on the load; 1.0 or -1.0 only
-    there (+1 the motor); 0.0 searches none."""
+    there (+1 the motor); 0.0 searches none. ``mode_frequency`` [Hz]: the mode is started
+    there alone, not from the residual spectrum's peaks."""
     notes: list[str] = []
     dy = np.diff(y)
     speed0 = 0.0
@@ -369,7 +412,8 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> Axi
         tries.append(least_squares(fn, x0, bounds=(lower, upper)))
         sol = min(tries, key=lambda t: t.cost)
 
-    # A mode: started at the residual spectrum's peak above the rigid body's band.
+    # A mode: started at the residual spectrum's largest peaks above the rigid body's
+    # band (a few short fits each), the best one fitted on to convergence.
     mode_sol = None
     residual = sol.fun
     n = residual.size
@@ -385,11 +429,13 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> Axi
         band = (freqs > max(5.0 / (2 * math.pi * tau_rigid), 5.0)) & (
             freqs < 0.45 / Ts)
         if np.any(band):
-            f0 = float(freqs[band][np.argmax(spectrum[band])])
             best_mode = None
             rigid_starts = [list(sol.x)] + ([list(x0)] if list(x0) != list(sol.x) else [])
             signs = (1.0, -1.0) if mode_sign is None else (mode_sign,)
-            for rigid0, coupling0 in [(r0, c0) for r0 in rigid_starts for c0 in signs]:
+            peaks = ([mode_frequency] if mode_frequency is not None else
+                     _spectrum_peaks(spectrum, freqs, band))
+            starts = [(r0, f0, c0) for f0 in peaks for r0 in rigid_starts for c0 in signs]
+            for rigid0, f0, coupling0 in starts:
                 # The friction acts on the motor: with the encoder on the load (coupling
                 # about -1) the motor's share of the twist, hence the load fraction, is a
                 # parameter of its own (on the motor it is the coupling's c / (1 + c)).
@@ -405,7 +451,7 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> Axi
                 m_fn = _residual_fn(u, dy, Ts, speed0, fixed, m_names)
                 try:
                     m_sol = least_squares(m_fn, mx0, bounds=(m_lower, m_upper),
-                                          max_iterations=10)
+                                          max_iterations=MODE_SCREEN_ITERATIONS)
                 except ValueError:
                     continue
                 if best_mode is None or m_sol.cost < best_mode[0].cost:
@@ -459,29 +505,46 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> Axi
                   "resonance": mode_sol is not None}
     stiction_sigma = math.nan
     friction = values.get("coulomb_friction", fixed.get("coulomb_friction", 0.0))
-    noise = max(noise, math.sqrt(sol.cost / max(sol.fun.size, 1)))  # rms / sqrt(2)
+    # The rests: within a count and 4 standard deviations of the reading noise, measured
+    # at the head of a log that starts at rest, else the fit's residual (rms / sqrt(2));
+    # an early fit's residual, many counts, would take slow moves for rests (and their
+    # drives, volts above the friction, for the stiction's lower bound).
+    noise = max(noise, _head_noise(y) if _starts_at_rest(y) else
+                math.sqrt(sol.cost / max(sol.fun.size, 1)))
     held, moved = _breakaways(u, y, Ts, noise)
     if friction_ok and held:
         # The largest drive an axis held at rest bounds the stiction from below (within
-        # the rest detection's threshold); the residual picks it on a grid above it.
-        hi = min(max(max(held), max(moved, default=0.0)) + 0.05 * max_drive, max_drive)
-        grid = np.linspace(friction, max(hi, friction + 1e-3 * max_drive), 31)
+        # the rest detection's threshold); the residual picks it on a grid above it,
+        # the rest is refitted to it, and the grid scanned again on the refit, until
+        # the scan no longer moves it (by STICTION_SHIFT of Umax; at most
+        # STICTION_PASSES scans): a scan on parameters bent to the stiction held before
+        # finds that stiction again.
+        i_f = names.index("coulomb_friction")
+        current = max(stiction, float(sol.x[i_f]))
+        for _ in range(STICTION_PASSES):
+            friction = float(sol.x[i_f])
+            hi = min(max(max(held), max(moved, default=0.0)) + 0.05 * max_drive, max_drive)
+            grid = np.linspace(friction, max(hi, friction + 1e-3 * max_drive), 31)
 
-        def cost_of(s):
-            r = _residual_fn(u, dy, Ts, speed0, dict(fixed, stiction=float(s)), names)(sol.x)
-            return float(r @ r)
-        costs = [cost_of(s) for s in grid]
-        i = int(np.argmin(costs))
-        step = float(grid[1] - grid[0])
-        fine = np.linspace(max(grid[i] - step, friction), grid[i] + step, 21)
-        fine_costs = [cost_of(s) for s in fine]
-        fixed["stiction"] = float(fine[int(np.argmin(fine_costs))])
-        stiction_sigma = float(fine[1] - fine[0])
-        identified["stiction"] = True
-        fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
-        if abs(fixed["stiction"] - max(stiction, friction)) > STICTION_SHIFT * max_drive:
+            def cost_of(s):
+                r = _residual_fn(u, dy, Ts, speed0, dict(fixed, stiction=float(s)),
+                                 names)(sol.x)
+                return float(r @ r)
+            costs = [cost_of(s) for s in grid]
+            i = int(np.argmin(costs))
+            step = float(grid[1] - grid[0])
+            fine = np.linspace(max(grid[i] - step, friction), grid[i] + step, 21)
+            fine_costs = [cost_of(s) for s in fine]
+            fixed["stiction"] = float(fine[int(np.argmin(fine_costs))])
+            stiction_sigma = float(fine[1] - fine[0])
+            identified["stiction"] = True
+            fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+            found = max(fixed["stiction"], friction)
+            if not abs(found - current) > STICTION_SHIFT * max_drive:
+                break
             # the rest refitted to the stiction found, from where it is
             sol = least_squares(fn, sol.x, bounds=bounds, max_iterations=20)
+            current = max(fixed["stiction"], float(sol.x[i_f]))
     elif friction_ok:
         notes.append("stiction: not identifiable, the axis never left a rest (of 5 samples "
                      "or more) in the log; add a slow drive ramp from rest")
