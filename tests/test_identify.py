@@ -319,6 +319,11 @@ def _bad_log(tmp_path, mutate, header="t,x_drive,x_pos"):
      ["'x_drive'", "row 34"]),
     (lambda r: None, "t,x_drive,x_pos [mm],y_drive,y_pos [pulse]", ["mixed units", "x_pos",
                                                                     "y_pos"]),
+    # a literal nan is not called empty; a ragged row is named by its line
+    (lambda r: r[40].__setitem__(1, "nan"), "t,x_drive,x_pos,y_drive,y_pos",
+     ["'x_drive'", "row 41", "nan is not"]),
+    (lambda r: r[70].append("1"), "t,x_drive,x_pos,y_drive,y_pos",
+     ["row 71", "line 72", "6 cells"]),
 ])
 def test_bad_logs_get_one_typed_line(tmp_path, capsys, mutate, header, words):
     def mutate2(rows):
