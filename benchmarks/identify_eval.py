@@ -250,8 +250,15 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     seeds = args.seeds if args.seeds else list(range(args.n))
     started = time.perf_counter()
-    with Pool(args.workers, initializer=_init, initargs=(args.cache,)) as pool:
-        rows = pool.map(one, seeds, chunksize=1)
+    rows = []
+    partial = Path(__file__).with_suffix(".partial.jsonl")
+    with Pool(args.workers, initializer=_init, initargs=(args.cache,)) as pool, \
+            open(partial, "w") as stream:
+        for row in pool.imap(one, seeds, chunksize=1):  # each row as it comes
+            rows.append(row)
+            stream.write(json.dumps(row, default=float) + "\n")
+            stream.flush()
+    partial.unlink()
     if args.seeds:
         for r in rows:
             print(json.dumps(r, default=float))
