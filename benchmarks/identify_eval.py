@@ -247,13 +247,28 @@ def main(argv=None) -> None:
     parser.add_argument("--workers", type=int,
                         default=int(os.environ.get("NURBSMOTION_IDENTIFY_WORKERS", "2")))
     parser.add_argument("--cache", type=Path, help="folder of cached simulated logs")
+    parser.add_argument("--resume", action="store_true",
+                        help="keep the rows of identify_eval.partial.jsonl (a run cut "
+                        "short, on the same code) and run only the other seeds")
+    parser.add_argument("--timing-from", type=Path,
+                        help="the 60 s log's timing from this JSON (a --timing-only run's) "
+                        "instead of measuring it again")
+    parser.add_argument("--timing-only", action="store_true",
+                        help="only the 60 s log's timing, printed as JSON")
     args = parser.parse_args(argv)
+    if args.timing_only:
+        print(json.dumps(timing()))
+        return
     seeds = args.seeds if args.seeds else list(range(args.n))
     started = time.perf_counter()
     rows = []
     partial = Path(__file__).with_suffix(".partial.jsonl")
+    if args.resume and partial.exists():
+        rows = [json.loads(line) for line in partial.read_text().splitlines() if line]
+        done = {r["seed"] for r in rows}
+        seeds = [s for s in seeds if s not in done]
     with Pool(args.workers, initializer=_init, initargs=(args.cache,)) as pool, \
-            open(partial, "w") as stream:
+            open(partial, "a" if args.resume else "w") as stream:
         for row in pool.imap(one, seeds, chunksize=1):  # each row as it comes
             rows.append(row)
             stream.write(json.dumps(row, default=float) + "\n")
@@ -268,8 +283,9 @@ def main(argv=None) -> None:
     print(f"{n} random machines in {time.perf_counter() - started:.0f} s "
           f"(identify: median {np.median([r['cpu_s'] for r in rows]):.2f} s CPU per "
           f"{rows[0]['samples']}-sample log)\n")
+    rows.sort(key=lambda r: r["seed"])
     print(table(rows))
-    t = timing()
+    t = json.loads(args.timing_from.read_text()) if args.timing_from else timing()
     print(f"\nidentify on a 60 s log at 1 kHz ({t['samples']} samples, {t['axes']} axes, "
           f"one with a mode): {t['wall_s']:.2f} s wall, {t['cpu_s']:.2f} s CPU "
           "(median of 3)")
