@@ -112,7 +112,10 @@ def least_squares(fn, x0, bounds, max_iterations: int = 60, **_ignored):
             h = 1e-6 * max(abs(x[i]), 1.0)
             xi = x.copy()
             xi[i] = x[i] + h if x[i] + h <= upper[i] else x[i] - h
-            J[:, i] = (fn(xi) - r) / (xi[i] - x[i])
+            try:
+                J[:, i] = (fn(xi) - r) / (xi[i] - x[i])
+            except ArithmeticError:  # at the edge of a double: no slope to follow
+                J[:, i] = 0.0
             nfev += 1
         A = J.T @ J
         g = J.T @ r
@@ -132,9 +135,14 @@ def least_squares(fn, x0, bounds, max_iterations: int = 60, **_ignored):
                 lam *= 10.0
                 continue
             xn = np.clip(x + dx, lower, upper)
-            rn = fn(xn)
+            try:
+                rn = fn(xn)
+            except ArithmeticError:  # a step beyond a double: exp of a log-parameter
+                lam *= 4.0           # overflowed, or underflowed to a zero gain
+                continue
             nfev += 1
-            cn = float(rn @ rn)
+            with np.errstate(over="ignore", invalid="ignore"):
+                cn = float(rn @ rn)  # inf or NaN: no better
             if cn < cost:
                 done = cost - cn <= 1e-12 * cost or np.all(
                     np.abs(xn - x) <= 1e-10 * np.maximum(np.abs(x), 1.0))
@@ -209,6 +217,23 @@ def _spectrum_peaks(spectrum, freqs, band, count: int = MODE_STARTS) -> list:
     if not peaks:
         peaks = [int(index[np.argmax(smooth[index])])]
     return [float(freqs[i]) for i in peaks]
+
+
+def _plateau(values, costs, at) -> tuple[float, float]:
+    """The range of ``values`` around ``at`` whose ``costs`` equal the least (to a
+    relative 1e-9): the values of a parameter that the residual cannot tell apart."""
+    order = np.argsort(values, kind="stable")
+    v = np.asarray(values, dtype=float)[order]
+    c = np.asarray(costs, dtype=float)[order]
+    flat = c <= c.min() * (1.0 + 1e-9) + 1e-300
+    i = int(np.flatnonzero(flat & (v == at))[0]) if np.any(flat & (v == at)) else int(
+        np.argmin(c))
+    lo = hi = i
+    while lo > 0 and flat[lo - 1]:
+        lo -= 1
+    while hi < v.size - 1 and flat[hi + 1]:
+        hi += 1
+    return float(v[lo]), float(v[hi])
 
 
 def _real_mode(mode, rigid, lower, upper) -> bool:
@@ -536,8 +561,16 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None,
             fine = np.linspace(max(grid[i] - step, friction), grid[i] + step, 21)
             fine_costs = [cost_of(s) for s in fine]
             fixed["stiction"] = float(fine[int(np.argmin(fine_costs))])
-            stiction_sigma = float(fine[1] - fine[0])
+            lo_s, hi_s = _plateau(np.concatenate([grid, fine]),
+                                  np.concatenate([costs, fine_costs]), fixed["stiction"])
+            # The stiction's spread: the grid's step, or the plateau of stictions that fit
+            # the log equally (a rigid axis breaks away only where the drive from rest
+            # crosses it: between two such drives every stiction fits alike), as a
+            # uniform distribution's.
+            stiction_sigma = max(float(fine[1] - fine[0]), (hi_s - lo_s) / math.sqrt(12.0))
             identified["stiction"] = True
+            flat_from_friction = (lo_s <= friction
+                                  and hi_s - friction > STICTION_SHIFT * max_drive)
             fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
             found = max(fixed["stiction"], friction)
             if not abs(found - current) > STICTION_SHIFT * max_drive:
@@ -545,6 +578,16 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None,
             # the rest refitted to the stiction found, from where it is
             sol = least_squares(fn, sol.x, bounds=bounds, max_iterations=20)
             current = max(fixed["stiction"], float(sol.x[i_f]))
+        if flat_from_friction:
+            # Every stiction from the Coulomb friction up fits alike: the log holds no
+            # breakaway from rest at a drive in between, so it cannot tell S from F.
+            identified["stiction"] = False
+            notes.append(
+                f"stiction: not identifiable from this log, any value from the Coulomb "
+                f"friction {friction:.3g} V to {hi_s:.3g} V fits it alike (no breakaway "
+                "from rest at a drive in between: its drive steps from rest past them); "
+                "not written (the plant then takes it as the Coulomb friction); log a "
+                "slower drive ramp from rest")
     elif friction_ok:
         notes.append("stiction: not identifiable, the axis never left a rest (of 5 samples "
                      "or more) in the log; add a slow drive ramp from rest")
@@ -555,6 +598,16 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None,
 def _finish(u, y, Ts, sol, names, fixed, fn, speed0, notes, identified, stiction_sigma,
             bounds) -> AxisFit:
     """The estimates, their standard deviations and the simulated response."""
+    i_tau = names.index("log_tau")
+    lower, upper = bounds
+    gain = math.exp(min(sol.x[names.index("log_gain")], 700.0))
+    if (not lower[i_tau] < sol.x[i_tau] < upper[i_tau]) or not 0.0 < gain < math.inf:
+        # At a bound the fit has no minimum inside, and (J^T J)^-1 no spread to give.
+        notes = list(notes) + [
+            f"time_constant and electrical_gain: not identified, the fit ended at a bound "
+            f"(tau {math.exp(sol.x[i_tau]):.4g} s, Ke*Kc {gain:.4g} pulse/s/V): the "
+            "axis's position does not follow its drive as a servo axis's would (check "
+            "the columns, their units and the axis's enable)"]
     r = fn(sol.x)
     dof = max(r.size - len(names), 1)
     s2 = float(r @ r) / dof
