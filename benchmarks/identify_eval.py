@@ -11,21 +11,29 @@ a delay of 0-2 samples, 1-pulse encoder counts and Gaussian reading noise of 0-0
    a user knows before identifying);
 2. the log of the true machine under it, made by the independent ``solve_ivp`` simulator
    of the tests (not the project's loop, not the fit's model);
-3. ``identify`` of the log, and the errors against the truth.
+3. ``identify`` of the log, and the errors against the truth;
+4. the refit: a log of the identified machine (the fit's own model, the same drive, counts
+   and noise) identified again, and the change of tau, Kc, the delay and the mode.
 
 Prints a Markdown table per class of machine (rigid, two-mass without friction, two-mass
 with friction): the median and 95th percentile of each error and the share within the
 issue's targets (tau and Kc 2 %, delay 0.1 Ts, Coulomb 10 %, mode frequency 2 %, damping
-30 %), the modes found and missed; then identify's time on a 60 s log (made with the fit's
+30 %; the issue sets none for the stiction, which is held to the Coulomb friction's 10 %),
+the modes found and missed; then identify's time on a 60 s log (made with the fit's
 own model, which only sets what the log holds).
 
-Run: python benchmarks/identify_eval.py [N] (default 200; NURBSMOTION_IDENTIFY_WORKERS
-processes, default 2). Writes benchmarks/identify_eval.json (every row) and
-benchmarks/identify_eval.md (the table).
+Run: python benchmarks/identify_eval.py [N] (default 200; ``--workers``, default
+NURBSMOTION_IDENTIFY_WORKERS or 2). Writes benchmarks/identify_eval.json (every row) and
+benchmarks/identify_eval.md (the table). ``--seeds 82 101`` runs only those machines and
+prints their rows (nothing written); ``--cache DIR`` keeps each simulated log there (most
+of the run time is the solve_ivp simulation; a log is reused only for the same machine,
+drive and simulator settings, so a changed excitation simulates afresh).
 """
 
 from __future__ import annotations
 
+import argparse
+import hashlib
 import json
 import math
 import os
@@ -61,6 +69,38 @@ def base_machine(tau: float, kc: float) -> Machine:
     raise RuntimeError(f"no stable gains for tau {tau}, Kc {kc}")
 
 
+REFERENCE_RTOL = 1e-9
+"""Relative tolerance of the reference simulator. At 1e-7 (the previous evaluations) an
+integration error decided a stop near the stiction the other way on some machines, and the
+log went its own way (seed 82: 73 pulses off the exact log, an increment RMS of 0.30
+pulse, which the fit absorbed as a 2 % error in tau); from 1e-8 the log matches the exact
+model to rounding."""
+
+CACHE: Path | None = None
+"""Folder of cached simulated logs (``--cache``), or None."""
+
+
+def simulated_log(axis: dict, drive: np.ndarray, delay: float, noise: float,
+                  seed: int) -> np.ndarray:
+    """The reference simulator's log (tests/identify_reference.py), from :data:`CACHE`
+    when the same machine, drive and settings were simulated before."""
+    settings = dict(axis=axis, delay=delay, encoder="counts", noise=noise, seed=seed,
+                    rtol=REFERENCE_RTOL)
+    key = hashlib.sha256(json.dumps(settings, sort_keys=True).encode()
+                         + np.ascontiguousarray(drive).tobytes()).hexdigest()[:20]
+    file = None if CACHE is None else CACHE / f"{seed}-{key}.npy"
+    if file is not None and file.exists():
+        return np.load(file)
+    y = simulate_log(axis, drive, TS, delay=delay, encoder="counts", noise=noise,
+                     seed=seed, rtol=REFERENCE_RTOL)
+    if file is not None:
+        file.parent.mkdir(parents=True, exist_ok=True)
+        tmp = file.with_suffix(f".{os.getpid()}.tmp.npy")
+        np.save(tmp, y)
+        tmp.replace(file)
+    return y
+
+
 def one(seed: int) -> dict:
     rng = np.random.default_rng(1000 + seed)
     axis = random_axis(rng)
@@ -72,8 +112,7 @@ def one(seed: int) -> dict:
     base = base_machine(axis["time_constant"] * rng.uniform(0.7, 1.3),
                         kc * rng.uniform(0.7, 1.3))
     _, drive = excitation(base, seed=seed)
-    y = simulate_log(axis, drive[:, 0], TS, delay=delay, encoder="counts", noise=noise,
-                     seed=seed, rtol=1e-7)
+    y = simulated_log(axis, drive[:, 0], delay, noise, seed)
     started = time.process_time()
     result = identify(log_from_arrays(drive, y[:, None], TS), base)
     cpu = time.process_time() - started
@@ -83,9 +122,13 @@ def one(seed: int) -> dict:
     row["tau_err"] = est["time_constant"].value / axis["time_constant"] - 1
     row["kc_err"] = est["electrical_gain"].value / kc - 1
     row["delay_err_ts"] = (est["delay"].value - delay) / TS
+    row["estimates"] = {key: e.value for key, e in est.items()}
+    row["notes"] = list(result.axes[0].notes)
     if axis["coulomb_friction"] > 0:
         row["coulomb_err"] = (est["coulomb_friction"].value / axis["coulomb_friction"] - 1
                               if "coulomb_friction" in est else math.nan)
+        row["stiction_err"] = (est["stiction"].value / axis["stiction"] - 1
+                               if "stiction" in est else math.nan)
     mode = "resonance_frequency" in axis
     row["class"] = ("rigid" if not mode else
                     "two-mass, friction" if axis["coulomb_friction"] > 0 else "two-mass")
@@ -93,12 +136,45 @@ def one(seed: int) -> dict:
     if mode and row["mode_found"]:
         row["freq_err"] = est["resonance_frequency"].value / axis["resonance_frequency"] - 1
         row["damping_err"] = est["resonance_damping"].value / axis["resonance_damping"] - 1
+    refit(row, result, drive[:, 0], noise, seed, base)
     return row
+
+
+def refit(row: dict, result, drive: np.ndarray, noise: float, seed: int, base) -> None:
+    """The issue's "a machine refit from its own refit is stable": a log of the identified
+    machine under the same drive, with the same counts and noise (made with the fit's own
+    model: the question is the estimator's fixed point, not the model), identified again;
+    the change of each estimate from the first identification."""
+    from nurbsmotion.identify.model import simulate
+
+    ax = result.axes[0]
+    est = {key: e.value for key, e in ax.estimates.items()}
+    params = {"time_constant": est["time_constant"], "gain": est["electrical_gain"] * KE,
+              "delay": est["delay"], "coulomb_friction": est.get("coulomb_friction", 0.0),
+              "stiction": est.get("stiction", 0.0)}
+    if "resonance_frequency" in est:
+        lam = est.get("load_fraction", 0.5)
+        params.update(resonance_frequency=est["resonance_frequency"],
+                      resonance_damping=est["resonance_damping"], load_fraction=lam,
+                      coupling=lam / (1 - lam) if ax.encoder_on == "motor" else -1.0)
+    y = np.floor(simulate(drive, TS, params)) + np.random.default_rng(seed + 10_000).normal(
+        0.0, noise, len(drive))
+    again = identify(log_from_arrays(drive[:, None], y[:, None], TS), base).axes[0].estimates
+    row["refit_tau"] = again["time_constant"].value / est["time_constant"] - 1
+    row["refit_kc"] = again["electrical_gain"].value / est["electrical_gain"] - 1
+    row["refit_delay_ts"] = (again["delay"].value - est["delay"]) / TS
+    if "resonance_frequency" in est:
+        row["refit_freq"] = (again["resonance_frequency"].value / est["resonance_frequency"]
+                             - 1 if "resonance_frequency" in again else math.nan)
 
 
 TARGETS = (("tau_err", "tau", 0.02), ("kc_err", "Kc", 0.02),
            ("delay_err_ts", "delay [Ts]", 0.1), ("coulomb_err", "Coulomb", 0.10),
-           ("freq_err", "mode freq.", 0.02), ("damping_err", "damping", 0.30))
+           ("stiction_err", "stiction", 0.10),
+           ("freq_err", "mode freq.", 0.02), ("damping_err", "damping", 0.30),
+           ("refit_tau", "refit's tau", 0.02), ("refit_kc", "refit's Kc", 0.02),
+           ("refit_delay_ts", "refit's delay [Ts]", 0.1),
+           ("refit_freq", "refit's mode freq.", 0.02))
 
 
 def table(rows: list[dict]) -> str:
@@ -109,14 +185,19 @@ def table(rows: list[dict]) -> str:
         if not sub:
             continue
         for key, label, target in TARGETS:
-            vals = np.array([abs(r[key]) for r in sub if key in r and not math.isnan(r[key])])
+            # an estimate the log did not identify (NaN) counts as a miss
+            every = np.array([abs(r[key]) for r in sub if key in r])
+            vals = every[np.isfinite(every)]
             if vals.size == 0:
                 continue
-            pct = key != "delay_err_ts"
+            pct = "delay" not in key
             fmt = (lambda v: f"{100 * v:.2f} %") if pct else (lambda v: f"{v:.3f}")
+            missing = every.size - vals.size
             lines.append(f"| {cls} | {len(sub)} | {label} | {fmt(np.median(vals))} | "
-                         f"{fmt(np.percentile(vals, 95))} | {np.mean(vals <= target):.0%} "
-                         f"of {vals.size} |")
+                         f"{fmt(np.percentile(vals, 95))} | "
+                         f"{np.mean(np.nan_to_num(every, nan=np.inf) <= target):.0%} of "
+                         f"{every.size}" + (f" ({missing} not identified)" if missing else "")
+                         + " |")
         found = sum(r["mode_found"] for r in sub)
         lines.append(f"| {cls} | {len(sub)} | mode found | {found} of {len(sub)} | | |")
     return "\n".join(lines)
@@ -152,17 +233,59 @@ def timing() -> dict:
             "cpu_s": float(np.median(cpus))}
 
 
-def main() -> None:
-    n = int(sys.argv[1]) if len(sys.argv) > 1 else 200
-    workers = int(os.environ.get("NURBSMOTION_IDENTIFY_WORKERS", "2"))
+def _init(cache) -> None:
+    global CACHE
+    CACHE = cache
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("n", nargs="?", type=int, default=200,
+                        help="random machines, seeds 0..n-1 (default 200)")
+    parser.add_argument("--seeds", type=int, nargs="+",
+                        help="only these seeds: print their rows, write nothing")
+    parser.add_argument("--workers", type=int,
+                        default=int(os.environ.get("NURBSMOTION_IDENTIFY_WORKERS", "2")))
+    parser.add_argument("--cache", type=Path, help="folder of cached simulated logs")
+    parser.add_argument("--resume", action="store_true",
+                        help="keep the rows of identify_eval.partial.jsonl (a run cut "
+                        "short, on the same code) and run only the other seeds")
+    parser.add_argument("--timing-from", type=Path,
+                        help="the 60 s log's timing from this JSON (a --timing-only run's) "
+                        "instead of measuring it again")
+    parser.add_argument("--timing-only", action="store_true",
+                        help="only the 60 s log's timing, printed as JSON")
+    args = parser.parse_args(argv)
+    if args.timing_only:
+        print(json.dumps(timing()))
+        return
+    seeds = args.seeds if args.seeds else list(range(args.n))
     started = time.perf_counter()
-    with Pool(workers) as pool:
-        rows = pool.map(one, range(n), chunksize=1)
+    rows = []
+    partial = Path(__file__).with_suffix(".partial.jsonl")
+    if args.resume and partial.exists():
+        rows = [json.loads(line) for line in partial.read_text().splitlines() if line]
+        done = {r["seed"] for r in rows}
+        seeds = [s for s in seeds if s not in done]
+    with Pool(args.workers, initializer=_init, initargs=(args.cache,)) as pool, \
+            open(partial, "a" if args.resume else "w") as stream:
+        for row in pool.imap(one, seeds, chunksize=1):  # each row as it comes
+            rows.append(row)
+            stream.write(json.dumps(row, default=float) + "\n")
+            stream.flush()
+    partial.unlink()
+    if args.seeds:
+        for r in rows:
+            print(json.dumps(r, default=float))
+        print(table(rows))
+        return
+    n = len(rows)
     print(f"{n} random machines in {time.perf_counter() - started:.0f} s "
           f"(identify: median {np.median([r['cpu_s'] for r in rows]):.2f} s CPU per "
           f"{rows[0]['samples']}-sample log)\n")
+    rows.sort(key=lambda r: r["seed"])
     print(table(rows))
-    t = timing()
+    t = json.loads(args.timing_from.read_text()) if args.timing_from else timing()
     print(f"\nidentify on a 60 s log at 1 kHz ({t['samples']} samples, {t['axes']} axes, "
           f"one with a mode): {t['wall_s']:.2f} s wall, {t['cpu_s']:.2f} s CPU "
           "(median of 3)")
@@ -188,7 +311,11 @@ def write_markdown(rows: list[dict], t: dict, seconds: float) -> Path:
         f"working tree), {time.strftime('%Y-%m-%d', time.gmtime())}: {len(rows)} random "
         f"one-axis machines in {seconds:.0f} s; identify a median {cpu:.2f} s of CPU per "
         f"{rows[0]['samples']}-sample log. Logs from the tests' independent solve_ivp "
-        "simulator (tests/identify_reference.py); targets of issue 34.",
+        "simulator (tests/identify_reference.py, rtol "
+        f"{REFERENCE_RTOL:g}) with 1-pulse counts and 0-0.5 pulse of noise; targets of "
+        "issue 34 (the stiction's, which the issue does not set, the Coulomb friction's). "
+        "The refit rows: a log of the identified machine (the fit's own model, the same "
+        "drive, counts and noise) identified again, against the first identification.",
         "",
         table(rows),
         "",

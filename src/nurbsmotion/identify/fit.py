@@ -8,11 +8,12 @@ The steps (docs/identify.md):
 2. The delay by a search over fractions of a sample (and a few starts of tau), then an
    output-error fit (:func:`least_squares`, Levenberg-Marquardt) of the simulated
    increments against the logged ones: tau, G, delay and Coulomb friction.
-3. A mode: started from the peak of the residual's spectrum above the rigid body's band
-   (from the rigid fit and from the delay search's start), kept when it lowers the
-   residual clearly.
+3. A mode: started from the largest peaks of the residual's smoothed spectrum above the
+   rigid body's band (from the rigid fit and from the delay search's start; a few short
+   fits each, the best on to convergence), kept when it lowers the residual clearly.
 4. The stiction by a scan of the same residual, bounded by the breakaways (the largest
-   drive an axis held at rest); the rest refitted to it.
+   drive an axis held at rest); the rest refitted to it and the scan repeated on the
+   refit until it no longer moves the stiction.
 5. Steps 2-4 again holding the stiction the last scan found, until a scan no longer moves
    it (a fixed point, :func:`fit_axis`); the least residual is kept.
 
@@ -40,6 +41,19 @@ encoder on the load, friction on the motor)."""
 
 MAX_DELAY_SAMPLES = 8.0
 """Largest delay searched [sample periods]."""
+
+MODE_STARTS = 3
+"""Peaks of the residual's spectrum a mode is started from (the largest, in its band)."""
+
+MODE_SCREEN_ITERATIONS = 4
+"""Iterations of each start of the mode before the best one is fitted to convergence."""
+
+SPECTRUM_BINS = 5
+"""Bins of the moving average over the residual's periodogram before its peaks are
+picked. A raw periodogram's bins scatter by their own size (chi-squared with 2 degrees
+of freedom), so its largest bin is often beside the mode's peak or on the rigid fit's
+misfit; the average of 5 scatters sqrt(5) times less, and a mode that rings for several
+of the log's 1/duration bins keeps its place."""
 
 
 @dataclass
@@ -86,13 +100,22 @@ def least_squares(fn, x0, bounds, max_iterations: int = 60, **_ignored):
     nfev = 1
     lam = 1e-3
     J = None
+    # A parameter its bounds hold (lower == upper, as a log's initial speed at rest) has
+    # no column: its finite difference would step outside them (the speed off 0 jumps the
+    # model from stuck to sliding) and cost a simulation for nothing.
+    held = lower == upper
     for _ in range(max_iterations):
-        J = np.empty((r.size, x.size))
+        J = np.zeros((r.size, x.size))
         for i in range(x.size):
+            if held[i]:
+                continue
             h = 1e-6 * max(abs(x[i]), 1.0)
             xi = x.copy()
             xi[i] = x[i] + h if x[i] + h <= upper[i] else x[i] - h
-            J[:, i] = (fn(xi) - r) / (xi[i] - x[i])
+            try:
+                J[:, i] = (fn(xi) - r) / (xi[i] - x[i])
+            except ArithmeticError:  # at the edge of a double: no slope to follow
+                J[:, i] = 0.0
             nfev += 1
         A = J.T @ J
         g = J.T @ r
@@ -100,7 +123,7 @@ def least_squares(fn, x0, bounds, max_iterations: int = 60, **_ignored):
         scale[scale <= 0] = 1.0
         # Parameters held at a bound by the gradient leave the step (an active set):
         # projecting a coupled step would spoil the others.
-        free = ~(((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0)))
+        free = ~(((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0)) | held)
         improved = False
         done = False
         for _ in range(12):
@@ -112,9 +135,14 @@ def least_squares(fn, x0, bounds, max_iterations: int = 60, **_ignored):
                 lam *= 10.0
                 continue
             xn = np.clip(x + dx, lower, upper)
-            rn = fn(xn)
+            try:
+                rn = fn(xn)
+            except ArithmeticError:  # a step beyond a double: exp of a log-parameter
+                lam *= 4.0           # overflowed, or underflowed to a zero gain
+                continue
             nfev += 1
-            cn = float(rn @ rn)
+            with np.errstate(over="ignore", invalid="ignore"):
+                cn = float(rn @ rn)  # inf or NaN: no better
             if cn < cost:
                 done = cost - cn <= 1e-12 * cost or np.all(
                     np.abs(xn - x) <= 1e-10 * np.maximum(np.abs(x), 1.0))
@@ -170,6 +198,42 @@ def _breakaways(u, y, Ts, noise):
             moved.append(float(abs(u[j - 1]) if j >= 1 else abs(u[j])))
         k = j
     return held, moved
+
+
+def _spectrum_peaks(spectrum, freqs, band, count: int = MODE_STARTS) -> list:
+    """The frequencies [Hz] of the ``count`` largest local maxima of the periodogram
+    ``spectrum`` (at ``freqs``) within ``band`` (a boolean mask), once smoothed over
+    :data:`SPECTRUM_BINS`; each peak more than that many bins from a larger one."""
+    width = SPECTRUM_BINS
+    smooth = np.convolve(spectrum, np.ones(width) / width, mode="same")
+    index = np.flatnonzero(band)
+    peaks = []
+    for i in index[np.argsort(smooth[index])[::-1]]:
+        if len(peaks) == count:
+            break
+        if all(abs(i - j) > width for j in peaks) and smooth[i] >= np.max(
+                smooth[max(i - width, 0):i + width + 1]):
+            peaks.append(int(i))
+    if not peaks:
+        peaks = [int(index[np.argmax(smooth[index])])]
+    return [float(freqs[i]) for i in peaks]
+
+
+def _plateau(values, costs, at) -> tuple[float, float]:
+    """The range of ``values`` around ``at`` whose ``costs`` equal the least (to a
+    relative 1e-9): the values of a parameter that the residual cannot tell apart."""
+    order = np.argsort(values, kind="stable")
+    v = np.asarray(values, dtype=float)[order]
+    c = np.asarray(costs, dtype=float)[order]
+    flat = c <= c.min() * (1.0 + 1e-9) + 1e-300
+    i = int(np.flatnonzero(flat & (v == at))[0]) if np.any(flat & (v == at)) else int(
+        np.argmin(c))
+    lo = hi = i
+    while lo > 0 and flat[lo - 1]:
+        lo -= 1
+    while hi < v.size - 1 and flat[hi + 1]:
+        hi += 1
+    return float(v[lo]), float(v[hi])
 
 
 def _real_mode(mode, rigid, lower, upper) -> bool:
@@ -275,20 +339,24 @@ def fit_axis(u: np.ndarray, y: np.ndarray, Ts: float, *, noise: float = 0.0,
             break  # the fixed point
         held = found
         # The mode shows in the spectrum whatever the stiction: a later fit looks for it
-        # only where the first found it (the mode search is most of a fit's work).
-        sign = (math.copysign(1.0, best.values["coupling"]) if best.identified["resonance"]
-                else 0.0)
-        fit = _fit_once(u, y, Ts, noise, max_drive, base, held, sign)
+        # only where the first found it, and from its frequency (the mode search is most
+        # of a fit's work).
+        found_mode = best.identified["resonance"]
+        sign = math.copysign(1.0, best.values["coupling"]) if found_mode else 0.0
+        fit = _fit_once(u, y, Ts, noise, max_drive, base, held, sign,
+                        best.values["resonance_frequency"] if found_mode else None)
         if fit.residual_rms < best.residual_rms:
             best = fit
     return best
 
 
-def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> AxisFit:
+def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None,
+              mode_frequency=None) -> AxisFit:
     """One fit of :func:`fit_axis`, holding the stiction at ``stiction`` [V] (read as
     the Coulomb friction where below it) until its scan at the end. ``mode_sign``: None
     searches a mode with the encoder on the motor and on the load; 1.0 or -1.0 only
-    there (+1 the motor); 0.0 searches none."""
+    there (+1 the motor); 0.0 searches none. ``mode_frequency`` [Hz]: the mode is started
+    there alone, not from the residual spectrum's peaks."""
     notes: list[str] = []
     dy = np.diff(y)
     speed0 = 0.0
@@ -369,7 +437,8 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> Axi
         tries.append(least_squares(fn, x0, bounds=(lower, upper)))
         sol = min(tries, key=lambda t: t.cost)
 
-    # A mode: started at the residual spectrum's peak above the rigid body's band.
+    # A mode: started at the residual spectrum's largest peaks above the rigid body's
+    # band (a few short fits each), the best one fitted on to convergence.
     mode_sol = None
     residual = sol.fun
     n = residual.size
@@ -385,11 +454,13 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> Axi
         band = (freqs > max(5.0 / (2 * math.pi * tau_rigid), 5.0)) & (
             freqs < 0.45 / Ts)
         if np.any(band):
-            f0 = float(freqs[band][np.argmax(spectrum[band])])
             best_mode = None
             rigid_starts = [list(sol.x)] + ([list(x0)] if list(x0) != list(sol.x) else [])
             signs = (1.0, -1.0) if mode_sign is None else (mode_sign,)
-            for rigid0, coupling0 in [(r0, c0) for r0 in rigid_starts for c0 in signs]:
+            peaks = ([mode_frequency] if mode_frequency is not None else
+                     _spectrum_peaks(spectrum, freqs, band))
+            starts = [(r0, f0, c0) for f0 in peaks for r0 in rigid_starts for c0 in signs]
+            for rigid0, f0, coupling0 in starts:
                 # The friction acts on the motor: with the encoder on the load (coupling
                 # about -1) the motor's share of the twist, hence the load fraction, is a
                 # parameter of its own (on the motor it is the coupling's c / (1 + c)).
@@ -405,7 +476,7 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> Axi
                 m_fn = _residual_fn(u, dy, Ts, speed0, fixed, m_names)
                 try:
                     m_sol = least_squares(m_fn, mx0, bounds=(m_lower, m_upper),
-                                          max_iterations=10)
+                                          max_iterations=MODE_SCREEN_ITERATIONS)
                 except ValueError:
                     continue
                 if best_mode is None or m_sol.cost < best_mode[0].cost:
@@ -459,29 +530,64 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> Axi
                   "resonance": mode_sol is not None}
     stiction_sigma = math.nan
     friction = values.get("coulomb_friction", fixed.get("coulomb_friction", 0.0))
-    noise = max(noise, math.sqrt(sol.cost / max(sol.fun.size, 1)))  # rms / sqrt(2)
+    # The rests: within a count and 4 standard deviations of the reading noise, measured
+    # at the head of a log that starts at rest, else the fit's residual (rms / sqrt(2));
+    # an early fit's residual, many counts, would take slow moves for rests (and their
+    # drives, volts above the friction, for the stiction's lower bound).
+    noise = max(noise, _head_noise(y) if _starts_at_rest(y) else
+                math.sqrt(sol.cost / max(sol.fun.size, 1)))
     held, moved = _breakaways(u, y, Ts, noise)
     if friction_ok and held:
         # The largest drive an axis held at rest bounds the stiction from below (within
-        # the rest detection's threshold); the residual picks it on a grid above it.
-        hi = min(max(max(held), max(moved, default=0.0)) + 0.05 * max_drive, max_drive)
-        grid = np.linspace(friction, max(hi, friction + 1e-3 * max_drive), 31)
+        # the rest detection's threshold); the residual picks it on a grid above it,
+        # the rest is refitted to it, and the grid scanned again on the refit, until
+        # the scan no longer moves it (by STICTION_SHIFT of Umax; at most
+        # STICTION_PASSES scans): a scan on parameters bent to the stiction held before
+        # finds that stiction again.
+        i_f = names.index("coulomb_friction")
+        current = max(stiction, float(sol.x[i_f]))
+        for _ in range(STICTION_PASSES):
+            friction = float(sol.x[i_f])
+            hi = min(max(max(held), max(moved, default=0.0)) + 0.05 * max_drive, max_drive)
+            grid = np.linspace(friction, max(hi, friction + 1e-3 * max_drive), 31)
 
-        def cost_of(s):
-            r = _residual_fn(u, dy, Ts, speed0, dict(fixed, stiction=float(s)), names)(sol.x)
-            return float(r @ r)
-        costs = [cost_of(s) for s in grid]
-        i = int(np.argmin(costs))
-        step = float(grid[1] - grid[0])
-        fine = np.linspace(max(grid[i] - step, friction), grid[i] + step, 21)
-        fine_costs = [cost_of(s) for s in fine]
-        fixed["stiction"] = float(fine[int(np.argmin(fine_costs))])
-        stiction_sigma = float(fine[1] - fine[0])
-        identified["stiction"] = True
-        fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
-        if abs(fixed["stiction"] - max(stiction, friction)) > STICTION_SHIFT * max_drive:
+            def cost_of(s):
+                r = _residual_fn(u, dy, Ts, speed0, dict(fixed, stiction=float(s)),
+                                 names)(sol.x)
+                return float(r @ r)
+            costs = [cost_of(s) for s in grid]
+            i = int(np.argmin(costs))
+            step = float(grid[1] - grid[0])
+            fine = np.linspace(max(grid[i] - step, friction), grid[i] + step, 21)
+            fine_costs = [cost_of(s) for s in fine]
+            fixed["stiction"] = float(fine[int(np.argmin(fine_costs))])
+            lo_s, hi_s = _plateau(np.concatenate([grid, fine]),
+                                  np.concatenate([costs, fine_costs]), fixed["stiction"])
+            # The stiction's spread: the grid's step, or the plateau of stictions that fit
+            # the log equally (a rigid axis breaks away only where the drive from rest
+            # crosses it: between two such drives every stiction fits alike), as a
+            # uniform distribution's.
+            stiction_sigma = max(float(fine[1] - fine[0]), (hi_s - lo_s) / math.sqrt(12.0))
+            identified["stiction"] = True
+            flat_from_friction = (lo_s <= friction
+                                  and hi_s - friction > STICTION_SHIFT * max_drive)
+            fn = _residual_fn(u, dy, Ts, speed0, fixed, names)
+            found = max(fixed["stiction"], friction)
+            if not abs(found - current) > STICTION_SHIFT * max_drive:
+                break
             # the rest refitted to the stiction found, from where it is
             sol = least_squares(fn, sol.x, bounds=bounds, max_iterations=20)
+            current = max(fixed["stiction"], float(sol.x[i_f]))
+        if flat_from_friction:
+            # Every stiction from the Coulomb friction up fits alike: the log holds no
+            # breakaway from rest at a drive in between, so it cannot tell S from F.
+            identified["stiction"] = False
+            notes.append(
+                f"stiction: not identifiable from this log, any value from the Coulomb "
+                f"friction {friction:.3g} V to {hi_s:.3g} V fits it alike (no breakaway "
+                "from rest at a drive in between: its drive steps from rest past them); "
+                "not written (the plant then takes it as the Coulomb friction); log a "
+                "slower drive ramp from rest")
     elif friction_ok:
         notes.append("stiction: not identifiable, the axis never left a rest (of 5 samples "
                      "or more) in the log; add a slow drive ramp from rest")
@@ -492,6 +598,16 @@ def _fit_once(u, y, Ts, noise, max_drive, base, stiction, mode_sign=None) -> Axi
 def _finish(u, y, Ts, sol, names, fixed, fn, speed0, notes, identified, stiction_sigma,
             bounds) -> AxisFit:
     """The estimates, their standard deviations and the simulated response."""
+    i_tau = names.index("log_tau")
+    lower, upper = bounds
+    gain = math.exp(min(sol.x[names.index("log_gain")], 700.0))
+    if (not lower[i_tau] < sol.x[i_tau] < upper[i_tau]) or not 0.0 < gain < math.inf:
+        # At a bound the fit has no minimum inside, and (J^T J)^-1 no spread to give.
+        notes = list(notes) + [
+            f"time_constant and electrical_gain: not identified, the fit ended at a bound "
+            f"(tau {math.exp(sol.x[i_tau]):.4g} s, Ke*Kc {gain:.4g} pulse/s/V): the "
+            "axis's position does not follow its drive as a servo axis's would (check "
+            "the columns, their units and the axis's enable)"]
     r = fn(sol.x)
     dof = max(r.size - len(names), 1)
     s2 = float(r @ r) / dof

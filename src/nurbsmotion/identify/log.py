@@ -101,9 +101,11 @@ def _unit_of(header: str) -> tuple[str, str | None]:
     return text, None
 
 
-def _read_table(path: Path) -> tuple[list[str], dict]:
-    """Header names and columns (float64 arrays, NaN where a cell is empty) of a CSV or
-    Parquet file; a cell that is not a number is an error naming its column and row."""
+def _read_table(path: Path) -> tuple[list[str], dict, dict]:
+    """Header names, columns (float64 arrays, NaN where a cell is empty) and the empty
+    cells (a boolean mask per column that has any) of a CSV or Parquet file; a cell that
+    is not a number is an error naming its column and row. Only an empty cell is empty:
+    ``nan``, ``NA`` and the like are read as written (NaN, or not a number)."""
     if path.suffix.lower() == ".parquet":
         import pyarrow.parquet as pq
 
@@ -119,14 +121,19 @@ def _read_table(path: Path) -> tuple[list[str], dict]:
             table = pacsv.read_csv(path, read_options=pacsv.ReadOptions(),
                                    parse_options=pacsv.ParseOptions(),
                                    convert_options=pacsv.ConvertOptions(
-                                       strings_can_be_null=True))
+                                       strings_can_be_null=True, null_values=[""]))
         except pa.ArrowInvalid as exc:
-            raise _bad(f"not a CSV table with a header ({' '.join(str(exc).split())})",
+            raise _bad(_ragged_row(path) or
+                       f"not a CSV table with a header ({' '.join(str(exc).split())})",
                        str(path)) from None
     names = list(table.column_names)
     columns = {}
+    empty = {}
     for name in names:
         col = table.column(name)
+        if col.null_count:  # NaN in the array; read_log names it "empty"
+            empty[name] = np.asarray(col.is_null().to_numpy(zero_copy_only=False),
+                                     dtype=bool)
         try:
             columns[name] = col.to_numpy(zero_copy_only=False).astype(float)
         except (TypeError, ValueError):
@@ -138,7 +145,27 @@ def _read_table(path: Path) -> tuple[list[str], dict]:
                     raise _bad(f"column {name!r}, row {row + 1} (line {row + 2}): "
                                f"{v!r:.40} is not a number", str(path)) from None
             columns[name] = np.array([math.nan if v is None else float(v) for v in values])
-    return names, columns
+    return names, columns, empty
+
+
+def _ragged_row(path: Path) -> str | None:
+    """The first line of a CSV file whose number of cells is not the header's, as an
+    error message naming it (pyarrow's names the cells, not the line), or None."""
+    import csv
+
+    try:
+        with open(path, newline="") as handle:
+            rows = csv.reader(handle)
+            header = next(rows, None)
+            if not header:
+                return None
+            for line, row in enumerate(rows, start=2):
+                if row and len(row) != len(header):
+                    return (f"row {line - 1} (line {line}) has {len(row)} cells, the header "
+                            f"{len(header)} ({', '.join(header)})")
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return None
+    return None
 
 
 def read_log(file, axes=None, *, columns: dict | None = None,
@@ -173,7 +200,7 @@ def read_log(file, axes=None, *, columns: dict | None = None,
     source = str(path)
     if units not in LOG_UNITS:
         raise InvalidArgumentError(f"units must be one of {LOG_UNITS}, got {units!r}")
-    names, table = _read_table(path)
+    names, table, empty = _read_table(path)
     header = {}
     for name in names:
         base, unit = _unit_of(name)
@@ -262,8 +289,8 @@ def read_log(file, axes=None, *, columns: dict | None = None,
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
             row = int(bad[0])
-            raise _bad(f"column {col!r}, row {row + 1} (line {row + 2}): "
-                       f"{'empty' if math.isnan(values[row]) else values[row]} is not a "
+            cell = "empty" if col in empty and empty[col][row] else values[row]
+            raise _bad(f"column {col!r}, row {row + 1} (line {row + 2}): {cell} is not a "
                        "finite number", source)
     steps = np.diff(t)
     bad = np.flatnonzero(steps <= 0)
