@@ -23,7 +23,7 @@ from ..errors import InvalidArgumentError, WorkLimitError
 from ..interpolators import make_open_loop
 from ..machine import Machine, load_machine
 from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
-from ..planning import sampled_stop_bound, time_optimal_bound
+from ..planning import check_profile_size, sampled_stop_bound, time_optimal_bound
 from .console import EXPORT_FILES, _outputs, _progress
 
 
@@ -185,6 +185,8 @@ def _cmd_bound(args) -> int:
     machine.check_path(curve.n_axes)
     scale = units.Scale.of(curve, machine)
     path = scale.path(curve)
+    if not args.sampled:  # the planner's size, before any arc length (issue 37)
+        check_profile_size(path)
     if args.sampled:
         bound = sampled_stop_bound(path, machine,
                                    settle_window=_settle_window(args, scale, path),
@@ -247,6 +249,7 @@ def _run(args, precompiler) -> int:
     job = Job(curve, machine, (feed, "pulse"), args.interpolator, name=args.path,
               max_samples=args.max_samples)
     path = job.pulses
+    check_profile_size(path)  # the planner's size, before any arc length (issue 37)
     try:
         check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
     except WorkLimitError:  # too many samples: a bare feed number in the wrong unit?
