@@ -23,8 +23,7 @@ import numpy as np
 from .._runtime.io import atomic_output
 
 __all__ = ["TRACE_FORMATS", "TRACE_FILES", "TRACE_CHUNK_ROWS", "trace_columns", "TraceWriter",
-           "write_trace", "write_trace_csv", "estimate_trace_bytes", "trace_rows",
-           "trace_metadata_columns"]
+           "write_trace", "write_trace_csv", "estimate_trace_bytes", "trace_rows"]
 
 TRACE_FORMATS = ("csv", "parquet")
 """Formats of the trace file."""
@@ -379,10 +378,10 @@ def trace_metadata_columns(header: list, axis_names) -> list:
 
     Raises
     ------
-    ValueError
+    ExportError
         For a column name that is not a trace column.
     """
-    from .export import CsvColumn
+    from .export import CsvColumn, ExportError
 
     fixed = {"t": ("s", "sample time"), "u": ("1", "curve parameter of the setpoint")}
     what = {"cmd": "setpoint", "act": "actual position", "meas": "position the controller read",
@@ -396,14 +395,14 @@ def trace_metadata_columns(header: list, axis_names) -> list:
         axis = next((a for a in sorted(axis_names, key=len, reverse=True)
                      if name.startswith(a + "_")), None)
         if axis is None:
-            raise ValueError(f"{name!r} is not a trace column")
+            raise ExportError(f"{name!r} is not a trace column")
         rest = name[len(axis) + 1:]
         per_s = rest.endswith("_per_s")
         rest = rest.removesuffix("_per_s")
         kind = next((k for k in sorted(what, key=len, reverse=True)
                      if rest == k or rest.startswith(k + "_")), None)
         if kind is None:
-            raise ValueError(f"{name!r} is not a trace column")
+            raise ExportError(f"{name!r} is not a trace column")
         unit = rest[len(kind) + 1:] or ("V" if kind.startswith("drive") else "pulse")
         if kind.startswith("speed"):
             unit = f"{unit}/s" if per_s else "pulse/s"
