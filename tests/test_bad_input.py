@@ -342,7 +342,8 @@ def test_a_read_only_folder_is_one_line(tmp_path, capsys):
 def test_a_missing_parent_folder_is_created(tmp_path):
     out = tmp_path / "a" / "b"
     assert main(["interpolate", "die-bonder-pi", "--feed", "1e6", "--out", str(out)]) == 0
-    assert sorted(os.listdir(out)) == ["setpoints.csv", "setpoints.png"]
+    assert sorted(os.listdir(out)) == ["setpoints.csv", "setpoints.csv-metadata.json",
+                                       "setpoints.png"]
 
 
 def test_warnings_are_one_line_without_source_echo(tmp_path, capsys, monkeypatch):

@@ -519,6 +519,7 @@ def test_overwrite_replaces_the_whole_set_of_outputs(tmp_path, capsys):
     assert main(["interpolate", "die-bonder-pi", "--feed", "5e5", "--out", str(out),
                  "--overwrite"]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "setpoints.csv",
+                                                     "setpoints.csv-metadata.json",
                                                      "setpoints.png"]
 
 

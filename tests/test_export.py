@@ -203,3 +203,91 @@ def test_run_exports_halstreamer_and_ros_and_names_the_paths_unit(tmp_path, caps
     assert len(hal) == summary["steps"] + 1
     text = (out / "trajectory.yaml").read_text()
     assert "joint_names: [x, y]" in text and "time_from_start: {sec: 0, nanosec: 0}" in text
+
+
+def test_csv_metadata_sidecars_name_every_column_and_unit(tmp_path):
+    """Issue 36: beside setpoints.csv, pvt.csv and trace.csv, `run` writes the CSV on the
+    Web metadata <name>.csv-metadata.json: its columns are the CSV header, in order, each
+    with the unit docs/formats.md gives (QUDT IRI and the unit's text); --overwrite
+    replaces them, and without it the folder is refused."""
+    import json
+    import re
+    from pathlib import Path
+
+    from nurbsmotion.cli import main
+    from nurbsmotion.report.export import QUDT_UNITS
+
+    out = tmp_path / "run"
+    argv = ["run", "examples/butterfly.json", "--feed", "0.2m/s", "--out", str(out),
+            "--no-figures", "--export", "csv", "--export", "pvt", "--quiet"]
+    assert main(argv) == 0
+    docs = (Path(__file__).parents[1] / "docs" / "formats.md").read_text()
+    expected = {"setpoints.csv": ["s", "1", "mm", "mm"],
+                "pvt.csv": ["s", "mm", "mm/s", "mm", "mm/s"],
+                "trace.csv": ["s", "1"] + ["pulse", "pulse", "V", "V"] * 2 + ["mm"] * 4}
+    for name, units in expected.items():
+        header = (out / name).read_text().splitlines()[0].split(",")
+        meta = json.loads((out / f"{name}-metadata.json").read_text())
+        assert meta["url"] == name and meta["@context"][0] == "http://www.w3.org/ns/csvw"
+        columns = meta["tableSchema"]["columns"]
+        assert [c["name"] for c in columns] == header == [c["titles"] for c in columns]
+        assert [c["nurbsmotion:unit"] for c in columns] == units
+        for c in columns:
+            assert c["qudt:unit"] == {"@id": f"unit:{QUDT_UNITS[c['nurbsmotion:unit']]}"}
+            assert c["dc:description"].endswith(f"[{c['nurbsmotion:unit']}]")
+            assert c["datatype"] == "double"
+    assert "csv-metadata.json" in docs
+    # the values are written to the resolution that matters, not 17 digits
+    for name in ("setpoints.csv", "pvt.csv"):
+        cells = (out / name).read_text().splitlines()[1].split(",")
+        assert all(len(re.sub(r"[-.]", "", c)) < 17 for c in cells), cells
+    # no temporary file left; a second run refuses the folder, --overwrite replaces all
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["summary.json", "setpoints.csv", "pvt.csv", "trace.csv", "setpoints.csv-metadata.json",
+         "pvt.csv-metadata.json", "trace.csv-metadata.json"])
+    assert main(argv) == 2
+    assert main(argv[:-5] + ["--no-figures", "--quiet", "--overwrite"]) == 0
+    assert not (out / "pvt.csv-metadata.json").exists()  # what this run did not write
+    assert not (out / "setpoints.csv-metadata.json").exists()
+    assert (out / "trace.csv-metadata.json").exists()
+
+
+def test_csv_metadata_is_written_atomically(tmp_path, monkeypatch):
+    """The sidecar goes through write_output (a temporary file renamed): a failure while
+    writing leaves nothing, an existing file is refused without overwrite."""
+    from nurbsmotion.errors import OutputExistsError
+    from nurbsmotion.report import export
+    from nurbsmotion.report.export import CsvColumn, save_csv_metadata
+
+    cols = [CsvColumn("t", "s", "time"), CsvColumn("x", "mm", "x")]
+    target = save_csv_metadata(tmp_path / "a.csv", cols)
+    assert target.name == "a.csv-metadata.json" and [p.name for p in tmp_path.iterdir()] == [
+        "a.csv-metadata.json"]
+    with pytest.raises(OutputExistsError):
+        save_csv_metadata(tmp_path / "a.csv", cols)
+    monkeypatch.setattr(export.json if hasattr(export, "json") else __import__("json"),
+                        "dumps", lambda *a, **k: 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        save_csv_metadata(tmp_path / "b.csv", cols)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.csv-metadata.json"]
+    with pytest.raises(export.ExportError, match="no QUDT unit"):
+        save_csv_metadata(tmp_path / "c.csv", [CsvColumn("t", "furlong", "t")])
+
+
+def test_interpolate_converts_a_feed_with_a_unit_through_the_machine(tmp_path, capsys):
+    """Regression (found with issue 36): `interpolate die-bonder-pi --machine die-bonder
+    --feed 0.2m/s` was refused as 'without a machine'; with --machine the feed goes
+    through its pulse length (1 um: 0.2 m/s = 2e5 pulse/s), without it the message stays."""
+    from nurbsmotion.cli import main
+
+    assert main(["interpolate", "die-bonder-pi", "--machine", "die-bonder", "--feed", "0.2m/s",
+                 "--out", str(tmp_path / "a")]) == 0
+    assert "--feed 200000 pulse/s" in capsys.readouterr().out
+    assert main(["interpolate", "die-bonder-pi", "--feed", "2e5", "--out",
+                 str(tmp_path / "b")]) == 0
+    assert (tmp_path / "a" / "setpoints.csv").read_bytes() == (
+        tmp_path / "b" / "setpoints.csv").read_bytes()
+    assert (tmp_path / "a" / "setpoints.csv-metadata.json").exists()
+    assert main(["interpolate", "die-bonder-pi", "--feed", "0.2m/s", "--out",
+                 str(tmp_path / "c")]) == 2
+    assert "to a path in pulse without a machine" in capsys.readouterr().err

@@ -1535,3 +1535,69 @@ def test_a_path_of_too_many_corners_is_refused_before_its_arc_length(monkeypatch
     monkeypatch.setattr(NurbsCurve, "length", property(no_arc_length))
     with pytest.raises(InfeasibleError, match="99999 sharp corners"):
         speed_profile(zigzag, MACHINE, 1e5)
+
+
+def test_the_profile_size_is_checked_from_the_corners_before_the_run(tmp_path, monkeypatch, capsys):
+    """Regression (issue 37, work refused late): a zigzag path file of 100,001 points is
+    refused by `bound` and `run` in one line naming its corners and the limit, from
+    check_profile_size (knots and corners), before the settle window's check and the arc
+    length (each a second or more on a million points)."""
+    import json
+
+    from nurbsmotion import metrics
+    from nurbsmotion.cli import main
+    from nurbsmotion.errors import WorkLimitError
+    from nurbsmotion.planning import MAX_GRID_POINTS, PIECE_GRID_POINTS, check_profile_size
+
+    n = 100_001
+    points = np.column_stack([np.arange(n) * 0.01, (np.arange(n) % 2) * 0.01])
+    knots = [0] + list(range(n)) + [n - 1]
+    file = tmp_path / "zigzag.json"
+    file.write_text(json.dumps({"units": "mm", "degree": 1, "knots": knots,
+                                "control_points": points.tolist()}))
+    assert PIECE_GRID_POINTS * (n - 1) > MAX_GRID_POINTS
+
+    def no_arc_length(*args, **kwargs):
+        raise AssertionError("arc length or settle window computed before the size check")
+
+    monkeypatch.setattr(NurbsCurve, "arc_length", no_arc_length)
+    monkeypatch.setattr(NurbsCurve, "length", property(no_arc_length))
+    monkeypatch.setattr(metrics, "check_settle_window", no_arc_length)
+    zigzag = NurbsCurve(1, knots, points)
+    with pytest.raises(WorkLimitError, match="99,999 sharp corners; its 100,000 corner-free "
+                                             "pieces need at least 5,100,000 grid points"):
+        check_profile_size(zigzag)
+    for command in (["bound", str(file), "--feed", "100mm/s"],
+                    ["run", str(file), "--feed", "100mm/s", "--out", str(tmp_path / "o")]):
+        assert main(command) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "99,999 sharp corners" in err[0], err
+        assert "planning.MAX_GRID_POINTS" in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_spline_of_too_many_spans_is_refused_before_its_bounding_box(tmp_path, monkeypatch,
+                                                                        capsys):
+    """Regression (issue 37): a cubic path file of 900,000 spans (more than
+    MAX_GRID_POINTS / (2 * 3)) was refused only after the exact bounding box of the chord
+    join (a minute): the box is computed only for --path-tolerance, and the span count
+    refuses it first."""
+    import json
+
+    from nurbsmotion.cli import main
+
+    n = 900_003
+    x = np.round(np.arange(n) * 0.01, 4)
+    knots = [0, 0, 0] + list(range(n - 2)) + [n - 3] * 3
+    file = tmp_path / "wave.json"
+    file.write_text(json.dumps({"units": "mm", "degree": 3, "knots": knots, "control_points":
+                                np.column_stack([x, np.round(np.sin(x), 4)]).tolist()}))
+
+    def no_box(*args, **kwargs):
+        raise AssertionError("bounding box computed")
+
+    monkeypatch.setattr(NurbsCurve, "bounding_box", no_box)
+    assert main(["bound", str(file), "--feed", "100mm/s"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "900,000 knot spans of degree 3" in err[0], err
+    assert "5,400,001 points, more than the limit of 5,000,000" in err[0]

@@ -2,7 +2,12 @@
 names, so ``from nurbsmotion.export import save_setpoints`` keeps working."""
 
 from .report.export import (  # noqa: F401
+    QUDT_UNITS,
+    CsvColumn,
     ExportError,
+    metadata_file,
+    save_csv_metadata,
+    setpoint_columns,
     PvtTable,
     SetpointArrays,
     decimals_for_resolution,

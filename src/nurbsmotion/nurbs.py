@@ -148,8 +148,9 @@ def _holds_non_number(value: Any) -> bool:
     return any(issubclass(t, _NOT_NUMBERS) for t in set(map(type, items.flat)))
 
 
-def _check_magnitudes(P: np.ndarray, w: np.ndarray) -> None:
-    """Refuse coordinates and weights beyond what double precision computes to 1e-9."""
+def _check_magnitudes(P: np.ndarray, w: np.ndarray) -> float:
+    """Refuse coordinates and weights beyond what double precision computes to 1e-9;
+    return the control points' extent (their largest range over one axis) [path units]."""
     big = np.abs(P) > MAX_MAGNITUDE
     if np.any(big):
         i = _first_bad(np.any(big, axis=1))
@@ -176,6 +177,7 @@ def _check_magnitudes(P: np.ndarray, w: np.ndarray) -> None:
             f"units (ratio {magnitude / extent:.3g}); beyond {MAX_OFFSET_RATIO:.3g} times "
             f"its size a curve cannot be computed to {RELATIVE_ACCURACY:g} relative accuracy "
             "in double precision: move it nearer the origin")
+    return extent
 
 
 def _first_bad(mask: np.ndarray) -> int:
@@ -278,7 +280,7 @@ class NurbsCurve:
             if np.any(w <= 0):
                 i = _first_bad(w <= 0)
                 raise InvalidCurveError(f"weight {i} is {w[i]:g}; weights must be > 0")
-        _check_magnitudes(P, w)
+        size = _check_magnitudes(P, w)
 
         t = _as_float_array(knots, "knots", 1)
         if t.size != n + p + 1:
@@ -338,6 +340,7 @@ class NurbsCurve:
         self.domain = domain
         self.name = name
         self.units = units
+        self._size = size  # the control points' largest range over an axis, used as a scale
 
         homogeneous = np.hstack([P * w[:, None], w[:, None]])
         homogeneous.flags.writeable = False
@@ -585,7 +588,7 @@ class NurbsCurve:
         (:meth:`limit_tangent`) where ``C'(u) = 0``."""
         d1 = self(u, 1, side)
         norm = np.linalg.norm(d1, axis=-1, keepdims=True)
-        scale = float(np.max(np.ptp(self.control_points, axis=0)))
+        scale = self._size
         if np.any(norm <= 1e-9 * scale):
             return self.limit_tangent(u, side)
         return d1 / norm
@@ -649,7 +652,7 @@ class NurbsCurve:
     # ------------------------------------------------------------------ validation
     def _check_not_degenerate(self) -> None:
         P = self.control_points
-        scale = float(np.max(np.ptp(P, axis=0)))
+        scale = self._size
         if scale == 0.0:
             raise InvalidCurveError(
                 f"degenerate curve: all {len(P)} control points coincide at {P[0].tolist()} "
@@ -688,7 +691,7 @@ class NurbsCurve:
 
     def _find_zero_speed(self) -> np.ndarray:
         P = self.control_points
-        scale = float(np.max(np.ptp(P, axis=0)))
+        scale = self._size
         # All spans at once, so that a path of 10^6 spans is checked in seconds.
         p = self.degree
         if p == 1:  # C' is constant on each span: zero where two control points coincide
@@ -779,7 +782,7 @@ class NurbsCurve:
         """
         uu = np.asarray(u, dtype=float)
         d = self.derivatives(uu.ravel(), 3, side)  # (4, m, axes)
-        scale = float(np.max(np.ptp(self.control_points, axis=0)))
+        scale = self._size
         out = d[1].copy()
         norm = np.linalg.norm(out, axis=-1)
         todo = norm <= 1e-9 * scale

@@ -56,7 +56,7 @@ from .servo import zoh_coefficients
 from .units import in_pulses
 
 __all__ = ["SpeedProfile", "speed_profile", "time_optimal_bound", "sampled_stop_bound",
-           "check_path_size", "top_speed", "check_feed_reachable", "MAX_FEED_RATIO"]
+           "check_path_size", "check_profile_size", "top_speed", "check_feed_reachable", "MAX_FEED_RATIO"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,6 +203,35 @@ def check_path_size(curve: NurbsCurve) -> None:
             f"{SPAN_POINTS_PER_DEGREE} x degree grid points each its speed profile needs "
             f"{least:,} points, more than the limit of {MAX_GRID_POINTS:,} "
             "(planning.MAX_GRID_POINTS); split the path or join its chords")
+
+
+PIECE_GRID_POINTS = 51
+"""Fewest grid points of a corner-free piece of a speed profile (:func:`speed_profile`:
+at least 50 intervals a piece, whatever its length)."""
+
+
+def check_profile_size(curve: NurbsCurve) -> None:
+    """Refuse a path whose speed profile (:func:`speed_profile`, so
+    :func:`time_optimal_bound` and every ``run``) cannot fit in :data:`MAX_GRID_POINTS`,
+    from its knots and sharp corners alone, before any arc length: the knot spans as
+    :func:`check_path_size`, and :data:`PIECE_GRID_POINTS` per corner-free piece (its sharp
+    corners split it; :func:`speed_profile` splits it at least there). One vectorised
+    pass over the corner candidates (a second on a million-span path).
+
+    Raises
+    ------
+    WorkLimitError
+        Naming the spans (or the corners), the points they need and the limit.
+    """
+    check_path_size(curve)
+    corners = len(curve.sharp_corners())
+    least = PIECE_GRID_POINTS * (corners + 1)
+    if least > MAX_GRID_POINTS:
+        raise WorkLimitError(
+            f"the path has {corners:,} sharp corners; its {corners + 1:,} corner-free pieces "
+            f"need at least {least:,} grid points ({PIECE_GRID_POINTS} a piece), more than "
+            f"the limit of {MAX_GRID_POINTS:,} (planning.MAX_GRID_POINTS); smooth the path "
+            "or join its nearly collinear segments")
 
 
 def _span_points(curve: NurbsCurve, u0: float, u1: float, s: np.ndarray) -> np.ndarray:

@@ -19,11 +19,11 @@ from pathlib import Path
 from .. import units
 from .._runtime.io import OutputFolder
 from ..loop.budget import check_samples, estimate_samples
-from ..errors import InvalidArgumentError, WorkLimitError
+from ..errors import InvalidArgumentError, InvalidFeedError, WorkLimitError
 from ..interpolators import make_open_loop
 from ..machine import Machine, load_machine
 from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
-from ..planning import sampled_stop_bound, time_optimal_bound
+from ..planning import check_profile_size, sampled_stop_bound, time_optimal_bound
 from .console import EXPORT_FILES, _outputs, _progress
 
 
@@ -112,14 +112,14 @@ def _cmd_contours(args) -> int:
 
 
 def _cmd_interpolate(args) -> int:
-    from ..report.export import SetpointArrays, save_setpoints
+    from ..report.export import SetpointArrays, save_csv_metadata, save_setpoints, setpoint_columns
     from ..loop import interpolate
     from ..plots import plot_setpoints
 
-    machine = load_machine(args.machine)
+    machine = load_machine(args.machine or "die-bonder")
     contour = _contour(args, machine)  # as run reads it: chord runs joined
     curve = contour.curve
-    cap = None if args.feed is None else units.feed_in_path_units(args.feed, curve)
+    cap = None if args.feed is None else _open_loop_feed(args, curve, machine)
     feed, note = _feed_used(args, contour, cap, 1.0, f"{curve.units}/s")
     if args.method == "uniform" and not isinstance(feed, (int, float)):
         feed, note = feed.lowest, f"{note}: its lowest value (uniform steps have one feed)"
@@ -142,6 +142,8 @@ def _cmd_interpolate(args) -> int:
         names = _axis_names(curve.n_axes)
         save_setpoints(SetpointArrays(series.t, series.u, series.position, series.feed, names),
                        out / "setpoints.csv")
+        save_csv_metadata(out / "setpoints.csv", setpoint_columns(names, curve.units or "pulse"),
+                          title="nurbsmotion setpoints (open loop)")
         plot_setpoints(series, out, axis_names=names, units=curve.units or "pulse")
     out = Path(args.out)
     fl_max, fl_rms = series.feed_fluctuation()
@@ -149,6 +151,20 @@ def _cmd_interpolate(args) -> int:
           f"feed fluctuation max {fl_max:.3%} RMS {fl_rms:.3%}; feed: {note} -> {out}")
     _print_joined(contour, machine)
     return 0
+
+
+def _open_loop_feed(args, curve, machine: Machine) -> float:
+    """``--feed`` of ``interpolate`` in the path's units per second: converted by its own
+    unit where it can be (a length unit on a path in a length unit); otherwise, with
+    ``--machine`` given, through the machine's Scale (a feed in m/s on a path in pulses:
+    the machine's pulse length); without it, refused as before."""
+    try:
+        return units.feed_in_path_units(args.feed, curve)
+    except InvalidFeedError:
+        if args.machine is None:
+            raise
+    scale = units.Scale.of(curve, machine)
+    return scale.feed(args.feed) / scale.factor  # [pulse/s] / [pulse/path unit]
 
 
 def _axis_names(n: int) -> list[str]:
@@ -185,6 +201,8 @@ def _cmd_bound(args) -> int:
     machine.check_path(curve.n_axes)
     scale = units.Scale.of(curve, machine)
     path = scale.path(curve)
+    if not args.sampled:  # the planner's size, before any arc length (issue 37)
+        check_profile_size(path)
     if args.sampled:
         bound = sampled_stop_bound(path, machine,
                                    settle_window=_settle_window(args, scale, path),
@@ -246,6 +264,7 @@ def _run(args, precompiler) -> int:
     job = Job(curve, machine, (feed, "pulse"), args.interpolator, name=args.path,
               max_samples=args.max_samples)
     path = job.pulses
+    check_profile_size(path)  # the planner's size, before any arc length (issue 37)
     try:
         check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
     except WorkLimitError:  # too many samples: a bare feed number in the wrong unit?
@@ -322,6 +341,8 @@ def _run(args, precompiler) -> int:
             if exports:
                 _export_setpoints(result.trace, scale, exports, args)
             bar.update()
+        if file is not None and args.trace_format == "csv":  # its units, beside it
+            _trace_metadata(file, machine, args.overwrite)
         metrics = result.metrics
         stage(stages[4])
         extra = {"plant": machine.name if args.plant is None else args.plant,
@@ -468,6 +489,17 @@ def _write_trace(args, trace, file: Path, shown: units.OutputUnits) -> None:
                    desc=f"write {file.name}") as bar:
         write_trace(trace, file, overwrite=args.overwrite, progress=bar.update, **options)
 
+def _trace_metadata(file: Path, machine: Machine, overwrite: bool) -> None:
+    """``trace.csv-metadata.json`` beside ``file``: its columns, from its header line."""
+    from ..report.export import save_csv_metadata
+    from ..report.trace_file import trace_metadata_columns
+
+    with open(file) as f:
+        header = f.readline().strip().split(",")
+    save_csv_metadata(file, trace_metadata_columns(header, machine.axis_names),
+                      title=f"nurbsmotion run trace on {machine.name}", overwrite=overwrite)
+
+
 EXPORT_PULSE_FRACTION = 1e-3
 """Exported positions are written to this fraction of a pulse (CSV, PVT, halstreamer, ROS)."""
 
@@ -475,11 +507,13 @@ EXPORT_PULSE_FRACTION = 1e-3
 def _export_setpoints(trace, path_scale: units.Scale, files: dict, args) -> None:
     """The commanded setpoints of a run, in the path's own units (``path_scale``'s;
     G-code, halstreamer and ROS in their fixed units)."""
-    from ..report.export import (SetpointArrays, pvt_table, save_halstreamer, save_motion_gcode, save_pvt,
-                         save_ros_trajectory, save_setpoints)
+    from ..report.export import (SetpointArrays, pvt_table, save_csv_metadata, save_halstreamer,
+                                 save_motion_gcode, save_pvt, save_ros_trajectory, save_setpoints,
+                                 setpoint_columns)
 
     machine = trace.machine
     scale = path_scale.factor  # [pulse/path unit]
+    unit = path_scale.path_units or "pulse"  # the exported positions' unit
     end = trace.finished_index + 1
     sp = SetpointArrays(trace.t[:end], trace.u[:end], trace.position_command[:end] / scale,
                         trace.feed[:end] / scale, machine.axis_names)
@@ -499,9 +533,15 @@ def _export_setpoints(trace, path_scale: units.Scale, files: dict, args) -> None
             out = SetpointArrays(sp.t, sp.u, position, sp.feed, machine.axis_names)
         if fmt in ("csv", "npz"):
             save_setpoints(out, file, resolution=resolution, overwrite=args.overwrite)
+            if fmt == "csv":
+                save_csv_metadata(file, setpoint_columns(out.axis_names, unit),
+                                  title="nurbsmotion setpoints", overwrite=args.overwrite)
         elif fmt == "pvt":
             save_pvt(pvt_table(out, args.pvt_period), file, resolution=resolution,
                      overwrite=args.overwrite)
+            save_csv_metadata(file, setpoint_columns(out.axis_names, unit, velocity=True, u=False),
+                              title=f"nurbsmotion PVT table, period {args.pvt_period:g} s",
+                              overwrite=args.overwrite)
         elif fmt == "halstreamer":  # LinuxCNC's machine unit: mm
             save_halstreamer(out, file, units="mm", scale=scale / per_mm,
                              resolution=EXPORT_PULSE_FRACTION / per_mm, overwrite=args.overwrite)

@@ -35,8 +35,18 @@ EXPORT_FILES = {"csv": "setpoints.csv", "npz": "setpoints.npz", "pvt": "pvt.csv"
 """``run --export`` formats and the files they write."""
 
 
+def _with_metadata(names: list) -> list:
+    """``names`` and, after each CSV file, its CSV on the Web metadata file
+    (``<name>.csv-metadata.json``, :func:`nurbsmotion.report.export.metadata_file`)."""
+    return [m for n in names for m in ([n, n + "-metadata.json"] if n.endswith(".csv") else [n])]
+
+
 def _outputs_of(args) -> list[str]:
     """Every file name the command of ``args`` may write: the one list its guard checks."""
+    return _with_metadata(_data_outputs_of(args))
+
+
+def _data_outputs_of(args) -> list[str]:
     if args.command == "interpolate":
         from ..plots import SETPOINT_FIGURES
 
@@ -66,7 +76,7 @@ def project_outputs() -> list[str]:
 
     names = ["setpoints.csv", *SETPOINT_FIGURES, *TRACE_FILES.values(), "summary.json",
              *EXPORT_FILES.values(), *TRACE_FIGURES, *reproduce_outputs(figures=True)]
-    return list(dict.fromkeys(names))
+    return list(dict.fromkeys(_with_metadata(names)))
 
 
 def _outputs(args) -> OutputFolder:

@@ -187,10 +187,12 @@ def _parser() -> argparse.ArgumentParser:
 
     i = command("interpolate", "open-loop setpoints of a path at a constant feed")
     path_input(i, machine=False)  # its --machine says what it is for here
-    i.add_argument("--machine", default="die-bonder",
-                   help=machine_help + ": the path is read on it as run reads it (the "
-                   "axes of G-code and DXF, rotary axes, the pulse of --path-tolerance); "
-                   "the setpoints stay in the path's units")
+    i.add_argument("--machine", default=None,
+                   help=machine_help + " (default die-bonder): the path is read on it as "
+                   "run reads it (the axes of G-code and DXF, rotary axes, the pulse of "
+                   "--path-tolerance); the setpoints stay in the path's units. Given, it also "
+                   "converts a --feed with a length unit on a path in pulses (its pulse "
+                   "length)")
     i.add_argument("--path-tolerance", help=path_tolerance_help)
     i.add_argument("--method", choices=OPEN_LOOP_METHODS, default="taylor2",
                    help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")

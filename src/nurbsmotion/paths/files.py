@@ -32,6 +32,7 @@ import json
 import math
 import os
 import re
+import itertools
 import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -161,8 +162,8 @@ def _number_rows(points: list) -> Any:
     """``control_points`` as rows of finite numbers: one array conversion when every entry
     is a plain int or float (a million rows in a fraction of a second), else row by row
     with :func:`_numbers`, which names the bad entry."""
-    if all(type(row) is list for row in points) and all(
-            set(map(type, row)) <= {float, int} for row in points):
+    if set(map(type, points)) == {list} and set(
+            map(type, itertools.chain.from_iterable(points))) <= {float, int}:  # in C
         try:
             table = np.array(points, dtype=float)
         except (ValueError, OverflowError):  # ragged rows, an integer beyond a double
@@ -199,7 +200,7 @@ def _check_fields(data: Any) -> dict:
         raise _FieldError("control_points", f"has {len(points):,} rows, more than the "
                           f"{MAX_CONTROL_POINTS:,} a path may have (nurbs.MAX_CONTROL_POINTS)")
     rows = _number_rows(points)
-    if len({len(r) for r in rows}) != 1:
+    if not isinstance(rows, np.ndarray) and len({len(r) for r in rows}) != 1:  # ragged
         lengths = [len(r) for r in rows]
         i = next(i for i, n in enumerate(lengths) if n != lengths[0])
         raise _FieldError(

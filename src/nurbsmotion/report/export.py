@@ -41,6 +41,16 @@ motion G-code
     LinuxCNC's dialect; the path itself as G5.2 blocks is
     :func:`nurbsmotion.paths.save_gcode`.
 
+CSV metadata (CSV on the Web)
+    Beside each CSV file it writes (``setpoints.csv``, ``pvt.csv``, ``trace.csv``) the
+    command writes ``<name>.csv-metadata.json``, the W3C "Metadata Vocabulary for Tabular
+    Data" description at the standard's default location for that file's metadata
+    (``{+url}-metadata.json``): ``url``, and under ``tableSchema.columns`` one entry per
+    column in the header's order with ``name`` and ``titles`` (the header cell),
+    ``datatype`` (``double``), ``dc:description`` (what it is, with its unit in brackets)
+    and ``qudt:unit``, the QUDT unit IRI (:data:`QUDT_UNITS`; a pulse, an encoder count,
+    is ``unit:NUM`` with ``nurbsmotion:unit`` ``"pulse"``). :func:`save_csv_metadata`.
+
 Glossary
 --------
 t : time [s]; u : curve parameter; T : PVT period [s]; F : feed [units/min].
@@ -73,6 +83,11 @@ __all__ = [
     "save_halstreamer",
     "save_ros_trajectory",
     "decimals_for_resolution",
+    "CsvColumn",
+    "QUDT_UNITS",
+    "metadata_file",
+    "save_csv_metadata",
+    "setpoint_columns",
 ]
 
 _DEFAULT_AXES = ("x", "y", "z", "a", "b", "c", "u", "v", "w")
@@ -205,6 +220,108 @@ def save_setpoints(setpoints: Any, file: str | os.PathLike, *, resolution: float
             arrays["feed"] = sp.feed
         return write_output(file, lambda f: np.savez(f, **arrays), overwrite=overwrite, binary=True)
     raise ExportError(f"{file}: unknown setpoint file ending {suffix!r}; use .csv or .npz")
+
+
+QUDT_UNITS = {
+    "s": "SEC", "1": "UNITLESS", "V": "V", "pulse": "NUM", "pulse/s": "PER-SEC",
+    "deg": "DEG", "deg/s": "DEG-PER-SEC", "rad": "RAD",
+    "um": "MicroM", "mm": "MilliM", "cm": "CentiM", "m": "M", "in": "IN", "inch": "IN",
+    "um/s": "MicroM-PER-SEC", "mm/s": "MilliM-PER-SEC", "cm/s": "CentiM-PER-SEC",
+    "m/s": "M-PER-SEC", "in/s": "IN-PER-SEC", "inch/s": "IN-PER-SEC",
+}
+"""A column's unit as written in docs/formats.md -> its QUDT unit (``unit:`` prefix,
+http://qudt.org/vocab/unit/). A pulse (an encoder count, a number of steps) is ``NUM``, a
+pulse per second ``PER-SEC``; the metadata also names them in ``nurbsmotion:unit``."""
+
+_CSVW_CONTEXT = ["http://www.w3.org/ns/csvw", {
+    "@language": "en",
+    "qudt": "http://qudt.org/schema/qudt/",
+    "unit": "http://qudt.org/vocab/unit/",
+    "nurbsmotion": "https://github.com/nurbsmotion/nurbsmotion/blob/main/docs/formats.md#",
+}]
+
+
+@dataclass(frozen=True)
+class CsvColumn:
+    """One column of a CSV file for its metadata: ``name`` (the header cell), ``unit`` (a
+    key of :data:`QUDT_UNITS`) and ``description`` (what it is)."""
+
+    name: str
+    unit: str
+    description: str
+
+
+def metadata_file(csv_file: str | os.PathLike) -> Path:
+    """The metadata file of ``csv_file``: CSV on the Web's default location,
+    ``<csv_file>-metadata.json`` (``setpoints.csv`` -> ``setpoints.csv-metadata.json``)."""
+    path = Path(csv_file)
+    return path.with_name(path.name + "-metadata.json")
+
+
+def save_csv_metadata(csv_file: str | os.PathLike, columns: list, *, title: str | None = None,
+                      overwrite: bool = False) -> Path:
+    """Write the CSV on the Web metadata of ``csv_file`` beside it (see the module
+    docstring), atomically (a temporary file renamed), never over an existing file unless
+    ``overwrite``.
+
+    Parameters
+    ----------
+    csv_file : str or path-like
+        The CSV file described; its name is the metadata's ``url`` (relative: the two
+        files move together).
+    columns : list of CsvColumn
+        Every column, in the header's order.
+    title : str, optional
+        ``dc:title`` of the table.
+    overwrite : bool
+
+    Returns
+    -------
+    Path
+        The metadata file (:func:`metadata_file`).
+
+    Raises
+    ------
+    ExportError
+        For a unit without a QUDT unit, or a repeated or empty column name.
+    """
+    import json
+
+    names = [c.name for c in columns]
+    if not names or len(set(names)) != len(names) or not all(names):
+        raise ExportError(f"CSV columns must have distinct non-empty names, got {names}")
+    unknown = [c.unit for c in columns if c.unit not in QUDT_UNITS]
+    if unknown:
+        raise ExportError(f"no QUDT unit for {unknown}; known: {', '.join(QUDT_UNITS)}")
+    table = {"@context": _CSVW_CONTEXT, "url": Path(csv_file).name}
+    if title:
+        table["dc:title"] = title
+    table["dialect"] = {"header": True, "delimiter": ","}
+    table["tableSchema"] = {"columns": [{
+        "name": c.name, "titles": c.name, "datatype": "double",
+        "dc:description": f"{c.description} [{c.unit}]",
+        "qudt:unit": {"@id": f"unit:{QUDT_UNITS[c.unit]}"},
+        "nurbsmotion:unit": c.unit,
+    } for c in columns]}
+    text = json.dumps(table, indent=1) + "\n"
+    return write_output(metadata_file(csv_file), lambda f: f.write(text), overwrite=overwrite)
+
+
+def setpoint_columns(axis_names, unit: str, *, velocity: bool = False, u: bool = True) -> list:
+    """The :class:`CsvColumn` list of a setpoints CSV (``t,u,<axes>``) or, with
+    ``velocity`` (and ``u=False``), of a PVT table (``t,<a>,<a>_velocity,...``); an axis
+    named ``<a>_deg`` is a rotary axis in degrees, the others in ``unit``."""
+    cols = [CsvColumn("t", "s", "time from the start of the move")]
+    if u:
+        cols.append(CsvColumn("u", "1", "curve parameter of the setpoint, 0 at the path's "
+                                        "start and 1 at its end"))
+    for a in axis_names:
+        L = "deg" if a.endswith("_deg") else unit
+        cols.append(CsvColumn(a, L, f"commanded position of axis {a.removesuffix('_deg')}"))
+        if velocity:
+            cols.append(CsvColumn(f"{a}_velocity", f"{L}/s",
+                                  f"commanded velocity of axis {a.removesuffix('_deg')}"))
+    return cols
 
 
 def _write_csv(handle, header: str, table: np.ndarray, fmt="%.17g") -> None:

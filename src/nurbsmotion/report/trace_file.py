@@ -366,3 +366,42 @@ def _bytes_per_row(fmt: str, cols, block, rows: np.ndarray) -> float:
     chunks.write(block, sample)
     chunks.close(True)
     return buffer.tell() / len(sample)
+
+
+def trace_metadata_columns(header: list, axis_names) -> list:
+    """The :class:`~nurbsmotion.report.export.CsvColumn` of every trace column (its unit
+    and meaning, as docs/formats.md gives them), from the trace file's header and the
+    machine's axis names.
+
+    Raises
+    ------
+    ExportError
+        For a column name that is not a trace column.
+    """
+    from .export import CsvColumn, ExportError
+
+    fixed = {"t": ("s", "sample time"), "u": ("1", "curve parameter of the setpoint")}
+    what = {"cmd": "setpoint", "act": "actual position", "meas": "position the controller read",
+            "drive": "drive before clipping", "drive_applied": "drive after clipping to +-Umax",
+            "speed_min": "eq. 3.6 lower speed bound", "speed_max": "eq. 3.6 upper speed bound"}
+    out = []
+    for name in header:
+        if name in fixed:
+            out.append(CsvColumn(name, *fixed[name]))
+            continue
+        axis = next((a for a in sorted(axis_names, key=len, reverse=True)
+                     if name.startswith(a + "_")), None)
+        if axis is None:
+            raise ExportError(f"{name!r} is not a trace column")
+        rest = name[len(axis) + 1:]
+        per_s = rest.endswith("_per_s")
+        rest = rest.removesuffix("_per_s")
+        kind = next((k for k in sorted(what, key=len, reverse=True)
+                     if rest == k or rest.startswith(k + "_")), None)
+        if kind is None:
+            raise ExportError(f"{name!r} is not a trace column")
+        unit = rest[len(kind) + 1:] or ("V" if kind.startswith("drive") else "pulse")
+        if kind.startswith("speed"):
+            unit = f"{unit}/s" if per_s else "pulse/s"
+        out.append(CsvColumn(name, unit, f"{what[kind]} of axis {axis}"))
+    return out

@@ -136,8 +136,10 @@ def join_run_chords(contour, machine: Machine, path_tolerance=None):
     tol = DEFAULT_PATH_TOLERANCE if path_tolerance is None else scale.length(
         path_tolerance, "--path-tolerance", bare_unit="pulse")
     per_unit = scale.factor  # [pulse/path unit]
-    extent = math.dist(*curve.bounding_box()) * per_unit  # [pulse]
-    if path_tolerance is not None and tol > 0 and tol >= extent:
+    # the extent only where a tolerance was given (the exact bounding box of a
+    # million-span spline costs a minute)
+    if path_tolerance is not None and tol > 0 and tol >= (
+            extent := math.dist(*curve.bounding_box()) * per_unit):  # [pulse]
         # the run (and planned's short moves) could leave the whole path (1e300 overflowed)
         raise InvalidArgumentError(
             f"--path-tolerance {path_tolerance} ({tol:g} pulse) is not below the path's "
