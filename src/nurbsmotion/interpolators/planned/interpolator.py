@@ -24,7 +24,7 @@ from .identify import (EST_ROWS, GAIN_RANGE, HIST_ROWS, N_PARAMETERS, _drive_wei
 from .inverse import axis_zoh
 from .mode_law import MODE_LAW_ROWS, mode_landing_law
 from .plan import plan_motion
-from .rest_law import REST_LAW_ROWS, rest_law
+from .rest_observer import REST_OBSERVER_ROWS, rest_observer
 from .shaper import encoder_offset, shape_plan
 from .shorten import DEFAULT_PATH_TOLERANCE
 from .step import DRIVE_MATCH, LANDING_ROWS, planned_step
@@ -79,9 +79,9 @@ class PlannedPlan(NamedTuple):
     # (MODE_LAW_ROWS, n_axes): per axis whose model declares a mode, 1 and the landing's
     # law designed with it (.mode_law.mode_landing_law); zeros: the rigid landing
     mode_law: np.ndarray = np.zeros((MODE_LAW_ROWS, 0))
-    # (REST_LAW_ROWS, n_axes): per axis whose model's reading is not exact, 1 and the law
-    # that holds the end at rest (.rest_law.rest_law); zeros: the landing's law
-    rest_law: np.ndarray = np.zeros((REST_LAW_ROWS, 0))
+    # (REST_OBSERVER_ROWS, n_axes): per rigid axis whose model's reading is not exact, 1 and
+    # the pole of the landing's speed observer (.rest_observer.rest_observer); zeros: none
+    rest_observer: np.ndarray = np.zeros((REST_OBSERVER_ROWS, 0))
 
 
 class PlannedState(NamedTuple):
@@ -279,15 +279,15 @@ def machine_knowledge(machine: Machine, a, b0, c, b1, tracking_pole: float) -> d
       the mode, its delay and the model's tau, Kc and mode each +-10 % off
       (``mode_law``, :func:`.mode_law.mode_landing_law`); the rigid placement on the
       identified plant left the mode unplaced and limit-cycled at rest.
-    - On a rigid axis whose model's reading is not exact (counts, noise), the law that
-      holds the end once the plan rests there is the machine's own, scaled for the
-      quantiser, with an integral (``rest_law``, :func:`.rest_law.rest_law`): the
-      landing's law reacted to a count or the noise through its one-increment speed."""
+    - On a rigid axis whose model's reading is not exact (counts, noise), the landing's
+      speed comes from an observer whose poles are the machine's own loop's slowest
+      (``rest_observer``, :func:`.rest_observer.rest_observer`): from one increment, a
+      count or the noise read as a speed of a count per sample kicked the law at rest."""
     known = reading_knowledge(machine, a, b0, c, b1)
     return dict(known, delay=machine.delay / machine.sample_period,
                 landing_pole=float(tracking_pole),
                 mode_law=mode_landing_law(machine, tracking_pole),
-                rest_law=rest_law(machine, known["landing_band"]))
+                rest_observer=rest_observer(machine, known["landing_band"]))
 
 
 def _path_steps(desired: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@ from .governor import _demand, _rate_room, _support_at, _window_rate
 from .guards import _guarded, _short_of_stop
 from .identify import (LAW_ROWS, _delayed_zoh, _estimated_delayed_plant, _estimated_plant,
                        _identify, _landing_law, _plant_part, _pole_gains)
-from .rest_law import observer_gains
+from .rest_observer import observer_gains
 
 __all__ = ["online_step", "planned_step", "LANDING_ROWS"]
 
@@ -30,8 +30,8 @@ end (0: not since the integral's last reset; the stick-slip rule of step 3'), th
 rest law's observer (:data:`OBSERVER_ROW`)."""
 
 OBSERVER_ROW = 3 + LAW_ROWS
-"""The landing's rows from here: the rest law's observer (:mod:`.rest_law`, step 3' of
-:func:`online_step`): the plant's speed [rad/s] and position [pulse] estimated at the last
+"""The landing's rows from here: its speed observer on a reading not exact
+(:mod:`.rest_observer`, step 3' of :func:`online_step`): the plant's speed [rad/s] and position [pulse] estimated at the last
 sample, its two gains (speed, position) on the reading's innovation, and 1 on the
 landing's first sample (the estimate is the reading's, not yet advanced)."""
 
@@ -94,9 +94,9 @@ def online_step(plan, state, position, umax, out_setpoint):
         law and the tracking's gains designed with the mode
         (:func:`.mode_law.mode_landing_law`), used on the model's plant in place of the
         identified plant's laws (zeros: a rigid axis, the identified plant's);
-        ``rest_law``, shape (REST_LAW_ROWS, n_axes), per rigid axis whose model's reading
-        is not exact the law that holds the end in the landing (:func:`.rest_law.rest_law`:
-        gains and the observer's pole; zeros: the landing's law).
+        ``rest_observer``, shape (REST_OBSERVER_ROWS, n_axes), per rigid axis whose model's
+        reading is not exact 1 and the pole of the landing's speed observer
+        (:func:`.rest_observer.rest_observer`; zeros: the speed from the last increment).
     state : PlannedState
         Read: ``phi[0]``, the plan's clock at this sample [samples]; ``rate[0]``, the
         clock's rate over the last sample, in (0, 1]; ``excess[0]``, how far the last
@@ -242,7 +242,7 @@ def online_step(plan, state, position, umax, out_setpoint):
             # meet, the model's delay on, and an integral of the error beyond what the
             # reading can tell (plan.landing_band: a count's edge or the noise is neither
             # chased nor integrated), poles at plan.landing_pole
-            rested = plan.rest_law.shape[1] > 0 and plan.rest_law[0, j] != 0.0
+            rested = plan.rest_observer.shape[1] > 0 and plan.rest_observer[0, j] != 0.0
             if landing[0, j] == 0.0:
                 landing[0, j] = 1.0
                 if moded:
@@ -255,7 +255,7 @@ def online_step(plan, state, position, umax, out_setpoint):
                 if rested:
                     # the observer starts on the reading and the speed of the last
                     # increment and drives (the tracking's w_now), its gains on the
-                    # identified plant (:func:`.rest_law.observer_gains`)
+                    # identified plant (:func:`.rest_observer.observer_gains`)
                     w0 = ((hist[3, j] - landing[4, j] * hist[0, j]
                            - landing[6, j] * hist[1, j]) / landing[2, j])
                     w0 = (landing[1, j] * w0 + landing[3, j] * hist[0, j]
@@ -263,7 +263,7 @@ def online_step(plan, state, position, umax, out_setpoint):
                     landing[OBSERVER_ROW, j] = w0
                     landing[OBSERVER_ROW + 1, j] = position[j]
                     m_w, m_th = observer_gains(landing[1, j], landing[2, j],
-                                               plan.rest_law[4, j])
+                                               plan.rest_observer[1, j])
                     landing[OBSERVER_ROW + 2, j] = m_w
                     landing[OBSERVER_ROW + 3, j] = m_th
                     landing[OBSERVER_ROW + 4, j] = 1.0   # first sample: no prediction
@@ -271,17 +271,13 @@ def online_step(plan, state, position, umax, out_setpoint):
             # then the state after the drive in flight
             al, cl, g0w, g0th = landing[1, j], landing[2, j], landing[3, j], landing[4, j]
             g1w, g1th = landing[5, j], landing[6, j]
+            k_e, k_s, k_z = landing[11, j], landing[12, j], landing[13, j]
             if rested:
-                # a reading not exact: the machine's own gains, scaled for the quantiser,
-                # on the error beyond the band and the speed, and an integral
-                # (:func:`.rest_law.rest_law`), in place of the landing's (k_theta, k_w,
-                # k_i) below; the plant's state from an observer on the frozen identified
-                # plant: its last estimate advanced by the drives applied, corrected by
-                # the reading (:func:`.rest_law.observer_gains`; one increment's speed
-                # turned a count flipped by the noise into a kick of the machine's whole
-                # D gain, and the loop's differenced speed, half a sample old, kicked an
-                # axis braked to rest on the Pi's steep end 64 pulses back)
-                k_e, k_s, k_z = plan.rest_law[1, j], plan.rest_law[2, j], plan.rest_law[3, j]
+                # a reading not exact: the plant's speed from an observer on the frozen
+                # identified plant, its last estimate advanced by the drives applied and
+                # corrected by the reading (:func:`.rest_observer.observer_gains`), not from
+                # one increment (a count flipped by the noise read as a speed of a count
+                # per sample, a kick of the law's whole speed gain)
                 w_hat = landing[OBSERVER_ROW, j]
                 th_hat = landing[OBSERVER_ROW + 1, j]
                 if landing[OBSERVER_ROW + 4, j] == 0.0:
@@ -294,14 +290,12 @@ def online_step(plan, state, position, umax, out_setpoint):
                 landing[OBSERVER_ROW, j] = w_hat
                 landing[OBSERVER_ROW + 1, j] = th_hat
                 w_land = w_hat
-                e_end = plan_position[n - 1, j] - th_hat
             else:
-                k_e, k_s, k_z = landing[11, j], landing[12, j], landing[13, j]
                 w_last = (hist[3, j] - g0th * hist[0, j] - g1th * hist[1, j]) / cl
                 w_land = al * w_last + g0w * hist[0, j] + g1w * hist[1, j]
-                e_end = plan_position[n - 1, j] - (position[j] + landing[9, j] * w_land
-                                                   + landing[10, j] * hist[0, j])
-                w_land = landing[7, j] * w_land + landing[8, j] * hist[0, j]
+            e_end = plan_position[n - 1, j] - (position[j] + landing[9, j] * w_land
+                                               + landing[10, j] * hist[0, j])
+            w_land = landing[7, j] * w_land + landing[8, j] * hist[0, j]
             e_end -= min(max(e_end, -band), band)
             u = k_e * e_end - k_s * w_land + k_z * landing[14, j]
             # stick-slip (:data:`HOLD_PULSES`): the axis is gripped when its reading moved
@@ -330,11 +324,7 @@ def online_step(plan, state, position, umax, out_setpoint):
             # the integral (z[k+1] = z[k] + e[k], :func:`.identify._landing_gains`) only
             # while the drive is within Umax (no wind-up); the rest law's, as LinuxCNC's
             # pid, with this sample's error in it
-            if rested:
-                if abs(u + k_z * e_int) <= umax:
-                    landing[14, j] += e_int
-                    u += k_z * e_int
-            elif abs(u) <= umax:
+            if abs(u) <= umax:
                 landing[14, j] += e_int
         else:
             w_next = _plan_speed_at(plan_drive_speed, plan_drive_accel, phi_next, j, a[j],
