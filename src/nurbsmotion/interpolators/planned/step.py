@@ -255,7 +255,9 @@ def online_step(plan, state, position, umax, out_setpoint):
                 if rested:
                     # the observer starts on the reading and the speed of the last
                     # increment and drives (the tracking's w_now), its gains on the
-                    # identified plant (:func:`.rest_observer.observer_gains`)
+                    # identified plant (:func:`.rest_observer.observer_gains`), its poles
+                    # the machine's loop's but no slower than the law's (a slower one let
+                    # the landing swing, or run away on a machine whose loop is slow)
                     w0 = ((hist[3, j] - landing[4, j] * hist[0, j]
                            - landing[6, j] * hist[1, j]) / landing[2, j])
                     w0 = (landing[1, j] * w0 + landing[3, j] * hist[0, j]
@@ -263,7 +265,8 @@ def online_step(plan, state, position, umax, out_setpoint):
                     landing[OBSERVER_ROW, j] = w0
                     landing[OBSERVER_ROW + 1, j] = position[j]
                     m_w, m_th = observer_gains(landing[1, j], landing[2, j],
-                                               plan.rest_observer[1, j])
+                                               min(plan.rest_observer[1, j],
+                                                   plan.landing_pole))
                     landing[OBSERVER_ROW + 2, j] = m_w
                     landing[OBSERVER_ROW + 3, j] = m_th
                     landing[OBSERVER_ROW + 4, j] = 1.0   # first sample: no prediction
