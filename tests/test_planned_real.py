@@ -220,7 +220,7 @@ def test_observer_pole_is_the_machines_loop():
 def test_landing_has_no_describing_function_limit_cycle(changes):
     """The landing's loop with the observer (:func:`_rest_loop`, from the plant sampled by
     scipy; the landing's gains at the tracking pole, the observer's pole the machine's
-    loop's) is stable at the quantiser's describing-function gains on the reading from
+    loop's or the tracking pole, the faster) is stable at the quantiser's describing-function gains on the reading from
     1/1.1 to 4/pi*1.1 (Kc 10 % off either way) and the band's dead zone's on the error
     (0.01, 0.5, 1): the describing function predicts no limit cycle at rest."""
     from nurbsmotion.interpolators.planned.identify import _landing_gains
@@ -240,5 +240,5 @@ def test_landing_has_no_describing_function_limit_cycle(changes):
         for g in (1 / 1.1, 1.0, QUANTISER_GAIN * 1.1):
             for e in (0.01, 0.5, 1.0):
                 loop = _rest_loop(m.tau[j], m.Kc[j], m.Ke[j], m.sample_period, gains,
-                                  observer[1, j], g, e)
+                                  min(observer[1, j], 0.7), g, e)
                 assert np.max(np.abs(np.linalg.eigvals(loop))) < 1.0, (j, g, e)
