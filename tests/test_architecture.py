@@ -57,6 +57,7 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                        "interpolators.planned.identify", "interpolators.planned.governor",
                        "interpolators.planned.guards", "interpolators.planned.step",
                        "interpolators.planned.shaper", "interpolators.planned.mode_law",
+                       "interpolators.planned.rest_observer",
                        "interpolators.planned.interpolator", "interpolators.replay"),
                       ("base", "geometry", "machine", "planning")),
     "loop": (("loop", "loop.trace", "loop.closed_loop", "loop.budget", "loop.sink"),

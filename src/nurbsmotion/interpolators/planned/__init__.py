@@ -43,7 +43,10 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    a count and 3 sigma of the noise). On an axis whose model declares a mode, both laws
    run on the model's plant with gains designed with the mode, its delay and the law's own
    speed estimate, stable with tau, Kc and the mode each 10 % off
-   (:func:`.mode_law.mode_landing_law`). The drive is
+   (:func:`.mode_law.mode_landing_law`). On a rigid axis whose model's reading is not
+   exact (counts, noise), the landing's speed comes from an observer whose poles are the
+   machine's own loop's slowest (:func:`.rest_observer.rest_observer`), not from one
+   increment. The drive is
    clipped to +-Umax: *every drive is within the limit by construction*, whatever the
    true plant. Once the plan moves an axis only towards a stop (a stop corner or the
    end), the drive also leaves the identified plant able to stop before it, braking at
@@ -74,8 +77,9 @@ tha : measured position [pulse]; w : motor speed [rad/s]; Ts : sample period [s]
 One module per idea: :mod:`.plan` (the offline plan, its steps 1-6 in its docstring) with
 :mod:`.blend` (steps 1-2), :mod:`.inverse` (3), :mod:`.landing` (5) and :mod:`.shorten`
 (6); the online step :mod:`.step` with :mod:`.identify` (its step 1), :mod:`.governor` (2)
-and :mod:`.guards` (3); :mod:`.interpolator`: the plan and state the step reads, and the
-interpolator, which registers the step with the loop.
+and :mod:`.guards` (3), :mod:`.mode_law` and :mod:`.rest_observer` (3'); :mod:`.interpolator`:
+the plan and state the step reads, and the interpolator, which registers the step with the
+loop.
 """
 
 from __future__ import annotations

@@ -24,6 +24,7 @@ from .identify import (EST_ROWS, GAIN_RANGE, HIST_ROWS, N_PARAMETERS, _drive_wei
 from .inverse import axis_zoh
 from .mode_law import MODE_LAW_ROWS, mode_landing_law
 from .plan import plan_motion
+from .rest_observer import REST_OBSERVER_ROWS, rest_observer
 from .shaper import encoder_offset, shape_plan
 from .shorten import DEFAULT_PATH_TOLERANCE, DEFAULT_SHORTEN_WORK
 from .step import DRIVE_MATCH, LANDING_ROWS, planned_step
@@ -81,6 +82,9 @@ class PlannedPlan(NamedTuple):
     # (n, n_axes) [pulse]: what the encoder reads of the model's twist under the plan's
     # drive (.shaper.encoder_offset), taken off the reading on a moded axis; (0, 0): none
     twist: np.ndarray = np.zeros((0, 0))
+    # (REST_OBSERVER_ROWS, n_axes): per rigid axis whose model's reading is not exact, 1 and
+    # the pole of the landing's speed observer (.rest_observer.rest_observer); zeros: none
+    rest_observer: np.ndarray = np.zeros((REST_OBSERVER_ROWS, 0))
 
 
 class PlannedState(NamedTuple):
@@ -293,11 +297,16 @@ def machine_knowledge(machine: Machine, a, b0, c, b1, tracking_pole: float) -> d
     - On an axis whose model declares a mode, the landing's law is the one designed with
       the mode, its delay and the model's tau, Kc and mode each +-10 % off
       (``mode_law``, :func:`.mode_law.mode_landing_law`); the rigid placement on the
-      identified plant left the mode unplaced and limit-cycled at rest."""
+      identified plant left the mode unplaced and limit-cycled at rest.
+    - On a rigid axis whose model's reading is not exact (counts, noise), the landing's
+      speed comes from an observer whose poles are the machine's own loop's slowest
+      (``rest_observer``, :func:`.rest_observer.rest_observer`): from one increment, a
+      count or the noise read as a speed of a count per sample kicked the law at rest."""
     known = reading_knowledge(machine, a, b0, c, b1)
     return dict(known, delay=machine.delay / machine.sample_period,
                 landing_pole=float(tracking_pole),
-                mode_law=mode_landing_law(machine, tracking_pole))
+                mode_law=mode_landing_law(machine, tracking_pole),
+                rest_observer=rest_observer(machine, known["landing_band"]))
 
 
 def _path_steps(desired: np.ndarray) -> np.ndarray:

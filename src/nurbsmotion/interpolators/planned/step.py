@@ -18,15 +18,23 @@ from .guards import _guarded, _short_of_stop
 from .shaper import twist_at
 from .identify import (LAW_ROWS, _delayed_zoh, _estimated_delayed_plant, _estimated_plant,
                        _identify, _landing_law, _plant_part, _pole_gains)
+from .rest_observer import observer_gains
 
 __all__ = ["online_step", "planned_step", "LANDING_ROWS"]
 
-LANDING_ROWS = 3 + LAW_ROWS
+LANDING_ROWS = 8 + LAW_ROWS
 """Rows of the landing's state per axis (:func:`online_step`, step 3'): 1 once the landing
 has begun, the law placed then on the identified plant (:func:`.identify._landing_law`,
-rows 1-13), the integral of the error beyond the reading's band [pulse*samples] and the
+rows 1-13), the integral of the error beyond the reading's band [pulse*samples], the
 sign of the error at which the axis was last found stuck beyond :data:`HOLD_PULSES` of the
-end (0: not since the integral's last reset; the stick-slip rule of step 3')."""
+end (0: not since the integral's last reset; the stick-slip rule of step 3'), then the
+rest law's observer (:data:`OBSERVER_ROW`)."""
+
+OBSERVER_ROW = 3 + LAW_ROWS
+"""The landing's rows from here: its speed observer on a reading not exact
+(:mod:`.rest_observer`, step 3' of :func:`online_step`): the plant's speed [rad/s] and position [pulse] estimated at the last
+sample, its two gains (speed, position) on the reading's innovation, and 1 on the
+landing's first sample (the estimate is the reading's, not yet advanced)."""
 
 HOLD_PULSES = 0.5
 """Beyond the reading's band, how far from the end [pulse] an axis held at rest by a drive
@@ -86,7 +94,10 @@ def online_step(plan, state, position, umax, out_setpoint):
         (MODE_LAW_ROWS, n_axes), per axis whose model declares a mode the landing's
         law and the tracking's gains designed with the mode
         (:func:`.mode_law.mode_landing_law`), used on the model's plant in place of the
-        identified plant's laws (zeros: a rigid axis, the identified plant's).
+        identified plant's laws (zeros: a rigid axis, the identified plant's);
+        ``rest_observer``, shape (REST_OBSERVER_ROWS, n_axes), per rigid axis whose model's
+        reading is not exact 1 and the pole of the landing's speed observer
+        (:func:`.rest_observer.rest_observer`; zeros: the speed from the last increment).
     state : PlannedState
         Read: ``phi[0]``, the plan's clock at this sample [samples]; ``rate[0]``, the
         clock's rate over the last sample, in (0, 1]; ``excess[0]``, how far the last
@@ -239,6 +250,7 @@ def online_step(plan, state, position, umax, out_setpoint):
             # meet, the model's delay on, and an integral of the error beyond what the
             # reading can tell (plan.landing_band: a count's edge or the noise is neither
             # chased nor integrated), poles at plan.landing_pole
+            rested = plan.rest_observer.shape[1] > 0 and plan.rest_observer[0, j] != 0.0
             if landing[0, j] == 0.0:
                 landing[0, j] = 1.0
                 if moded:
@@ -248,18 +260,55 @@ def online_step(plan, state, position, umax, out_setpoint):
                 else:
                     _landing_law(ae, b0e, ce, b1e, delay, plan.landing_pole,
                                  landing[1:LAW_ROWS + 1, j])
+                if rested:
+                    # the observer starts on the reading and the speed of the last
+                    # increment and drives (the tracking's w_now), its gains on the
+                    # identified plant (:func:`.rest_observer.observer_gains`), its poles
+                    # the machine's loop's but no slower than the law's (a slower one let
+                    # the landing swing, or run away on a machine whose loop is slow)
+                    w0 = ((hist[3, j] - landing[4, j] * hist[0, j]
+                           - landing[6, j] * hist[1, j]) / landing[2, j])
+                    w0 = (landing[1, j] * w0 + landing[3, j] * hist[0, j]
+                          + landing[5, j] * hist[1, j])
+                    landing[OBSERVER_ROW, j] = w0
+                    landing[OBSERVER_ROW + 1, j] = position[j]
+                    m_w, m_th = observer_gains(landing[1, j], landing[2, j],
+                                               min(plan.rest_observer[1, j],
+                                                   plan.landing_pole))
+                    landing[OBSERVER_ROW + 2, j] = m_w
+                    landing[OBSERVER_ROW + 3, j] = m_th
+                    landing[OBSERVER_ROW + 4, j] = 1.0   # first sample: no prediction
             # the speed from the last position increment and the drives that made it,
             # then the state after the drive in flight
             al, cl, g0w, g0th = landing[1, j], landing[2, j], landing[3, j], landing[4, j]
             g1w, g1th = landing[5, j], landing[6, j]
-            w_last = (hist[3, j] - g0th * hist[0, j] - g1th * hist[1, j]) / cl
-            w_land = al * w_last + g0w * hist[0, j] + g1w * hist[1, j]
+            k_e, k_s, k_z = landing[11, j], landing[12, j], landing[13, j]
+            if rested:
+                # a reading not exact: the plant's speed from an observer on the frozen
+                # identified plant, its last estimate advanced by the drives applied and
+                # corrected by the reading (:func:`.rest_observer.observer_gains`), not from
+                # one increment (a count flipped by the noise read as a speed of a count
+                # per sample, a kick of the law's whole speed gain)
+                w_hat = landing[OBSERVER_ROW, j]
+                th_hat = landing[OBSERVER_ROW + 1, j]
+                if landing[OBSERVER_ROW + 4, j] == 0.0:
+                    th_hat += cl * w_hat + g0th * hist[0, j] + g1th * hist[1, j]
+                    w_hat = al * w_hat + g0w * hist[0, j] + g1w * hist[1, j]
+                landing[OBSERVER_ROW + 4, j] = 0.0
+                innovation = position[j] - th_hat
+                w_hat += landing[OBSERVER_ROW + 2, j] * innovation
+                th_hat += landing[OBSERVER_ROW + 3, j] * innovation
+                landing[OBSERVER_ROW, j] = w_hat
+                landing[OBSERVER_ROW + 1, j] = th_hat
+                w_land = w_hat
+            else:
+                w_last = (hist[3, j] - g0th * hist[0, j] - g1th * hist[1, j]) / cl
+                w_land = al * w_last + g0w * hist[0, j] + g1w * hist[1, j]
             e_end = plan_position[n - 1, j] - (position[j] + landing[9, j] * w_land
                                                + landing[10, j] * hist[0, j])
             w_land = landing[7, j] * w_land + landing[8, j] * hist[0, j]
             e_end -= min(max(e_end, -band), band)
-            u = (landing[11, j] * e_end - landing[12, j] * w_land
-                 + landing[13, j] * landing[14, j])
+            u = k_e * e_end - k_s * w_land + k_z * landing[14, j]
             # stick-slip (:data:`HOLD_PULSES`): the axis is gripped when its reading moved
             # by no more than the reading alone can (twice the band; 0 on an exact one)
             # under a drive beyond the law's at the hold's edge, and drives that would
@@ -269,7 +318,7 @@ def online_step(plan, state, position, umax, out_setpoint):
             hold = band + HOLD_PULSES
             e_int = e_end
             push = g0th * hist[0, j] + g1th * hist[1, j]
-            if (abs(hist[3, j]) <= 2.0 * band and abs(u) >= landing[11, j] * hold
+            if (abs(hist[3, j]) <= 2.0 * band and abs(u) >= k_e * hold
                     and abs(push) > 2.0 * band):
                 e_meas = plan_position[n - 1, j] - position[j]
                 if abs(e_meas) <= hold:
@@ -282,9 +331,10 @@ def online_step(plan, state, position, umax, out_setpoint):
                 # the integral that broke it away and carried it over is spent
                 landing[14, j] = 0.0
                 landing[15, j] = 0.0
-                u = landing[11, j] * e_end - landing[12, j] * w_land
+                u = k_e * e_end - k_s * w_land
             # the integral (z[k+1] = z[k] + e[k], :func:`.identify._landing_gains`) only
-            # while the drive is within Umax (no wind-up)
+            # while the drive is within Umax (no wind-up); the rest law's, as LinuxCNC's
+            # pid, with this sample's error in it
             if abs(u) <= umax:
                 landing[14, j] += e_int
         else:

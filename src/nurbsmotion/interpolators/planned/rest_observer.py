@@ -1,0 +1,97 @@
+"""The landing's speed on a reading that is not exact (issue 33: encoder counts,
+measurement noise): an observer of the plant's state on the frozen identified plant, its
+poles at the slowest pole of the machine's own loop (:func:`rest_observer`,
+:func:`observer_gains`, docs/model.md#planned-on-a-real-machine).
+
+The landing's law (:func:`.identify._landing_law`) took the plant's speed from the last
+position increment and the drives that made it. On a reading in counts or with noise that
+increment is off by up to a count (or six sigma), so the speed by a count per sample, and
+the law answered it with a kick of its whole speed gain: 0.06 V per count on the die
+bonder's x axis (where its position gain gives 0.02 V per count); a count's edge crossed at
+rest set the axis drifting to the next edge, and so on (0.06-0.07 V RMS of chatter, item
+1), and on a fast sampled random machine (Ts 0.25 ms, tau 3-15 ms) 0.29 count of noise
+became +-6 V. The observer advances its last estimate by the drives applied and corrects
+it by a fraction of the reading's innovation, so a count flipped by the noise moves the
+speed by ``m_w`` per count, not by ``1/c``.
+
+Its poles (:func:`.step.online_step`): at the radius of the slowest pole of the machine's
+own closed loop on the model (its law, plant and delay,
+:func:`nurbsmotion.plant.linear_loop_poles`: the bandwidth the machine's maker gave the
+loop for this reading), but no slower than the landing's own poles (``tracking_pole``):
+an observer slower than the law it feeds let the die bonder's nearly integrating x axis
+swing +-3.5 pulses after the landing began on a noisy speed, and on random machines whose
+own loop is slow (a PID's integral, 0.99 and more) the landing ran away (1.4e5 pulses).
+
+Glossary
+--------
+a, c : the ZOH plant's speed pole and speed-to-position weight (:func:`.inverse.axis_zoh`);
+m_w, m_theta : the observer's gains on the innovation [(rad/s)/pulse, 1].
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ...machine import Machine
+from ...plant.linear import linear_loop_poles
+
+__all__ = ["rest_observer", "observer_gains", "REST_OBSERVER_ROWS", "QUANTISER_GAIN"]
+
+REST_OBSERVER_ROWS = 2
+"""Rows per axis of the plan's ``rest_observer``: 1 where the landing's speed comes from
+the observer (0: from the last increment, as before), then the observer's pole."""
+
+QUANTISER_GAIN = 4.0 / math.pi
+"""The largest describing-function gain of a rounding quantiser of step q (one count):
+``N(A) = 4q/(pi*A)*sqrt(1 - (q/(2A))^2)`` for ``q/2 <= A < 3q/2``, 0 below, largest at
+``A = q/sqrt(2)``, where it is ``4/pi`` (Gelb & Vander Velde, *Multiple-Input Describing
+Functions*, 1968). A limit cycle through the encoder's counts needs the loop unstable at
+some gain the quantiser can have (tests/test_planned_real.py checks the landing's loop
+with the observer from 1/1.1 to 4/pi*1.1, Kc 10 % off either way)."""
+
+
+@njit(cache=True)
+def observer_gains(a, c, pole):
+    """The gains ``(m_w, m_theta)`` [(rad/s)/pulse, 1] of the observer of the ZOH plant
+    ``x[k+1] = [[a, 0], [c, 1]] x[k] + (drives)``, ``x = (w, theta)``, from its position
+    reading, in filtered form (``x[k|k] = x[k|k-1] + m*(y[k] - theta[k|k-1])``), whose
+    estimation error decays with both poles at ``pole``: the predictor gain ``L`` that
+    puts the eigenvalues of ``A - L*C`` (C = [0, 1]) at ``pole`` (``L_theta = a + 1 -
+    2*pole``, ``L_w = (pole - a)^2/c``: the characteristic polynomial matched to
+    ``(z - pole)^2``), and ``m = A^-1 L``."""
+    l_th = a + 1.0 - 2.0 * pole
+    l_w = (pole - a) ** 2 / c
+    return l_w / a, l_th - c * l_w / a
+
+
+def rest_observer(machine: Machine, band: float) -> np.ndarray:
+    """The plan's ``rest_observer`` (shape (:data:`REST_OBSERVER_ROWS`, n_axes)): per axis
+    where the model's reading is not exact (``band`` > 0, the landing's band of
+    :func:`.identify.reading_knowledge`) and its model declares no mode (those keep the
+    law designed with the mode, :mod:`.mode_law`), 1 and the largest pole radius of the
+    machine's own linear loop on the model (its law, plant and delay; the step takes the
+    faster of it and the landing's pole); zeros elsewhere
+    (the landing as before: an exact reading's runs are bit-identical).
+
+    Parameters
+    ----------
+    machine : Machine
+        The model machine: its laws (:attr:`Machine.pid_gains`), axes, Ts and delay.
+    band : float
+        The landing's band [pulse]: what the reading alone can put between the measured
+        and the true position.
+    """
+    out = np.zeros((REST_OBSERVER_ROWS, machine.n_axes))
+    if not band > 0.0:
+        return out
+    for j, (ax, gains) in enumerate(zip(machine.axes, machine.pid_gains)):
+        if ax.resonance_frequency > 0.0:
+            continue
+        poles = linear_loop_poles(gains, ax.time_constant, ax.electrical_gain,
+                                  ax.mechanical_gain, machine.sample_period,
+                                  machine.speed_measurement == "true", machine.delay)
+        out[:, j] = (1.0, float(np.max(np.abs(poles))))
+    return out
