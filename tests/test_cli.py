@@ -25,8 +25,12 @@ def test_interpolate_writes_the_setpoints_of_the_library(tmp_path):
     header, data = read_csv(tmp_path / "setpoints.csv")
     assert header == ["t", "u", "x", "y"]
     ref = interpolate(TaylorInterpolator(nm.make_die_bonder_pi(), 1e-3, 5e5, 2))
-    np.testing.assert_array_equal(data[:, 1], ref.u)
-    np.testing.assert_array_equal(data[:, 2:], ref.position)
+    # written to the resolution that matters: u to 1e-12, positions to 1e-3 pulse, t to 1 ns
+    np.testing.assert_allclose(data[:, 0], ref.t, rtol=0, atol=0.5e-9)
+    np.testing.assert_allclose(data[:, 1], ref.u, rtol=0, atol=0.5e-12)
+    np.testing.assert_allclose(data[:, 2:], ref.position, rtol=0, atol=0.5e-3)
+    first = (tmp_path / "setpoints.csv").read_text().splitlines()[2]
+    assert len(first.split(",")[2]) <= len("-12345.678")  # not 17 digits
     assert (tmp_path / "setpoints.png").stat().st_size > 0
 
 

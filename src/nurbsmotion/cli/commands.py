@@ -140,8 +140,12 @@ def _cmd_interpolate(args) -> int:
         series = interpolate(make_open_loop(args.method, curve, args.sample_period, feed),
                              max_samples=args.max_samples)
         names = _axis_names(curve.n_axes)
+        # to a thousandth of the finest axis's pulse of the machine the path is read on
+        # (die-bonder's 1 um without --machine: 1 nm), as run's exports
+        per_unit = units.Scale.of(curve, machine).pulses_per_path_unit  # [pulse/path unit]
         save_setpoints(SetpointArrays(series.t, series.u, series.position, series.feed, names),
-                       out / "setpoints.csv")
+                       out / "setpoints.csv",
+                       resolution=EXPORT_PULSE_FRACTION / float(max(per_unit)))
         save_csv_metadata(out / "setpoints.csv", setpoint_columns(names, curve.units or "pulse"),
                           title="nurbsmotion setpoints (open loop)")
         plot_setpoints(series, out, axis_names=names, units=curve.units or "pulse")
