@@ -2,6 +2,11 @@
 :class:`~nurbsmotion.paths.gcode.ngc.Program` executes into contours (modal state, units,
 G0/G1 moves, group-0 codes, contours and their feeds), with its frames, curves, canned
 cycles and bulk path mixed in from the sibling modules; :func:`load_gcode` reads a file.
+
+Over 800 lines on purpose: :class:`_Reader`'s modal state (plane, units, distance mode,
+offsets, the current contour) is one object that every motion method reads and changes in
+LinuxCNC's order; what is separable from that state already lives in the sibling modules
+(frames, curves, cycles, compensation, the program's control flow in :mod:`.ngc`).
 """
 
 from __future__ import annotations
