@@ -430,23 +430,19 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
                 f"the planned drive needs {use:.3g} x Umax after {DRIVE_FIT_ROUNDS} rounds "
                 "of easing the path speed's drive limit where it exceeds it")
     w, theta, u = plant
+    shorten_status = "not run"
     if shaper is not None:
         # Steps 5 and 6 re-time the end and short moves at the rigid plant's limit: their
         # bang-bang drives would ring the mode the shaped time law leaves alone.
         landed = _arrival(y)
-        theta[-1] = y[-1]
-        w[-1] = 0.0
-        return MotionPlan(position=theta, speed=w, drive=u, parameter=param, desired=y,
-                          drive_fraction=drive_fraction, corner_times=corners,
-                          sample_period=Ts, arrival=landed,
-                          corner_tolerance=float(corner_tolerance))
-    tangent = _unit(curve(1.0, 1, "left"))
-    landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax, tangent, curve,
-                          param, feed)
-    y[landed:] = y[-1]       # the desired motion rests where the plan does
-    param[landed:] = 1.0
-    shorten_status = "not run"
-    if landed <= SHORT_MOVE_SAMPLES and (corners.size == 0 or corner_tolerance == 0):
+    else:
+        tangent = _unit(curve(1.0, 1, "left"))
+        landed = _land_on_end(y, w, theta, u, machine, drive_fraction * umax, tangent, curve,
+                              param, feed)
+        y[landed:] = y[-1]       # the desired motion rests where the plan does
+        param[landed:] = 1.0
+    if shaper is None and landed <= SHORT_MOVE_SAMPLES and (corners.size == 0
+                                                             or corner_tolerance == 0):
         stops = np.array([piece[1][0] for piece in profile.pieces] + [1.0])
         short, exhausted = _shorten_pieces(curve, stops, corners, theta, param, landed,
                                            machine, drive_fraction * umax, path_tolerance,
