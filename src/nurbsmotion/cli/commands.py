@@ -205,8 +205,6 @@ def _cmd_bound(args) -> int:
     machine.check_path(curve.n_axes)
     scale = units.Scale.of(curve, machine)
     path = scale.path(curve)
-    if not args.sampled:  # the planner's size, before any arc length (issue 37)
-        check_profile_size(path)
     if args.sampled:
         bound = sampled_stop_bound(path, machine,
                                    settle_window=_settle_window(args, scale, path),
@@ -214,6 +212,7 @@ def _cmd_bound(args) -> int:
         print(f"{bound:.6g}")
         _print_joined(contour, machine)
         return 0
+    check_profile_size(path)  # the planner's size, before any arc length (issue 37)
     cap = None if args.feed is None else scale.feed(args.feed)
     feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s", shown=scale.output)
     # What `run` refuses, `bound` refuses: the same checks, and a bound no run could
@@ -492,6 +491,7 @@ def _write_trace(args, trace, file: Path, shown: units.OutputUnits) -> None:
     with _progress(args, total=rows, unit="row", unit_scale=True,
                    desc=f"write {file.name}") as bar:
         write_trace(trace, file, overwrite=args.overwrite, progress=bar.update, **options)
+
 
 def _trace_metadata(file: Path, machine: Machine, overwrite: bool) -> None:
     """``trace.csv-metadata.json`` beside ``file``: its columns, from its header line."""
