@@ -31,9 +31,11 @@ max(5 %, 3 ms) of the bound (bound: the rigid time-optimal bound on the model).
     python benchmarks/real_planned.py item4 [--cases 1000] [--start 0] [--methods ...]
         [--rows FILE.jsonl]
 
-Writes markdown to stdout and to ``benchmarks/real_planned_<item>.md`` (item 4 only for
-a sweep from case 0; ``--rows`` appends each case's rows as JSON lines, and
-``item4 --report FILE.jsonl`` writes the tables of rows gathered in pieces).
+Writes markdown to stdout, and to ``benchmarks/real_planned_<item>.md`` only for a
+complete run (every interpolator; item 4: the 1,000 cases from case 0, or ``--report``
+of rows gathered in pieces), so a subset never replaces the committed table; ``--out
+FILE`` writes any run's tables there instead. ``--rows`` appends each case's rows as JSON
+lines, and ``item4 --report FILE.jsonl`` writes the tables of rows gathered in pieces.
 """
 
 from __future__ import annotations
@@ -398,9 +400,14 @@ def main():
     p.add_argument("--start", type=int, default=0, help="item 4: first case")
     p.add_argument("--rows", help="item 4: append each case's rows to this JSON-lines file")
     p.add_argument("--report", help="item 4: only the tables of the rows in this file")
+    p.add_argument("--out", help="write the tables to this file (default: the committed "
+                                 "table, for a complete run only)")
     args = p.parse_args()
     methods = args.methods.split(",")
-    out = Path(__file__).with_name(f"real_planned_{args.item}.md")
+    complete = set(methods) == set(INTERPOLATORS) and (
+        args.item != "item4" or args.report or (args.start == 0 and args.cases >= 1000))
+    out = (Path(args.out) if args.out else
+           Path(__file__).with_name(f"real_planned_{args.item}.md") if complete else None)
     if args.item == "item4":
         if args.report:
             import json
@@ -410,12 +417,11 @@ def main():
             text = item4_report(rows, methods)
         else:
             text = item4(methods, args.cases, args.start, args.rows)
-        print(text)
-        if args.report or args.start == 0:
-            out.write_text(text + "\n")
-        return
-    text = (item1 if args.item == "item1" else item2)(methods)
-    out.write_text(text + "\n")
+    else:
+        text = (item1 if args.item == "item1" else item2)(methods)
+    print(text)
+    if out is not None:
+        out.write_text(text + "\n")
 
 
 if __name__ == "__main__":

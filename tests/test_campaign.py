@@ -291,7 +291,11 @@ def test_a_case_reruns_with_its_run_output(tmp_path):
     summary = json.loads((out / row["case_id"] / "summary.json").read_text())
     assert summary["max_contour_error"] == row["max_contour_error"]
     assert summary["saturated_samples"]["x"] == row["saturated_samples_x"]
-    assert (out / row["case_id"] / "trace.csv").is_file()
+    trace = out / row["case_id"] / "trace.csv"
+    # its columns' units beside it, as `run` writes them: the header's names, in order
+    meta = json.loads((out / row["case_id"] / "trace.csv-metadata.json").read_text())
+    header = trace.read_text().splitlines()[0].split(",")
+    assert [c["name"] for c in meta["tableSchema"]["columns"]] == header
 
 
 def test_ctrl_c_leaves_a_resumable_dataset(tmp_path, monkeypatch):

@@ -344,8 +344,6 @@ def _run(args, precompiler) -> int:
             if exports:
                 _export_setpoints(result.trace, scale, exports, args)
             bar.update()
-        if file is not None and args.trace_format == "csv":  # its units, beside it
-            _trace_metadata(file, machine, args.overwrite)
         metrics = result.metrics
         stage(stages[4])
         extra = {"plant": machine.name if args.plant is None else args.plant,
@@ -435,7 +433,7 @@ def _run_streamed(args, job, file: Path | None, expected: float):
     with contextlib.ExitStack() as stack:
         writer = None if file is None else stack.enter_context(TraceWriter(
             file, job.machine, fmt=args.trace_format, every=args.trace_every,
-            units=job.scale.output, overwrite=args.overwrite, threads=0))
+            units=job.scale.output, overwrite=args.overwrite, threads=0, metadata=True))
         samples = stack.enter_context(_progress(
             args, total=_total(expected), unit="sample", unit_scale=True,
             desc="closed loop" if writer is None else f"closed loop -> {file.name}"))
@@ -490,18 +488,8 @@ def _write_trace(args, trace, file: Path, shown: units.OutputUnits) -> None:
     _trace_notice(args, file, rows, estimate_trace_bytes(trace, **options))
     with _progress(args, total=rows, unit="row", unit_scale=True,
                    desc=f"write {file.name}") as bar:
-        write_trace(trace, file, overwrite=args.overwrite, progress=bar.update, **options)
-
-
-def _trace_metadata(file: Path, machine: Machine, overwrite: bool) -> None:
-    """``trace.csv-metadata.json`` beside ``file``: its columns, from its header line."""
-    from ..report.export import save_csv_metadata
-    from ..report.trace_file import trace_metadata_columns
-
-    with open(file) as f:
-        header = f.readline().strip().split(",")
-    save_csv_metadata(file, trace_metadata_columns(header, machine.axis_names),
-                      title=f"nurbsmotion run trace on {machine.name}", overwrite=overwrite)
+        write_trace(trace, file, overwrite=args.overwrite, progress=bar.update, metadata=True,
+                    **options)
 
 
 EXPORT_PULSE_FRACTION = 1e-3
@@ -638,11 +626,12 @@ def _campaign_case(case, out: Path, args) -> int:
     from ..plots import TRACE_FIGURES
     from ..report import write_json, write_trace_csv
 
-    names = ["trace.csv", "summary.json"] + ([] if args.no_figures else list(TRACE_FIGURES))
+    trace_files = ["trace.csv", "trace.csv-metadata.json"]
+    names = trace_files + ["summary.json"] + ([] if args.no_figures else list(TRACE_FIGURES))
     with OutputFolder(out, names, overwrite=args.overwrite,  # checked first
-                      replaces=["trace.csv", "summary.json", *TRACE_FIGURES]) as staged:
+                      replaces=[*trace_files, "summary.json", *TRACE_FIGURES]) as staged:
         trace, data, _, _ = case_trace(case)
-        write_trace_csv(trace, staged.staging / "trace.csv")
+        write_trace_csv(trace, staged.staging / "trace.csv", metadata=True)
         write_json(data, staged.staging / "summary.json")
         if not args.no_figures:
             trace.plot(staged.staging, feed=data["feed"], overwrite=True)

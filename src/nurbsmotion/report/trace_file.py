@@ -43,11 +43,14 @@ for two axes)."""
 
 @dataclass(frozen=True)
 class _Column:
-    """One trace column: its name and how to read rows ``idx`` of it from a trace block
-    (a :class:`~nurbsmotion.loop.Trace` or a :class:`_Block`)."""
+    """One trace column: its name, how to read rows ``idx`` of it from a trace block
+    (a :class:`~nurbsmotion.loop.Trace` or a :class:`_Block`), its unit and what it is
+    (docs/formats.md; the CSV's metadata file)."""
 
     name: str
     read: Callable[[object, np.ndarray], np.ndarray]
+    unit: str
+    description: str
 
 
 class _Block(NamedTuple):
@@ -67,18 +70,27 @@ def _columns(machine, with_bounds: bool, units: OutputUnits | None,
              with_measured: bool = False) -> list[_Column]:
     """The trace file's columns, in order (see the module docstring); ``a_meas`` (and
     ``a_meas_L``) only for a run on a true plant whose reading is not its position."""
-    cols = [_Column("t", lambda b, i: b.t[i]), _Column("u", lambda b, i: b.u[i])]
+    cols = [_Column("t", lambda b, i: b.t[i], "s", "sample time"),
+            _Column("u", lambda b, i: b.u[i], "1", "curve parameter of the setpoint")]
     Ke = machine.Ke
     for j, a in enumerate(machine.axis_names):
-        cols += [_Column(f"{a}_cmd", lambda b, i, j=j: b.position_command[i, j]),
-                 _Column(f"{a}_act", lambda b, i, j=j: b.position[i, j]),
-                 _Column(f"{a}_drive", lambda b, i, j=j: b.drive[i, j]),
-                 _Column(f"{a}_drive_applied", lambda b, i, j=j: b.drive_applied[i, j])]
+        cols += [
+            _Column(f"{a}_cmd", lambda b, i, j=j: b.position_command[i, j], "pulse",
+                    f"setpoint of axis {a}"),
+            _Column(f"{a}_act", lambda b, i, j=j: b.position[i, j], "pulse",
+                    f"actual position of axis {a}"),
+            _Column(f"{a}_drive", lambda b, i, j=j: b.drive[i, j], "V",
+                    f"drive before clipping of axis {a}"),
+            _Column(f"{a}_drive_applied", lambda b, i, j=j: b.drive_applied[i, j], "V",
+                    f"drive after clipping to +-Umax of axis {a}")]
         if with_bounds:
-            cols += [_Column(f"{a}_speed_min", lambda b, i, j=j: b.speed_bounds[i, j, 0] * Ke[j]),
-                     _Column(f"{a}_speed_max", lambda b, i, j=j: b.speed_bounds[i, j, 1] * Ke[j])]
+            cols += [_Column(f"{a}_speed_{side}",
+                             lambda b, i, j=j, s=s: b.speed_bounds[i, j, s] * Ke[j], "pulse/s",
+                             f"eq. 3.6 {word} speed bound of axis {a}")
+                     for s, side, word in ((0, "min", "lower"), (1, "max", "upper"))]
     if with_measured:  # after the existing columns: their places are a contract
-        cols += [_Column(f"{a}_meas", lambda b, i, j=j: b.position_measured[i, j])
+        cols += [_Column(f"{a}_meas", lambda b, i, j=j: b.position_measured[i, j], "pulse",
+                         f"position the controller read of axis {a}")
                  for j, a in enumerate(machine.axis_names)]
     if units is None:
         return cols
@@ -86,19 +98,21 @@ def _columns(machine, with_bounds: bool, units: OutputUnits | None,
     axis_units, axis_factor = units.axis_units, units.axis_factor
     for j, a in enumerate(machine.axis_names):
         L, k = axis_units[j], float(axis_factor[j])
-        cols += [_Column(f"{a}_cmd_{L}", lambda b, i, j=j, k=k: b.position_command[i, j] * k),
-                 _Column(f"{a}_act_{L}", lambda b, i, j=j, k=k: b.position[i, j] * k)]
+        cols += [_Column(f"{a}_cmd_{L}", lambda b, i, j=j, k=k: b.position_command[i, j] * k,
+                         L, f"setpoint of axis {a}"),
+                 _Column(f"{a}_act_{L}", lambda b, i, j=j, k=k: b.position[i, j] * k,
+                         L, f"actual position of axis {a}")]
         if with_bounds:
-            cols += [
-                _Column(f"{a}_speed_min_{L}_per_s",
-                        lambda b, i, j=j, k=k: b.speed_bounds[i, j, 0] * Ke[j] * k),
-                _Column(f"{a}_speed_max_{L}_per_s",
-                        lambda b, i, j=j, k=k: b.speed_bounds[i, j, 1] * Ke[j] * k),
-            ]
+            cols += [_Column(f"{a}_speed_{side}_{L}_per_s",
+                             lambda b, i, j=j, k=k, s=s: b.speed_bounds[i, j, s] * Ke[j] * k,
+                             f"{L}/s", f"eq. 3.6 {word} speed bound of axis {a}")
+                     for s, side, word in ((0, "min", "lower"), (1, "max", "upper"))]
     if with_measured:
         for j, a in enumerate(machine.axis_names):
             L, k = axis_units[j], float(axis_factor[j])
-            cols.append(_Column(f"{a}_meas_{L}", lambda b, i, j=j, k=k: b.position_measured[i, j] * k))
+            cols.append(_Column(f"{a}_meas_{L}",
+                                lambda b, i, j=j, k=k: b.position_measured[i, j] * k,
+                                L, f"position the controller read of axis {a}"))
     return cols
 
 
@@ -260,6 +274,10 @@ class TraceWriter:
     threads : int, optional
         Threads formatting CSV chunks; by default two (one where fewer cores); 0 formats
         them in the calling thread (a sink that already runs beside the loop).
+    metadata : bool
+        Also write a CSV file's CSV-on-the-Web metadata beside it,
+        ``trace.csv-metadata.json``: each column's unit and meaning
+        (:func:`~nurbsmotion.report.export.save_csv_metadata`), once the file is complete.
 
     Use as a context manager; :meth:`add` is a sink of
     :func:`nurbsmotion.loop.simulate_streamed`.
@@ -267,7 +285,8 @@ class TraceWriter:
 
     def __init__(self, path, machine, *, fmt: str = "csv", every: int = 1,
                  units: OutputUnits | None = None, overwrite: bool = False,
-                 progress: Callable[[int], None] | None = None, threads: int | None = None):
+                 progress: Callable[[int], None] | None = None, threads: int | None = None,
+                 metadata: bool = False):
         if fmt not in TRACE_FORMATS:
             raise InvalidArgumentError(f"trace format must be one of {TRACE_FORMATS}, got {fmt!r}")
         if isinstance(every, bool) or not isinstance(every, int) or every < 1:
@@ -280,6 +299,8 @@ class TraceWriter:
             raise InvalidArgumentError(f"threads must be an integer >= 0, got {threads!r}")
         self.threads = max(1, min(2, os.cpu_count() or 1)) if threads is None else threads
         self.rows_written = 0
+        self.metadata = metadata and fmt == "csv"
+        self._cols = None  # the columns, known from the first block
         self._first = None  # (columns, block, kept rows) of the first block, for the size
         self._row_bytes = 0.0
         self._output = self._handle = self._chunks = None
@@ -296,7 +317,15 @@ class TraceWriter:
         except BaseException:
             self._output.__exit__(*sys.exc_info())
             raise
-        return bool(self._output.__exit__(exc_type, exc, tb))
+        suppressed = bool(self._output.__exit__(exc_type, exc, tb))
+        if exc_type is None and self.metadata and self._cols is not None:
+            from .export import CsvColumn, save_csv_metadata
+
+            save_csv_metadata(self.path, [CsvColumn(c.name, c.unit, c.description)
+                                          for c in self._cols],
+                              title=f"nurbsmotion run trace on {self.machine.name}",
+                              overwrite=self.overwrite)
+        return suppressed
 
     def bytes_per_row(self) -> float:
         """Bytes a row of the file takes, estimated from the first block's rows (0 before
@@ -326,25 +355,26 @@ class TraceWriter:
                             getattr(block, "position_measured", None) is not None)
             make = _CsvChunks if self.fmt == "csv" else _ParquetChunks
             self._chunks = make(self._handle, cols, self.progress, self.threads)
-            self._first = (cols, block, kept)
+            self._cols, self._first = cols, (cols, block, kept)
         self._chunks.write(block, kept)
         self.rows_written += len(kept)
 
 
 def write_trace(trace, path, *, fmt: str = "csv", every: int = 1,
                 units: OutputUnits | None = None, overwrite: bool = False,
-                progress: Callable[[int], None] | None = None) -> Path:
+                progress: Callable[[int], None] | None = None, metadata: bool = False) -> Path:
     """Write the trace file of a :class:`~nurbsmotion.loop.Trace`, streamed in chunks,
     atomically (see :class:`TraceWriter` for the parameters)."""
     with TraceWriter(path, trace.machine, fmt=fmt, every=every, units=units,
-                     overwrite=overwrite, progress=progress) as writer:
+                     overwrite=overwrite, progress=progress, metadata=metadata) as writer:
         writer._write(trace, 0, trace.finished_index, True)
     return Path(path)
 
 
-def write_trace_csv(trace, path: Path, *, overwrite: bool = True) -> Path:
-    """Write ``trace.csv`` with the pulse columns only (full double precision)."""
-    return write_trace(trace, path, overwrite=overwrite)
+def write_trace_csv(trace, path: Path, *, overwrite: bool = True, metadata: bool = False) -> Path:
+    """Write ``trace.csv`` with the pulse columns only (full double precision), and with
+    ``metadata`` its metadata file (see :class:`TraceWriter`)."""
+    return write_trace(trace, path, overwrite=overwrite, metadata=metadata)
 
 
 def estimate_trace_bytes(trace, *, fmt: str = "csv", every: int = 1,
@@ -366,42 +396,3 @@ def _bytes_per_row(fmt: str, cols, block, rows: np.ndarray) -> float:
     chunks.write(block, sample)
     chunks.close(True)
     return buffer.tell() / len(sample)
-
-
-def trace_metadata_columns(header: list, axis_names) -> list:
-    """The :class:`~nurbsmotion.report.export.CsvColumn` of every trace column (its unit
-    and meaning, as docs/formats.md gives them), from the trace file's header and the
-    machine's axis names.
-
-    Raises
-    ------
-    ExportError
-        For a column name that is not a trace column.
-    """
-    from .export import CsvColumn, ExportError
-
-    fixed = {"t": ("s", "sample time"), "u": ("1", "curve parameter of the setpoint")}
-    what = {"cmd": "setpoint", "act": "actual position", "meas": "position the controller read",
-            "drive": "drive before clipping", "drive_applied": "drive after clipping to +-Umax",
-            "speed_min": "eq. 3.6 lower speed bound", "speed_max": "eq. 3.6 upper speed bound"}
-    out = []
-    for name in header:
-        if name in fixed:
-            out.append(CsvColumn(name, *fixed[name]))
-            continue
-        axis = next((a for a in sorted(axis_names, key=len, reverse=True)
-                     if name.startswith(a + "_")), None)
-        if axis is None:
-            raise ExportError(f"{name!r} is not a trace column")
-        rest = name[len(axis) + 1:]
-        per_s = rest.endswith("_per_s")
-        rest = rest.removesuffix("_per_s")
-        kind = next((k for k in sorted(what, key=len, reverse=True)
-                     if rest == k or rest.startswith(k + "_")), None)
-        if kind is None:
-            raise ExportError(f"{name!r} is not a trace column")
-        unit = rest[len(kind) + 1:] or ("V" if kind.startswith("drive") else "pulse")
-        if kind.startswith("speed"):
-            unit = f"{unit}/s" if per_s else "pulse/s"
-        out.append(CsvColumn(name, unit, f"{what[kind]} of axis {axis}"))
-    return out
