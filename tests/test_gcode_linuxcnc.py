@@ -291,3 +291,31 @@ def test_an_o_word_keyword_with_letters_glued_on_is_refused_as_linuxcnc_refuses_
                                             rf"too\); write o100 {keyword} with nothing glued") as info:
         load_quiet(program)
     assert "\n" not in str(info.value)
+
+
+# An arc from (r, 0) about the origin to (0, r + diff): its end radius differs by diff.
+# LinuxCNC accepts it as a spiral unless diff > 100 tol, or diff > tol and diff > 0.1 % of
+# the radius (interp_arc.cc), tol its default per unit: 2 * 0.01 * sqrt(2) mm, 2 * 0.001 *
+# sqrt(2) inch. Cases on both sides of each rule, in each unit.
+SPIRAL_CASES = [("G21", 10.0, 0.02), ("G21", 10.0, 0.03), ("G21", 10000.0, 2.8), ("G21", 10000.0, 2.9),
+                ("G20", 1.0, 0.002), ("G20", 1.0, 0.0029), ("G20", 1000.0, 0.28), ("G20", 1000.0, 0.29),
+                ("G20", 1.0, 0.0011), ("G20", 10.0, 0.009)]
+
+
+@pytest.mark.skipif(__import__("shutil").which("rs274") is None, reason="LinuxCNC's rs274 is not installed")
+@pytest.mark.parametrize("units,radius,diff", SPIRAL_CASES)
+def test_spiral_arcs_are_read_where_linuxcnc_reads_them(tmp_path, units, radius, diff):
+    """Issue 36: an inch program's spiral within LinuxCNC's inch tolerance (0.0028 inch) was
+    refused here (the mm tolerance converted, 0.0011 inch); LinuxCNC's standalone
+    interpreter is the oracle for each case, and where both read it the end point agrees."""
+    program = tmp_path / "spiral.ngc"
+    program.write_text(f"{units} G90 G17 F10\nG0 X{radius} Y0\nG3 X0 Y{radius + diff} I{-radius} J0\nM2\n")
+    arcs = [args for name, args in rs274_canon(program, tmp_path) if name == "ARC_FEED"]
+    if not arcs:
+        with pytest.raises(PathFileError, match=r"line 3: radius to end of arc differs .*LinuxCNC "
+                                                r"refuses it too") as info:
+            load_quiet(program)
+        assert "\n" not in str(info.value)
+        return
+    (contour,) = load_quiet(program, axes="xy").contours
+    np.testing.assert_allclose(contour.curve(1.0), arcs[0][:2], atol=1e-4 * max(1.0, radius))
