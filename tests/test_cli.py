@@ -324,8 +324,9 @@ def test_run_and_bound_refuse_a_path_within_the_settle_window_alike(tmp_path, ca
         assert captured.out == "" and captured.err.count("\n") == 1
         errors.append(captured.err.split(": error: ", 1)[1])
     assert errors[0] == errors[1] == errors[2]
-    assert "--settle-window 1: 1 pulse is not below the path's farthest distance from its end " \
-        "point (0.5 pulse)" in errors[0]
+    assert f"{path}: --settle-window 1: 1 pulse is not below the path's farthest distance from " \
+        "its end point (0.5 pulse): the motion would be settled from the start; give a window " \
+        "below that distance, or read the path on a machine with a finer pulse" in errors[0]
     # a smaller window, given to either command, lets the same path through
     assert main(["bound", str(path), "--sampled", "--settle-window", "0.1"]) == 0
     assert float(capsys.readouterr().out) > 0.0

@@ -111,8 +111,6 @@ NOT_LISTED = {
     "factorial.ngc", "gosper.ngc", "helix.ngc", "m70m72-demo.ngc", "offsets.ngc",  # no feed move
     "metric_wrench.ngc",  # needs a HAL pin of a running plasma machine
     "nestedcall.ngc",  # an O-word LinuxCNC refuses too
-    "ezdxf_AC1003_LINE_Example.dxf",  # an AutoCAD 1.0 file ezdxf cannot read
-    "ezdxf_circle_radius_le_0.dxf",  # a circle of radius 0
 }
 
 

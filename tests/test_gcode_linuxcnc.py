@@ -193,7 +193,8 @@ CORPUS_EXPECTED = {
     "m70m72-demo.ngc": r"no feed move",  # shows modal state, moves nothing
     "metric_wrench.ngc": r"line 9: #<_hal\[plasmac.cut-feed-rate\]> reads a HAL pin of a running LinuxCNC, "
                          r"which a program file alone does not give: replace it with its value",  # a HAL pin
-    "nestedcall.ngc": r"line 11: cannot read the O-word 'o<g20sub>callsub'",  # as LinuxCNC refuses it
+    "nestedcall.ngc": r"line 11: cannot read the O-word 'o<g20sub>callsub': 'callsub' is not a keyword "
+                      r"\(LinuxCNC refuses it too\); write o<g20sub> call",  # LinuxCNC: line 11 too
     "offsets.ngc": r"no feed move",  # sets tool offsets only
     "polar.ngc": "ok",  # G81 with polar @ ^
     "tp_arc-arc-planeswitch.ngc": "ok",
@@ -265,3 +266,56 @@ def test_r_word_arcs_in_inches_agree_with_linuxcnc_to_rounding_only(tmp_path):
     centres = np.array([a[2:4] for a in arcs])
     radii = np.hypot(*(starts - centres).T), np.hypot(*(ends - centres).T)
     assert np.max(np.abs(radii[0] - radii[1])) <= 2 * 0.5e-4 * np.sqrt(2)
+
+
+KEYWORDS = ["sub", "endsub", "call", "do", "while", "repeat", "if", "elseif", "else", "endif",
+            "break", "continue", "endwhile", "endrepeat", "return"]
+
+
+@pytest.mark.skipif(__import__("shutil").which("rs274") is None, reason="LinuxCNC's rs274 is not installed")
+@pytest.mark.parametrize("keyword", KEYWORDS)
+def test_an_o_word_keyword_with_letters_glued_on_is_refused_as_linuxcnc_refuses_it(tmp_path, keyword):
+    """LinuxCNC's lexer (read_o in interp_read.cc) matches the keyword's letters and refuses
+    what follows ('Unexpected character after O-word', or 'Left bracket missing' after
+    if/while/repeat): nestedcall.ngc's `O<g20sub> callsub` (issue 36). Refused here on the
+    same line, naming the keyword to write."""
+    import subprocess
+
+    program = tmp_path / "glued.ngc"
+    program.write_text(f"G21 F100\nG1 X1\no100 {keyword}zz\nG1 X2\nM2\n")
+    r = subprocess.run(["rs274", "-g", str(program)], stdin=subprocess.DEVNULL, capture_output=True,
+                       text=True, timeout=60, cwd=tmp_path)
+    assert r.returncode != 0 and f"o100 {keyword}zz" in r.stderr  # LinuxCNC refuses that line
+    with pytest.raises(PathFileError, match=rf"line 3: cannot read the O-word 'o100{keyword}zz': "
+                                            rf"'{keyword}zz' is not a keyword \(LinuxCNC refuses it "
+                                            rf"too\); write o100 {keyword} with nothing glued") as info:
+        load_quiet(program)
+    assert "\n" not in str(info.value)
+
+
+# An arc from (r, 0) about the origin to (0, r + diff): its end radius differs by diff.
+# LinuxCNC accepts it as a spiral unless diff > 100 tol, or diff > tol and diff > 0.1 % of
+# the radius (interp_arc.cc), tol its default per unit: 2 * 0.01 * sqrt(2) mm, 2 * 0.001 *
+# sqrt(2) inch. Cases on both sides of each rule, in each unit.
+SPIRAL_CASES = [("G21", 10.0, 0.02), ("G21", 10.0, 0.03), ("G21", 10000.0, 2.8), ("G21", 10000.0, 2.9),
+                ("G20", 1.0, 0.002), ("G20", 1.0, 0.0029), ("G20", 1000.0, 0.28), ("G20", 1000.0, 0.29),
+                ("G20", 1.0, 0.0011), ("G20", 10.0, 0.009)]
+
+
+@pytest.mark.skipif(__import__("shutil").which("rs274") is None, reason="LinuxCNC's rs274 is not installed")
+@pytest.mark.parametrize("units,radius,diff", SPIRAL_CASES)
+def test_spiral_arcs_are_read_where_linuxcnc_reads_them(tmp_path, units, radius, diff):
+    """Issue 36: an inch program's spiral within LinuxCNC's inch tolerance (0.0028 inch) was
+    refused here (the mm tolerance converted, 0.0011 inch); LinuxCNC's standalone
+    interpreter is the oracle for each case, and where both read it the end point agrees."""
+    program = tmp_path / "spiral.ngc"
+    program.write_text(f"{units} G90 G17 F10\nG0 X{radius} Y0\nG3 X0 Y{radius + diff} I{-radius} J0\nM2\n")
+    arcs = [args for name, args in rs274_canon(program, tmp_path) if name == "ARC_FEED"]
+    if not arcs:
+        with pytest.raises(PathFileError, match=r"line 3: radius to end of arc differs .*LinuxCNC "
+                                                r"refuses it too") as info:
+            load_quiet(program)
+        assert "\n" not in str(info.value)
+        return
+    (contour,) = load_quiet(program, axes="xy").contours
+    np.testing.assert_allclose(contour.curve(1.0), arcs[0][:2], atol=1e-4 * max(1.0, radius))

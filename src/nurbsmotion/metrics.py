@@ -494,7 +494,8 @@ def check_settle_window(window: float, curve: NurbsCurve, name: str = "settle wi
     if window >= farthest:
         raise InvalidArgumentError(
             f"{name} {window:g} pulse is not below the path's farthest distance from its end "
-            f"point ({farthest:.6g} pulse): the motion would be settled from the start")
+            f"point ({farthest:.6g} pulse): the motion would be settled from the start; give a "
+            "window below that distance, or read the path on a machine with a finer pulse")
 
 
 def _check_window(window: float) -> None:

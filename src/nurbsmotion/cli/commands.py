@@ -183,7 +183,7 @@ def _check_bound(bound: float, machine: Machine, curve, max_samples: int) -> Non
                        f"{machine.sample_period:g} s): a run", option="--max-samples")
 
 
-def _settle_window(args, scale, path) -> float:
+def _settle_window(args, scale, path, source: str) -> float:
     """``--settle-window`` [pulse] of ``run`` and ``bound``: > 0 and below the farthest
     distance of ``path`` [pulse] from its end (one check, one message for both commands:
     bound printed nanoseconds for a path run refused as settled from the start)."""
@@ -192,7 +192,7 @@ def _settle_window(args, scale, path) -> float:
     window = scale.length(args.settle_window, "--settle-window", bare_unit="pulse")
     if window <= 0:
         raise InvalidArgumentError(f"--settle-window must be > 0, got {args.settle_window!r}")
-    check_settle_window(window, path, f"--settle-window {args.settle_window}:")
+    check_settle_window(window, path, f"{source}: --settle-window {args.settle_window}:")
     return window
 
 
@@ -207,7 +207,7 @@ def _cmd_bound(args) -> int:
     path = scale.path(curve)
     if args.sampled:
         bound = sampled_stop_bound(path, machine,
-                                   settle_window=_settle_window(args, scale, path),
+                                   settle_window=_settle_window(args, scale, path, contour.source),
                                    max_samples=args.max_samples)
         print(f"{bound:.6g}")
         _print_joined(contour, machine)
@@ -218,7 +218,7 @@ def _cmd_bound(args) -> int:
     # What `run` refuses, `bound` refuses: the same checks, and a bound no run could
     # reach within its samples.
     check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
-    _settle_window(args, scale, path)
+    _settle_window(args, scale, path, contour.source)
     bound = time_optimal_bound(path, machine, feed)
     _check_bound(bound, machine, curve, args.max_samples)
     print(f"{bound:.6g}")
@@ -292,7 +292,7 @@ def _run(args, precompiler) -> int:
     path_tolerance = contour.joined.tolerance * scale.factor
     if args.path_tolerance is not None and args.interpolator == "planned":
         options["path_tolerance"] = path_tolerance
-    window = _settle_window(args, scale, path)
+    window = _settle_window(args, scale, path, contour.source)
     lowest = feed if isinstance(feed, (int, float)) else feed.lowest
     if "pvt" in (args.export or ()):
         check_samples(estimate_samples(path.length, lowest, args.pvt_period),

@@ -16,7 +16,11 @@ Reading
   object coordinate system, handled through ezdxf's OCS). Other curve entities
   (``ELLIPSE``, ``POLYLINE``, ``HELIX`` ...) are refused naming their handle; annotation
   (``TEXT``, ``MTEXT``, ``DIMENSION``, ``POINT``, ``HATCH``, ``INSERT`` ...) is ignored with a
-  warning that counts it.
+  warning that counts it. A LINE, ARC or CIRCLE of zero length (radius 0) is skipped with
+  one warning per kind naming the entities, as CAD programs skip it; a CIRCLE's negative
+  radius is read without its sign (AutoCAD and ezdxf do), with a warning.
+- A drawing ezdxf's strict reader refuses is read by its recover mode, with a warning
+  (:func:`_read`).
 
 DXF entities come in no particular order or direction, so pieces are chained by their
 end points: a contour starts with the first unused entity in drawing order and grows at
@@ -77,18 +81,38 @@ def _sniff(path: Path) -> None:
 
 
 def _read(path: Path):
+    """The drawing, read by ezdxf's strict reader; a drawing it refuses is read again by
+    ezdxf's recover mode (``ezdxf.recover.readfile``: group codes out of order, missing
+    sections, a wrong encoding, then its audit), as CAD programs open such files, with one
+    :class:`DxfWarning` saying so. Refused when recover fails too."""
     import ezdxf  # lazily: ezdxf takes a while to import
 
+    errors = (ezdxf.DXFError, UnicodeError, ValueError, TypeError, KeyError, IndexError,
+              AttributeError, EOFError, ArithmeticError, RuntimeError)
     _sniff(path)
     try:
         return ezdxf.readfile(path)
+    except OSError as exc:
+        raise PathFileError(f"cannot read DXF: {_one_line(exc)}", source=str(path)) from None
     except StopIteration:  # ezdxf's tag reader ran out inside a section
-        raise PathFileError("cannot read DXF: the file ends inside a section (cut short?)",
-                            source=str(path)) from None
-    except (ezdxf.DXFError, OSError, UnicodeError, ValueError, TypeError, KeyError, IndexError,
-            AttributeError, EOFError, ArithmeticError, RuntimeError) as exc:
-        raise PathFileError(f"cannot read DXF: {_one_line(exc)} (open the drawing in a CAD program and "
+        strict = "the file ends inside a section (cut short?)"
+    except errors as exc:
+        strict = _one_line(exc)
+    from ezdxf import recover
+
+    try:
+        doc, auditor = recover.readfile(path)
+    except (StopIteration, OSError, *errors):
+        raise PathFileError(f"cannot read DXF: {strict} (open the drawing in a CAD program and "
                             "save it again as DXF)", source=str(path)) from None
+    if len(doc.modelspace()) == 0:  # a file cut short inside its entities: nothing recovered
+        raise PathFileError(f"cannot read DXF: {strict} (open the drawing in a CAD program and "
+                            "save it again as DXF)", source=str(path))
+    fixes = len(auditor.fixes)
+    _warn(f"{path}: the strict DXF reader refused the drawing ({strict}); read by ezdxf's recover "
+          f"mode, which repaired it ({fixes} audit fix{'' if fixes == 1 else 'es'}): check the "
+          "contours, or save the drawing again from a CAD program")
+    return doc
 
 
 def _one_line(exc: BaseException) -> str:
@@ -249,6 +273,13 @@ def _pieces(entity) -> list[NurbsCurve]:
         return [NurbsCurve(degree, knots, points, weights, name=label)]
     if kind in ("ARC", "CIRCLE"):
         radius = _number(entity, entity.dxf.radius, "radius")
+        if radius == 0.0:  # a point, not a path: skipped as CAD programs skip it
+            return []
+        if kind == "CIRCLE" and radius < 0.0:
+            # AutoCAD ignores a CIRCLE's sign, and so does ezdxf's evaluation (Circle.vertices)
+            _warn(f"{label}: radius {radius:g} read as {-radius:g} (CAD programs ignore the sign "
+                  "of a circle's radius)")
+            radius = -radius
         if not 0 < radius <= MAX_COORDINATE:
             raise InvalidCurveError(f"{label}: radius {radius:g} must be > 0 and at most "
                                     f"{MAX_COORDINATE:g}: correct or delete the entity in the drawing")
@@ -387,7 +418,7 @@ def load_dxf(
     pieces: list[NurbsCurve] = []
     flat = True  # every piece at a constant Z
     skipped: Counter = Counter()
-    degenerate: Counter = Counter()
+    degenerate: dict[str, list[str]] = {}  # kind -> handles of entities of zero length
     for entity in doc.modelspace():
         try:
             found = _pieces(entity)
@@ -395,7 +426,7 @@ def load_dxf(
                 skipped[entity.dxftype()] += 1
                 continue
             if not found:
-                degenerate[entity.dxftype()] += 1
+                degenerate.setdefault(entity.dxftype(), []).append(f"#{entity.dxf.handle}")
             for piece in found:
                 z = piece.control_points[:, 2]
                 flat = flat and not np.ptp(z) > 1e-12 * max(1.0, np.max(np.abs(z)))
@@ -414,12 +445,15 @@ def load_dxf(
             raise PathFileError(message, source=str(path)) from None
     for kind, n in sorted(skipped.items()):
         _warn(f"{path}: {n} {kind} entit{'y' if n == 1 else 'ies'} skipped (not a path)")
-    for kind, n in sorted(degenerate.items()):
-        _warn(f"{path}: {n} {kind} entit{'y' if n == 1 else 'ies'} of zero length skipped")
     if not pieces:
+        zero = "".join(f"; {len(h)} {kind} of zero length ({_handles(h)})" for kind, h in sorted(degenerate.items()))
         raise PathFileError(
             "no path entity in the model space (LINE, ARC, CIRCLE, ELLIPSE, SPLINE, LWPOLYLINE, "
-            "POLYLINE)", source=str(path))
+            f"POLYLINE){zero}", source=str(path))
+    for kind, handles in sorted(degenerate.items()):
+        n = len(handles)
+        _warn(f"{path}: {n} {kind} entit{'y' if n == 1 else 'ies'} of zero length skipped "
+              f"({_handles(handles)}), as CAD programs skip them")
     if auto and flat:
         pieces = [NurbsCurve(c.degree, c.knots, c.control_points[:, :2], c.weights, name=c.name)
                   for c in pieces]
@@ -431,6 +465,12 @@ def load_dxf(
         except InvalidCurveError as exc:
             raise PathFileError(f"cannot join contour {k + 1}: {_one_line(exc)}", source=str(path)) from None
     return contours
+
+
+def _handles(handles: list[str], shown: int = 3) -> str:
+    """The first ``shown`` entity handles, and how many more."""
+    more = len(handles) - shown
+    return ", ".join(handles[:shown]) + (f" and {more} more" if more > 0 else "")
 
 
 def _warn(message: str) -> None:

@@ -12,7 +12,7 @@ import numpy as np
 
 from ...nurbs import NurbsCurve
 from ..pieces import HELIX_TOLERANCE, PieceChain, arc_by_center, arc_sweep
-from .codes import _AXES, _INCH, _PLANES, MAX_ARC_TURNS, MAX_COORDINATE, _NeedAxes, _g_name
+from .codes import _AXES, _PLANES, MAX_ARC_TURNS, MAX_COORDINATE, _NeedAxes, _g_name
 
 __all__ = ["linuxcnc_knots", "helix"]
 
@@ -92,8 +92,11 @@ class _Curves:
         if r1 == 0.0:
             raise self.error(f"arc centre {[cx, cy]} coincides with its start point: correct the "
                              "centre offsets")
-        # LinuxCNC's check (interp_arc.cc): |r2 - r1| > 100 tol, or > tol and > 0.1 %
-        tol = (2 * 0.01 * math.sqrt(2)) * (1.0 if self.units == "mm" else 1.0 / _INCH)
+        # LinuxCNC's check (interp_arc.cc): |r2 - r1| > 100 tol, or > tol and > 0.1 %, with
+        # its default tol per unit (interp_internal.hh): CENTER_ARC_RADIUS_TOLERANCE_MM =
+        # 2 * 0.01 * sqrt(2) mm, CENTER_ARC_RADIUS_TOLERANCE_INCH = 2 * 0.001 * sqrt(2) inch
+        # (2.5 times the mm one converted: an inch program within it was refused, issue 36)
+        tol = 2 * math.sqrt(2) * (0.01 if self.units == "mm" else 0.001)  # [program units]
         diff = abs(r2 - r1)
         if diff > 100 * tol or (diff > tol and diff / max(r1, r2) > 0.001):
             raise self.error(

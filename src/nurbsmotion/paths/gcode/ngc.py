@@ -501,6 +501,12 @@ class Program:
                         args.append(p.value())
                 self.olabels.setdefault(label, []).append((line - 1, kw))
                 return ("o", label, kw, tuple(args))
+            glued = m and next((k for k in sorted(_OWORD_KEYWORDS, key=len, reverse=True)
+                                if m.group(2).startswith(k)), None)
+            if glued:  # LinuxCNC's read_o matches the keyword's letters, then refuses the rest
+                raise p.error(f"cannot read the O-word {code[:20]!r}: {m.group(2)!r} is not a keyword "
+                              f"(LinuxCNC refuses it too); write o{m.group(1)} {glued} with nothing "
+                              "glued to the keyword")
             raise p.error(f"cannot read the O-word {code[:20]!r} (expected o<name> or o123 "
                           "followed by sub, call, if, while, ...): write the keyword apart from any "
                           "other word, as o<name> call")
