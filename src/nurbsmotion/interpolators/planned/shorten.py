@@ -660,6 +660,7 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
         Q = zoh[0].shape[0] - 1
         known = [np.arange(arrival + 1, dtype=float), plan_s]   # times, arc lengths
         best = None
+        tried = {}   # an arrival sample where none was found: from the one found at
 
         def found_at(N, most_rounds=SHORTEN_ROUNDS):
             # the last motion found (first: the plan) compressed in time to arrive at N
@@ -690,6 +691,8 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
                 best = (N, *found, zoh)
                 known[:] = [np.concatenate([[float(LEAD)], t, [N]]),
                             np.concatenate([[span.s0], found[1], [span.s1]])]
+            elif not work.exhausted:
+                tried[N] = times[-1]    # none found from the motion arriving there
             return found is not None
 
         # From the estimate (a sample after the piece's continuous duration) down while
@@ -697,9 +700,10 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
         # duration only as a short try (SHORTEN_BELOW_ROUNDS). Where none is found at the
         # estimate within SHORTEN_STALL rounds (a probe: from the plan's guess, compressed
         # by several samples, a program that does not converge soon seldom does), from
-        # the top down, the probed sample again only within as many rounds (failures
-        # cost the most: up to SHORTEN_ROUNDS programs each, against a few for a
-        # success; each N from the motion found a sample later, which the probe lacked).
+        # the top down in steps that double while one is found, then halving the gap
+        # between the earliest found and the latest that failed (the probe at first), and
+        # from the earliest found one sample at a time as above (the _shorten docstring
+        # says why that search may skip samples).
         low, probe = LEAD + 2, None
         if earliest is None:
             N, floor = top + 1, low
@@ -718,7 +722,19 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
                 return SHORTEN_STALL
             return SHORTEN_ROUNDS if N >= floor else SHORTEN_BELOW_ROUNDS
 
-        while N > low and found_at(N - 1, rounds_at(N - 1)):
+        if probe is not None:
+            found, failed, step = top + 1, probe, 1
+            while found - failed > 1 and not work.exhausted:
+                N = max(found - step, failed + 1) if step else (found + failed) // 2
+                if found_at(N, rounds_at(N)):
+                    found, step = N, 2 * step if step else 0
+                else:
+                    failed, step = N, 0
+            if best is None:
+                return None        # not even the top, the first tried
+            N = found
+        # (a sample that failed from the motion found a sample later fails again)
+        while N > low and tried.get(N - 1) != N and found_at(N - 1, rounds_at(N - 1)):
             N -= 1
         return best
 
