@@ -615,16 +615,38 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
     is); given the ``earliest`` sample worth trying first (:data:`SHORTEN_START`), from
     there if one is found there within :data:`SHORTEN_STALL` rounds, down to the piece's
     continuous duration ``earliest - SHORTEN_START`` and below it by tries of
-    :data:`SHORTEN_BELOW_ROUNDS` rounds; else from the top, the probed N again within
-    :data:`SHORTEN_STALL` rounds only (searching up from it instead, each N from the
-    plan's guess, arrived 1-3 samples later on ``examples/study.toml``'s closed path at
-    1 m/s than coming down, each N from the motion found a sample later). The first
+    :data:`SHORTEN_BELOW_ROUNDS` rounds; else (the probe at ``earliest`` failed) from
+    the top: N = top, top - 2, top - 6, ... (steps that double) while one is found, then
+    halving the gap between the earliest N found and the latest that failed (at first
+    the probe), then one sample at a time from the earliest found while one is found
+    (a sample that already failed from the motion found a sample later is not tried
+    again; the probed N within :data:`SHORTEN_STALL` rounds only). Searching up from the
+    probe instead, each N from the plan's guess, arrived 1-3 samples later on
+    ``examples/study.toml``'s closed path at 1 m/s than coming down, each N from a
+    motion found later.
+
+    Why halving the gap may skip samples: the motions that the programs look for exist
+    at every N from the first at which one does. A motion at rest on the end at N
+    (drive 0 from N on) stays there, within the tolerance, its nearest point still,
+    at N + 1 as well; so does one that waits a sample at rest on the start first (the
+    drive shifted by a sample). The linearised programs do not always find one where
+    one exists (a guess compressed by many samples is a poorer start than one compressed
+    by one), which is why the search ends one sample at a time from the motion found a
+    sample later, as coming down from the top did. On case 875 of
+    ``benchmarks/planner_sweep.py`` (2 axes, probe at 64, plan at 89) coming down took
+    187 programs to 66; this search takes 96 to 67 without a work budget, and arrives at
+    82 instead of 87 within the default one; on the example study's closed path it
+    found 51 as before (54, 52, 51 instead of 54, 53, 52, 51).
+
+    An N at which some axis cannot move from the piece's start to its end, at rest at
+    both, under drives within ``limit`` (:func:`_axis_reach`) is not tried: every
+    program there would fail. The first
     guess of the nearest points is the plan's (its parameters ``param``, shape (n,)),
     compressed in time to arrive at N; each later N starts from the last motion found,
-    compressed by a sample. The programs of one N and trust region are warm-started
-    (:class:`_WarmProgram`; the narrow region's first program starts cold). Where the
-    ``work`` budget (:class:`_Work`) runs out, the search stops there with the earliest
-    N found so far (None if none).
+    compressed by the samples between. The programs of one N and trust region are
+    warm-started (:class:`_WarmProgram`; the narrow region's first program starts cold).
+    Where the ``work`` budget (:class:`_Work`) runs out, the search stops there with the
+    earliest N found so far (None if none).
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
     work = work if work is not None else _Work()
