@@ -1456,6 +1456,90 @@ def test_the_narrow_trust_region_starts_its_programs_cold(monkeypatch):
     assert not any(program is other for _, _, program, _ in narrow for other in wide)
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_an_axis_reach_is_scipy_linprogs_farthest_rest_to_rest_move(seed):
+    """Step 6 (issue 35) skips an arrival sample N where an axis cannot move as far as
+    the piece needs: its reach (:func:`_axis_reach`, the dual of the rest-to-rest
+    program in closed form) is the farthest displacement scipy's ``linprog`` finds over
+    drives within the limit that leave the plant, simulated sample by sample, at rest
+    at N."""
+    from scipy.optimize import linprog
+    from nurbsmotion.interpolators.planned.inverse import LEAD
+    from nurbsmotion.interpolators.planned.shorten import _axis_reach, _partial_zoh
+
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(seed)
+    # the plant alone (no loop to keep stable): tau and Kc scaled at random
+    plant = SimpleNamespace(tau=MACHINE.tau * rng.uniform(0.3, 3.0, 2),
+                            Kc=MACHINE.Kc * rng.uniform(0.5, 2.0, 2), Ke=MACHINE.Ke,
+                            sample_period=MACHINE.sample_period)
+    zoh = _partial_zoh(plant, 4)
+    a, b0, c, b1 = (x[-1] for x in zoh)
+    limit = MACHINE.max_drive * rng.uniform(0.5, 1.0)
+    for N in (LEAD + 1, LEAD + 2, 7, 30, 128):
+        reach = _axis_reach(zoh, N, limit)
+        for j in range(2):
+            # speed and position at N of a unit drive held over sample k, simulated
+            G = np.zeros((2, N - LEAD))
+            for k in range(LEAD, N):
+                w = theta = 0.0
+                for i in range(k, N):
+                    u = 1.0 if i == k else 0.0
+                    w, theta = a[j] * w + b0[j] * u, theta + c[j] * w + b1[j] * u
+                G[:, k - LEAD] = w, theta
+            ref = linprog(-G[1], A_eq=G[:1], b_eq=[0.0], bounds=(-limit, limit),
+                          method="highs")
+            assert ref.status == 0
+            assert reach[j] == pytest.approx(-ref.fun, rel=1e-9)
+
+
+def test_a_stacked_program_is_the_one_written_block_by_block():
+    """Step 6's constraint matrix (issue 35), built from its entries in one step
+    (:func:`_stacked_program`), holds the same numbers at the same places as the blocks
+    ``[A_n - E; -A_n - E; A_t - S; -A_t - S; A_t; -A_t; D A_t; -D A_t; A_t[0]; -A_t[-1];
+    A_eq]`` stacked with ``scipy.sparse`` (zero entries aside, which HiGHS drops)."""
+    from scipy import sparse
+    from nurbsmotion.interpolators.planned.shorten import _stacked_program
+
+    rng = np.random.default_rng(5)
+    m, r, n_fixed, n_eq = 9, 4, 30, 12
+    col_step = n_fixed + np.arange(m)
+    col_E = n_fixed + m
+    n_var = col_E + 1
+
+    def entries(n_rows, zeros):
+        # three position columns a row; consecutive rows may share them (one sample)
+        rows = np.repeat(np.arange(n_rows), 3)
+        first = np.repeat(rng.integers(0, n_fixed - 3, n_rows // zeros + 1), zeros)[:n_rows]
+        cols = (first[:, None] + np.arange(3)).ravel()
+        vals = rng.normal(size=rows.size)
+        vals[rng.random(rows.size) < 0.2] = 0.0
+        return rows, cols, vals
+
+    t_entries, n_entries = entries(m, 2), entries(m * r, 1)
+    eq = (rng.normal(size=40), (rng.integers(0, n_eq, 40), rng.integers(0, n_fixed, 40)))
+    eq[1][0][0] = n_eq - 1
+    A = _stacked_program(m, m * r, n_var, col_E, col_step, n_entries, t_entries, eq, n_eq)
+
+    def csr(e, n_rows):
+        return sparse.csr_matrix((e[2], (e[0], e[1])), shape=(n_rows, n_var))
+
+    A_t, A_n = csr(t_entries, m), csr(n_entries, m * r)
+    E = csr((np.arange(m * r), np.full(m * r, col_E), np.ones(m * r)), m * r)
+    S = csr((np.arange(m), col_step, np.ones(m)), m)
+    D = sparse.diags([np.ones(m - 1), -np.ones(m - 1)], [0, 1], shape=(m - 1, m))
+    A_eq = sparse.csr_matrix(eq, shape=(n_eq, n_var))
+    ref = sparse.vstack([A_n - E, -A_n - E, A_t - S, -A_t - S, A_t, -A_t, D @ A_t,
+                         -(D @ A_t), A_t[:1], -A_t[-1:], A_eq]).tocsc()
+    ref.eliminate_zeros()
+    ref.sort_indices()
+    assert A.shape == ref.shape and A.has_sorted_indices
+    np.testing.assert_array_equal(A.indptr, ref.indptr)
+    np.testing.assert_array_equal(A.indices, ref.indices)
+    np.testing.assert_array_equal(A.data, ref.data)
+
+
 def test_a_single_count_does_not_throw_the_identification():
     """Issue 33 item 1: an encoder edge under a resting axis (the count toggling 0, 1, 0,
     ... with no drive) leaves the estimate and its covariance as they were when the

@@ -85,8 +85,12 @@ is built offline in six steps:
    linearisation stays within the tolerance). N starts a sample after the piece's
    continuous time-optimal duration (rounded up) and runs down while one is found, to
    that duration (below it only as a short try); where none is found at the start
-   within a few rounds, N runs down from the plan's arrival while one is found (the
-   start sample again only within as few rounds; where the landing could not put the
+   within a few rounds, N comes down from the plan's arrival in steps that double while
+   one is found, then halves the gap to the latest that failed, and ends one sample at a
+   time while one is found (:func:`_shorten`: a motion at rest at N can wait there, so
+   the motions sought exist from the earliest N on; the start sample again only within
+   as few rounds; an N at which an axis cannot reach the piece's end at rest under the
+   drive limit is not tried; where the landing could not put the
    plan at rest and it rings about the end by more than ``path_tolerance``, from the
    first of the arrival and the samples after it, up to where the ringing dies down, at
    which one is). Each program but the first of a sample's trust region is

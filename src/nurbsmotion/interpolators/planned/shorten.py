@@ -211,9 +211,16 @@ class _WarmProgram:
         rows and columns that the next program may share (default: by position)."""
         from scipy import sparse
 
+        return self.solve_stacked(cost, sparse.vstack([A_ub, A_eq]).tocsc(), b_ub, bounds,
+                                  row_keys, col_keys)
+
+    def solve_stacked(self, cost, A, b_ub, bounds, row_keys=None, col_keys=None):
+        """:meth:`solve` with its constraint rows stacked into one column-wise matrix
+        ``A`` (``scipy.sparse`` CSC, row indices sorted): its first ``len(b_ub)`` rows are
+        ``A_ub``, the rest ``A_eq``. HiGHS drops zero entries as it reads the matrix
+        (``small_matrix_value``), so a matrix with or without them is the same program."""
         highspy, Highs = _highs()
 
-        A = sparse.vstack([A_ub, A_eq]).tocsc()
         if row_keys is None:
             row_keys = np.arange(A.shape[0])
         if col_keys is None:
@@ -223,9 +230,10 @@ class _WarmProgram:
         lp.col_cost_ = np.asarray(cost, dtype=float)
         lp.col_lower_ = np.ascontiguousarray(bounds[:, 0])
         lp.col_upper_ = np.ascontiguousarray(bounds[:, 1])
-        lp.row_lower_ = np.concatenate([np.full(A_ub.shape[0], -highspy.kHighsInf),
-                                        np.zeros(A_eq.shape[0])])
-        lp.row_upper_ = np.concatenate([b_ub, np.zeros(A_eq.shape[0])])
+        n_eq = A.shape[0] - len(b_ub)
+        lp.row_lower_ = np.concatenate([np.full(len(b_ub), -highspy.kHighsInf),
+                                        np.zeros(n_eq)])
+        lp.row_upper_ = np.concatenate([b_ub, np.zeros(n_eq)])
         lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
         lp.a_matrix_.start_ = A.indptr
         lp.a_matrix_.index_ = A.indices
@@ -311,6 +319,90 @@ def _keys(f: np.ndarray, r: int, n_fixed: int, n_eq: int):
     return np.concatenate(blocks), cols
 
 
+REACH_MARGIN = 1e-6
+"""Relative margin by which an axis' displacement must exceed its reach in N samples
+(:func:`_axis_reach`) before step 6 skips the arrival sample N: far above HiGHS' primal
+feasibility tolerance (1e-7), within which a program a hair beyond the reach could still be
+solved (on the sweep's cases the skipped samples lie 1.7 % or more beyond it)."""
+
+
+def _axis_reach(zoh, N: int, limit: float) -> np.ndarray:
+    """Per axis, the largest displacement [pulse] that a drive within ``limit`` [V],
+    zero before :data:`LEAD` and held over each sample, can make from rest at sample 0
+    to rest at sample N (``zoh``: :func:`_partial_zoh`, its last row a whole sample),
+    shape (n_axes,). Every program of :func:`_shorten_at` at N puts the plant at rest on
+    the piece's end at N from rest on its start under such drives, so it has no solution
+    where an axis has to move farther than this.
+
+    The plant's speed and position at N are ``w_N = g_w . u`` and ``theta_N - theta_0 =
+    g_theta . u`` (``g_w[k] = a^(N-1-k) b0``, ``g_theta[k] = b1 + c (b0 + a b0 + ... +
+    a^(N-2-k) b0)``); the largest ``g_theta . u`` with ``g_w . u = 0`` and ``|u| <= limit``
+    is, by linear programming duality, ``limit * min over lambda of ||g_theta - lambda
+    g_w||_1`` (any lambda bounds it from above), whose minimum lies at the median of the
+    ratios ``g_theta / g_w`` weighted by ``|g_w|``."""
+    a, b0, c, b1 = (x[-1] for x in zoh)
+    steps = np.arange(N - LEAD)[::-1, None]       # samples from the drive's to N, less 1
+    g_w = a[None] ** steps * b0[None]                                   # (N - LEAD, n_axes)
+    before = np.cumsum(a[None] ** np.arange(N - LEAD)[:, None] * b0[None], axis=0)
+    g_theta = b1[None] + c[None] * np.vstack([np.zeros((1, len(a))), before[:-1]])[::-1]
+    reach = np.empty(len(a))
+    for j in range(len(a)):
+        weight = np.abs(g_w[:, j])
+        ratio = np.divide(g_theta[:, j], g_w[:, j], out=np.zeros(N - LEAD),
+                          where=weight > 0)
+        order = np.argsort(ratio, kind="stable")
+        total = np.cumsum(weight[order])
+        lam = ratio[order][min(int(np.searchsorted(total, total[-1] / 2)), N - LEAD - 1)]
+        reach[j] = limit * float(np.sum(np.abs(g_theta[:, j] - lam * g_w[:, j])))
+    return reach
+
+
+def _stacked_program(m: int, n_normal: int, n_var: int, col_E: int, col_step, normal,
+                     along, dynamics, n_eq: int):
+    """The constraint matrix of a program of :func:`_shorten_at` (``scipy.sparse`` CSC,
+    shape (2*n_normal + 6*m + n_eq, n_var), zero entries left out), built from the
+    entries (row, column, value) of its position rows in one step: the rows ``A_n . x -
+    E <= b_n`` and ``-A_n . x - E <= -b_n`` (``normal``: the entries of A_n, its
+    ``n_normal`` rows the held points' directions), ``+-A_t . x - step <= +-b_t`` (the
+    |tangential step| columns ``col_step``), ``+-A_t . x`` (the trust region), ``+-(A_t[i]
+    - A_t[i + 1]) . x`` (the nearest points move forward, no faster than the feed),
+    ``A_t[0] . x`` and ``-A_t[m - 1] . x`` (``along``: the entries of A_t, m rows the
+    tangents), then the ZOH dynamics (``dynamics``: values and (rows, columns), n_eq
+    rows). The values are those of the same rows written block by block with
+    ``scipy.sparse`` (a difference of two entries is the one rounding a - b)."""
+    from scipy import sparse
+
+    n_rows, n_cols, n_vals = normal
+    t_rows, t_cols, t_vals = along
+    vals, (eq_rows, eq_cols) = dynamics
+    R = n_normal
+    steps, normals = np.arange(m), np.arange(R)
+    first, last = t_rows == 0, t_rows == m - 1
+    down, up = t_rows < m - 1, t_rows > 0     # A_t[i] - A_t[i + 1]: rows i and i - 1
+    diff = 2 * R + 4 * m
+    blocks = [
+        (n_rows, n_cols, n_vals), (normals, np.full(R, col_E), np.full(R, -1.0)),
+        (R + n_rows, n_cols, -n_vals), (R + normals, np.full(R, col_E), np.full(R, -1.0)),
+        (2 * R + t_rows, t_cols, t_vals), (2 * R + steps, col_step, np.full(m, -1.0)),
+        (2 * R + m + t_rows, t_cols, -t_vals),
+        (2 * R + m + steps, col_step, np.full(m, -1.0)),
+        (2 * R + 2 * m + t_rows, t_cols, t_vals),
+        (2 * R + 3 * m + t_rows, t_cols, -t_vals),
+        (diff + t_rows[down], t_cols[down], t_vals[down]),
+        (diff + t_rows[up] - 1, t_cols[up], -t_vals[up]),
+        (diff + m - 1 + t_rows[down], t_cols[down], -t_vals[down]),
+        (diff + m - 1 + t_rows[up] - 1, t_cols[up], t_vals[up]),
+        (np.full(np.count_nonzero(first), diff + 2 * m - 2), t_cols[first], t_vals[first]),
+        (np.full(np.count_nonzero(last), diff + 2 * m - 1), t_cols[last], -t_vals[last]),
+        (diff + 2 * m + eq_rows, eq_cols, vals),
+    ]
+    rows, cols, data = (np.concatenate([b[q] for b in blocks]) for q in range(3))
+    A = sparse.csc_matrix((data, (rows, cols)), shape=(diff + 2 * m + n_eq, n_var))
+    A.sum_duplicates()
+    A.eliminate_zeros()
+    return A
+
+
 def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
                 s: np.ndarray, limit: float, tolerance: float, tangent: np.ndarray, feed,
                 Ts: float, wide: bool, most_rounds: int = SHORTEN_ROUNDS,
@@ -341,8 +433,6 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
     :data:`SHORTEN_STALL` rounds in a row bring the farthest fine point no nearer (on a
     random 3-axis machine, 24 rounds of E at 0.998 against held points at 1.07: 42 s
     where this rule takes 14 s; on the sweep's 461 step-6 runs it changes no arrival)."""
-    from scipy import sparse
-
     n_axes = curve.n_axes
     Q = zoh[0].shape[0] - 1
     s0, s1 = span.s0, span.s1
@@ -383,21 +473,21 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         col_step = n_fixed + np.arange(m)
         col_E = n_fixed + m
         n_var = col_E + 1
-        A_eq = sparse.csr_matrix(dynamics, shape=(2 * n_axes * N, n_var))
         f = fine[held]
         ks, js = f // Q, f % Q                              # sample, part of it
         # position of axis j at held point i: theta[ks] + c_js*w[ks] + b1_js*u[ks]
         pos_cols = np.stack([col_theta[:, ks], col_w[:, ks], col_u[:, ks]], axis=-1)
         pos_vals = np.stack([np.ones((n_axes, m)), zoh[2][js].T, zoh[3][js].T], axis=-1)
 
-        def rows_along(directions):
-            """Rows (m*r, n_var) of ``directions`` (m, r, n_axes) . position."""
+        def entries_along(directions):
+            """The nonzero entries (row, column, value) of the rows (m*r, n_var) of
+            ``directions`` (m, r, n_axes) . position, row by row."""
             r = directions.shape[1]
             v = directions[..., None] * pos_vals.transpose(1, 0, 2)[:, None]
             cc = np.broadcast_to(pos_cols.transpose(1, 0, 2)[:, None], v.shape)
             rr = np.broadcast_to(np.arange(m * r).reshape(m, r)[:, :, None, None], v.shape)
-            keep = cc >= 0
-            return sparse.csr_matrix((v[keep], (rr[keep], cc[keep])), shape=(m * r, n_var))
+            keep = (cc >= 0) & (v != 0.0)
+            return rr[keep], cc[keep], v[keep]
 
         sh = s[held]
         p = curve.parameter_at(sh)
@@ -415,23 +505,17 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
             # program keeps its shape from round to round and is warm-started
             normals = np.concatenate([normals, np.where(
                 has_cut[held][:, None], cut[held], normals[:, 0])[:, None]], axis=1)
-        A_t = rows_along(T[:, None, :])                     # d = A_t x - b_t
+        t_rows, t_cols, t_vals = entries_along(T[:, None, :])    # d = A_t x - b_t
         b_t = np.einsum("ij,ij->i", T, point)
-        A_n = rows_along(normals)
+        n_rows, n_cols, n_vals = entries_along(normals)
         b_n = np.einsum("iqj,ij->iq", normals, point).ravel()
-        E = sparse.csr_matrix((np.ones(len(b_n)), (np.arange(len(b_n)),
-                                                   np.full(len(b_n), col_E))),
-                              shape=(len(b_n), n_var))
-        S = sparse.csr_matrix((np.ones(m), (np.arange(m), col_step)), shape=(m, n_var))
-        D = sparse.diags([np.ones(m - 1), -np.ones(m - 1)], [0, 1], shape=(m - 1, m))
-        Dt = D @ A_t
+        A = _stacked_program(m, len(b_n), n_var, col_E, col_step, (n_rows, n_cols, n_vals),
+                             (t_rows, t_cols, t_vals), dynamics, 2 * n_axes * N)
         # the nearest points move forward, no faster than the feed, from the start
         # (sample LEAD) through every held point to the end (sample N)
         gap = np.diff(np.concatenate([[LEAD * Q], f, [N * Q]])) * Ts / Q
         travel = np.maximum(F[1:], F[:-1]) * gap[1:-1]
         ahead = sh[1:] - sh[:-1] + b_t[:-1] - b_t[1:]      # s + d nondecreasing
-        A_ub = sparse.vstack([A_n - E, -A_n - E, A_t - S, -A_t - S, A_t, -A_t, Dt, -Dt,
-                              A_t[:1], -A_t[-1:]]).tocsr()
         b_ub = np.concatenate([b_n, -b_n, b_t, -b_t,
                                np.minimum(trust, s1 - sh) + b_t,
                                np.minimum(trust, sh - s0) - b_t,
@@ -451,8 +535,8 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         # a tie-break: of the motions with the least E, the one whose nearest points
         # move least (the chord is exact there); moving all by the trust costs E/16
         cost[col_step] = tolerance / (16.0 * m * trust)
-        x = program.solve(cost, A_ub, b_ub, A_eq, bounds, *_keys(f, normals.shape[1],
-                                                                 n_fixed, A_eq.shape[0]))
+        x = program.solve_stacked(cost, A, b_ub, bounds, *_keys(f, normals.shape[1], n_fixed,
+                                                                2 * n_axes * N))
         if x is None:
             return None
         u = np.zeros((N, n_axes))
@@ -531,21 +615,44 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
     is); given the ``earliest`` sample worth trying first (:data:`SHORTEN_START`), from
     there if one is found there within :data:`SHORTEN_STALL` rounds, down to the piece's
     continuous duration ``earliest - SHORTEN_START`` and below it by tries of
-    :data:`SHORTEN_BELOW_ROUNDS` rounds; else from the top, the probed N again within
-    :data:`SHORTEN_STALL` rounds only (searching up from it instead, each N from the
-    plan's guess, arrived 1-3 samples later on ``examples/study.toml``'s closed path at
-    1 m/s than coming down, each N from the motion found a sample later). The first
+    :data:`SHORTEN_BELOW_ROUNDS` rounds; else (the probe at ``earliest`` failed) from
+    the top: N = top, top - 2, top - 6, ... (steps that double) while one is found, then
+    halving the gap between the earliest N found and the latest that failed (at first
+    the probe), then one sample at a time from the earliest found while one is found
+    (a sample that already failed from the motion found a sample later is not tried
+    again; the probed N within :data:`SHORTEN_STALL` rounds only). Searching up from the
+    probe instead, each N from the plan's guess, arrived 1-3 samples later on
+    ``examples/study.toml``'s closed path at 1 m/s than coming down, each N from a
+    motion found later.
+
+    Why halving the gap may skip samples: the motions that the programs look for exist
+    at every N from the first at which one does. A motion at rest on the end at N
+    (drive 0 from N on) stays there, within the tolerance, its nearest point still,
+    at N + 1 as well; so does one that waits a sample at rest on the start first (the
+    drive shifted by a sample). The linearised programs do not always find one where
+    one exists (a guess compressed by many samples is a poorer start than one compressed
+    by one), which is why the search ends one sample at a time from the motion found a
+    sample later, as coming down from the top did. On case 875 of
+    ``benchmarks/planner_sweep.py`` (2 axes, probe at 64, plan at 89) coming down took
+    187 programs to 66; this search takes 96 to 67 without a work budget, and arrives at
+    82 instead of 87 within the default one; on the example study's closed path it
+    found 51 as before (54, 52, 51 instead of 54, 53, 52, 51).
+
+    An N at which some axis cannot move from the piece's start to its end, at rest at
+    both, under drives within ``limit`` (:func:`_axis_reach`) is not tried: every
+    program there would fail. The first
     guess of the nearest points is the plan's (its parameters ``param``, shape (n,)),
     compressed in time to arrive at N; each later N starts from the last motion found,
-    compressed by a sample. The programs of one N and trust region are warm-started
-    (:class:`_WarmProgram`; the narrow region's first program starts cold). Where the
-    ``work`` budget (:class:`_Work`) runs out, the search stops there with the earliest
-    N found so far (None if none).
+    compressed by the samples between. The programs of one N and trust region are
+    warm-started (:class:`_WarmProgram`; the narrow region's first program starts cold).
+    Where the ``work`` budget (:class:`_Work`) runs out, the search stops there with the
+    earliest N found so far (None if none).
     Returns ``(N, y, param, w, theta, u)``, arrays of N + 1 + :data:`END_REST` samples,
     y the nearest path points of the samples."""
     work = work if work is not None else _Work()
     Ts = machine.sample_period
     start, end = curve(span.u0), curve(span.u1)
+    distance = np.abs(end - start)              # each axis' displacement [pulse]
     plant = ServoPlant.of_machine(machine, start)
     grid = curve.geometry.uniform_parameters(8 * CHECK_POINTS)
     inside = grid[(grid >= span.u0) & (grid <= span.u1)]
@@ -575,10 +682,13 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
         Q = zoh[0].shape[0] - 1
         known = [np.arange(arrival + 1, dtype=float), plan_s]   # times, arc lengths
         best = None
+        tried = {}   # an arrival sample where none was found: from the one found at
 
         def found_at(N, most_rounds=SHORTEN_ROUNDS):
             # the last motion found (first: the plan) compressed in time to arrive at N
             nonlocal best
+            if np.any(distance > _axis_reach(zoh, N, limit) * (1 + REACH_MARGIN)):
+                return False    # an axis cannot get there by N: every program would fail
             times, s_known = known
             t = np.arange(LEAD * Q + 1, N * Q) / Q            # fine points [samples]
             guess = np.interp(LEAD + (t - LEAD) * (times[-1] - LEAD) / (N - LEAD), times,
@@ -603,6 +713,8 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
                 best = (N, *found, zoh)
                 known[:] = [np.concatenate([[float(LEAD)], t, [N]]),
                             np.concatenate([[span.s0], found[1], [span.s1]])]
+            elif not work.exhausted:
+                tried[N] = times[-1]    # none found from the motion arriving there
             return found is not None
 
         # From the estimate (a sample after the piece's continuous duration) down while
@@ -610,9 +722,10 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
         # duration only as a short try (SHORTEN_BELOW_ROUNDS). Where none is found at the
         # estimate within SHORTEN_STALL rounds (a probe: from the plan's guess, compressed
         # by several samples, a program that does not converge soon seldom does), from
-        # the top down, the probed sample again only within as many rounds (failures
-        # cost the most: up to SHORTEN_ROUNDS programs each, against a few for a
-        # success; each N from the motion found a sample later, which the probe lacked).
+        # the top down in steps that double while one is found, then halving the gap
+        # between the earliest found and the latest that failed (the probe at first), and
+        # from the earliest found one sample at a time as above (the _shorten docstring
+        # says why that search may skip samples).
         low, probe = LEAD + 2, None
         if earliest is None:
             N, floor = top + 1, low
@@ -631,7 +744,19 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
                 return SHORTEN_STALL
             return SHORTEN_ROUNDS if N >= floor else SHORTEN_BELOW_ROUNDS
 
-        while N > low and found_at(N - 1, rounds_at(N - 1)):
+        if probe is not None:
+            found, failed, step = top + 1, probe, 1
+            while found - failed > 1 and not work.exhausted:
+                N = max(found - step, failed + 1) if step else (found + failed) // 2
+                if found_at(N, rounds_at(N)):
+                    found, step = N, 2 * step if step else 0
+                else:
+                    failed, step = N, 0
+            if best is None:
+                return None        # not even the top, the first tried
+            N = found
+        # (a sample that failed from the motion found a sample later fails again)
+        while N > low and tried.get(N - 1) != N and found_at(N - 1, rounds_at(N - 1)):
             N -= 1
         return best
 
