@@ -19,6 +19,21 @@ rest (vm = 0) while the drive on it, ``u`` less the spring and damper
 (``(k (pm - pl) + c (vm - vl)) tau / G`` [V]), is within ``S`` (docs/model.md#real-machine);
 the load then rings on the held motor, and the instant that drive leaves ``+-S`` is an
 event.
+
+Sticking is Karnopp's rule: a motor at rest stays at rest while the drive on it is within
+``+-S``; beyond it, it slips the way that drive pushes, against the Coulomb friction ``F``,
+until its speed is zero again. A motor released from rest starts at ``vm = 0``, which is
+itself a zero of the stop event: when the spring's drive falls through ``F`` so fast that
+the motor stops again within the integrator's first step (seed 100 of
+benchmarks/identify_eval.py: ``S`` 0.3 % above ``F``, the load swinging at 4e4 pulse/s,
+the slip over in about 1e-5 s), scipy's root search returns the start itself and nothing
+advances; the old loop repeated that step for ever. The stop is then searched again on
+``vm / (t - t0)``, which has the same sign as ``vm`` after the start but not its zero at
+the start (it tends to the motor's acceleration there): the true re-stop. A log that never
+met that case is simulated exactly as before. ``max_events`` caps the stops and
+breakaways within one sample period: a chatter beyond it raises
+:class:`ReferenceChatterError` (naming the sample, the time and the count) instead of
+hanging.
 """
 
 from __future__ import annotations
@@ -28,7 +43,19 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-__all__ = ["simulate_log", "random_axis"]
+__all__ = ["simulate_log", "random_axis", "ReferenceChatterError"]
+
+MAX_EVENTS = 1000
+"""Default cap on the stops and breakaways within one sample period. The modes simulated
+here are at most 250 Hz (a sample of 1 ms is a quarter of their period), and a stick-slip
+cycle takes a fair part of the mode's period (the spring must swing the drive on the
+motor from one side of the friction band to the other), so a real log has a handful per
+sample; a thousand is only reached by a chatter that the simulator cannot resolve."""
+
+
+class ReferenceChatterError(RuntimeError):
+    """The reference simulator met more stops and breakaways within one sample period
+    than ``max_events`` (a Zeno-like chatter it cannot resolve)."""
 
 
 def _rhs(axis, u, sgn, stuck):
@@ -73,10 +100,26 @@ def _motor_accel(axis, state, u, sgn):
     return _rhs(axis, u, sgn, False)(0.0, state)[1]
 
 
+def _count_event(count: int, sample: int, t: float, sample_period: float,
+                 max_events: int, u: float) -> tuple[int, int]:
+    """The stops and breakaways so far within the sample period of the event at ``t``
+    [s], and that sample's index; :class:`ReferenceChatterError` beyond ``max_events``
+    (``u`` [V] the drive, for the message)."""
+    k = int(t // sample_period)
+    count = count + 1 if k == sample else 1
+    if count > max_events:
+        raise ReferenceChatterError(
+            f"{count} stops and breakaways within sample {k} (t = {float(t)!r} s, drive "
+            f"{float(u)!r} V), more than max_events = {max_events}")
+    return count, k
+
+
 def simulate_log(axis: dict, drive: np.ndarray, sample_period: float, delay: float = 0.0,
                  encoder: str = "exact", noise: float = 0.0, seed: int = 0,
-                 rtol: float = 1e-10) -> np.ndarray:
-    """The encoder readings of one axis under a drive sequence, from rest at 0.
+                 rtol: float = 1e-10, initial_state=None,
+                 max_events: int = MAX_EVENTS) -> np.ndarray:
+    """The encoder readings of one axis under a drive sequence, from rest at 0 (or from
+    ``initial_state``).
 
     Parameters
     ----------
@@ -89,6 +132,16 @@ def simulate_log(axis: dict, drive: np.ndarray, sample_period: float, delay: flo
     encoder : {"exact", "counts"}
     noise : float
         Standard deviation of the Gaussian reading noise [pulse].
+    initial_state : array_like, shape (2,) or (4,), optional
+        ``(pm, vm)`` or ``(pm, vm, pl, vl)`` at t = 0 [pulse, pulse/s] (default at rest at
+        0); a motor with ``vm = 0`` starts stuck (Karnopp's rule then decides).
+    max_events : int
+        Cap on the stops and breakaways within one sample period.
+
+    Raises
+    ------
+    ReferenceChatterError
+        More than ``max_events`` stops and breakaways within one sample period.
 
     Returns
     -------
@@ -100,9 +153,15 @@ def simulate_log(axis: dict, drive: np.ndarray, sample_period: float, delay: flo
     S = max(axis.get("stiction", 0.0), axis.get("coulomb_friction", 0.0))
     two = bool(axis.get("resonance_frequency", 0.0))
     state = np.zeros(4 if two else 2)
-    stuck = True
-    sgn = 0.0
+    if initial_state is not None:
+        state = np.array(initial_state, dtype=float)
+        if state.shape != (4 if two else 2,):
+            raise ValueError(f"initial_state has shape {state.shape}, expected "
+                             f"({4 if two else 2},)")
+    stuck = state[1] == 0.0
+    sgn = float(np.sign(state[1]))
     read = np.full(n, np.nan)
+    events, event_sample = 0, -1  # stops and breakaways within the sample event_sample
     out = 2 if two and axis.get("encoder_on", "motor") == "load" else 0
     drive = np.asarray(drive, dtype=float)
     # Intervals of constant drive at the plant: the drive changes at j*Ts + delay.
@@ -151,6 +210,8 @@ def simulate_log(axis: dict, drive: np.ndarray, sample_period: float, delay: flo
                         break
                     # the spring and damper broke the held motor away inside
                     te = sol.t_events[0][0]
+                    events, event_sample = _count_event(events, event_sample, te, Ts,
+                                                        max_events, u)
                     record(lambda ts: sol.sol(ts)[out], t, te, False)
                     state = sol.y_events[0][0].copy()
                     state[1] = 0.0
@@ -165,8 +226,22 @@ def simulate_log(axis: dict, drive: np.ndarray, sample_period: float, delay: flo
             sol = solve_ivp(_rhs(axis, u, sgn, False), (t, b), state, rtol=rtol, atol=1e-9,
                             method="DOP853", events=stop if S > 0 else None,
                             dense_output=True)
+            if sol.status == 1 and sol.t_events[0][0] <= t and state[1] == 0.0:
+                # released from rest, and the root search returned the start (the
+                # module's docstring): the first zero of vm after the start instead
+                a0 = _motor_accel(axis, state, u, sgn)
+
+                def stop_after(tt, s, t0=t, a0=a0):
+                    return s[1] / (tt - t0) if tt > t0 else a0
+                stop_after.terminal = True
+                stop_after.direction = -sgn
+                sol = solve_ivp(_rhs(axis, u, sgn, False), (t, b), state, rtol=rtol,
+                                atol=1e-9, method="DOP853", events=stop_after,
+                                dense_output=True)
             if sol.status == 1:  # the motor stopped inside
                 tz = sol.t_events[0][0]
+                events, event_sample = _count_event(events, event_sample, tz, Ts,
+                                                    max_events, u)
                 record(lambda ts: sol.sol(ts)[out], t, tz, False)
                 state = sol.y_events[0][0].copy()
                 state[1] = 0.0
