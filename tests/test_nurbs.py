@@ -625,6 +625,29 @@ def test_the_pruned_box_and_zero_speed_points_equal_the_search_of_every_span():
     assert stops.zero_speed_points.size == 1 and wave._spans_that_may_stop().size == 0
 
 
+def test_a_polylines_corners_are_its_vertices_where_the_left_and_right_tangents_turn():
+    """The corners of a degree-1 curve come from its segments' directions (a million in
+    one pass, issue 37): the same vertices as the curve's own left and right tangents
+    give, on random polylines with weights, collinear runs and reversals, at several
+    tolerances."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        n = int(rng.integers(3, 60))
+        P = np.cumsum(rng.normal(size=(n, 2)), axis=0)
+        for i in np.flatnonzero(rng.random(n - 2) < 0.3) + 1:  # vertices on straight runs
+            P[i] = 0.5 * (P[i - 1] + P[i + 1])
+        if rng.random() < 0.3 and n > 3:  # a reversal
+            P[2] = P[1] - 0.5 * (P[2] - P[1])
+        knots = np.r_[0.0, np.sort(rng.random(n - 2)), 1.0]
+        knots = np.r_[0.0, knots, 1.0]
+        w = rng.uniform(0.5, 2.0, n) if rng.random() < 0.5 else None
+        curve = NurbsCurve(1, knots, P, w)
+        inner = curve.knots[2:-2]
+        angle = curve.turning_angle(inner)
+        for tol in (1e-6, 0.1, 1.0):
+            np.testing.assert_array_equal(curve.sharp_corners(tol), inner[angle > tol])
+
+
 def test_sharp_corners_need_no_arc_length_table():
     """The planner's size check counts a path's corners before any arc length (issue 37):
     the corners are not computed through the arc-length table."""

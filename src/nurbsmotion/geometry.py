@@ -325,6 +325,14 @@ def sharp_corners(curve, angle_tolerance: float) -> np.ndarray:
     by more than ``angle_tolerance`` [rad], shape (n_corners,) (see
     :meth:`CurveGeometry.sharp_corners`). Needs no arc-length table: the size check of a
     run counts a million-span path's corners before any is built."""
+    if curve.degree == 1:
+        # A polyline turns only at its vertices, from one segment's direction to the next
+        # (with any weights a segment is straight; none has zero length, the curve
+        # refuses that): a million vertices in one vectorised pass.
+        d = np.diff(curve.control_points, axis=0)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        angle = np.arccos(np.clip(np.sum(d[:-1] * d[1:], axis=1), -1.0, 1.0))
+        return curve.knots[2:-2][angle > angle_tolerance]
     values, counts = np.unique(curve.knots, return_counts=True)  # values = breakpoints
     full = values[1:-1][counts[1:-1] >= curve.degree]
     zero = [u for u in curve.zero_speed_points if 0.0 < u < 1.0]
