@@ -647,6 +647,36 @@ def test_the_span_count_of_a_file_is_left_to_the_parser_where_it_may_change(
     assert len(calls) == 2 and "knots" in line and str(bad) in line, line
 
 
+def test_a_drawing_of_too_many_pieces_is_refused_before_ezdxf_parses_it(
+        tmp_path, capsys, monkeypatch):
+    """Issue 37: a POLYLINE of a million vertices kept the DXF reader busy for more than
+    150 s (every segment a curve, chained by its ends); the pieces are counted from the
+    drawing's text (LINE, ARC, POLYLINE segments) against paths.dxf.MAX_PIECES, lowered
+    here, before ezdxf reads it. At the limit it is read."""
+    from nurbsmotion.paths import dxf
+
+    def drawing(n):
+        return ("0\nSECTION\n2\nHEADER\n9\n$INSUNITS\n70\n4\n0\nENDSEC\n0\nSECTION\n2\n"
+                "ENTITIES\n0\nPOLYLINE\n8\n0\n66\n1\n10\n0\n20\n0\n30\n0\n"
+                + "".join(f"0\nVERTEX\n8\n0\n10\n{i}\n20\n{i % 2}\n30\n0\n" for i in range(n))
+                + "0\nSEQEND\n0\nLINE\n8\n0\n10\n0\n20\n5\n30\n0\n11\n1\n21\n5\n31\n0\n"
+                "0\nENDSEC\n0\nEOF\n")
+
+    monkeypatch.setattr(dxf, "MAX_PIECES", 30)
+    big, fits = tmp_path / "big.dxf", tmp_path / "fits.dxf"
+    big.write_text(drawing(31))    # 30 segments and a line
+    fits.write_text(drawing(30))   # 29 and a line
+    assert len(nm.paths.load_contours(fits)) == 2
+    read = dxf._read
+    monkeypatch.setattr(dxf, "_read", lambda path: pytest.fail("parsed before the count"))
+    for command in (["contours", str(big)], ["bound", str(big), "--feed", "1mm/s"]):
+        assert main(command) == 2
+        line = _one_error_line(capsys)
+        assert str(big) in line and "at least 31 path pieces" in line, line
+        assert "paths.dxf.MAX_PIECES" in line
+    monkeypatch.setattr(dxf, "_read", read)
+
+
 @pytest.mark.parametrize("period", [1e-7, 9.9e-6])
 def test_a_sample_period_below_the_minimum_is_refused(tmp_path, capsys, period):
     with pytest.raises(InvalidMachineError, match="sample_period .* below the minimum"):
