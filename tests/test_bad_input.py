@@ -589,6 +589,95 @@ def test_too_many_knot_spans_are_refused_before_the_tables(monkeypatch):
     assert curve._geometry is None  # no arc-length table was built
 
 
+@pytest.mark.parametrize("suffix", [".json", ".toml"])
+def test_a_large_path_file_of_too_many_spans_is_refused_before_it_is_parsed(
+        tmp_path, capsys, monkeypatch, suffix):
+    """Issue 37: a million-span cubic was refused after its file was parsed and its curve
+    built twice (3.7 s of CPU); its knot spans are now counted from the text of a file
+    larger than SIZE_SCAN_BYTES, before the parser runs. Lowered limits: 300 spans of
+    degree 3 need 1,801 grid points, more than 1,000."""
+    from nurbsmotion import planning
+    from nurbsmotion.paths import files, save_path
+
+    monkeypatch.setattr(planning, "MAX_GRID_POINTS", 1000)
+    monkeypatch.setattr(files, "SIZE_SCAN_BYTES", 1000)
+    n = 303
+    x = np.arange(n) * 0.01
+    curve = NurbsCurve(3, np.r_[[0.0] * 3, np.arange(n - 2.0), [n - 3.0] * 3],
+                       np.column_stack([x, np.sin(x)]), units="mm")
+    path = save_path(curve, tmp_path / f"wave{suffix}")
+
+    def no_parse(*args, **kwargs):
+        raise AssertionError("parsed before the span count was checked")
+
+    monkeypatch.setattr(files, "parse_json_or_toml", no_parse)
+    for command in (["bound", str(path), "--feed", "1mm/s"],
+                    ["run", str(path), "--feed", "1mm/s", "--out", str(tmp_path / "o")]):
+        assert main(command) == 2
+        line = _one_error_line(capsys)
+        assert str(path) in line and "300 knot spans of degree 3" in line, line
+        assert "1,801 points, more than the limit of 1,000" in line
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_span_count_of_a_file_is_left_to_the_parser_where_it_may_change(
+        tmp_path, capsys, monkeypatch):
+    """The text's count is used only where it is the count the planner sees: a path with
+    C0 joints (chord runs between them are joined into fewer spans) and a malformed knot
+    list are parsed first, and the planner's check (or the parser) speaks after."""
+    from nurbsmotion import planning
+    from nurbsmotion.paths import files
+
+    monkeypatch.setattr(planning, "MAX_GRID_POINTS", 1000)
+    monkeypatch.setattr(files, "SIZE_SCAN_BYTES", 1000)
+    n = 400  # a degree-1 zigzag: every joint a C0 joint (and a corner)
+    zigzag = tmp_path / "zigzag.json"
+    zigzag.write_text(json.dumps({"units": "mm", "degree": 1, "knots": [0] + list(range(n)) +
+                                  [n - 1], "control_points": [[i, i % 2] for i in range(n)]}))
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"units": "mm", "degree": 3, "knots": ["a"] * 2000,
+                               "control_points": [[i, 0] for i in range(1996)]}))
+    calls = []
+    parse = files.parse_json_or_toml
+    monkeypatch.setattr(files, "parse_json_or_toml", lambda *a, **k: calls.append(1) or parse(*a, **k))
+    assert main(["bound", str(zigzag), "--feed", "1mm/s"]) == 2
+    line = _one_error_line(capsys)
+    assert calls and "398 sharp corners" in line and "planning.MAX_GRID_POINTS" in line, line
+    assert main(["bound", str(bad), "--feed", "1mm/s"]) == 2
+    line = _one_error_line(capsys)
+    assert len(calls) == 2 and "knots" in line and str(bad) in line, line
+
+
+def test_a_drawing_of_too_many_pieces_is_refused_before_ezdxf_parses_it(
+        tmp_path, capsys, monkeypatch):
+    """Issue 37: a POLYLINE of a million vertices kept the DXF reader busy for more than
+    150 s (every segment a curve, chained by its ends); the pieces are counted from the
+    drawing's text (LINE, ARC, POLYLINE segments) against paths.dxf.MAX_PIECES, lowered
+    here, before ezdxf reads it. At the limit it is read."""
+    from nurbsmotion.paths import dxf
+
+    def drawing(n):
+        return ("0\nSECTION\n2\nHEADER\n9\n$INSUNITS\n70\n4\n0\nENDSEC\n0\nSECTION\n2\n"
+                "ENTITIES\n0\nPOLYLINE\n8\n0\n66\n1\n10\n0\n20\n0\n30\n0\n"
+                + "".join(f"0\nVERTEX\n8\n0\n10\n{i}\n20\n{i % 2}\n30\n0\n" for i in range(n))
+                + "0\nSEQEND\n0\nLINE\n8\n0\n10\n0\n20\n5\n30\n0\n11\n1\n21\n5\n31\n0\n"
+                "0\nENDSEC\n0\nEOF\n")
+
+    monkeypatch.setattr(dxf, "MAX_PIECES", 30)
+    big, fits = tmp_path / "big.dxf", tmp_path / "fits.dxf"
+    big.write_text(drawing(31))    # 30 segments and a line
+    fits.write_text(drawing(30))   # 29 and a line
+    assert len(nm.paths.load_contours(fits)) == 2
+    read = dxf._read
+    monkeypatch.setattr(dxf, "_read", lambda path: pytest.fail("parsed before the count"))
+    for command in (["contours", str(big)], ["bound", str(big), "--feed", "1mm/s"]):
+        assert main(command) == 2
+        line = _one_error_line(capsys)
+        assert str(big) in line and "at least 31 path pieces" in line, line
+        assert "paths.dxf.MAX_PIECES" in line
+    monkeypatch.setattr(dxf, "_read", read)
+
+
 @pytest.mark.parametrize("period", [1e-7, 9.9e-6])
 def test_a_sample_period_below_the_minimum_is_refused(tmp_path, capsys, period):
     with pytest.raises(InvalidMachineError, match="sample_period .* below the minimum"):

@@ -596,6 +596,67 @@ def test_bounding_box_is_exact_against_a_dense_sample():
                                rtol=0, atol=1e-12)
 
 
+def test_the_pruned_box_and_zero_speed_points_equal_the_search_of_every_span():
+    """Regression (issue 37: ``contours`` and ``interpolate`` took minutes on a
+    million-span spline): the bounding box looks for turning points only in spans whose
+    control points pass outside the box of the breakpoints (convex hull), the zero-speed
+    search only in spans where no axis's hodograph keeps one sign; both give exactly what
+    the search of every span gives, on random (rational) curves, a long wave and curves
+    that stop at a repeated control point."""
+    from random_curves import random_curve
+
+    rng = np.random.default_rng(37)
+    x = np.arange(2000) * 0.01
+    wave = NurbsCurve(3, np.r_[[0.0] * 3, np.arange(1998.0), [1997.0] * 3],
+                      np.column_stack([x, 2.0 * np.sin(x / 0.3)]))
+    stops = NurbsCurve(3, [0, 0, 0, 0, 1, 2, 3, 4, 4, 4, 4],
+                       [[0, 0], [1, 0], [2, 1], [2, 1], [2, 1], [3, 0], [4, 2]])
+    curves = [wave, stops] + [random_curve(rng) for _ in range(12)]
+    for curve in curves:
+        if curve.degree == 1:
+            continue
+        _, _, turns = curve._axis_turns()
+        pts = curve(np.concatenate([curve.breakpoints, turns[~np.isnan(turns)]]))
+        np.testing.assert_array_equal(curve.bounding_box(),
+                                      [pts.min(axis=0), pts.max(axis=0)])
+        every = NurbsCurve(curve.degree, curve.knots, curve.control_points, curve.weights)
+        every._spans_that_may_stop = lambda: np.arange(len(every.breakpoints) - 1)
+        np.testing.assert_array_equal(curve.zero_speed_points, every.zero_speed_points)
+    assert stops.zero_speed_points.size == 1 and wave._spans_that_may_stop().size == 0
+
+
+def test_a_polylines_corners_are_its_vertices_where_the_left_and_right_tangents_turn():
+    """The corners of a degree-1 curve come from its segments' directions (a million in
+    one pass, issue 37): the same vertices as the curve's own left and right tangents
+    give, on random polylines with weights, collinear runs and reversals, at several
+    tolerances."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        n = int(rng.integers(3, 60))
+        P = np.cumsum(rng.normal(size=(n, 2)), axis=0)
+        for i in np.flatnonzero(rng.random(n - 2) < 0.3) + 1:  # vertices on straight runs
+            P[i] = 0.5 * (P[i - 1] + P[i + 1])
+        if rng.random() < 0.3 and n > 3:  # a reversal
+            P[2] = P[1] - 0.5 * (P[2] - P[1])
+        knots = np.r_[0.0, np.sort(rng.random(n - 2)), 1.0]
+        knots = np.r_[0.0, knots, 1.0]
+        w = rng.uniform(0.5, 2.0, n) if rng.random() < 0.5 else None
+        curve = NurbsCurve(1, knots, P, w)
+        inner = curve.knots[2:-2]
+        angle = curve.turning_angle(inner)
+        for tol in (1e-6, 0.1, 1.0):
+            np.testing.assert_array_equal(curve.sharp_corners(tol), inner[angle > tol])
+
+
+def test_sharp_corners_need_no_arc_length_table():
+    """The planner's size check counts a path's corners before any arc length (issue 37):
+    the corners are not computed through the arc-length table."""
+    curve = NurbsCurve(2, [0, 0, 0, 1, 1, 2, 2, 2], [[0, 0], [1, 0], [1, 0], [1, 1], [2, 2]],
+                       [1, 2, 1, 1, 1])
+    assert curve.sharp_corners().size == 1 and curve._geometry is None
+    assert curve.geometry.sharp_corners().tolist() == curve.sharp_corners().tolist()
+
+
 def test_a_control_point_repeated_degree_times_is_one_corner():
     """A cubic whose control point is repeated three times stops at one knot, a corner
     turning from the incoming leg to the outgoing one. C' has a root of high order

@@ -27,7 +27,7 @@ from numba import njit
 from ._kernels import horner, horner1, rational_horner
 from .errors import InvalidArgumentError
 
-__all__ = ["CurveGeometry", "distances_to"]
+__all__ = ["CurveGeometry", "distances_to", "sharp_corners"]
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(10)
 _CACHE_MIN_SIZE, _CACHE_ENTRIES = 1000, 16
@@ -197,7 +197,6 @@ class CurveGeometry:
 
     def __init__(self, curve, rtol: float = 1e-13):
         self.curve = curve
-        self._corners: dict[float, np.ndarray] = {}
         # Planners invert the same arc-length grids again and again (one per replanning
         # pass): remember the last few large inversions.
         self._inverse_cache: OrderedDict[tuple, np.ndarray] = OrderedDict()
@@ -218,11 +217,13 @@ class CurveGeometry:
             np.diff(bp), 4
         )
         b = np.append(a[1:], 1.0)
-        total = float(np.sum(_gauss(curve, a, b)))
+        whole = _gauss(curve, a, b)  # the first round's whole pieces, computed once
+        total = float(np.sum(whole))
         done_a, done_b, done_i = [], [], []
-        for _ in range(40):
+        for round_ in range(40):
             m = 0.5 * (a + b)
-            whole = _gauss(curve, a, b)
+            if round_:
+                whole = _gauss(curve, a, b)
             halves = _gauss(curve, a, m) + _gauss(curve, m, b)
             ok = np.abs(whole - halves) <= rtol * total
             # a piece must not straddle a reversal of C' (|C'| has a kink there), unless
@@ -316,17 +317,30 @@ class CurveGeometry:
         than ``angle_tolerance`` [rad]: knots of full multiplicity, and interior points
         where C' = 0 (:attr:`NurbsCurve.zero_speed_points`) with a tangent reversal (a
         cusp). Elsewhere the curve is C1 with C' != 0, so it has no corner."""
-        if angle_tolerance not in self._corners:
-            c = self.curve
-            values, counts = np.unique(c.knots, return_counts=True)  # values = breakpoints
-            full = values[1:-1][counts[1:-1] >= c.degree]
-            zero = [u for u in c.zero_speed_points if 0.0 < u < 1.0]
-            candidates = np.union1d(full, np.asarray(zero, dtype=float))
-            if candidates.size:
-                angle = c.turning_angle(candidates)
-                candidates = candidates[angle > angle_tolerance]
-            self._corners[angle_tolerance] = candidates
-        return self._corners[angle_tolerance].copy()
+        return self.curve.sharp_corners(angle_tolerance)
+
+
+def sharp_corners(curve, angle_tolerance: float) -> np.ndarray:
+    """Interior parameters of ``curve`` where the left and right (limit) tangents differ
+    by more than ``angle_tolerance`` [rad], shape (n_corners,) (see
+    :meth:`CurveGeometry.sharp_corners`). Needs no arc-length table: the size check of a
+    run counts a million-span path's corners before any is built."""
+    if curve.degree == 1:
+        # A polyline turns only at its vertices, from one segment's direction to the next
+        # (with any weights a segment is straight; none has zero length, the curve
+        # refuses that): a million vertices in one vectorised pass.
+        d = np.diff(curve.control_points, axis=0)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        angle = np.arccos(np.clip(np.sum(d[:-1] * d[1:], axis=1), -1.0, 1.0))
+        return curve.knots[2:-2][angle > angle_tolerance]
+    values, counts = np.unique(curve.knots, return_counts=True)  # values = breakpoints
+    full = values[1:-1][counts[1:-1] >= curve.degree]
+    zero = [u for u in curve.zero_speed_points if 0.0 < u < 1.0]
+    candidates = np.union1d(full, np.asarray(zero, dtype=float))
+    if candidates.size:
+        angle = curve.turning_angle(candidates)
+        candidates = candidates[angle > angle_tolerance]
+    return candidates
 
 
 def distances_to(points: np.ndarray, point: np.ndarray) -> np.ndarray:

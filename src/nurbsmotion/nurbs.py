@@ -348,6 +348,7 @@ class NurbsCurve:
         self._spline = self._mirror = None  # scipy reference, built on first use
         self._geometry = None
         self._zero_speed = None  # zero_speed_points, computed on first use
+        self._corners: dict[float, np.ndarray] = {}  # sharp_corners per tolerance
         self._ends = None  # end_points, computed on first use
         self._power = None  # power_form, computed on first use
         self._check_not_degenerate()
@@ -616,7 +617,12 @@ class NurbsCurve:
                 or not 0 <= tol < math.pi:
             raise InvalidArgumentError(
                 f"angle_tolerance must be a number in [0, pi) rad, got {angle_tolerance!r}")
-        return self.geometry.sharp_corners(float(tol))
+        tol = float(tol)
+        if tol not in self._corners:  # computed once per tolerance, without the arc length
+            from .geometry import sharp_corners
+
+            self._corners[tol] = sharp_corners(self, tol)
+        return self._corners[tol].copy()
 
     def turning_angle(self, u: Any) -> np.ndarray:
         """Angle between the left and right tangents at ``u`` [rad] (0 where smooth)."""
@@ -698,7 +704,10 @@ class NurbsCurve:
             same = np.all(P[1:] == P[:-1], axis=1)
             t = self.knots  # span i, from P_i to P_i+1, is [t_(i+1), t_(i+2)]
             return np.unique(np.concatenate([t[1:-2][same], t[2:-1][same]]))
-        a, b, cand = self._axis_turns()
+        which = self._spans_that_may_stop()
+        if which.size == 0:
+            return np.zeros(0)
+        a, b, cand = self._axis_turns(which)
         ok = ~np.isnan(cand)
         u_in = np.concatenate([a, cand[ok & (cand < b[:, None])]])
         u_end = np.concatenate([b, cand[ok & (cand >= b[:, None])]])
@@ -730,12 +739,51 @@ class NurbsCurve:
                           for g, b in zip(groups, on_bp)])
         return u
 
-    def _axis_turns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _span_first_points(self) -> np.ndarray:
+        """Index of the first of the ``p + 1`` control points of each knot span (between
+        consecutive :attr:`breakpoints`), shape (spans,): span ``[u_k, u_k+1)`` is
+        shaped by control points ``k - p .. k`` (The NURBS Book, P2.2)."""
+        k = np.searchsorted(self.knots, self.breakpoints[:-1], side="right") - 1
+        return k - self.degree
+
+    def _spans_that_may_stop(self) -> np.ndarray:
+        """Indices of the knot spans on which ``|C'|`` may come within 1e-9 of the curve's
+        size (:attr:`zero_speed_points`), sorted. For a non-rational curve (equal
+        weights) ``C'`` on a span is a convex combination of its hodograph's control
+        points ``Q_i = p (P_i+1 - P_i) / (u_i+p+1 - u_i+1)`` (The NURBS Book, Eq. 3.7),
+        so a span where one axis's ``Q_i`` are all above twice that threshold (or all
+        below its negative) moves at more than it everywhere, and is left out: on a CAM
+        spline along an axis this leaves none, in one vectorised pass. Every span of a
+        rational curve."""
+        spans = len(self.breakpoints) - 1
+        w = self.weights
+        if not np.all(w == w[0]):
+            return np.arange(spans)
+        p, P, U = self.degree, self.control_points, self.knots
+        du = U[p + 1:len(P) + p] - U[1:len(P)]  # (n - 1,): > 0 wherever a span uses Q_i
+        with np.errstate(divide="ignore", invalid="ignore"):
+            Q = p * np.diff(P, axis=0) / du[:, None]
+        window = np.lib.stride_tricks.sliding_window_view(Q, p, axis=0)  # (n - p, axes, p)
+        first = self._span_first_points()
+        margin = 2e-9 * self._size
+        lo = window.min(axis=2)[first]
+        hi = window.max(axis=2)[first]
+        moving = np.any((lo > margin) | (hi < -margin), axis=1)
+        return np.flatnonzero(~moving)
+
+    def _axis_turns(self, which: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per span ``[a, b]``, the parameters where one axis's derivative ``C'_j``
         vanishes, for degree >= 2: on each span the numerator of
         ``C' = (A' w - A w') / w^2`` is a polynomial of degree ``2p - 2`` per axis (``A,
         w``: the homogeneous spline), interpolated exactly at Chebyshev nodes; its real
         roots, clipped to the span.
+
+        Parameters
+        ----------
+        which : ndarray of int, optional
+            Indices of the knot spans to look at (every span by default); each span's
+            roots are computed alone, so a subset gives the same values.
 
         Returns
         -------
@@ -747,6 +795,8 @@ class NurbsCurve:
         bp = self.breakpoints
         nodes = np.polynomial.chebyshev.chebpts1(2 * p - 1)
         a, b = bp[:-1], bp[1:]
+        if which is not None:
+            a, b = a[which], b[which]
         uu = (0.5 * (a + b))[:, None] + (0.5 * (b - a))[:, None] * nodes  # (spans, nodes)
         weight = self._weight(uu.ravel()).reshape(uu.shape)
         numerator = self(uu.ravel(), 1).reshape(uu.shape + (-1,)) * weight[..., None] ** 2
@@ -763,12 +813,26 @@ class NurbsCurve:
     def bounding_box(self) -> np.ndarray:
         """The exact axis-aligned bounding box, shape (2, n_axes): lower and upper corner
         [path units]. Each coordinate's extremes lie at a span's end or where its
-        derivative vanishes (:meth:`_axis_turns`); a polyline's are its vertices."""
+        derivative vanishes (:meth:`_axis_turns`); a polyline's are its vertices.
+
+        Linear in the spans: with weights > 0 a span lies in the box of its ``p + 1``
+        control points (the convex hull property, The NURBS Book P4.4), so only a span
+        whose control points pass outside the box of the curve's breakpoints can hold
+        an extreme, and only there are the derivative's roots looked for (on a CAM
+        spline of a million spans: a few per bump instead of every span)."""
         if self.degree == 1:
             pts = self.control_points
         else:
-            _, _, turns = self._axis_turns()
-            pts = self(np.concatenate([self.breakpoints, turns[~np.isnan(turns)]]))
+            pts = self(self.breakpoints)
+            lo, hi = pts.min(axis=0), pts.max(axis=0)
+            window = np.lib.stride_tricks.sliding_window_view(
+                self.control_points, self.degree + 1, axis=0)  # (n - p, axes, p + 1)
+            first = self._span_first_points()
+            outside = (window.min(axis=2)[first] < lo) | (window.max(axis=2)[first] > hi)
+            which = np.flatnonzero(np.any(outside, axis=1))
+            if which.size:
+                _, _, turns = self._axis_turns(which)
+                pts = np.vstack([pts, self(turns[~np.isnan(turns)])])
         return np.array([pts.min(axis=0), pts.max(axis=0)])
 
     def limit_tangent(self, u: Any, side: str = "right") -> np.ndarray:

@@ -56,7 +56,7 @@ from .servo import zoh_coefficients
 from .units import in_pulses
 
 __all__ = ["SpeedProfile", "speed_profile", "time_optimal_bound", "sampled_stop_bound",
-           "check_path_size", "check_profile_size", "top_speed", "check_feed_reachable", "MAX_FEED_RATIO"]
+           "check_path_size", "check_span_count", "check_profile_size", "top_speed", "check_feed_reachable", "MAX_FEED_RATIO"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -195,11 +195,23 @@ def check_path_size(curve: NurbsCurve) -> None:
     WorkLimitError
         Naming the spans, the degree and the limit.
     """
-    spans = len(curve.breakpoints) - 1
-    least = spans * SPAN_POINTS_PER_DEGREE * curve.degree + 1
+    check_span_count(curve.degree, len(curve.breakpoints) - 1)
+
+
+def check_span_count(degree: int, spans: int) -> None:
+    """:func:`check_path_size` from the counts alone: a path of ``spans`` knot spans of
+    degree ``degree`` (a path file's, counted as it is read:
+    :func:`nurbsmotion.paths.load_contours`'s ``size_check``).
+
+    Raises
+    ------
+    WorkLimitError
+        Naming the spans, the degree and the limit.
+    """
+    least = spans * SPAN_POINTS_PER_DEGREE * degree + 1
     if least > MAX_GRID_POINTS:
         raise WorkLimitError(
-            f"the path has {spans:,} knot spans of degree {curve.degree}: at "
+            f"the path has {spans:,} knot spans of degree {degree}: at "
             f"{SPAN_POINTS_PER_DEGREE} x degree grid points each its speed profile needs "
             f"{least:,} points, more than the limit of {MAX_GRID_POINTS:,} "
             "(planning.MAX_GRID_POINTS); split the path or join its chords")

@@ -23,20 +23,23 @@ from ..errors import InvalidArgumentError, InvalidFeedError, WorkLimitError
 from ..interpolators import make_open_loop
 from ..machine import Machine, load_machine
 from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
-from ..planning import check_profile_size, sampled_stop_bound, time_optimal_bound
+from ..planning import (check_profile_size, check_span_count, sampled_stop_bound,
+                        time_optimal_bound)
 from .console import EXPORT_FILES, _outputs, _progress
 
 
-def _contour(args, machine: Machine | None = None):
+def _contour(args, machine: Machine | None = None, size_check=None):
     """The path named on the command line with its programmed feed (a ``Contour``): read
     with ``--units`` and, for G-code and DXF, the machine's axes (XY without a machine),
-    as a study's cases read theirs (:func:`nurbsmotion.study.run_input.load_run_contour`)."""
+    as a study's cases read theirs (:func:`nurbsmotion.study.run_input.load_run_contour`);
+    ``size_check(degree, spans)`` as the file is read (``run`` and ``bound``: the
+    planner's, :func:`nurbsmotion.planning.check_span_count`)."""
     from ..study.run_input import load_run_contour
 
     return load_run_contour(args.path, machine, units=args.units,
                             project=getattr(args, "project", None),
                             path_tolerance=getattr(args, "path_tolerance", None),
-                            tool_table=args.tool_table)
+                            tool_table=args.tool_table, size_check=size_check)
 
 
 def _feed_used(args, contour, cap, scale: float, unit: str, *,
@@ -200,7 +203,8 @@ def _cmd_bound(args) -> int:
     from ..loop import check_run_arguments
 
     machine = load_machine(args.machine)
-    contour = _contour(args, machine)
+    # the planner's size as the file is read (the sampled bound has no planner grid)
+    contour = _contour(args, machine, None if args.sampled else check_span_count)
     curve = contour.curve
     machine.check_path(curve.n_axes)
     scale = units.Scale.of(curve, machine)
@@ -256,7 +260,7 @@ def _run(args, precompiler) -> int:
     from ..report import TRACE_FILES, write_json
 
     machine = load_machine(args.machine)
-    contour = _contour(args, machine)
+    contour = _contour(args, machine, check_span_count)  # the planner's size, as it is read
     curve = contour.curve
     machine.check_path(curve.n_axes)
     scale = units.Scale.of(curve, machine)  # the one conversion of this run's units

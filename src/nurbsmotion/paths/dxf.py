@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import warnings
 from collections import Counter
 from pathlib import Path
@@ -46,19 +47,53 @@ from pathlib import Path
 import numpy as np
 
 from .._runtime.io import check_input_file, write_output
-from ..errors import InvalidCurveError, PathFileError
+from ..errors import InvalidCurveError, PathFileError, WorkLimitError
 from ..joining import DEFAULT_JOIN_TOLERANCE, join
 from ..nurbs import NurbsCurve, make_arc, make_line
 from .gcode.codes import MAX_COORDINATE
 from .pieces import arc_by_bulge
 
-__all__ = ["load_dxf", "save_dxf", "DxfWarning", "MAX_BULGE"]
+__all__ = ["load_dxf", "save_dxf", "DxfWarning", "MAX_BULGE", "MAX_PIECES"]
 
 _UNITS = {1: "inch", 4: "mm", 5: "cm", 6: "m", 13: "um"}
 _UNITS_CODE = {v: k for k, v in _UNITS.items()}
 MAX_BULGE = 1e6
 """Largest LWPOLYLINE/POLYLINE bulge read (tan of a quarter of the sweep): 1e6 is a sweep
 within 4e-6 rad of a full turn."""
+
+
+MAX_PIECES = 20_000
+"""Most path pieces (lines, arcs, polyline segments) a drawing may hold. The reader
+builds each as a curve and chains them by their ends, about 1.2 ms of CPU a piece at
+3,000 and 1.5 ms at 10,000 (the chaining grows with the count), so 20,000 is about half
+a minute; a drawing beyond it is refused from its text before ezdxf parses it (40 us a
+vertex more), in a fraction of a second. Join its segments (a SPLINE, or the chords'
+G-code, which reads a million lines in seconds)."""
+
+_PIECE_ENTITY = re.compile(
+    rb"\n[ \t]*0[ \t]*\r?\n(VERTEX|LINE|ARC|POLYLINE)[ \t]*\r?\n")
+
+
+def _check_piece_count(path: Path) -> None:
+    """Refuse a drawing of more than :data:`MAX_PIECES` pieces, counted from its text:
+    every LINE and ARC entity, and each POLYLINE's VERTEX entities less one (its fewest
+    segments; LWPOLYLINE vertices are not counted, so the count is never above the
+    drawing's). A binary DXF is left to the reader."""
+    with open(path, "rb") as f:
+        data = f.read()
+    if data.startswith(b"AutoCAD Binary DXF"):
+        return
+    if sum(data.count(name) for name in (b"VERTEX", b"LINE", b"ARC")) <= MAX_PIECES:
+        return  # fewer names than the limit (a hundredth of the entity scan's time)
+    found = _PIECE_ENTITY.findall(data)
+    counts = Counter(found)
+    pieces = counts[b"LINE"] + counts[b"ARC"] + max(counts[b"VERTEX"] - counts[b"POLYLINE"], 0)
+    if pieces > MAX_PIECES:
+        raise WorkLimitError(
+            f"{path}: the drawing holds at least {pieces:,} path pieces (lines, arcs, "
+            f"polyline segments), more than the {MAX_PIECES:,} the DXF reader builds and "
+            "chains in about half a minute (paths.dxf.MAX_PIECES); join its segments into "
+            "a SPLINE, or give the path as G-code")
 
 
 class DxfWarning(UserWarning):
@@ -396,9 +431,10 @@ def load_dxf(
         One line naming the file (and the entity's type and handle): not a readable DXF,
         no path entity, an entity that cannot be converted or a bad value in it.
     """
+    path = check_input_file(file)
+    _check_piece_count(path)  # before ezdxf is imported and parses it
     import ezdxf
 
-    path = check_input_file(file)
     auto = axes is None
     axes = "xyz" if auto else str(axes).lower()
     if axes not in ("xy", "xyz"):

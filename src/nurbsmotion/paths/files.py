@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 from .._runtime.io import parse_json_or_toml, read_text_file, write_output
 from ..feed import FeedLimit
-from ..errors import InvalidArgumentError, InvalidCurveError, PathFileError
+from ..errors import InvalidArgumentError, InvalidCurveError, PathFileError, WorkLimitError
 from ..nurbs import BUILTIN_PATHS, MAX_CONTROL_POINTS, NurbsCurve, builtin_path
 
 if TYPE_CHECKING:  # (annotation only)
@@ -61,6 +61,7 @@ __all__ = [
     "curve_from_dict",
     "PATH_FILE_SUFFIXES",
     "MAX_PATH_FILE_BYTES",
+    "SIZE_SCAN_BYTES",
 ]
 
 MAX_PATH_FILE_BYTES = 32_000_000
@@ -254,16 +255,75 @@ def curve_from_dict(
 
 
 # ---------------------------------------------------------------------- JSON / TOML
-def _read_json(path: Path) -> NurbsCurve:
+SIZE_SCAN_BYTES = 1_000_000
+"""A JSON or TOML path file larger than this [byte] has its knot spans counted from its
+text, before it is parsed, when the command gives a ``size_check``
+(:func:`load_contours`): parsing takes about 45 ns of CPU a byte (a 24 MB file of a
+million control points, a second), counting its knot vector's commas 0.5 ns."""
+
+
+def _read_json(path: Path, size_check=None) -> NurbsCurve:
     text = read_text_file(path, MAX_PATH_FILE_BYTES)
+    _scan_spans(text, False, size_check, path)
     data = parse_json_or_toml(text, toml=False, source=str(path))
     return curve_from_dict(data, str(path), text, toml=False)
 
 
-def _read_toml(path: Path) -> NurbsCurve:
+def _read_toml(path: Path, size_check=None) -> NurbsCurve:
     text = read_text_file(path, MAX_PATH_FILE_BYTES)
+    _scan_spans(text, True, size_check, path)
     data = parse_json_or_toml(text, toml=True, source=str(path))
     return curve_from_dict(data, str(path), text, toml=True)
+
+
+def _scan_spans(text: str, toml: bool, size_check, path: Path) -> None:
+    """Call ``size_check(degree, spans)`` with the knot spans of a large path file's text
+    (:data:`SIZE_SCAN_BYTES`), before it is parsed, and say which file a refusal is of.
+
+    Only where the count is the path's as it runs: one ``degree`` and one ``knots`` field
+    holding plain numbers, and no interior knot of multiplicity p (no C0 joint: chord
+    runs, joined by a run into fewer spans, only exist between such joints). Anything
+    else is left to the parser and the checks after it. The spans are first bounded by
+    the knots' count (their commas), and counted exactly (distinct knots) only when the
+    bound is refused.
+    """
+    if size_check is None or len(text) <= SIZE_SCAN_BYTES:
+        return
+    flags = re.MULTILINE
+    if toml:
+        degree = re.findall(r"^\s*degree\s*=\s*(\d+)\s*$", text, flags)
+        knots = list(re.finditer(r"^\s*knots\s*=\s*\[", text, flags))
+    else:
+        degree = re.findall(r'"degree"\s*:\s*(\d+)\s*[,}]', text)
+        knots = list(re.finditer(r'"knots"\s*:\s*\[', text))
+    if len(degree) != 1 or len(knots) != 1 or not 1 <= int(degree[0]) <= 100:
+        return
+    p = int(degree[0])
+    end = text.find("]", knots[0].end())
+    body = text[knots[0].end():end].strip().rstrip(",")
+    if end < 0 or not body or re.search(r"[^0-9eE+\-.,\s]", body):
+        return
+    most = body.count(",") + 1 - 2 * p - 1  # spans if every knot is distinct
+    try:
+        size_check(p, most)
+        return
+    except WorkLimitError:
+        pass
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            t = np.fromstring(body, sep=",")
+        except (ValueError, DeprecationWarning):
+            return
+    if t.size != body.count(",") + 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0):
+        return  # the parser names what is wrong
+    values, counts = np.unique(t, return_counts=True)
+    if np.any(counts[1:-1] >= p):
+        return
+    try:
+        size_check(p, len(values) - 1)
+    except WorkLimitError as exc:
+        raise WorkLimitError(f"{path}: {exc}") from None
 
 
 def _file_dict(curve: NurbsCurve) -> dict:
@@ -373,20 +433,23 @@ def load_path(file: str | os.PathLike, *, axes: str = "xy", units: str | None = 
 
 
 def load_contour(file: str | os.PathLike, *, axes: str = "xy", units: str | None = None,
-                 project: bool = False, tool_table: str | os.PathLike | None = None) -> Contour:
+                 project: bool = False, tool_table: str | os.PathLike | None = None,
+                 size_check=None) -> Contour:
     """:func:`load_path`, also returning the file's programmed feed (a :class:`Contour`)."""
     spec = os.fspath(file)
     index = None
     match = _CONTOUR_SELECTOR.match(spec)
     if match and not Path(spec).exists():
         spec, index = match.group("file"), int(match.group("index"))
-    contours = load_contours(spec, axes=axes, units=units, project=project, tool_table=tool_table)
+    contours = load_contours(spec, axes=axes, units=units, project=project, tool_table=tool_table,
+                             size_check=size_check)
     chosen = _choose_contour([c.curve for c in contours], index, spec)
     return next(c for c in contours if c.curve is chosen)
 
 
 def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: str | None = None,
-                  project: bool = False, tool_table: str | os.PathLike | None = None) -> list[Contour]:
+                  project: bool = False, tool_table: str | os.PathLike | None = None,
+                  size_check=None) -> list[Contour]:
     """Every contour of a path file, with its programmed feed (see :func:`load_path`).
 
     ``axes=None`` reads a G-code or DXF file on every axis it moves (G-code: by a feed or
@@ -394,7 +457,14 @@ def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: st
     move of other axes together with ``axes`` is read as its projection on them;
     ``tool_table``: a LinuxCNC tool table (``.tbl``) a G-code program's cutter radius
     compensation takes its tools' diameters from, in the program's units
-    (:func:`nurbsmotion.paths.gcode.load_gcode`; ``--tool-table``)."""
+    (:func:`nurbsmotion.paths.gcode.load_gcode`; ``--tool-table``).
+
+    ``size_check(degree, spans)``, if given, is what the command can do with a path of
+    that many knot spans (``run`` and ``bound``:
+    :func:`nurbsmotion.planning.check_span_count`): a large JSON or TOML file's spans are
+    counted from its text and checked before it is parsed (:data:`SIZE_SCAN_BYTES`), so
+    that a path beyond the limit is refused in a fraction of a second, with the file
+    named (:class:`~nurbsmotion.errors.WorkLimitError`)."""
     path = Path(file)
     if units is not None and units not in PATH_UNITS:
         raise PathFileError(f"unit {units!r} is not one of {', '.join(PATH_UNITS)}", str(path))
@@ -405,7 +475,8 @@ def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: st
     if suffix in (".json", ".toml"):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            curve = _read_json(path) if suffix == ".json" else _read_toml(path)
+            curve = _read_json(path, size_check) if suffix == ".json" else _read_toml(
+                path, size_check)
         assumed = any(issubclass(w.category, PathWarning) for w in caught)
         for w in caught:  # the override makes the assumption moot
             if units is None or not issubclass(w.category, PathWarning):
@@ -491,9 +562,10 @@ def resolve_path(spec: str, *, axes: str = "xy", units: str | None = None) -> Nu
 
 
 def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None,
-                    project: bool = False, tool_table: str | os.PathLike | None = None) -> Contour:
+                    project: bool = False, tool_table: str | os.PathLike | None = None,
+                    size_check=None) -> Contour:
     """:func:`resolve_path`, also returning the file's programmed feed (a :class:`Contour`);
-    ``tool_table`` as for :func:`load_contours`."""
+    ``tool_table`` and ``size_check`` as for :func:`load_contours`."""
     if spec in BUILTIN_PATHS and not Path(spec).exists():
         if tool_table is not None:
             raise InvalidArgumentError(f"a tool table ({os.fspath(tool_table)}) is read with a G-code "
@@ -509,4 +581,5 @@ def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None,
             f"{spec!r} is neither a built-in path ({', '.join(BUILTIN_PATHS)}) nor a file "
             f"name with an ending ({', '.join(PATH_FILE_SUFFIXES)})"
         )
-    return load_contour(spec, axes=axes, units=units, project=project, tool_table=tool_table)
+    return load_contour(spec, axes=axes, units=units, project=project, tool_table=tool_table,
+                        size_check=size_check)

@@ -60,7 +60,8 @@ def path_axes(machine: Machine | None) -> str:
 
 
 def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | None = None,
-                     project: str | None = None, path_tolerance=None, tool_table=None):
+                     project: str | None = None, path_tolerance=None, tool_table=None,
+                     size_check=None):
     """The path ``spec`` names (a built-in name or a file, ``FILE#k`` for a contour) with
     its programmed feed, read on ``machine``'s axes (:func:`path_axes`).
 
@@ -81,6 +82,9 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
         ``--path-tolerance`` as given: a length (``"2um"``) or a bare number of pulses;
         default :data:`nurbsmotion.motion_plan.DEFAULT_PATH_TOLERANCE` (one
         pulse); 0 joins nothing.
+    size_check : callable, optional
+        ``size_check(degree, spans)``: what the command can plan, checked as a large file
+        is read (:func:`nurbsmotion.paths.load_contours`).
 
     Returns
     -------
@@ -103,7 +107,7 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
         raise InvalidArgumentError(f"--project {project} must name the machine's axes ({axes}): "
                                    "the path is read as its projection on them")
     contour = resolve_contour(spec, axes=axes, units=units, project=project is not None,
-                              tool_table=tool_table)
+                              tool_table=tool_table, size_check=size_check)
     rotary = [j for j, a in enumerate(contour.axes or "") if a in "ABC"]
     if rotary:
         contour = _on_rotary_axes(contour, machine, rotary, spec)
