@@ -396,11 +396,11 @@ def encoder_offset(drive: np.ndarray, machine) -> np.ndarray | None:
     ndarray, shape (n, n_axes), or None
         [pulse]; 0 on rigid axes.
     """
+    if not any(a.resonance_frequency > 0 for a in machine.axes):
+        return None  # before the imports: scipy.signal alone costs a rigid run ~0.3 s
     from scipy.linalg import expm
     from scipy.signal import lfilter
 
-    if not any(a.resonance_frequency > 0 for a in machine.axes):
-        return None
     Ts = machine.sample_period
     out = np.zeros_like(drive, dtype=float)
     for j, ax in enumerate(machine.axes):
