@@ -100,6 +100,8 @@ def _empty(fig, axes) -> None:
     for legend in list(fig.legends):
         legend.remove()
     for ax in axes:
+        for inset in list(ax.child_axes):  # the drive figure's hold inset
+            inset.remove()
         for artist in [*ax.lines, *ax.patches, *ax.collections, *ax.texts]:
             artist.remove()
         for text in (ax.title, ax._left_title, ax._right_title):
