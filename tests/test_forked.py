@@ -192,3 +192,55 @@ def test_a_figure_error_in_the_worker_is_the_commands_one_line(tmp_path, capsys,
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["nurbsmotion run: error: planted figure failure"]
     assert not out.exists()
+
+
+def _children(pid: int) -> list[int]:
+    """The processes ``pid`` forked and their own, from /proc (Linux)."""
+    found, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            with open(f"/proc/{p}/task/{p}/children") as f:
+                kids = [int(k) for k in f.read().split()]
+        except OSError:
+            kids = []
+        found += kids
+        todo += kids
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs Linux /proc")
+def test_ctrl_c_while_the_figures_are_drawn_ends_every_process(tmp_path):
+    """Interrupted once its summary is written (the figures being drawn by its worker),
+    the command exits 130 with its one line, writes nothing, and its worker and the
+    worker's second process are gone with it."""
+    import subprocess
+    import sys
+
+    from conftest import source_env
+
+    out = tmp_path / "o"
+    proc = subprocess.Popen([sys.executable, "-m", "nurbsmotion", "run", "die-bonder-pi",
+                             "--feed", "1m/s", "--out", str(out)], env=source_env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    workers: list[int] = []
+    try:
+        while proc.poll() is None and not list(out.glob(".nurbsmotion-*/summary.json")):
+            workers = _children(proc.pid) or workers
+            time.sleep(0.005)
+        workers = _children(proc.pid) or workers
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    if proc.returncode == 0:
+        pytest.skip("the command ended before it could be interrupted")
+    assert workers, "no figure worker was seen"
+    assert proc.returncode == 130
+    assert err.strip().splitlines() == ["nurbsmotion run: interrupted; no output was written"]
+    assert not out.exists()
+    deadline = time.monotonic() + 10
+    while not all(_gone(p) for p in workers) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert all(_gone(p) for p in workers)
