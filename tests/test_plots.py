@@ -234,3 +234,24 @@ def test_plot_comparisons_forked_draw_what_one_process_draws(pi_runs, machine, t
     assert written[1].keys() == written[2].keys()
     differ = [name for name in written[1] if written[1][name] != written[2][name]]
     assert not differ
+
+
+def test_speed_figure_has_no_inset_of_the_drive_figure(machine, tmp_path, monkeypatch):
+    """Regression: the speed figure is drawn on the drive figure's emptied panels, and
+    the drive figure's inset of a run that holds after it settles (its applied drive,
+    "chatter RMS ... V") was left on the speed figure's panels."""
+    from nurbsmotion import plots
+
+    insets = {}
+    save = plots.figures._save
+
+    def spy(fig, path, overwrite=True):
+        insets[path.name] = [ax.get_title() for a in fig.axes for ax in a.child_axes]
+        return save(fig, path, overwrite)
+
+    monkeypatch.setattr(plots.figures, "_save", spy)
+    trace = run(nm.make_die_bonder_pi(), machine, 1e6, "taylor2", hold=0.05)
+    assert trace.hold_samples >= 2
+    plot_trace(trace, tmp_path)
+    assert len(insets["drive.png"]) == 2 and all("chatter" in t for t in insets["drive.png"])
+    assert insets["speed.png"] == []

@@ -11,12 +11,14 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import math
 import sys
 import time
 from pathlib import Path
 
 from .. import units
+from .._runtime.forked import ForkedWorker, usable_cpus
 from .._runtime.io import OutputFolder
 from ..loop.budget import check_samples, estimate_samples
 from ..errors import InvalidArgumentError, InvalidFeedError, WorkLimitError
@@ -311,8 +313,8 @@ def _run(args, precompiler) -> int:
     stages = ["time-optimal bound", "plan and run the closed loop", "metrics", "trace",
               "summary"]
     stages += [] if args.no_figures else ["figures"]
-    with _outputs(args) as staged, _progress(args, total=len(stages), unit="stage",
-                                             desc=stages[0]) as bar:
+    with _outputs(args) as staged, _figure_worker(args, path, machine, unit) as figures, \
+            _progress(args, total=len(stages), unit="stage", desc=stages[0]) as bar:
         out = staged.staging
         exports = {fmt: out / EXPORT_FILES[fmt] for fmt in args.export or ()}
 
@@ -341,6 +343,11 @@ def _run(args, precompiler) -> int:
                 # the metrics before the trace file: their temporaries are gone before
                 # the writer's buffers are made (the peak memory is the larger, not the sum)
                 result = job.run(progress=lambda k: samples.update(k - samples.n))
+            if not args.no_figures:  # drawn by the worker while the files are written
+                from ..plots import plot_trace
+
+                figures.submit(plot_trace, result.trace, out, feed=result.feed,
+                               length_unit=unit, overwrite=True, processes=usable_cpus())
             bar.update(2)
             stage(stages[3])
             if file is not None:
@@ -377,7 +384,7 @@ def _run(args, precompiler) -> int:
         bar.update()
         if not args.no_figures:
             stage(stages[5])
-            result.trace.plot(out, feed=result.feed, length_unit=unit, overwrite=True)
+            figures.result()
             bar.update()
     out = Path(args.out)
     sat = metrics.total_saturated_samples
@@ -397,6 +404,22 @@ def _run(args, precompiler) -> int:
           f"({metrics.max_contour_error:.4g} pulse), {sat} saturated "
           f"sample{'s' if sat != 1 else ''}{joined} -> {out}")
     return 0
+
+
+def _figure_worker(args, path, machine: Machine, unit: str) -> ForkedWorker:
+    """The process that draws a run's figures: forked now, before the run, it imports
+    matplotlib and prepares the path's figure data and empty figures
+    (:func:`nurbsmotion.plots.prepare_trace`) on the other core while this process runs;
+    then it draws the figures of the trace it is sent, shared with a process it forks
+    (one per usable CPU), while this one writes the trace file and the summary. No
+    process with ``--no-figures``, nor where the platform does not fork (the figures are
+    then drawn here)."""
+    if args.no_figures:
+        return ForkedWorker(enabled=False)
+    from ..plots import prepare_trace
+
+    return ForkedWorker(functools.partial(prepare_trace, path, machine, length_unit=unit),
+                        shared=(path, machine))
 
 
 def _ask_for_feed_unit(args, curve, machine: Machine, length: float, feed) -> None:

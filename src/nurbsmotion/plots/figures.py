@@ -22,9 +22,9 @@ from ._canvas import (
     _output_dir, _save, _STYLES, _title,
 )
 from .events import (
-    _desired_in_window, _desired_parameters, _Event, _event_time, _events,
-    _label_corners, _make_run, _MIN_ZOOM_HALF_WIDTH_PULSES, _Run, _SETTLE_ZOOM,
-    settling_time, _window, _zoom_windows,
+    MAX_EVENT_WINDOWS, _desired_in_window, _desired_parameters, _desired_points, _Event,
+    _event_time, _events, _label_corners, _make_run, _MAX_ERROR_ZOOMS,
+    _MIN_ZOOM_HALF_WIDTH_PULSES, _Run, _SETTLE_ZOOM, settling_time, _window, _zoom_windows,
 )
 
 TRACE_FIGURES = ("contour.png", "following_error.png", "drive.png", "speed.png",
@@ -46,13 +46,13 @@ DRIVE_FRAME = 1.25
 """The drive axes span ±DRIVE_FRAME × Umax: the limit lines and a margin above them."""
 
 
-def _window_columns(fig, n_rows: int, events: list[_Event]):
+def _window_columns(fig, n_rows: int, n_events: int):
     """Axes grid: a wide whole-run column then one column per event; shape
-    (n_rows, 1 + len(events))."""
-    grid = fig.add_gridspec(n_rows, 1 + len(events), width_ratios=[2.4] + [1] * len(events))
-    axes = np.empty((n_rows, 1 + len(events)), dtype=object)
+    (n_rows, 1 + n_events)."""
+    grid = fig.add_gridspec(n_rows, 1 + n_events, width_ratios=[2.4] + [1] * n_events)
+    axes = np.empty((n_rows, 1 + n_events), dtype=object)
     for r in range(n_rows):
-        for c in range(1 + len(events)):
+        for c in range(1 + n_events):
             share = axes[r, 0] if c > 1 else None
             axes[r, c] = fig.add_subplot(grid[r, c], sharey=share)
     return axes
@@ -79,19 +79,67 @@ def _figure_reuse():
             _reused = None
 
 
+def _windowed_layout(n_rows: int, n_events: int):
+    """A new figure and its :func:`_window_columns` grid, shape (n_rows, 1 + n_events)."""
+    fig = _figure(4.0 + 2.3 * n_events, 2.7 * n_rows + 1.0)
+    return fig, _window_columns(fig, n_rows, n_events)
+
+
 def _windowed_figure(n_rows: int, events: list[_Event]):
-    """A figure and its :func:`_window_columns` grid, shape (n_rows, 1 + len(events)): a
-    new one, or inside :func:`_figure_reuse` the one of this layout, emptied."""
-    key = (n_rows, len(events))
+    """A figure and its :func:`_window_columns` grid, shape (n_rows, 1 + len(events)):
+    inside :func:`_figure_reuse` the one of this layout, emptied, else one made ahead
+    (:func:`prepare_trace`) or a new one."""
+    key = ("windowed", n_rows, len(events))
     if _reused is not None and key in _reused:
         fig, axes = _reused[key]
         _empty(fig, axes.ravel())
         return fig, axes
-    fig = _figure(4.0 + 2.3 * len(events), 2.7 * n_rows + 1.0)
-    axes = _window_columns(fig, n_rows, events)
+    fig, axes = _blank(key)
     if _reused is not None:
         _reused[key] = (fig, axes)
     return fig, axes
+
+
+_LAYOUTS: dict[str, Callable] = {}
+"""Layout name -> function(*sizes) -> (fig, axes) making an empty figure of that layout;
+a layout key is ``(name, *sizes)``."""
+
+_made_ahead: dict = {}
+"""Empty figures :func:`prepare_trace` made before the trace existed, by layout key; each
+is taken once (:func:`_blank`)."""
+
+_EXTRA_TICKS = 2
+"""Major ticks made ahead per axis of such a figure beyond the labels that fit along it
+(``Axis.get_tick_space``, what the default locator aims at): its locator may add one at
+either end, just outside the view. A tick is a few artists (lines, labels) that matplotlib
+makes when a draw first needs it, the largest cost of a new panel; any more that a draw
+needs are made then, as always."""
+
+
+def _blank(key: tuple):
+    """An empty figure of layout ``key``: one made ahead, or a new one."""
+    made = _made_ahead.pop(key, None)
+    return made if made is not None else _LAYOUTS[key[0]](*key[1:])
+
+
+def _make_ahead(key: tuple) -> None:
+    """Make an empty figure of layout ``key`` with its ticks, for :func:`_blank`."""
+    fig, axes = _LAYOUTS[key[0]](*key[1:])
+    for ax in fig.axes:
+        if ax.name == "rectilinear":  # (a 3-D panel makes its ticks at its draw)
+            for axis in (ax.xaxis, ax.yaxis):
+                axis.get_major_ticks(axis.get_tick_space() + _EXTRA_TICKS)
+    fig.canvas.get_renderer()
+    _made_ahead[key] = (fig, axes)
+
+
+def _rows_layout(width: float, row_height: float, n_rows: int, n_cols: int):
+    """A new figure of ``n_rows`` x ``n_cols`` panels sharing their time axis [inch]."""
+    fig = _figure(width, row_height * n_rows + 1.0)
+    return fig, fig.subplots(n_rows, n_cols, sharex=True, squeeze=False)
+
+
+_LAYOUTS.update(windowed=_windowed_layout, rows=_rows_layout)
 
 
 def _empty(fig, axes) -> None:
@@ -100,6 +148,8 @@ def _empty(fig, axes) -> None:
     for legend in list(fig.legends):
         legend.remove()
     for ax in axes:
+        for inset in list(ax.child_axes):  # the drive figure's hold inset
+            inset.remove()
         for artist in [*ax.lines, *ax.patches, *ax.collections, *ax.texts]:
             artist.remove()
         for text in (ax.title, ax._left_title, ax._right_title):
@@ -201,6 +251,31 @@ def _path_panel(ax, desired, runs: list[_Run], i: int, j: int, names, unit: str)
     ax.set_aspect("equal", adjustable="datalim")
 
 
+def _contour_layout(n_axes: int, n_zooms: int):
+    """A new contour figure (:func:`_contour_figure`) of a path of ``n_axes`` axes with
+    ``n_zooms`` zooms, and its panels: ``(fig, (path, projections, error, zooms))``; the
+    path panel is 3-D, with three projections beneath, for 3 axes or more."""
+    one_row = n_zooms == 1  # path, error and the zoom side by side
+    n_cols = 3 if n_axes >= 3 or one_row else max(2, min(n_zooms, 4))
+    n_rows = 2 if n_axes >= 3 else (1 if one_row else 1 + math.ceil(n_zooms / n_cols))
+    fig = _figure(4.4 * n_cols, 4.4 * n_rows + 0.6)
+    grid = fig.add_gridspec(n_rows, 2 * n_cols)
+    half = 2 if one_row else (3 if n_axes >= 3 else n_cols)
+    err_slot = grid[0, half:4] if one_row else grid[0, half:]
+    zoom_slots = ([grid[0, 4:]] if one_row else
+                  [grid[1 + j // n_cols, 2 * (j % n_cols):2 * (j % n_cols) + 2]
+                   for j in range(n_zooms)])
+    # made in the order the figure was always drawn in (the order of fig.axes)
+    ax_path = fig.add_subplot(grid[0, :half], projection="3d" if n_axes >= 3 else None)
+    projections = ([fig.add_subplot(grid[1, 2 * c:2 * c + 2]) for c in range(3)]
+                   if n_axes >= 3 else [])
+    ax_err = fig.add_subplot(err_slot)
+    return fig, (ax_path, projections, ax_err, [fig.add_subplot(s) for s in zoom_slots])
+
+
+_LAYOUTS["contour"] = _contour_layout
+
+
 def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit: str,
                     per_unit: float, overwrite: bool) -> Path:
     """The desired path against each run's actual positions, the contour error over time,
@@ -214,21 +289,10 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
     planar = n_axes == 2
     zooms = (_zoom_windows(curve, runs, nearest, _MIN_ZOOM_HALF_WIDTH_PULSES / per_unit)
              if planar else [])
-    one_row = len(zooms) == 1  # path, error and the zoom side by side
-    n_cols = 3 if n_axes >= 3 or one_row else max(2, min(len(zooms), 4))
-    n_rows = 2 if n_axes >= 3 else (1 if one_row else 1 + math.ceil(len(zooms) / n_cols))
-    fig = _figure(4.4 * n_cols, 4.4 * n_rows + 0.6)
-    grid = fig.add_gridspec(n_rows, 2 * n_cols)
-    half = 2 if one_row else (3 if n_axes >= 3 else n_cols)
-    err_slot = grid[0, half:4] if one_row else grid[0, half:]
-    zoom_slots = ([grid[0, 4:]] if one_row else
-                  [grid[1 + j // n_cols, 2 * (j % n_cols):2 * (j % n_cols) + 2]
-                   for j in range(len(zooms))])
-    desired_u = _desired_parameters(curve)
-    desired = curve(desired_u)
+    fig, (ax_path, projections, ax_err, zoom_axes) = _blank(("contour", n_axes, len(zooms)))
+    desired_u, desired = _desired_of(curve)
 
     if n_axes >= 3:
-        ax_path = fig.add_subplot(grid[0, :half], projection="3d")
         ax_path.plot(desired[:, 0], desired[:, 1], desired[:, 2], color="k", linewidth=1,
                      label="desired path")
         for r in runs:
@@ -239,17 +303,14 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
             setter(f"{names[k]} [{unit}]")
         ax_path.set_box_aspect(np.maximum(np.ptp(desired[:, :3], axis=0), 1e-9))
         _title(ax_path, "contour (3-D view)" + ("" if n_axes == 3 else ", first 3 axes"))
-        for c, (i, j) in enumerate(((0, 1), (0, 2), (1, 2))):
-            ax = fig.add_subplot(grid[1, 2 * c:2 * c + 2])
+        for ax, (i, j) in zip(projections, ((0, 1), (0, 2), (1, 2))):
             _path_panel(ax, desired, runs, i, j, names, unit)
             _title(ax, f"projection on {names[i]}{names[j]}", fontsize="medium")
     elif planar:
-        ax_path = fig.add_subplot(grid[0, :half])
         _path_panel(ax_path, desired, runs, 0, 1, names, unit)
         _title(ax_path, "contour")
         labels = _label_corners(ax_path, curve, zooms)
     else:
-        ax_path = fig.add_subplot(grid[0, :half])
         for r in runs:
             ax_path.plot(r.t, r.position[:, 0], color=r.color, linestyle=r.linestyle,
                          label=f"actual, {r.label}")
@@ -257,7 +318,6 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
         ax_path.set_ylabel(f"{names[0]} [{unit}]")
         _title(ax_path, "position")
 
-    ax_err = fig.add_subplot(err_slot)
     for r, (_, dist) in zip(runs, nearest):
         ax_err.plot(r.t, dist, color=r.color, linestyle=r.linestyle,
                     label=f"contour error, {r.label} (max {np.max(dist):.3g} {unit})")
@@ -273,8 +333,7 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
         ax_err.set_ylim(bottom=0)
     ax_err.grid(True, linewidth=0.3, color="0.85")
 
-    for j, (z, slot) in enumerate(zip(zooms, zoom_slots)):
-        ax = fig.add_subplot(slot)
+    for j, (z, ax) in enumerate(zip(zooms, zoom_axes)):
         fine = _desired_in_window(curve, desired_u, desired, z)
         ax.plot(fine[:, 0], fine[:, 1], color="k", linewidth=1)
         for r in runs:
@@ -305,13 +364,6 @@ def _trace_title(trace, feed: float | None, per_unit: float, unit: str) -> str:
         feed = float(np.max(trace.feed))
     name = trace.curve.name or "path"
     return f"{name}, {trace.interpolator}, {_feed_text(feed, per_unit, unit)}"
-
-
-def _units_of(trace, length_unit: str | None) -> tuple[str, float]:
-    """The report unit and pulses per it (:class:`nurbsmotion.units.OutputUnits` of the
-    trace's path and machine); ``length_unit`` None: by the path's units."""
-    units = OutputUnits.of(trace.machine, trace.curve.units, length_unit or None)
-    return units.unit, units.pulses_per_unit
 
 
 def _drive_figure(runs: list[_Run], events, settle: float, title: str, path: Path,
@@ -396,8 +448,7 @@ def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float
     start = tr.curve.end_points[0]
     counts = measured is not None and bool(np.all(
         measured - start == np.floor(measured - start)))
-    fig = _figure(11.0, 2.3 * len(names) + 1.0)
-    axes = fig.subplots(len(names), 2, sharex=True, squeeze=False)
+    fig, axes = _blank(("rows", 11.0, 2.3, len(names), 2))
     for j, (ax_all, ax_zoom) in enumerate(axes):
         dev = run.position[sel, j] - end[j]
         after = np.nonzero((t >= 0) & (np.abs(dev) > band))[0]
@@ -436,9 +487,109 @@ def _settle_figure(run: _Run, title: str, path: Path, unit: str, per_unit: float
     return _save(fig, path, overwrite)
 
 
+def _following_figure(run: _Run, title: str, path: Path, unit: str,
+                      overwrite: bool) -> Path:
+    """thd - tha per axis [L] over the whole run."""
+    trace = run.trace
+    names = trace.machine.axis_names
+    fig, axes = _blank(("rows", 8.0, 2.2, len(names), 1))
+    axes = axes[:, 0]
+    error = run.position_command - run.position
+    for j, ax in enumerate(axes):
+        ax.plot(trace.t, error[:, j], color=run.color, label="θd − θa")
+        ax.axvline(trace.cycle_time, color="0.6", linestyle=":", linewidth=0.8,
+                   label="setpoint reaches the end")
+        ax.set_ylabel(f"{names[j]}: θd − θa [{unit}]")
+        _title(ax, f"{names[j]}: max |e| = {np.max(np.abs(error[:, j])):.4g} {unit}",
+                     fontsize="medium", loc="left")
+        ax.grid(True, linewidth=0.3, color="0.85")
+    axes[-1].set_xlabel("time [s]")
+    _legend_below(fig, axes, ncol=2)
+    fig.suptitle(f"following error, {title}")
+    return _save(fig, path, overwrite)
+
+
+_ahead: tuple | None = None
+"""What :func:`prepare_trace` computed of a path: ``(path [pulse], machine, length unit
+asked, unit, pulses per unit, the path in that unit, its desired parameters and points)``."""
+
+
+def _in_report_unit(curve, machine, length_unit: str | None):
+    """``(unit, pulses per unit, curve in that unit)`` of a path [pulse] on ``machine``:
+    the one :func:`prepare_trace` made for these very objects, or a new one."""
+    if _ahead is not None and _ahead[0] is curve and _ahead[1] is machine \
+            and _ahead[2] == length_unit:
+        return _ahead[3:6]
+    units = OutputUnits.of(machine, curve.units, length_unit or None)
+    unit, per_unit = units.unit, units.pulses_per_unit
+    return unit, per_unit, curve.scaled(1.0 / per_unit, units=unit)
+
+
+def _desired_of(curve) -> tuple[np.ndarray, np.ndarray]:
+    """The desired path as drawn: :func:`_desired_parameters` of ``curve`` [L] and its
+    points, shape (m, n_axes) [L] (made ahead for the curve of :func:`prepare_trace`)."""
+    if _ahead is not None and _ahead[5] is curve:
+        return _ahead[6:8]
+    desired_u = _desired_parameters(curve)
+    return desired_u, curve(desired_u)
+
+
+def prepare_trace(curve, machine, *, length_unit: str | None = None) -> None:
+    """Do what :func:`plot_trace` of a run of ``curve`` on ``machine`` needs before the
+    run's trace exists, so that it is not done then: import matplotlib, measure the
+    fonts, compute the path in the report unit, its points and its nearest-point grid, its
+    corners, and make the empty figures (with their ticks) of the layouts the run's
+    figures will most likely have. A process that draws the run later (the command forks
+    one before the run: :class:`nurbsmotion._runtime.forked.ForkedWorker`) calls it while
+    the run goes on; the figures are the same with or without it.
+
+    Parameters
+    ----------
+    curve : NurbsCurve
+        The run's path in the machine's pulses: the very object the trace will hold
+        (``trace.curve``); another object, even an equal one, finds nothing prepared.
+    machine : Machine
+        The run's machine (``trace.machine``), the same way.
+    length_unit : str, optional
+        As :func:`plot_trace` will be given it.
+    """
+    global _ahead
+    import matplotlib.backends.backend_agg  # noqa: F401
+    import matplotlib.figure  # noqa: F401
+    from PIL import PngImagePlugin  # noqa: F401
+
+    from ._canvas import _label_extent
+    import matplotlib as mpl
+    from matplotlib.font_manager import FontProperties
+
+    unit, per_unit, scaled = _in_report_unit(curve, machine, length_unit)
+    desired_u = _desired_parameters(scaled)
+    _ahead = (curve, machine, length_unit, unit, per_unit, scaled, desired_u,
+              scaled(desired_u))
+    nearest_parameter(scaled, _ahead[7][:1])  # its grid, kept on the curve
+    n_axes = curve.n_axes
+    n_corners = len(curve.sharp_corners())
+    scaled.sharp_corners()
+    if n_axes == 2:
+        _desired_points(scaled, 500)
+    for name in ("xtick", "ytick"):  # the fonts, loaded and measured once
+        size = FontProperties(size=mpl.rcParams[f"{name}.labelsize"]).get_size_in_points()
+        _label_extent("lp", size)
+    names = machine.axis_names
+    # One run: a zoom per sharp corner of a planar path (else the largest errors, at most
+    # _MAX_ERROR_ZOOMS); a window per corner (at most MAX_EVENT_WINDOWS; else as many
+    # drive peaks) besides the start and the stop.
+    n_zooms = 0 if n_axes != 2 else n_corners or _MAX_ERROR_ZOOMS
+    n_events = 2 + min(n_corners or MAX_EVENT_WINDOWS, MAX_EVENT_WINDOWS)
+    for key in (("contour", n_axes, n_zooms), ("rows", 8.0, 2.2, len(names), 1),
+                ("windowed", len(names), n_events), ("rows", 11.0, 2.3, len(names), 2)):
+        _make_ahead(key)
+
+
 @_figure_reuse()
 def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
-               length_unit: str | None = None, overwrite: bool = True) -> list[Path]:
+               length_unit: str | None = None, overwrite: bool = True,
+               processes: int = 1) -> list[Path]:
     """Write the figures of one closed-loop run.
 
     Parameters
@@ -457,6 +608,10 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
         report unit of the trace's path (:func:`nurbsmotion.units.report_unit`).
     overwrite : bool
         Replace existing files.
+    processes : int
+        Processes that draw the figures, this one and ``processes - 1`` forked from it
+        (where the platform forks), each taking the next figure when it is free; the
+        files are the same whatever the number.
 
     Returns
     -------
@@ -470,41 +625,30 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
         windows) and ``settle.png`` (actual position minus the end point per axis [L]
         with the run's settle band, ±``trace.settle_window``).
     """
+    from .._runtime.forked import call_forked
+
     out = _output_dir(out_dir)
-    unit, per_unit = _units_of(trace, length_unit)
+    unit, per_unit, curve = _in_report_unit(trace.curve, trace.machine, length_unit)
     run = _make_run(trace, trace.interpolator, _STYLES[0], per_unit)
     names = trace.machine.axis_names
     title = _trace_title(trace, feed, per_unit, unit)
-    curve = trace.curve.scaled(1.0 / per_unit, units=unit)
     settle = settling_time(trace.machine)
     events = _events(trace.curve, [trace], settle)
-    written = [_contour_figure(curve, [run], title, out / f"{prefix}contour.png", names, unit,
-                               per_unit, overwrite)]
-
-    fig = _figure(8.0, 2.2 * len(names) + 1.0)
-    axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
-    error = run.position_command - run.position
-    for j, ax in enumerate(axes):
-        ax.plot(trace.t, error[:, j], color=run.color, label="θd − θa")
-        ax.axvline(trace.cycle_time, color="0.6", linestyle=":", linewidth=0.8,
-                   label="setpoint reaches the end")
-        ax.set_ylabel(f"{names[j]}: θd − θa [{unit}]")
-        _title(ax, f"{names[j]}: max |e| = {np.max(np.abs(error[:, j])):.4g} {unit}",
-                     fontsize="medium", loc="left")
-        ax.grid(True, linewidth=0.3, color="0.85")
-    axes[-1].set_xlabel("time [s]")
-    _legend_below(fig, axes, ncol=2)
-    fig.suptitle(f"following error, {title}")
-    written.append(_save(fig, out / f"{prefix}following_error.png", overwrite))
-
-    written.append(_drive_figure([run], events, settle, title, out / f"{prefix}drive.png",
-                                 range(len(names)), overwrite))
-    written.append(_speed_figure([(run, j, names[j]) for j in range(len(names))], events,
-                                 settle, f"axis speed command and its bounds (Fig. 6), {title}",
-                                 out / f"{prefix}speed.png", unit, overwrite))
-    written.append(_settle_figure(run, title, out / f"{prefix}settle.png", unit, per_unit,
-                                  settle, overwrite))
-    return written
+    n = range(len(names))
+    figures = [
+        lambda: _contour_figure(curve, [run], title, out / f"{prefix}contour.png", names,
+                                unit, per_unit, overwrite),
+        lambda: _following_figure(run, title, out / f"{prefix}following_error.png", unit,
+                                  overwrite),
+        lambda: _drive_figure([run], events, settle, title, out / f"{prefix}drive.png", n,
+                              overwrite),
+        lambda: _speed_figure([(run, j, names[j]) for j in n], events, settle,
+                              f"axis speed command and its bounds (Fig. 6), {title}",
+                              out / f"{prefix}speed.png", unit, overwrite),
+        lambda: _settle_figure(run, title, out / f"{prefix}settle.png", unit, per_unit,
+                               settle, overwrite),
+    ]
+    return call_forked(figures, processes)
 
 
 def plot_setpoints(series, out_dir, axis_names=None, *, units: str | None = None,
@@ -627,13 +771,12 @@ def plot_comparison(traces: dict, out_dir, name: str, *, feed: float | None = No
     if axis is not None and not 0 <= axis < len(names):
         raise InvalidArgumentError(f"axis {axis} out of range for axes {names}")
     shown = range(len(names)) if axis is None else [axis]
-    unit, per_unit = _units_of(first, length_unit)
+    unit, per_unit, curve = _in_report_unit(first.curve, machine, length_unit)
     if feed is None:
         feed = max(float(np.max(tr.feed)) for _, tr in items)
     title = f"{name}: {_feed_text(feed, per_unit, unit)}"
     runs = [_make_run(tr, label, _STYLES[i % len(_STYLES)], per_unit)
             for i, (label, tr) in enumerate(items)]
-    curve = first.curve.scaled(1.0 / per_unit, units=unit)
     settle = settling_time(machine)
     events = _events(first.curve, [tr for _, tr in items], settle)
     written = [_contour_figure(curve, runs, title, out / f"{name}_contour.png", names, unit,

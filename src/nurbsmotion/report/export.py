@@ -66,11 +66,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from .._runtime.io import write_output
 from ..errors import NurbsmotionError
-from ..paths.gcode import decimals_for, format_number
 
 __all__ = [
     "SetpointArrays",
@@ -371,6 +369,8 @@ def pvt_table(setpoints: Any, period: float) -> PvtTable:
     -------
     PvtTable
     """
+    from scipy.interpolate import CubicSpline  # loaded by these two exports only
+
     sp = SetpointArrays.from_series(setpoints)
     if not (np.isfinite(period) and period > 0):
         raise ExportError(f"PVT period must be finite and > 0 s, got {period!r}")
@@ -475,6 +475,8 @@ def save_ros_trajectory(setpoints: Any, file: str | os.PathLike, *, period: floa
         per second and per second squared); by default 17 significant digits.
     overwrite : bool
     """
+    from scipy.interpolate import CubicSpline  # loaded by these two exports only
+
     sp = SetpointArrays.from_series(setpoints)
     if not (np.isfinite(scale) and scale > 0):
         raise ExportError(f"scale must be finite and > 0, got {scale!r}")
@@ -537,6 +539,10 @@ def save_motion_gcode(
     are dropped. Use ``G64`` blending tolerance or ``G61`` on the controller as suits it;
     the program sets ``G61`` (exact path) so the programmed points are met.
     """
+    # The G-code package (its reader and all) is not loaded by the other exports, nor by
+    # a run's trace file metadata, which this module also writes.
+    from ..paths.gcode.writer import decimals_for, format_number
+
     sp = SetpointArrays.from_series(setpoints)
     if units not in ("mm", "inch"):
         raise ExportError(f"units must be 'mm' or 'inch', got {units!r}")
