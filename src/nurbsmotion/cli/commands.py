@@ -24,7 +24,6 @@ from ..loop.budget import check_samples, estimate_samples
 from ..errors import InvalidArgumentError, InvalidFeedError, WorkLimitError
 from ..interpolators import make_open_loop
 from ..machine import Machine, load_machine
-from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
 from ..planning import (check_profile_size, check_span_count, sampled_stop_bound,
                         time_optimal_bound)
 from .console import EXPORT_FILES, _outputs, _progress
