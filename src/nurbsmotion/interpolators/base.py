@@ -60,8 +60,13 @@ def path_data(curve: NurbsCurve, order: int) -> PathData:
     """The path of ``curve`` for steps of Taylor order ``order`` (1 or 2)."""
     p = curve.degree
     spans, coefficients = curve.power_form
-    restarts = np.array([b for b in spans[1:-1]
-                         if curve.knot_multiplicity(b) >= p - order + 1] + [1.0])
+    # the interior breakpoints where the step restarts: knots of multiplicity at least
+    # p - order + 1 (one pass over the knots: a call per breakpoint was quadratic)
+    values, counts = np.unique(curve.knots, return_counts=True)
+    inner = spans[1:-1]
+    at = np.minimum(np.searchsorted(values, inner), len(values) - 1)
+    multiplicity = np.where(values[at] == inner, counts[at], 0)
+    restarts = np.append(inner[multiplicity >= p - order + 1], 1.0)
     return PathData(spans, coefficients, restarts,
                     np.ascontiguousarray(curve.end_points[1], dtype=float))
 
