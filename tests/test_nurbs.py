@@ -121,6 +121,16 @@ def test_affine_invariance(curve, seed):
 
 
 @given(curves())
+def test_knot_multiplicity_counts_equal_knots_for_numbers_and_arrays(curve):
+    # the reference: a count of equal entries of the knot vector, one value at a time
+    u = np.concatenate([curve.breakpoints, [0.5 * (curve.breakpoints[0] + curve.breakpoints[1])]])
+    expected = [int(np.count_nonzero(curve.knots == x)) for x in u]
+    assert [curve.knot_multiplicity(x) for x in u] == expected
+    assert isinstance(curve.knot_multiplicity(float(u[0])), int)
+    np.testing.assert_array_equal(curve.knot_multiplicity(u), expected)
+
+
+@given(curves())
 def test_derivatives_continuous_across_knots_up_to_order_p_minus_m(curve):
     p = curve.degree
     for knot in curve.breakpoints[1:-1]:

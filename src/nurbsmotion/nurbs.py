@@ -375,9 +375,13 @@ class NurbsCurve:
         """Distinct knot values in ``[0, 1]``, shape (n_spans + 1,)."""
         return np.unique(self.knots)
 
-    def knot_multiplicity(self, u: float) -> int:
-        """Number of knots equal to ``u``."""
-        return int(np.count_nonzero(self.knots == u))
+    def knot_multiplicity(self, u: Any) -> Any:
+        """Number of knots equal to ``u``: an int for a number, an int array of the
+        shape of ``u`` for an array (two binary searches of the sorted knots each)."""
+        u_arr = np.asarray(u, dtype=float)
+        count = (np.searchsorted(self.knots, u_arr, side="right")
+                 - np.searchsorted(self.knots, u_arr, side="left"))
+        return int(count) if u_arr.ndim == 0 else count
 
     def __repr__(self) -> str:
         label = f" {self.name!r}" if self.name else ""

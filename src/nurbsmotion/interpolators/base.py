@@ -61,12 +61,9 @@ def path_data(curve: NurbsCurve, order: int) -> PathData:
     p = curve.degree
     spans, coefficients = curve.power_form
     # the interior breakpoints where the step restarts: knots of multiplicity at least
-    # p - order + 1 (one pass over the knots: a call per breakpoint was quadratic)
-    values, counts = np.unique(curve.knots, return_counts=True)
+    # p - order + 1
     inner = spans[1:-1]
-    at = np.minimum(np.searchsorted(values, inner), len(values) - 1)
-    multiplicity = np.where(values[at] == inner, counts[at], 0)
-    restarts = np.append(inner[multiplicity >= p - order + 1], 1.0)
+    restarts = np.append(inner[curve.knot_multiplicity(inner) >= p - order + 1], 1.0)
     return PathData(spans, coefficients, restarts,
                     np.ascontiguousarray(curve.end_points[1], dtype=float))
 

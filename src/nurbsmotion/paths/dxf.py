@@ -135,14 +135,14 @@ def _read(path: Path):
         strict = _one_line(exc)
     from ezdxf import recover
 
+    refused = PathFileError(f"cannot read DXF: {strict} (open the drawing in a CAD program and "
+                            "save it again as DXF)", source=str(path))
     try:
         doc, auditor = recover.readfile(path)
     except (StopIteration, OSError, *errors):
-        raise PathFileError(f"cannot read DXF: {strict} (open the drawing in a CAD program and "
-                            "save it again as DXF)", source=str(path)) from None
+        raise refused from None
     if len(doc.modelspace()) == 0:  # a file cut short inside its entities: nothing recovered
-        raise PathFileError(f"cannot read DXF: {strict} (open the drawing in a CAD program and "
-                            "save it again as DXF)", source=str(path))
+        raise refused
     fixes = len(auditor.fixes)
     _warn(f"{path}: the strict DXF reader refused the drawing ({strict}); read by ezdxf's recover "
           f"mode, which repaired it ({fixes} audit fix{'' if fixes == 1 else 'es'}): check the "

@@ -836,11 +836,11 @@ def plot_comparisons(jobs: list, *, processes: int | None = None,
         Every file written, job after job, each job's in :func:`plot_comparison`'s order.
     """
     import multiprocessing
-    import os
+
+    from .._runtime.forked import usable_cpus
 
     if processes is None:
-        processes = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-                     else os.cpu_count() or 1)
+        processes = usable_cpus()
     processes = min(processes, len(jobs))
     written: list[Path] = []
     if processes <= 1 or "fork" not in multiprocessing.get_all_start_methods():
