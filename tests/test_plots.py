@@ -255,3 +255,29 @@ def test_speed_figure_has_no_inset_of_the_drive_figure(machine, tmp_path, monkey
     plot_trace(trace, tmp_path)
     assert len(insets["drive.png"]) == 2 and all("chatter" in t for t in insets["drive.png"])
     assert insets["speed.png"] == []
+
+
+def test_every_event_panel_is_on_its_rows_y_scale(machine, tmp_path, monkeypatch):
+    """Regression: the first event panel ("start") had y limits of its own while its tick
+    labels were hidden as if shared, so a speed of 0 at the start was drawn where the
+    whole-run panel draws its minimum."""
+    from nurbsmotion import plots
+
+    limits = {}
+    save = plots.figures._save
+
+    def spy(fig, path, overwrite=True):
+        rows = {}
+        for ax in fig.axes:
+            spec = ax.get_subplotspec()
+            if spec is not None and spec.get_gridspec().ncols > 1:
+                rows.setdefault(spec.rowspan.start, []).append(ax.get_ylim())
+        limits[path.name] = rows
+        return save(fig, path, overwrite)
+
+    monkeypatch.setattr(plots.figures, "_save", spy)
+    plot_trace(run(nm.make_die_bonder_pi(), machine, 1e6, "planned"), tmp_path)
+    for name in ("speed.png", "drive.png"):
+        assert limits[name], name
+        for row in limits[name].values():
+            assert len(row) >= 3 and all(lim == row[0] for lim in row), (name, row)

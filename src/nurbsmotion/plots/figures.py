@@ -47,13 +47,13 @@ DRIVE_FRAME = 1.25
 
 
 def _window_columns(fig, n_rows: int, n_events: int):
-    """Axes grid: a wide whole-run column then one column per event; shape
-    (n_rows, 1 + n_events)."""
+    """Axes grid: a wide whole-run column then one column per event, every event panel
+    on its row's y scale (their tick labels are hidden); shape (n_rows, 1 + n_events)."""
     grid = fig.add_gridspec(n_rows, 1 + n_events, width_ratios=[2.4] + [1] * n_events)
     axes = np.empty((n_rows, 1 + n_events), dtype=object)
     for r in range(n_rows):
         for c in range(1 + n_events):
-            share = axes[r, 0] if c > 1 else None
+            share = axes[r, 0] if c > 0 else None
             axes[r, c] = fig.add_subplot(grid[r, c], sharey=share)
     return axes
 
