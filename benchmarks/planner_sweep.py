@@ -216,6 +216,13 @@ def report_plan_only(rows: list) -> None:
     print(f"nominal plans arriving within max(5 %, 3 ms) of the bound: "
           f"{np.mean(ok) * 100:.1f} % of {len(ok)}; of those whose bound is under 50 ms "
           f"{np.mean(short) * 100:.1f} % of {len(short)}")
+    print("nominal plans beyond it (case, family, axes, feed [m/s], bound, sampled bound, "
+          "arrival [ms], step 6):")
+    for o, r in zip(ok, nominal):
+        if not o:
+            print(f"  case {r['case']} {r['family']} {r['n_axes']} {r['feed'] / 1e6:.3g} "
+                  f"{r['bound'] * 1e3:.1f} {r['sampled_bound'] * 1e3:.0f} "
+                  f"{r['arrival'] * 1e3:.0f} {r.get('shorten_status', '-')}")
     below = [r for r in ran if r["arrival"] < r["sampled_bound"] - 1e-9]
     print(f"plans arriving before the sampled bound: {len(below)}")
     budget = [r for r in ran if r.get("shorten_status") == "work budget"]

@@ -1443,7 +1443,7 @@ def test_the_narrow_trust_region_starts_its_programs_cold(monkeypatch):
     original = step6._shorten_at
 
     def recorded(*args):
-        program = args[-1]
+        program = args[13]
         calls.append((args[4], args[11], program, program.basis is None))
         return original(*args)
 
@@ -1685,3 +1685,79 @@ def test_a_spline_of_too_many_spans_is_refused_before_its_bounding_box(tmp_path,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "900,000 knot spans of degree 3" in err[0], err
     assert "5,400,001 points, more than the limit of 5,000,000" in err[0]
+
+
+def _step6_calls(monkeypatch, curve, feed):
+    """Every call of step 6's :func:`_shorten_at` in ``plan_motion(curve, MACHINE, feed)``:
+    its arguments, whether the wide region's trust was widened by the feed, its result."""
+    from nurbsmotion.interpolators.planned import shorten as step6
+
+    calls = []
+    original = step6._shorten_at
+
+    def recorded(*args):
+        found = original(*args)
+        calls.append((args, bool(args[14] and args[14][0]), found))
+        return found
+
+    monkeypatch.setattr(step6, "_shorten_at", recorded)
+    plan_motion(curve, MACHINE, feed)
+    return calls
+
+
+def _programs(monkeypatch, args):
+    """:func:`_shorten_at` called again on ``args`` with a program of its own: its result
+    and every linear program it solved (cost, matrix, right-hand side, bounds)."""
+    from nurbsmotion.interpolators.planned import shorten as step6
+
+    programs = []
+    solve = step6._WarmProgram.solve_stacked
+
+    def recorded(self, cost, A, b_ub, bounds, *keys):
+        programs.append((cost.copy(), A.toarray(), b_ub.copy(), bounds.copy()))
+        return solve(self, cost, A, b_ub, bounds, *keys)
+
+    monkeypatch.setattr(step6._WarmProgram, "solve_stacked", recorded)
+    found = step6._shorten_at(*args[:13], step6._WarmProgram(), [False], *args[15:])
+    monkeypatch.setattr(step6._WarmProgram, "solve_stacked", solve)
+    return found, programs
+
+
+def test_an_unwidened_wide_region_is_not_solved_again_narrow(monkeypatch):
+    """Step 6 (issue 35): where the feed never widened the wide trust region beyond the
+    chord's (``widened``), the narrow region's programs are the wide region's, number for
+    number, so it finds no motion either; the search does not solve them again."""
+    from nurbsmotion.paths.random_paths import random_path
+
+    calls = _step6_calls(monkeypatch, random_path("nearly_straight", [10, 1], n_axes=2), 3e5)
+    unwidened = [(args, k) for k, (args, widened, found) in enumerate(calls)
+                 if args[11] and not widened and found is None]
+    assert unwidened
+    for args, k in unwidened:
+        assert k + 1 == len(calls) or calls[k + 1][0][4] != args[4]   # no narrow try
+        wide, wide_programs = _programs(monkeypatch, args)
+        narrow, narrow_programs = _programs(monkeypatch, args[:11] + (False,) + args[12:])
+        assert wide is None and narrow is None and len(narrow_programs) == len(wide_programs)
+        for a, b in zip(wide_programs, narrow_programs):
+            assert all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+def test_a_try_below_the_duration_ends_where_E_exceeds_the_tolerance(monkeypatch):
+    """Step 6 (issue 35, SHORTEN_BELOW_ROUNDS): a try at an arrival sample before the
+    piece's continuous duration (``below``) stops after a program whose largest normal
+    offset E exceeds the path tolerance; its second program, solved all the same without
+    the rule, finds no motion either."""
+    from nurbsmotion.interpolators.planned.shorten import SHORTEN_BELOW_ROUNDS
+    from nurbsmotion.paths.random_paths import random_path
+
+    calls = _step6_calls(monkeypatch, random_path("sharp_corners", [10, 0], n_axes=2), 3e5)
+    below = [args for args, _, found in calls if args[15]]
+    assert below and all(found is None for args, _, found in calls if args[15])
+    spared = 0
+    for args in below:
+        found, programs = _programs(monkeypatch, args)
+        without, all_programs = _programs(monkeypatch, args[:15] + (False,))
+        assert found is None and without is None
+        assert len(programs) == 1 <= len(all_programs) <= SHORTEN_BELOW_ROUNDS
+        spared += len(all_programs) - len(programs)
+    assert spared > 0

@@ -206,12 +206,24 @@ class ServoPlant:
         w = np.zeros((drive.shape[0] + 1, self.n_axes))
         th = np.zeros_like(w)
         th[0] = 0.0 if start is None else start
-        for k in range(drive.shape[0]):
-            applied = self.saturate(drive[k])
-            for j in range(self.n_axes):
-                w[k + 1, j], th[k + 1, j] = plant_step(self.Ad, self.Bd, j, w[k, j], th[k, j],
-                                                       applied[j])
+        _respond(self.Ad, self.Bd, np.ascontiguousarray(drive.reshape(-1, self.n_axes)),
+                 self.max_drive, w, th)
         return w, th
+
+
+@njit(cache=True)
+def _respond(Ad, Bd, drive, max_drive, w, th):
+    """:meth:`ServoPlant.response`'s loop, compiled: ``w[k + 1]``, ``th[k + 1]`` (each
+    (n_samples + 1, n_axes), row 0 the start) from row k under ``drive[k]`` clipped to
+    +-``max_drive`` (as :meth:`ServoPlant.saturate`), sample by sample."""
+    for k in range(drive.shape[0]):
+        for j in range(drive.shape[1]):
+            applied = drive[k, j]
+            if applied > max_drive:
+                applied = max_drive
+            elif applied < -max_drive:
+                applied = -max_drive
+            w[k + 1, j], th[k + 1, j] = plant_step(Ad, Bd, j, w[k, j], th[k, j], applied)
 
 
 @njit(cache=True, inline="always")

@@ -82,9 +82,11 @@ is built offline in six steps:
    (along the normals; with 3 axes and more, along directions around the path and, where
    a round found a point outside the tolerance, along its own offset), within a trust
    region (as far as the feed goes in a sample; failing that, as far as the
-   linearisation stays within the tolerance). N starts a sample after the piece's
-   continuous time-optimal duration (rounded up) and runs down while one is found, to
-   that duration (below it only as a short try); where none is found at the start
+   linearisation stays within the tolerance; the second is not solved where the feed
+   never widened the first: its programs would be the same). N starts a sample after the
+   piece's continuous time-optimal duration (rounded up) and runs down while one is
+   found, to that duration (below it only as a short try, which ends at a program whose
+   largest offset exceeds the tolerance); where none is found at the start
    within a few rounds, N comes down from the plan's arrival in steps that double while
    one is found, then halves the gap to the latest that failed, and ends one sample at a
    time while one is found (:func:`_shorten`: a motion at rest at N can wait there, so

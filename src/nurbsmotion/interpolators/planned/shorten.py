@@ -58,7 +58,13 @@ piece's continuous time-optimal duration (rounded up to whole samples): the plan
 has to leave the path by up to the path tolerance to arrive sooner, which the first
 program, started from the motion found a sample later and compressed by one, finds at
 once or, after one re-linearisation, in the second; past that the rounds only spend
-programs on a sample that a motion on the path cannot have."""
+programs on a sample that a motion on the path cannot have. The second only where the
+first program's largest normal offset E is within the tolerance (its motion then strays
+between the held points, which a re-linearisation may mend): an E beyond it says that
+even the linearised path is not followed that fast. On cases 0-189 of
+``benchmarks/planner_sweep.py`` 79 such second programs (after a first E of 1.9 to 2,500
+times the tolerance) found no motion, and the 4 motions found below the duration were
+found by the first program (E at most 0.094 times the tolerance)."""
 
 DEFAULT_SHORTEN_WORK = 3e5
 """How much simplex work step 6 may spend on a piece, per sample of the piece's plan
@@ -406,7 +412,8 @@ def _stacked_program(m: int, n_normal: int, n_var: int, col_E: int, col_step, no
 def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
                 s: np.ndarray, limit: float, tolerance: float, tangent: np.ndarray, feed,
                 Ts: float, wide: bool, most_rounds: int = SHORTEN_ROUNDS,
-                program: "_WarmProgram | None" = None):
+                program: "_WarmProgram | None" = None, widened: "list | None" = None,
+                below: bool = False):
     """One arrival sample N of step 6 (:func:`_shorten`) along the ``span`` of the curve
     from stop to stop (the plant at rest on its start at sample 0): drives u[LEAD] .. u[N-1]
     (|u| <= ``limit`` [V]) that keep the model's ``plant`` (at rest at the start) within
@@ -428,8 +435,12 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
     polygon around the path, which bounds the distance by ``spread*E`` only) and, for a
     point a round found farther than the tolerance, along its own offset (a cut). The trust
     region of the tangential steps is as wide as the linearisation stays within the
-    tolerance, or (``wide``) as the feed goes in a sample if that is wider. N is given up
-    when E cannot reach the tolerance at its pace in the rounds left, or when
+    tolerance, or (``wide``) as the feed goes in a sample if that is wider (where it is
+    at some held point of some round, ``widened[0]`` is set True: where it never is, the
+    programs of the region that is not wide are these programs again). N is given up
+    where N lies before the piece's continuous duration (``below``,
+    :data:`SHORTEN_BELOW_ROUNDS`) and a program leaves E beyond the tolerance, when E
+    cannot reach the tolerance at its pace in the rounds left, or when
     :data:`SHORTEN_STALL` rounds in a row bring the farthest fine point no nearer (on a
     random 3-axis machine, 24 rounds of E at 0.998 against held points at 1.07: 42 s
     where this rule takes 14 s; on the sweep's 461 step-6 runs it changes no arrival)."""
@@ -497,8 +508,10 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         # the curve (kappa d^2/2), or as far as the feed goes in a sample (a guess
         # compressed by a sample is off by about that much), whichever is farther
         # (fmax: a stop at a point where the curve's speed is zero has no curvature)
-        trust = np.minimum(reach * np.maximum(np.sqrt(2.0 * tolerance / np.fmax(
-            curve.curvature(p), 1e-300)), F * Ts * wide), s1 - s0)
+        chord = np.sqrt(2.0 * tolerance / np.fmax(curve.curvature(p), 1e-300))
+        trust = np.minimum(reach * np.maximum(chord, F * Ts * wide), s1 - s0)
+        if wide and widened is not None and np.any(F * Ts > chord):
+            widened[0] = True
         normals = _normal_directions(T)                     # (m, r, n_axes)
         if n_axes > 2:  # (m, r + 1, n_axes): the held points' cuts, and where a point
             # has none its first normal again (a row that changes nothing), so that the
@@ -568,6 +581,8 @@ def _shorten_at(curve: NurbsCurve, span: _Span, plant: ServoPlant, zoh, N: int,
         left = most_rounds - 1 - rounds
         if E_now > tolerance and E_now - tolerance > left * (previous - E_now):
             return None    # at this pace the program will not come within the tolerance
+        if below and E_now > tolerance:
+            return None    # SHORTEN_BELOW_ROUNDS: the linearised path is not followed
         if worst > E_now * spread + tolerance / 16:
             reach *= 0.5   # the chord misled the program: a smaller step
         elif np.any(np.abs(guess[held] - sh) >= trust * (1 - 1e-6)):
@@ -684,7 +699,7 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
         best = None
         tried = {}   # an arrival sample where none was found: from the one found at
 
-        def found_at(N, most_rounds=SHORTEN_ROUNDS):
+        def found_at(N, most_rounds=SHORTEN_ROUNDS, below=False):
             # the last motion found (first: the plan) compressed in time to arrive at N
             nonlocal best
             if np.any(distance > _axis_reach(zoh, N, limit) * (1 + REACH_MARGIN)):
@@ -703,12 +718,15 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
             # that the narrow region makes infeasible took HiGHS' dual simplex 2,100
             # pivots and 5 s of CPU through its unboundedness checks on case 71, where
             # presolve proves it infeasible cold in 0.13 s)
+            # (where the feed never widened the wide region's trust, the narrow region's
+            # programs are the same programs, solved the same way: not solved again)
+            widened = [False]
             for wide in (True, False):
-                if found is None and not work.exhausted:
+                if found is None and not work.exhausted and (wide or widened[0]):
                     found = _shorten_at(curve, span, plant, zoh, N,
                                         np.maximum.accumulate(guess), limit, tolerance,
                                         tangent, feed, Ts, wide, most_rounds,
-                                        _WarmProgram(work))
+                                        _WarmProgram(work), widened, below)
             if found is not None:
                 best = (N, *found, zoh)
                 known[:] = [np.concatenate([[float(LEAD)], t, [N]]),
@@ -740,15 +758,16 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
                 N, probe = top + 1, N
 
         def rounds_at(N):
+            # (the rounds, and whether N lies before the continuous duration)
             if N == probe:
-                return SHORTEN_STALL
-            return SHORTEN_ROUNDS if N >= floor else SHORTEN_BELOW_ROUNDS
+                return SHORTEN_STALL, False
+            return (SHORTEN_ROUNDS, False) if N >= floor else (SHORTEN_BELOW_ROUNDS, True)
 
         if probe is not None:
             found, failed, step = top + 1, probe, 1
             while found - failed > 1 and not work.exhausted:
                 N = max(found - step, failed + 1) if step else (found + failed) // 2
-                if found_at(N, rounds_at(N)):
+                if found_at(N, *rounds_at(N)):
                     found, step = N, 2 * step if step else 0
                 else:
                     failed, step = N, 0
@@ -756,7 +775,7 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
                 return None        # not even the top, the first tried
             N = found
         # (a sample that failed from the motion found a sample later fails again)
-        while N > low and tried.get(N - 1) != N and found_at(N - 1, rounds_at(N - 1)):
+        while N > low and tried.get(N - 1) != N and found_at(N - 1, *rounds_at(N - 1)):
             N -= 1
         return best
 
