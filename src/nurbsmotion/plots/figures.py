@@ -627,9 +627,9 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
     overwrite : bool
         Replace existing files.
     processes : int
-        Processes that draw the figures, this one and ``processes - 1`` forked from it
-        (where the platform forks), each taking the next figure when it is free; the
-        files are the same whatever the number.
+        Processes that draw the figures, this one and one forked from it (where the
+        platform forks) for 2 or more: one draws the drive and speed figures (one
+        layout), the other the rest; the files are the same whatever the number.
 
     Returns
     -------
@@ -666,7 +666,22 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
         lambda: _settle_figure(run, title, out / f"{prefix}settle.png", unit, per_unit,
                                settle, overwrite),
     ]
-    return call_forked(figures, processes)
+    # The drive and speed figures have one layout: one process draws both, the second on
+    # the first's emptied panels (_figure_reuse), where two would each make its panels
+    # and ticks; the contour, following-error and settle figures are about as much work.
+    groups = [(2, 3), (0, 1, 4)]
+    drawn = call_forked([functools.partial(_draw_group, figures, g) for g in groups],
+                        processes)
+    written: list = [None] * len(figures)
+    for group, files in zip(groups, drawn):
+        for index, file in zip(group, files):
+            written[index] = file
+    return written
+
+
+def _draw_group(figures: list, group) -> list:
+    """``[figures[i]() for i in group]``: figures drawn by one process, in this order."""
+    return [figures[i]() for i in group]
 
 
 def plot_setpoints(series, out_dir, axis_names=None, *, units: str | None = None,
