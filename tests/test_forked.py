@@ -92,6 +92,25 @@ def test_call_forked_says_done_in_order(processes):
     assert said == list(range(6))
 
 
+def _frozen_in() -> tuple[int, int]:
+    import gc
+
+    time.sleep(0.1)
+    return os.getpid(), gc.get_freeze_count()
+
+
+def test_forking_freezes_for_the_child_only():
+    """What exists at the fork is frozen for the forked process's garbage collector (it
+    neither traverses nor copies what it inherits); the caller's is as it was, during the
+    calls and after."""
+    import gc
+
+    assert gc.get_freeze_count() == 0
+    for pid, frozen in call_forked([_frozen_in] * 4, 2):
+        assert (frozen > 0) == (pid != os.getpid())
+    assert gc.get_freeze_count() == 0
+
+
 def _count_steps(state):
     return state["steps"]
 
