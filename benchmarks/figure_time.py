@@ -1,9 +1,9 @@
 """Wall and CPU time of the figures, warm (issue 35's targets: a short run with every figure
 <= 2 s, ``nurbsmotion reproduce`` <= 10 s).
 
-Each command runs in a fresh process on a numba cache that an earlier run of the same
-command has filled (warm), with and without its figures, so that the figures' share is the
-difference:
+Each command runs in a fresh process (as ``python -m nurbsmotion ...``, its exit included)
+on a numba cache that an earlier run of the same command has filled (warm), with and
+without its figures, so that the figures' share is the difference:
 
 1. ``nurbsmotion run die-bonder-pi --feed 1m/s --out DIR`` (five figures) and the same with
    ``--no-figures``;
@@ -40,7 +40,9 @@ def measure(argv: list[str], cache: str) -> tuple[float, float]:
     """(wall [s], CPU [s]) of one CLI call in a fresh process writing a fresh folder."""
     with tempfile.TemporaryDirectory() as out:
         full = argv + ["--out", str(Path(out) / "results")]
-        code = f"from nurbsmotion.cli import main; raise SystemExit(main({full!r}))"
+        # as `python -m nurbsmotion` runs it (the command's exit included)
+        code = (f"import runpy, sys; sys.argv = ['nurbsmotion'] + {full!r}; "
+                f"runpy.run_module('nurbsmotion', run_name='__main__')")
         wall, cpu, _ = run_python_timed(code, NUMBA_CACHE_DIR=cache, MPLBACKEND="Agg")
     return wall, cpu
 

@@ -82,6 +82,57 @@ def test_call_forked_calls_here_what_a_killed_process_took():
     assert results[1:] == [0, 1, 2]
 
 
+@pytest.mark.parametrize("processes", [1, 2])
+def test_call_forked_says_done_in_order(processes):
+    """``done(index)`` once every call up to ``index`` has returned, in order, whichever
+    process made it (a progress bar)."""
+    said = []
+    calls = [functools.partial(_pid_after, 0.05 * (x % 3)) for x in range(6)]
+    call_forked(calls, processes, done=said.append)
+    assert said == list(range(6))
+
+
+def _frozen_in() -> tuple[int, int]:
+    import gc
+
+    time.sleep(0.1)
+    return os.getpid(), gc.get_freeze_count()
+
+
+def test_forking_freezes_for_the_child_only():
+    """What exists at the fork is frozen for the forked process's garbage collector (it
+    neither traverses nor copies what it inherits); the caller's is as it was, during the
+    calls and after."""
+    import gc
+
+    assert gc.get_freeze_count() == 0
+    for pid, frozen in call_forked([_frozen_in] * 4, 2):
+        assert (frozen > 0) == (pid != os.getpid())
+    assert gc.get_freeze_count() == 0
+
+
+def _count_steps(state):
+    return state["steps"]
+
+
+def test_worker_stops_preparing_when_the_call_arrives():
+    """A ``prepare`` that yields is advanced step by step until the call is there: the
+    call runs after a few of its 10,000 steps, not all (each step waits 0.05 s: all of
+    them would take over 8 minutes)."""
+    state = {"steps": 0}
+
+    def prepare():
+        for _ in range(10_000):
+            state["steps"] += 1
+            yield
+            time.sleep(0.05)
+
+    with ForkedWorker(prepare, shared=[state]) as worker:
+        worker.submit(_count_steps, state)
+        steps = worker.result()
+    assert 1 <= steps < 10_000
+
+
 def test_worker_runs_the_call_on_what_it_prepared():
     """``prepare`` runs in the worker; the shared object arrives as the very object the
     worker prepared (its caches included), not a copy."""

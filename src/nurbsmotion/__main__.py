@@ -7,6 +7,7 @@ work, with one line and exit code 130, not a traceback.
 
 from __future__ import annotations
 
+import gc
 import signal
 import sys
 
@@ -38,6 +39,9 @@ def main() -> int:
         code = run()  # it reports a Ctrl-C during its work itself
         if previous is not None:  # the work is done and its files are complete: a late
             signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C must not kill the exit
+        # The process ends now: its last collections need not traverse every object of
+        # numba, scipy and matplotlib (0.25-0.3 s of CPU after a run, on every command).
+        gc.freeze()
         return code
     except (KeyboardInterrupt, ImportError):
         if not (interrupted.seen or sys.exc_info()[0] is KeyboardInterrupt):

@@ -7,7 +7,8 @@ path's figure data before the run's trace exists, and drawing them is CPU work t
 second core can share. A process forked before the run imports and prepares on the other
 core while the run goes on here; when the trace is there it is sent over a pipe and the
 figures are drawn there, split between that process and one it forks, while this one
-writes the trace file and the summary.
+writes the trace file and the summary. ``reproduce`` shares its comparisons' figures the
+same way (:func:`call_forked`): one mechanism for both.
 
 Both need ``os.fork`` (Linux, macOS); without it the calls run here, one after the other,
 with the same results. A forked process never returns into its parent's stack: it ends
@@ -19,6 +20,7 @@ back and raised again by the caller, with the forked process's traceback as a no
 
 from __future__ import annotations
 
+import gc
 import os
 import pickle
 import signal
@@ -110,14 +112,29 @@ def _fork_child() -> int:
             stream.flush()
         except (AttributeError, OSError, ValueError):
             pass
-    pid = os.fork()
+    # What exists now is frozen across the fork (Python's advice for a fork without exec,
+    # gc.freeze): the child's collections skip every object it inherits (numba's, scipy's,
+    # matplotlib's), so they neither spend its time traversing them nor touch, hence
+    # copy, their pages; the parent unfreezes at once and collects as before (unless it
+    # had frozen objects itself: a forked process that forks again keeps its own frozen).
+    unfreeze = gc.get_freeze_count() == 0
+    gc.freeze()
+    try:
+        pid = os.fork()
+    except BaseException:
+        if unfreeze:
+            gc.unfreeze()
+        raise
     if pid == 0:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    elif unfreeze:
+        gc.unfreeze()
     return pid
 
 
-def call_forked(calls: Sequence[Callable[[], Any]], processes: int) -> list:
+def call_forked(calls: Sequence[Callable[[], Any]], processes: int,
+                done: Callable[[int], None] | None = None) -> list:
     """``[call() for call in calls]``, shared between this process and ``processes - 1``
     forked ones: each takes the next call as soon as it is free, so a slow call (or a
     busy core) does not hold the others back.
@@ -129,6 +146,10 @@ def call_forked(calls: Sequence[Callable[[], Any]], processes: int) -> list:
     processes : int
         Processes that call them, this one included; 1 (or a platform that does not fork)
         calls them here, in order.
+    done : callable, optional
+        ``done(index)`` here, in the order of ``calls``, once ``calls[index]`` and every
+        call before it have returned (a progress bar): between the calls this process
+        takes, then as the forked processes report.
 
     Returns
     -------
@@ -138,41 +159,68 @@ def call_forked(calls: Sequence[Callable[[], Any]], processes: int) -> list:
         could not report (it was killed) are called here.
     """
     processes = min(int(processes), len(calls))
+    outcomes: dict = {}
+    reported = 0  # done() was called for calls[:reported]
+
+    def report() -> None:
+        nonlocal reported
+        while done is not None and reported in outcomes and outcomes[reported][0]:
+            done(reported)
+            reported += 1
+
     if processes <= 1 or not can_fork() or len(calls) > 255:
-        return [call() for call in calls]
+        for index, call in enumerate(calls):
+            outcomes[index] = _outcome(call)
+            report()
+        return _results(calls, outcomes)
     queue_r, queue_w = os.pipe()  # one byte per call: a read takes exactly one
     _write_all(queue_w, bytes(range(len(calls))))
     os.close(queue_w)
-    children: list[tuple[int, int]] = []  # (pid, read end of its results)
+    children: dict[int, int] = {}  # read end of its reports -> pid
 
-    def take(results: dict) -> None:
-        while True:
-            index = os.read(queue_r, 1)
-            if not index:
+    def collect(wait: bool) -> None:
+        """The reports of the forked processes that have one ready (with ``wait``, until
+        each has ended); one message per call, ``(index, outcome)``, pickled."""
+        import select
+
+        while children:
+            ready, _, _ = select.select(list(children), [], [], None if wait else 0)
+            if not ready:
                 return
-            results[index[0]] = _outcome(calls[index[0]])
+            for fd in ready:
+                message = _receive(fd)
+                if message is None:  # it has ended (or was killed): reap it
+                    os.close(fd)
+                    os.waitpid(children.pop(fd), 0)
+                    continue
+                index, outcome = pickle.loads(message)
+                outcomes[index] = pickle.loads(outcome)
 
-    outcomes: dict = {}
     try:
         for _ in range(processes - 1):
             result_r, result_w = os.pipe()
             pid = _fork_child()
-            if pid == 0:  # the child: take calls, send what they gave, end
+            if pid == 0:  # the child: take calls, report each as it returns, end
                 code = 1
                 try:
                     os.close(result_r)
-                    mine: dict = {}
-                    take(mine)
-                    _send(result_w, pickle.dumps({i: _pickled_outcome(o)
-                                                  for i, o in mine.items()}))
+                    for fd in children:  # the reports of its siblings are not its own
+                        os.close(fd)
+                    while index := os.read(queue_r, 1):
+                        outcome = _pickled_outcome(_outcome(calls[index[0]]))
+                        _send(result_w, pickle.dumps((index[0], outcome)))
                     code = 0
                 finally:
                     os._exit(code)
             os.close(result_w)
-            children.append((pid, result_r))
-        take(outcomes)
+            children[result_r] = pid
+        while index := os.read(queue_r, 1):
+            outcomes[index[0]] = _outcome(calls[index[0]])
+            collect(wait=False)
+            report()
+        collect(wait=True)
     except BaseException:
-        for pid, _ in children:
+        for pid in children.values():
             try:
                 os.kill(pid, signal.SIGTERM)
             except ProcessLookupError:
@@ -180,23 +228,47 @@ def call_forked(calls: Sequence[Callable[[], Any]], processes: int) -> list:
         raise
     finally:
         os.close(queue_r)
-        for pid, result_r in children:
-            try:
-                message = _receive(result_r)
-            finally:
-                os.close(result_r)
-                os.waitpid(pid, 0)
-            if message is not None:  # None: it was ended (killed) before it sent them
-                outcomes.update((i, pickle.loads(o)) for i, o in pickle.loads(message).items())
-    results = []
+        for fd, pid in list(children.items()):  # after an error: what they sent, then reap
+            while (message := _receive(fd)) is not None:
+                index, outcome = pickle.loads(message)
+                outcomes[index] = pickle.loads(outcome)
+            os.close(fd)
+            os.waitpid(pid, 0)
+        children.clear()
     for index in range(len(calls)):
         if index not in outcomes:  # taken by a process that was ended: called here
             outcomes[index] = _outcome(calls[index])
+        report()
+    return _results(calls, outcomes)
+
+
+def _results(calls, outcomes: dict) -> list:
+    """The results of ``calls`` in order from their outcomes; the first error raised."""
+    results = []
+    for index in range(len(calls)):
         ok, value = outcomes[index]
         if not ok:
             _reraise(value)
         results.append(value)
     return results
+
+
+def _prepare_until_called(prepare: Callable[[], Any], call_r: int) -> None:
+    """``prepare()``; where it returns an iterator, its steps while nothing is waiting on
+    ``call_r`` (the call, or the end of a parent that went on without one): the call is
+    not held up by preparation it may no longer need."""
+    steps = prepare()
+    if not hasattr(steps, "__next__"):
+        return
+    import select
+
+    try:
+        for _ in steps:
+            if select.select([call_r], [], [], 0)[0]:
+                return
+    finally:
+        if hasattr(steps, "close"):
+            steps.close()
 
 
 class ForkedWorker:
@@ -208,8 +280,11 @@ class ForkedWorker:
     ----------
     prepare : callable, optional
         Run in the worker right after the fork, while this process goes on: work the
-        call will find done (imports, caches). An exception in it is ignored (the call
-        meets the same problem and raises it where it matters).
+        call will find done (imports, caches). Where it returns an iterator (a
+        generator), the worker advances it one step at a time and stops as soon as the
+        call has arrived: what was not prepared by then is the call's to do. An
+        exception in it is ignored (the call meets the same problem and raises it where
+        it matters).
     shared : sequence, optional
         Objects both processes hold from the fork on (a path, a machine): sent by
         reference, so the call gets the very objects ``prepare`` used (their caches
@@ -256,7 +331,7 @@ class ForkedWorker:
 
     def _serve(self, prepare, call_r: int, result_w: int) -> None:
         if prepare is not None:
-            _outcome(prepare)
+            _outcome(lambda: _prepare_until_called(prepare, call_r))
         message = _receive(call_r)
         if message is None:  # the parent went on without a call
             return

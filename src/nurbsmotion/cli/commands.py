@@ -408,17 +408,18 @@ def _run(args, precompiler) -> int:
 def _figure_worker(args, path, machine: Machine, unit: str) -> ForkedWorker:
     """The process that draws a run's figures: forked now, before the run, it imports
     matplotlib and prepares the path's figure data and empty figures
-    (:func:`nurbsmotion.plots.prepare_trace`) on the other core while this process runs;
-    then it draws the figures of the trace it is sent, shared with a process it forks
-    (one per usable CPU), while this one writes the trace file and the summary. No
+    (:func:`nurbsmotion.plots.prepare_trace_steps`) on the other core while this process
+    runs, until the trace is there; then it draws the figures of the trace it is sent,
+    shared with a process it forks (one per usable CPU; what was not prepared yet is made
+    by the process that needs it), while this one writes the trace file and the summary. No
     process with ``--no-figures``, nor where the platform does not fork (the figures are
     then drawn here)."""
     if args.no_figures:
         return ForkedWorker(enabled=False)
-    from ..plots import prepare_trace
+    from ..plots import prepare_trace_steps
 
-    return ForkedWorker(functools.partial(prepare_trace, path, machine, length_unit=unit),
-                        shared=(path, machine))
+    return ForkedWorker(functools.partial(prepare_trace_steps, path, machine,
+                                          length_unit=unit), shared=(path, machine))
 
 
 def _ask_for_feed_unit(args, curve, machine: Machine, length: float, feed) -> None:

@@ -45,9 +45,11 @@ from .figures import (
     plot_setpoints,
     plot_trace,
     prepare_trace,
+    prepare_trace_steps,
 )
 
-__all__ = ["plot_trace", "prepare_trace", "plot_setpoints", "plot_comparison", "plot_comparisons",
+__all__ = ["plot_trace", "prepare_trace", "prepare_trace_steps", "plot_setpoints",
+           "plot_comparison", "plot_comparisons",
            "settling_time",
            "TRACE_FIGURES", "SETPOINT_FIGURES", "DRIVE_FRAME", "MAX_EVENT_WINDOWS",
            "comparison_figures"]

@@ -8,6 +8,7 @@ beside a window per event) reused between files of one layout.
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 from pathlib import Path
 from typing import Callable
@@ -541,7 +542,8 @@ def prepare_trace(curve, machine, *, length_unit: str | None = None) -> None:
     corners, and make the empty figures (with their ticks) of the layouts the run's
     figures will most likely have. A process that draws the run later (the command forks
     one before the run: :class:`nurbsmotion._runtime.forked.ForkedWorker`) calls it while
-    the run goes on; the figures are the same with or without it.
+    the run goes on (step by step, :func:`prepare_trace_steps`); the figures are the same
+    with or without it.
 
     Parameters
     ----------
@@ -553,6 +555,18 @@ def prepare_trace(curve, machine, *, length_unit: str | None = None) -> None:
     length_unit : str, optional
         As :func:`plot_trace` will be given it.
     """
+    for _ in prepare_trace_steps(curve, machine, length_unit=length_unit):
+        pass
+
+
+def prepare_trace_steps(curve, machine, *, length_unit: str | None = None):
+    """:func:`prepare_trace` one step at a time: a generator that yields after each step
+    (the imports, the path's data, the fonts, each empty figure), so that a process that
+    prepares can stop as soon as the trace is there and draw, making what is left as the
+    figures need it (:class:`nurbsmotion._runtime.forked.ForkedWorker` does); the steps
+    are the figures' own work done early, in the order :func:`plot_trace` needs them.
+    Parameters as :func:`prepare_trace`.
+    """
     global _ahead
     import matplotlib.backends.backend_agg  # noqa: F401
     import matplotlib.figure  # noqa: F401
@@ -562,6 +576,7 @@ def prepare_trace(curve, machine, *, length_unit: str | None = None) -> None:
     import matplotlib as mpl
     from matplotlib.font_manager import FontProperties
 
+    yield
     unit, per_unit, scaled = _in_report_unit(curve, machine, length_unit)
     desired_u = _desired_parameters(scaled)
     _ahead = (curve, machine, length_unit, unit, per_unit, scaled, desired_u,
@@ -572,9 +587,11 @@ def prepare_trace(curve, machine, *, length_unit: str | None = None) -> None:
     scaled.sharp_corners()
     if n_axes == 2:
         _desired_points(scaled, 500)
+    yield
     for name in ("xtick", "ytick"):  # the fonts, loaded and measured once
         size = FontProperties(size=mpl.rcParams[f"{name}.labelsize"]).get_size_in_points()
         _label_extent("lp", size)
+    yield
     names = machine.axis_names
     # One run: a zoom per sharp corner of a planar path (else the largest errors, at most
     # _MAX_ERROR_ZOOMS); a window per corner (at most MAX_EVENT_WINDOWS; else as many
@@ -584,6 +601,7 @@ def prepare_trace(curve, machine, *, length_unit: str | None = None) -> None:
     for key in (("contour", n_axes, n_zooms), ("rows", 8.0, 2.2, len(names), 1),
                 ("windowed", len(names), n_events), ("rows", 11.0, 2.3, len(names), 2)):
         _make_ahead(key)
+        yield
 
 
 @_figure_reuse()
@@ -609,9 +627,9 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
     overwrite : bool
         Replace existing files.
     processes : int
-        Processes that draw the figures, this one and ``processes - 1`` forked from it
-        (where the platform forks), each taking the next figure when it is free; the
-        files are the same whatever the number.
+        Processes that draw the figures, this one and one forked from it (where the
+        platform forks) for 2 or more: one draws the drive and speed figures (one
+        layout), the other the rest; the files are the same whatever the number.
 
     Returns
     -------
@@ -648,7 +666,22 @@ def plot_trace(trace, out_dir, prefix: str = "", *, feed: float | None = None,
         lambda: _settle_figure(run, title, out / f"{prefix}settle.png", unit, per_unit,
                                settle, overwrite),
     ]
-    return call_forked(figures, processes)
+    # The drive and speed figures have one layout: one process draws both, the second on
+    # the first's emptied panels (_figure_reuse), where two would each make its panels
+    # and ticks; the contour, following-error and settle figures are about as much work.
+    groups = [(2, 3), (0, 1, 4)]
+    drawn = call_forked([functools.partial(_draw_group, figures, g) for g in groups],
+                        processes)
+    written: list = [None] * len(figures)
+    for group, files in zip(groups, drawn):
+        for index, file in zip(group, files):
+            written[index] = file
+    return written
+
+
+def _draw_group(figures: list, group) -> list:
+    """``[figures[i]() for i in group]``: figures drawn by one process, in this order."""
+    return [figures[i]() for i in group]
 
 
 def plot_setpoints(series, out_dir, axis_names=None, *, units: str | None = None,
@@ -791,33 +824,12 @@ def plot_comparison(traces: dict, out_dir, name: str, *, feed: float | None = No
     return written
 
 
-_jobs: list = []
-"""The comparisons :func:`plot_comparisons` hands to its forked workers (by index: the
-traces are inherited, not pickled)."""
-
-
-def _start_worker() -> None:
-    """A forked drawing worker: figures of its own, and the default signal behaviour. It
-    inherits the command's handlers, which raise KeyboardInterrupt; the pool ends its
-    workers with SIGTERM, and each printed that traceback (Ctrl-C reaches the command, which
-    ends the pool)."""
-    global _reused
-    import signal
-
-    _reused = {}  # each worker draws its comparisons on figures of its own
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def _draw_job(index: int) -> list[Path]:
-    traces, out_dir, name, options = _jobs[index]
-    return plot_comparison(traces, out_dir, name, **options)
-
-
 def plot_comparisons(jobs: list, *, processes: int | None = None,
                      done: Callable[[int], None] | None = None) -> list[Path]:
-    """Write the figures of several comparisons (:func:`plot_comparison`), in worker
-    processes forked from this one where the platform forks.
+    """Write the figures of several comparisons (:func:`plot_comparison`), shared between
+    this process and processes forked from it where the platform forks
+    (:func:`nurbsmotion._runtime.forked.call_forked`, as :func:`plot_trace` shares its
+    figures).
 
     Parameters
     ----------
@@ -825,8 +837,8 @@ def plot_comparisons(jobs: list, *, processes: int | None = None,
         ``(traces, out_dir, name, options)`` per comparison: the arguments of
         :func:`plot_comparison`, ``options`` its keyword arguments.
     processes : int, optional
-        Worker processes; by default one per CPU this process may run on (at most one per
-        job). 1 draws here, one comparison after the other.
+        Processes that draw, this one included; by default one per CPU this process may
+        run on (at most one per job). 1 draws here, one comparison after the other.
     done : callable, optional
         ``done(index)`` after the figures of ``jobs[index]`` are written, in job order.
 
@@ -835,32 +847,14 @@ def plot_comparisons(jobs: list, *, processes: int | None = None,
     list of Path
         Every file written, job after job, each job's in :func:`plot_comparison`'s order.
     """
-    import multiprocessing
-
-    from .._runtime.forked import usable_cpus
+    from .._runtime.forked import call_forked, usable_cpus
 
     if processes is None:
         processes = usable_cpus()
-    processes = min(processes, len(jobs))
-    written: list[Path] = []
-    if processes <= 1 or "fork" not in multiprocessing.get_all_start_methods():
-        with _figure_reuse():
-            for index, (traces, out_dir, name, options) in enumerate(jobs):
-                written += plot_comparison(traces, out_dir, name, **options)
-                if done is not None:
-                    done(index)
-        return written
-    global _jobs
     import matplotlib.backends.backend_agg  # noqa: F401  (imported once, before forking)
 
-    _jobs = list(jobs)
-    try:
-        context = multiprocessing.get_context("fork")
-        with context.Pool(processes, initializer=_start_worker) as pool:
-            for index, files in enumerate(pool.imap(_draw_job, range(len(_jobs)))):
-                written += files
-                if done is not None:
-                    done(index)
-    finally:
-        _jobs = []
-    return written
+    calls = [functools.partial(plot_comparison, traces, out_dir, name, **options)
+             for traces, out_dir, name, options in jobs]
+    with _figure_reuse():  # each process draws its comparisons on figures of its own
+        drawn = call_forked(calls, processes, done=done)
+    return [path for files in drawn for path in files]
