@@ -37,6 +37,7 @@ the same curve to rounding (1e-9 is what the tests ask; in practice it is exact)
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import re
@@ -370,36 +371,108 @@ def _pieces(entity) -> list[NurbsCurve]:
 
 def _chain(pieces: list[NurbsCurve], tol: float) -> list[list[NurbsCurve]]:
     """Group pieces into chains whose ends meet, in drawing order where possible: each
-    chain grows at its tail, then at its head, with the first unused piece that starts or
-    ends there (reversed when needed). Vectorised over the pieces' end points."""
-    starts = np.array([c.control_points[0] for c in pieces])
-    ends = np.array([c.control_points[-1] for c in pieces])
-    used = np.zeros(len(pieces), bool)
+    chain grows at its tail, then at its head, with the first unused piece (lowest index)
+    that starts or ends within ``tol`` of it (Euclidean distance), reversed when needed
+    (at the tail a piece whose start is near is taken forward, at the head one whose end
+    is near).
+
+    The candidates come from :class:`_EndGrid`, a hash grid of the pieces' end points, so
+    chaining takes time linear in the number of pieces where a bounded number of ends meet
+    near any point (the earlier search of every end for every step took quadratic time,
+    which capped drawings at 20,000 pieces); the distances are the same expression as
+    that search's, so the same pieces join, in the same order and direction."""
+    if not pieces:
+        return []
+    n = len(pieces)
+    ends = np.empty((2 * n, pieces[0].n_axes))  # row 2i: start of piece i, 2i + 1: its end
+    ends[0::2] = [c.control_points[0] for c in pieces]
+    ends[1::2] = [c.control_points[-1] for c in pieces]
+    grid = _EndGrid(ends, tol)
+    used = [False] * n
     chains = []
-    for first in range(len(pieces)):
+    for first in range(n):
         if used[first]:
             continue
         used[first] = True
         chain = [pieces[first]]
         for at_tail in (True, False):
+            row = 2 * first + 1 if at_tail else 2 * first  # the chain's free end
             while True:
-                point = chain[-1].control_points[-1] if at_tail else chain[0].control_points[0]
-                near_s = ~used & (np.linalg.norm(starts - point, axis=1) <= tol)
-                near_e = ~used & (np.linalg.norm(ends - point, axis=1) <= tol)
-                hit = np.flatnonzero(near_s | near_e)
-                if hit.size == 0:
+                near = grid.near(row, used)
+                if not near:
                     break
-                i = int(hit[0])
+                i = min(near) >> 1
                 used[i] = True
-                piece = pieces[i]
-                forward = near_s[i] if at_tail else near_e[i]
-                piece = piece if forward else piece.reversed()
+                # at the tail a piece runs forward from a near start; at the head it runs
+                # forward into a near end
+                forward = (2 * i if at_tail else 2 * i + 1) in near
+                piece = pieces[i] if forward else pieces[i].reversed()
                 if at_tail:
                     chain.append(piece)
+                    row = 2 * i + 1 if forward else 2 * i
                 else:
                     chain.insert(0, piece)
+                    row = 2 * i if forward else 2 * i + 1
         chains.append(chain)
     return chains
+
+
+class _EndGrid:
+    """The pieces' end points, hashed by the cell of a grid of spacing ``2 tol`` (at
+    least 2**-30 of their extent, so that ``tol = 0`` still has cells) that holds them.
+
+    Every end within ``tol`` of a point lies in the point's cell or a neighbouring one
+    (each coordinate differs by at most ``tol``, half a cell, also after rounding), so
+    :meth:`near` looks at the ``3**n_axes`` cells around it. A tolerance of half the
+    extent or more (or not finite) puts every end in one cell.
+
+    Parameters
+    ----------
+    ends : ndarray, shape (2 n_pieces, n_axes)
+        Row ``2 i`` the start of piece i, row ``2 i + 1`` its end [path units].
+    tol : float
+        Largest distance of a near end [path units].
+    """
+
+    def __init__(self, ends: np.ndarray, tol: float):
+        self.ends = ends
+        self.tol = tol
+        extent = float(np.max(np.ptp(ends, axis=0)))
+        if 2 * tol < extent:  # false for a NaN or infinite tolerance too
+            spacing = max(2 * tol, extent * 2.0**-30)
+            # float cells: exact neighbours below 2**53, one cell per value beyond
+            cells = list(map(tuple, np.floor(ends / spacing).tolist()))
+            self.offsets = list(itertools.product((-1.0, 0.0, 1.0), repeat=ends.shape[1]))
+        else:
+            cells = [()] * len(ends)
+            self.offsets = [()]
+        self.cells = cells
+        self.rows: dict[tuple, list[int]] = {}
+        for row, cell in enumerate(cells):
+            self.rows.setdefault(cell, []).append(row)
+
+    def near(self, row: int, used: list[bool]) -> set[int]:
+        """Rows of the ends of unused pieces within ``tol`` of row ``row``'s point (the
+        norm as ``np.linalg.norm`` computes it, compared with ``<=``); rows of used
+        pieces are dropped from their cells on the way."""
+        cell = self.cells[row]
+        candidates = []
+        for offset in self.offsets:
+            key = tuple(c + o for c, o in zip(cell, offset))
+            rows = self.rows.get(key)
+            if rows is None:
+                continue
+            free = [r for r in rows if not used[r >> 1]]
+            if len(free) < len(rows):
+                if free:
+                    self.rows[key] = free
+                else:
+                    del self.rows[key]
+            candidates += free
+        if not candidates:
+            return set()
+        distance = np.linalg.norm(self.ends[candidates] - self.ends[row], axis=1)
+        return {r for r, near in zip(candidates, (distance <= self.tol).tolist()) if near}
 
 
 def load_dxf(
