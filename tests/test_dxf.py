@@ -506,6 +506,36 @@ def _chain_by_search(pieces, tol):
     return chains
 
 
+def _chain_order_by_search(ends, tol):
+    """:func:`_chain_by_search` on end points, as :func:`nurbsmotion.paths.dxf._chain_order`
+    answers: per chain, (index, forward) from head to tail."""
+    starts, stops = ends[0::2], ends[1::2]
+    used = np.zeros(len(starts), bool)
+    chains = []
+    for first in range(len(starts)):
+        if used[first]:
+            continue
+        used[first] = True
+        chain = [(first, True)]
+        for at_tail in (True, False):
+            while True:
+                i, forward = chain[-1] if at_tail else chain[0]
+                point = (stops if forward == at_tail else starts)[i]
+                near_s = ~used & (np.linalg.norm(starts - point, axis=1) <= tol)
+                near_e = ~used & (np.linalg.norm(stops - point, axis=1) <= tol)
+                hit = np.flatnonzero(near_s | near_e)
+                if hit.size == 0:
+                    break
+                i = int(hit[0])
+                used[i] = True
+                if at_tail:
+                    chain.append((i, bool(near_s[i])))
+                else:
+                    chain.insert(0, (i, bool(near_e[i])))
+        chains.append(chain)
+    return chains
+
+
 def _same_chains(a, b) -> bool:
     return [[(c.name, c.control_points.tobytes(), c.knots.tobytes(), c.weights.tobytes()) for c in chain]
             for chain in a] == [[(c.name, c.control_points.tobytes(), c.knots.tobytes(),
@@ -570,7 +600,7 @@ def test_corpus_contours_are_those_of_the_search_chaining(path, monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         grid = dxf.load_dxf(path, axes=axes)
-        monkeypatch.setattr(dxf, "_chain", _chain_by_search)
+        monkeypatch.setattr(dxf, "_chain_order", _chain_order_by_search)
         search = dxf.load_dxf(path, axes=axes)
     assert len(grid) == len(search)
     assert all(a == b and a.name == b.name for a, b in zip(grid, search))
