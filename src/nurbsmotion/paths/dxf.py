@@ -24,9 +24,11 @@ Reading
 
 DXF entities come in no particular order or direction, so pieces are chained by their
 end points: a contour starts with the first unused entity in drawing order and grows at
-both ends with any entity that starts or ends where it ends (reversed when needed), to
-within ``tolerance`` times the drawing size. Each chain is joined by
-:func:`nurbsmotion.joining.join`. The ``$INSUNITS`` header gives the units.
+both ends with the first unused entity that starts or ends where it ends (reversed when
+needed), to within ``tolerance`` times the drawing size; the ends are found through a hash
+grid of all end points (:func:`_chain_order`), in time linear in the number of pieces.
+Each chain is joined by :func:`nurbsmotion.joining.join`. The ``$INSUNITS`` header gives
+the units.
 
 Writing
 -------
