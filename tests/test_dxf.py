@@ -604,3 +604,19 @@ def test_corpus_contours_are_those_of_the_search_chaining(path, monkeypatch):
         search = dxf.load_dxf(path, axes=axes)
     assert len(grid) == len(search)
     assert all(a == b and a.name == b.name for a, b in zip(grid, search))
+
+
+def test_a_line_flat_in_z_but_a_point_in_xy_is_named(tmp_path):
+    """A LINE along Z shorter than the flatness test (1e-12) is flat, and a point in XY: cut
+    to the machine's XY it is refused naming the entity, also when the axes are chosen from
+    the drawing (it raised an untyped InvalidCurveError there before)."""
+    doc, msp = drawing()
+    msp.add_line((1, 0, 0), (2, 0, 0))
+    line = msp.add_line((0, 0, 0), (0, 0, 1e-13))
+    file = tmp_path / "needle.dxf"
+    doc.saveas(file)
+    for axes in ("xy", None):
+        with pytest.raises(PathFileError, match=rf"LINE #{line.dxf.handle}: degenerate curve") as info:
+            load_dxf(file, axes=axes)
+        assert str(file) in str(info.value) and "\n" not in str(info.value)
+    assert [c.n_axes for c in load_dxf(file, axes="xyz")] == [3, 3]
