@@ -65,13 +65,17 @@ MAX_BULGE = 1e6
 within 4e-6 rad of a full turn."""
 
 
-MAX_PIECES = 20_000
-"""Most path pieces (lines, arcs, polyline segments) a drawing may hold. The reader
-builds each as a curve and chains them by their ends, about 1.2 ms of CPU a piece at
-3,000 and 1.5 ms at 10,000 (the chaining grows with the count), so 20,000 is about half
-a minute; a drawing beyond it is refused from its text before ezdxf parses it (40 us a
-vertex more), in a fraction of a second. Join its segments (a SPLINE, or the chords'
-G-code, which reads a million lines in seconds)."""
+MAX_PIECES = 100_000
+"""Most path pieces (lines, arcs, polyline segments) a drawing may hold, from a budget of
+about a minute of CPU for reading one. The reading is linear in the pieces (the chaining
+through a hash grid of their ends, :func:`_chain_order`); its cost is the curves: each
+piece is a :class:`NurbsCurve` built and checked twice (as drawn, then on the machine's
+axes and in its chain's direction) and a share of :func:`join`, 0.9 ms of CPU a piece
+measured at 10,000 and 100,000 (``benchmarks/size_limits.py``, a 2-core machine at load
+10; about 0.65 ms unloaded, by the old reader's ratio), where ezdxf's parsing is 7 % and
+the chaining 4 %. A drawing beyond it is refused from its text before ezdxf parses it, in
+about a second for a million pieces. Beyond it, join its segments (a SPLINE, or the
+chords' G-code, which reads a million lines in seconds)."""
 
 _PIECE_ENTITY = re.compile(
     rb"\n[ \t]*0[ \t]*\r?\n(VERTEX|LINE|ARC|POLYLINE)[ \t]*\r?\n")
@@ -94,9 +98,9 @@ def _check_piece_count(path: Path) -> None:
     if pieces > MAX_PIECES:
         raise WorkLimitError(
             f"{path}: the drawing holds at least {pieces:,} path pieces (lines, arcs, "
-            f"polyline segments), more than the {MAX_PIECES:,} the DXF reader builds and "
-            "chains in about half a minute (paths.dxf.MAX_PIECES); join its segments into "
-            "a SPLINE, or give the path as G-code")
+            f"polyline segments), more than the {MAX_PIECES:,} the DXF reader builds in "
+            "about a minute (paths.dxf.MAX_PIECES); join its segments into a SPLINE, or give "
+            "the path as G-code")
 
 
 class DxfWarning(UserWarning):
