@@ -6,13 +6,15 @@ Writes, in a temporary folder, four files of ``--points`` points (default 1,000,
 ``wave.json`` (a cubic B-spline along y = 2 sin(x/3) mm, 0.01 mm apart: its knot spans
 exceed the planner's grid, planning.MAX_GRID_POINTS / (2 p)), ``zigzag.json`` (a degree-1
 zigzag of 0.01 mm steps: every joint a right-angle corner, 51 grid points a piece), and
-the same zigzag as G-code (``G1`` lines) and as a DXF POLYLINE. Runs each command in a
+the same zigzag as G-code (``G1`` lines), as a DXF POLYLINE and as DXF LINE entities
+(``lines.dxf``: shuffled, half of them drawn backwards, so the reader chains them by their
+ends, as a CAD drawing's entities come). Runs each command in a
 fresh process on the die-bonder at 100 mm/s and reports its CPU time (the child's user +
 system time: the machine is shared, wall times mean little) and the first line of its
 message. Usage::
 
     python benchmarks/size_limits.py [--points 1000000] [--timeout 300]
-        [--markdown FILE]
+        [--files zigzag.dxf lines.dxf] [--commands contours] [--markdown FILE]
 
 A path that is valid however large (a 100,000-chord CAM program) is measured by
 benchmarks/cam_chords.py.
@@ -42,13 +44,15 @@ COMMANDS = {
 }
 
 
+FILES = ("wave.json", "zigzag.json", "zigzag.ngc", "zigzag.dxf", "lines.dxf")
+
+
 def write_files(folder: Path, n: int) -> dict:
     """The four path files of ``n`` points (see the module docstring) -> {name: path}."""
     x = np.round(np.arange(n) * 0.01, 4)
     wave = np.round(2.0 * np.sin(x / 3.0), 4)
     zig = np.round((np.arange(n) % 2) * 0.01, 4)
-    files = {name: folder / name for name in ("wave.json", "zigzag.json", "zigzag.ngc",
-                                              "zigzag.dxf")}
+    files = {name: folder / name for name in FILES}
     knots3 = [0, 0, 0] + list(range(n - 2)) + [n - 3] * 3
     files["wave.json"].write_text(json.dumps({
         "units": "mm", "degree": 3, "knots": knots3,
@@ -66,6 +70,16 @@ def write_files(folder: Path, n: int) -> dict:
         f.writelines(f"0\nVERTEX\n8\n0\n10\n{a:.4f}\n20\n{b:.4f}\n30\n0\n"
                      for a, b in zip(x, zig))
         f.write("0\nSEQEND\n0\nENDSEC\n0\nEOF\n")
+    rng = np.random.default_rng(0)
+    order, backwards = rng.permutation(n - 1), rng.random(n - 1) < 0.5
+    with open(files["lines.dxf"], "w") as f:  # R12: n - 1 LINE entities, millimetres
+        f.write("0\nSECTION\n2\nHEADER\n9\n$INSUNITS\n70\n4\n0\nENDSEC\n0\nSECTION\n2\n"
+                "ENTITIES\n")
+        for i in order:
+            a, b = (i + 1, i) if backwards[i] else (i, i + 1)
+            f.write(f"0\nLINE\n8\n0\n10\n{x[a]:.4f}\n20\n{zig[a]:.4f}\n30\n0\n"
+                    f"11\n{x[b]:.4f}\n21\n{zig[b]:.4f}\n31\n0\n")
+        f.write("0\nENDSEC\n0\nEOF\n")
     return files
 
 
@@ -88,13 +102,20 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--points", type=int, default=1_000_000)
     p.add_argument("--timeout", type=float, default=300.0, help="wall seconds per command")
+    p.add_argument("--files", nargs="+", choices=FILES, default=list(FILES),
+                   help="the files to measure (default: all)")
+    p.add_argument("--commands", nargs="+", choices=list(COMMANDS), default=list(COMMANDS),
+                   help="the commands to run on each (default: all)")
     p.add_argument("--markdown", help="also write the table to this Markdown file")
     args = p.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         files = write_files(Path(tmp), args.points)
         for name, file in files.items():
-            for command, template in COMMANDS.items():
+            if name not in args.files:
+                continue
+            for command in args.commands:
+                template = COMMANDS[command]
                 argv = [a.format(file=file, tmp=tmp, name=name) for a in template]
                 cpu, code, message = cpu_of(argv, args.timeout)
                 rows.append((name, command, cpu, code, message))

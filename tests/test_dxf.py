@@ -10,6 +10,8 @@ import ezdxf
 import ezdxf.recover
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from nurbsmotion import builtin_path, make_circle
 from nurbsmotion.errors import PathFileError
@@ -469,3 +471,152 @@ def test_a_knot_vector_short_at_an_unknown_end_is_refused_naming_the_entity(tmp_
     with pytest.raises(PathFileError, match=r"SPLINE #\w+: knot vector has 12 entries, expected 13 "
                        r"= n \+ p \+ 1 \(9 control points, degree 3\), and which end lacks one"):
         load_dxf(spline_file(tmp_path, "unknown", knots))
+
+
+# ---------------------------------------------------------------- chaining (issue 37)
+def _chain_by_search(pieces, tol):
+    """The chaining as it was before the hash grid (every end searched at every step,
+    quadratic): the reference :func:`nurbsmotion.paths.dxf._chain` must equal."""
+    starts = np.array([c.control_points[0] for c in pieces])
+    ends = np.array([c.control_points[-1] for c in pieces])
+    used = np.zeros(len(pieces), bool)
+    chains = []
+    for first in range(len(pieces)):
+        if used[first]:
+            continue
+        used[first] = True
+        chain = [pieces[first]]
+        for at_tail in (True, False):
+            while True:
+                point = chain[-1].control_points[-1] if at_tail else chain[0].control_points[0]
+                near_s = ~used & (np.linalg.norm(starts - point, axis=1) <= tol)
+                near_e = ~used & (np.linalg.norm(ends - point, axis=1) <= tol)
+                hit = np.flatnonzero(near_s | near_e)
+                if hit.size == 0:
+                    break
+                i = int(hit[0])
+                used[i] = True
+                forward = near_s[i] if at_tail else near_e[i]
+                piece = pieces[i] if forward else pieces[i].reversed()
+                if at_tail:
+                    chain.append(piece)
+                else:
+                    chain.insert(0, piece)
+        chains.append(chain)
+    return chains
+
+
+def _chain_order_by_search(ends, tol):
+    """:func:`_chain_by_search` on end points, as :func:`nurbsmotion.paths.dxf._chain_order`
+    answers: per chain, (index, forward) from head to tail."""
+    starts, stops = ends[0::2], ends[1::2]
+    used = np.zeros(len(starts), bool)
+    chains = []
+    for first in range(len(starts)):
+        if used[first]:
+            continue
+        used[first] = True
+        chain = [(first, True)]
+        for at_tail in (True, False):
+            while True:
+                i, forward = chain[-1] if at_tail else chain[0]
+                point = (stops if forward == at_tail else starts)[i]
+                near_s = ~used & (np.linalg.norm(starts - point, axis=1) <= tol)
+                near_e = ~used & (np.linalg.norm(stops - point, axis=1) <= tol)
+                hit = np.flatnonzero(near_s | near_e)
+                if hit.size == 0:
+                    break
+                i = int(hit[0])
+                used[i] = True
+                if at_tail:
+                    chain.append((i, bool(near_s[i])))
+                else:
+                    chain.insert(0, (i, bool(near_e[i])))
+        chains.append(chain)
+    return chains
+
+
+def _same_chains(a, b) -> bool:
+    return [[(c.name, c.control_points.tobytes(), c.knots.tobytes(), c.weights.tobytes()) for c in chain]
+            for chain in a] == [[(c.name, c.control_points.tobytes(), c.knots.tobytes(),
+                                  c.weights.tobytes()) for c in chain] for chain in b]
+
+
+def _random_drawing(seed: int, n_axes: int, n_pieces: int, tol: float) -> list:
+    """Lines between a few shared nodes, shuffled, half of them reversed, each end on its
+    node, or off it by exactly ``tol`` along an axis (rounding puts it on either side of
+    the tolerance), by ``tol`` one ulp more or less, or by 2 ``tol``; some lines drawn
+    twice (two pieces with the same ends)."""
+    from nurbsmotion.nurbs import make_line
+
+    rng = np.random.default_rng(seed)
+    nodes = rng.uniform(-1.0, 1.0, (max(2, n_pieces // 2), n_axes)).round(rng.integers(1, 4))
+    pieces = []
+    for _ in range(20 * n_pieces):
+        if len(pieces) >= n_pieces:
+            break
+        a, b = rng.choice(len(nodes), 2, replace=False)
+        ends = []
+        for node in (nodes[a], nodes[b]):
+            p = node.copy()
+            k = rng.integers(n_axes)
+            p[k] += rng.choice([0.0, tol, -tol, np.nextafter(tol, 0), np.nextafter(tol, 1), 2 * tol])
+            ends.append(p)
+        if np.max(np.abs(ends[1] - ends[0])) < 1e-3:
+            continue  # rounded nodes may coincide: no line (nor one of 1e-9 of the size)
+        if rng.random() < 0.5:
+            ends.reverse()
+        for _ in range(1 + (rng.random() < 0.1)):
+            pieces.append(make_line(*ends, name=f"L{len(pieces)}"))
+    order = rng.permutation(len(pieces))
+    return [pieces[i] for i in order]
+
+
+@given(seed=st.integers(0, 2**32 - 1), n_axes=st.sampled_from([2, 3]),
+       n_pieces=st.integers(1, 80), tol=st.sampled_from([0.0, 1e-9, 1e-3, 0.05]))
+def test_chaining_by_the_grid_equals_the_search_it_replaces(seed, n_axes, n_pieces, tol):
+    """The same pieces join, in the same order and direction (ties at a node: the lowest
+    index first), ends at the tolerance included, as by the quadratic search."""
+    from nurbsmotion.paths.dxf import _chain
+
+    pieces = _random_drawing(seed, n_axes, n_pieces, tol)
+    assert _same_chains(_chain(pieces, tol), _chain_by_search(pieces, tol))
+
+
+@pytest.mark.parametrize("tol", [0.0, 1.0, 10.0, math.inf, math.nan])
+def test_chaining_at_degenerate_tolerances_equals_the_search(tol):
+    from nurbsmotion.paths.dxf import _chain
+
+    pieces = _random_drawing(7, 2, 40, 1e-3)
+    assert _same_chains(_chain(pieces, tol), _chain_by_search(pieces, tol))
+
+
+@pytest.mark.parametrize("path", sorted(p for p in CORPUS.iterdir() if p.suffix.lower() == ".dxf"
+                                        and DXF_EXPECTED[p.name].startswith("ok")), ids=lambda p: p.name)
+def test_corpus_contours_are_those_of_the_search_chaining(path, monkeypatch):
+    from nurbsmotion.paths import dxf
+
+    axes = DXF_EXPECTED[path.name][4:]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        grid = dxf.load_dxf(path, axes=axes)
+        monkeypatch.setattr(dxf, "_chain_order", _chain_order_by_search)
+        search = dxf.load_dxf(path, axes=axes)
+    assert len(grid) == len(search)
+    assert all(a == b and a.name == b.name for a, b in zip(grid, search))
+
+
+def test_a_line_flat_in_z_but_a_point_in_xy_is_named(tmp_path):
+    """A LINE along Z shorter than the flatness test (1e-12) is flat, and a point in XY: cut
+    to the machine's XY it is refused naming the entity, also when the axes are chosen from
+    the drawing (it raised an untyped InvalidCurveError there before)."""
+    doc, msp = drawing()
+    msp.add_line((1, 0, 0), (2, 0, 0))
+    line = msp.add_line((0, 0, 0), (0, 0, 1e-13))
+    file = tmp_path / "needle.dxf"
+    doc.saveas(file)
+    for axes in ("xy", None):
+        with pytest.raises(PathFileError, match=rf"LINE #{line.dxf.handle}: degenerate curve") as info:
+            load_dxf(file, axes=axes)
+        assert str(file) in str(info.value) and "\n" not in str(info.value)
+    assert [c.n_axes for c in load_dxf(file, axes="xyz")] == [3, 3]

@@ -24,9 +24,11 @@ Reading
 
 DXF entities come in no particular order or direction, so pieces are chained by their
 end points: a contour starts with the first unused entity in drawing order and grows at
-both ends with any entity that starts or ends where it ends (reversed when needed), to
-within ``tolerance`` times the drawing size. Each chain is joined by
-:func:`nurbsmotion.joining.join`. The ``$INSUNITS`` header gives the units.
+both ends with the first unused entity that starts or ends where it ends (reversed when
+needed), to within ``tolerance`` times the drawing size; the ends are found through a hash
+grid of all end points (:func:`_chain_order`), in time linear in the number of pieces.
+Each chain is joined by :func:`nurbsmotion.joining.join`. The ``$INSUNITS`` header gives
+the units.
 
 Writing
 -------
@@ -37,6 +39,7 @@ the same curve to rounding (1e-9 is what the tests ask; in practice it is exact)
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import re
@@ -62,13 +65,17 @@ MAX_BULGE = 1e6
 within 4e-6 rad of a full turn."""
 
 
-MAX_PIECES = 20_000
-"""Most path pieces (lines, arcs, polyline segments) a drawing may hold. The reader
-builds each as a curve and chains them by their ends, about 1.2 ms of CPU a piece at
-3,000 and 1.5 ms at 10,000 (the chaining grows with the count), so 20,000 is about half
-a minute; a drawing beyond it is refused from its text before ezdxf parses it (40 us a
-vertex more), in a fraction of a second. Join its segments (a SPLINE, or the chords'
-G-code, which reads a million lines in seconds)."""
+MAX_PIECES = 100_000
+"""Most path pieces (lines, arcs, polyline segments) a drawing may hold, from a budget of
+about a minute of CPU for reading one. The reading is linear in the pieces (the chaining
+through a hash grid of their ends, :func:`_chain_order`); its cost is the curves: each
+piece is a :class:`NurbsCurve` built and checked twice (as drawn, then on the machine's
+axes and in its chain's direction) and a share of :func:`join`, 0.9 ms of CPU a piece
+measured at 10,000 and 100,000 (``benchmarks/size_limits.py``, a 2-core machine at load
+10; about 0.65 ms unloaded, by the old reader's ratio), where ezdxf's parsing is 7 % and
+the chaining 4 %. A drawing beyond it is refused from its text before ezdxf parses it, in
+about a second for a million pieces. Beyond it, join its segments (a SPLINE, or the
+chords' G-code, which reads a million lines in seconds)."""
 
 _PIECE_ENTITY = re.compile(
     rb"\n[ \t]*0[ \t]*\r?\n(VERTEX|LINE|ARC|POLYLINE)[ \t]*\r?\n")
@@ -91,9 +98,9 @@ def _check_piece_count(path: Path) -> None:
     if pieces > MAX_PIECES:
         raise WorkLimitError(
             f"{path}: the drawing holds at least {pieces:,} path pieces (lines, arcs, "
-            f"polyline segments), more than the {MAX_PIECES:,} the DXF reader builds and "
-            "chains in about half a minute (paths.dxf.MAX_PIECES); join its segments into "
-            "a SPLINE, or give the path as G-code")
+            f"polyline segments), more than the {MAX_PIECES:,} the DXF reader builds in "
+            "about a minute (paths.dxf.MAX_PIECES); join its segments into a SPLINE, or give "
+            "the path as G-code")
 
 
 class DxfWarning(UserWarning):
@@ -161,7 +168,10 @@ def _label(entity) -> str:
 
 
 def _wcs(points) -> np.ndarray:
-    P = np.asarray([tuple(p) for p in points], dtype=float).reshape(-1, 3)
+    if isinstance(points, np.ndarray):
+        P = points.astype(float).reshape(-1, 3)
+    else:
+        P = np.asarray([tuple(p) for p in points], dtype=float).reshape(-1, 3)
     if not np.all(np.isfinite(P)) or np.max(np.abs(P), initial=0.0) > MAX_COORDINATE:
         bad = P[~np.all(np.isfinite(P) & (np.abs(P) <= MAX_COORDINATE), axis=1)][0]
         raise InvalidCurveError(f"a point {bad.tolist()} is not finite or beyond the largest "
@@ -169,11 +179,12 @@ def _wcs(points) -> np.ndarray:
     return P
 
 
-def _in_ocs(curve: NurbsCurve, entity, elevation: float) -> NurbsCurve:
-    """A curve drawn in the entity's object coordinate system (x, y at ``elevation``)
-    mapped to world coordinates: an affine map, exact on the control points."""
+def _in_ocs(curve: NurbsCurve, ocs, elevation: float) -> NurbsCurve:
+    """A curve drawn in an entity's object coordinate system ``ocs`` (ezdxf's ``OCS``; x,
+    y at ``elevation``) mapped to world coordinates: an affine map, exact on the control
+    points, and the identity where the extrusion is +Z (ezdxf's ``OCS.transform`` false)."""
     P = np.column_stack([curve.control_points, np.full(curve.n_control_points, float(elevation))])
-    W = _wcs(entity.ocs().points_to_wcs(P.tolist()))
+    W = _wcs(P if not ocs.transform else ocs.points_to_wcs(P.tolist()))
     return NurbsCurve(curve.degree, curve.knots, W, curve.weights, name=curve.name)
 
 
@@ -191,6 +202,8 @@ def _bulge_pieces(entity, vertices: list, closed: bool, elevation: float) -> lis
             _number(entity, b, "bulge")) for x, y, b in vertices]
     if closed and pts:
         pts.append((pts[0][0], 0.0))
+    ocs = entity.ocs()
+    z = float(elevation)
     pieces = []
     for (p, bulge), (q, _) in zip(pts[:-1], pts[1:]):
         if np.array_equal(p, q):
@@ -200,9 +213,11 @@ def _bulge_pieces(entity, vertices: list, closed: bool, elevation: float) -> lis
                                     f"{MAX_BULGE:g} (MAX_BULGE; the arc's radius would be "
                                     f"{np.hypot(*(q - p)) * (1 + bulge * bulge) / (4 * abs(bulge)):.3g})")
         if bulge:
-            pieces.append(_in_ocs(arc_by_bulge(p, q, bulge, name=label), entity, elevation))
+            pieces.append(_in_ocs(arc_by_bulge(p, q, bulge, name=label), ocs, z))
+        elif not ocs.transform:  # in the WCS: the line drawn there at once (the same curve)
+            pieces.append(make_line(*_wcs(np.array([[*p, z], [*q, z]])), name=label))
         else:
-            pieces.append(_in_ocs(make_line(p, q, name=label), entity, elevation))
+            pieces.append(_in_ocs(make_line(p, q, name=label), ocs, z))
     return pieces
 
 
@@ -326,8 +341,7 @@ def _pieces(entity) -> list[NurbsCurve]:
             a1 = math.radians(_number(entity, entity.dxf.end_angle, "end angle")) % (2 * math.pi)
             if a1 <= a0:
                 a1 += 2 * math.pi
-        return [_in_ocs(p, entity, center[2]) for p in
-                [make_arc(center[:2], radius, a0, a1, name=label)]]
+        return [_in_ocs(make_arc(center[:2], radius, a0, a1, name=label), entity.ocs(), center[2])]
     if kind == "ELLIPSE":
         # exact rational form: the unit-circle arc over the ellipse's parameter range,
         # mapped by the affine map (x, y) -> centre + x major + y minor
@@ -368,38 +382,136 @@ def _pieces(entity) -> list[NurbsCurve]:
     return None  # not a path entity
 
 
-def _chain(pieces: list[NurbsCurve], tol: float) -> list[list[NurbsCurve]]:
+def _chain_order(ends: np.ndarray, tol: float) -> list[list[tuple[int, bool]]]:
     """Group pieces into chains whose ends meet, in drawing order where possible: each
-    chain grows at its tail, then at its head, with the first unused piece that starts or
-    ends there (reversed when needed). Vectorised over the pieces' end points."""
-    starts = np.array([c.control_points[0] for c in pieces])
-    ends = np.array([c.control_points[-1] for c in pieces])
-    used = np.zeros(len(pieces), bool)
+    chain starts with the first unused piece, grows at its tail, then at its head, with
+    the first unused piece (lowest index) that starts or ends within ``tol`` of it
+    (Euclidean distance), reversed when needed (at the tail a piece whose start is near
+    is taken forward, at the head one whose end is near).
+
+    The candidates come from :class:`_EndGrid`, a hash grid of the pieces' end points, so
+    chaining takes time linear in the number of pieces where a bounded number of ends meet
+    near any point (the earlier search of every end at every step took quadratic time,
+    which capped drawings at 20,000 pieces); the distances are the same expression as
+    that search's, so the same pieces join, in the same order and direction.
+
+    Parameters
+    ----------
+    ends : ndarray, shape (2 n_pieces, n_axes)
+        Row ``2 i`` the start of piece i, row ``2 i + 1`` its end [path units].
+    tol : float
+        Largest gap that joins two ends [path units].
+
+    Returns
+    -------
+    list of list of (int, bool)
+        Per chain, its pieces from head to tail: (index, forward).
+    """
+    n = len(ends) // 2
+    grid = _EndGrid(ends, tol)
+    used = [False] * n
     chains = []
-    for first in range(len(pieces)):
+    for first in range(n):
         if used[first]:
             continue
         used[first] = True
-        chain = [pieces[first]]
+        tail: list[tuple[int, bool]] = [(first, True)]
+        head: list[tuple[int, bool]] = []  # grown outwards: reversed at the end
         for at_tail in (True, False):
+            row = 2 * first + 1 if at_tail else 2 * first  # the chain's free end
             while True:
-                point = chain[-1].control_points[-1] if at_tail else chain[0].control_points[0]
-                near_s = ~used & (np.linalg.norm(starts - point, axis=1) <= tol)
-                near_e = ~used & (np.linalg.norm(ends - point, axis=1) <= tol)
-                hit = np.flatnonzero(near_s | near_e)
-                if hit.size == 0:
+                near = grid.near(row, used)
+                if not near:
                     break
-                i = int(hit[0])
+                i = min(near) >> 1
                 used[i] = True
-                piece = pieces[i]
-                forward = near_s[i] if at_tail else near_e[i]
-                piece = piece if forward else piece.reversed()
+                # at the tail a piece runs forward from a near start; at the head it runs
+                # forward into a near end
+                forward = (2 * i if at_tail else 2 * i + 1) in near
                 if at_tail:
-                    chain.append(piece)
+                    tail.append((i, forward))
+                    row = 2 * i + 1 if forward else 2 * i
                 else:
-                    chain.insert(0, piece)
-        chains.append(chain)
+                    head.append((i, forward))
+                    row = 2 * i if forward else 2 * i + 1
+        chains.append(head[::-1] + tail)
     return chains
+
+
+def _piece_ends(pieces: list[NurbsCurve], keep: int) -> np.ndarray:
+    """The first ``keep`` coordinates of each piece's start (row ``2 i``) and end (row
+    ``2 i + 1``), shape (2 len(pieces), keep)."""
+    ends = np.empty((2 * len(pieces), keep))
+    ends[0::2] = [c.control_points[0, :keep] for c in pieces]
+    ends[1::2] = [c.control_points[-1, :keep] for c in pieces]
+    return ends
+
+
+def _chain(pieces: list[NurbsCurve], tol: float) -> list[list[NurbsCurve]]:
+    """The pieces grouped into chains by :func:`_chain_order`, each reversed where it runs
+    backwards."""
+    if not pieces:
+        return []
+    return [[pieces[i] if forward else pieces[i].reversed() for i, forward in chain]
+            for chain in _chain_order(_piece_ends(pieces, pieces[0].n_axes), tol)]
+
+
+class _EndGrid:
+    """The pieces' end points, hashed by the cell of a grid of spacing ``2 tol`` (at
+    least 2**-30 of their extent, so that ``tol = 0`` still has cells) that holds them.
+
+    Every end within ``tol`` of a point lies in the point's cell or a neighbouring one
+    (each coordinate differs by at most ``tol``, half a cell, also after rounding), so
+    :meth:`near` looks at the ``3**n_axes`` cells around it. A tolerance of half the
+    extent or more (or not finite) puts every end in one cell.
+
+    Parameters
+    ----------
+    ends : ndarray, shape (2 n_pieces, n_axes)
+        Row ``2 i`` the start of piece i, row ``2 i + 1`` its end [path units].
+    tol : float
+        Largest distance of a near end [path units].
+    """
+
+    def __init__(self, ends: np.ndarray, tol: float):
+        self.ends = ends
+        self.tol = tol
+        extent = float(np.max(np.ptp(ends, axis=0)))
+        if 2 * tol < extent:  # false for a NaN or infinite tolerance too
+            spacing = max(2 * tol, extent * 2.0**-30)
+            # float cells: exact neighbours below 2**53, one cell per value beyond
+            cells = list(map(tuple, np.floor(ends / spacing).tolist()))
+            self.offsets = list(itertools.product((-1.0, 0.0, 1.0), repeat=ends.shape[1]))
+        else:
+            cells = [()] * len(ends)
+            self.offsets = [()]
+        self.cells = cells
+        self.rows: dict[tuple, list[int]] = {}
+        for row, cell in enumerate(cells):
+            self.rows.setdefault(cell, []).append(row)
+
+    def near(self, row: int, used: list[bool]) -> set[int]:
+        """Rows of the ends of unused pieces within ``tol`` of row ``row``'s point (the
+        norm as ``np.linalg.norm`` computes it, compared with ``<=``); rows of used
+        pieces are dropped from their cells on the way."""
+        cell = self.cells[row]
+        candidates = []
+        for offset in self.offsets:
+            key = tuple(c + o for c, o in zip(cell, offset))
+            rows = self.rows.get(key)
+            if rows is None:
+                continue
+            free = [r for r in rows if not used[r >> 1]]
+            if len(free) < len(rows):
+                if free:
+                    self.rows[key] = free
+                else:
+                    del self.rows[key]
+            candidates += free
+        if not candidates:
+            return set()
+        distance = np.linalg.norm(self.ends[candidates] - self.ends[row], axis=1)
+        return {r for r, near in zip(candidates, (distance <= self.tol).tolist()) if near}
 
 
 def load_dxf(
@@ -470,9 +582,7 @@ def load_dxf(
                     raise InvalidCurveError(
                         f"{_label(entity)} is not flat: Z runs from {z.min():g} to {z.max():g}; a "
                         "machine with a Z axis (xyz) can read it")
-                keep = 2 if axes == "xy" else 3
-                pieces.append(NurbsCurve(piece.degree, piece.knots, piece.control_points[:, :keep],
-                                         piece.weights, name=piece.name))
+                pieces.append(piece)  # cut to the machine's axes once chained (_final)
         except (InvalidCurveError, ValueError, TypeError, AttributeError, IndexError, KeyError,
                 ZeroDivisionError, OverflowError, ezdxf.DXFError) as exc:
             message = _one_line(exc)
@@ -490,17 +600,35 @@ def load_dxf(
         n = len(handles)
         _warn(f"{path}: {n} {kind} entit{'y' if n == 1 else 'ies'} of zero length skipped "
               f"({_handles(handles)}), as CAD programs skip them")
-    if auto and flat:
-        pieces = [NurbsCurve(c.degree, c.knots, c.control_points[:, :2], c.weights, name=c.name)
-                  for c in pieces]
-    size = float(np.max(np.ptp(np.vstack([c.control_points for c in pieces]), axis=0)))
+    keep = 2 if axes == "xy" or (auto and flat) else 3
+    ends = _piece_ends(pieces, keep)
+    size = float(np.max(np.ptp(np.vstack([c.control_points[:, :keep] for c in pieces]), axis=0)))
     contours = []
-    for k, chain in enumerate(_chain(pieces, tolerance * size)):
+    for k, chain in enumerate(_chain_order(ends, tolerance * size)):
+        chain = [_final(pieces[i], keep, forward, path) for i, forward in chain]
         try:
             contours.append(join(chain, tolerance=tolerance, name=f"{path.stem}#{k + 1}", units=units))
         except InvalidCurveError as exc:
             raise PathFileError(f"cannot join contour {k + 1}: {_one_line(exc)}", source=str(path)) from None
     return contours
+
+
+def _final(piece: NurbsCurve, keep: int, forward: bool, path: Path) -> NurbsCurve:
+    """A piece as built (3 coordinates) on the machine's first ``keep`` axes, reversed
+    unless ``forward``: one curve, equal to slicing and then :meth:`NurbsCurve.reversed`
+    (the knots are already normalised to [0, 1], which the constructor keeps)."""
+    if keep == piece.n_axes and forward:
+        return piece
+    step = 1 if forward else -1
+    knots = piece.knots if forward else 1.0 - piece.knots[::-1]
+    try:
+        return NurbsCurve(piece.degree, knots, piece.control_points[::step, :keep],
+                          piece.weights[::step], name=piece.name)
+    except InvalidCurveError as exc:  # a piece flat to 1e-12 of its Z but not in X, Y
+        message = _one_line(exc)
+        if not message.startswith(str(piece.name)):
+            message = f"{piece.name}: {message}"
+        raise PathFileError(message, source=str(path)) from None
 
 
 def _handles(handles: list[str], shown: int = 3) -> str:
