@@ -53,7 +53,7 @@ import numpy as np
 from .errors import InvalidArgumentError
 from .feed import FeedLimit
 from .joining import join_with_edges
-from .nurbs import NurbsCurve
+from .nurbs import NurbsCurve, point_extent
 
 __all__ = ["ChordJoin", "join_chords", "polyline_corners", "START_SPAN_CHORDS", "MAX_TURN",
            "CHECKS_PER_CHORD"]
@@ -225,7 +225,7 @@ def polyline_corners(points: np.ndarray, tolerance: float, factor: float = 1.0, 
     length = np.linalg.norm(d, axis=1)
     # the line test of _is_line: a prefix's extent is at most the whole path's, so a
     # piece that is no line here is none there either (and its joints no chord joints)
-    size = max(float(np.max(P[:, j]) - np.min(P[:, j])) for j in range(P.shape[1])) or 1.0
+    size = point_extent(P) or 1.0
     if tolerance > 0:
         joint = _chord_joints(d, length, length > 1e-12 * size, np.ones(d.shape[0]),
                               tolerance)
@@ -263,7 +263,7 @@ def _is_line(P: np.ndarray, first: np.ndarray) -> np.ndarray:
     """Whether each piece is a straight line traversed forward: all its control points on
     the segment between its end points (to 1e-12 of the path's size), in order, so that
     the curve (within their convex hull, variation diminishing) runs along it."""
-    size = float(np.max(np.ptp(P, axis=0))) or 1.0
+    size = point_extent(P) or 1.0
     A, B = P[first[:-1]], P[first[1:]]
     d = B - A
     L = np.linalg.norm(d, axis=1)

@@ -51,7 +51,7 @@ from numba import njit
 from .errors import InfeasibleError, InvalidArgumentError, InvalidFeedError, WorkLimitError
 from .feed import FeedLimit
 from .machine import Machine
-from .nurbs import NurbsCurve
+from .nurbs import NurbsCurve, point_extent
 from .servo import zoh_coefficients
 from .units import in_pulses
 
@@ -325,7 +325,7 @@ def _arc_derivatives(curve: NurbsCurve, u: np.ndarray, side: np.ndarray):
         q2 = (d2 - np.sum(d2 * q1, axis=1, keepdims=True) * q1) / n2
     # At a zero-speed point (a piece's end, where the motion is at rest: _piece_bounds)
     # the direction is the limit tangent and the speed limit is zero anyway.
-    scale = float(np.max(np.ptp(curve.control_points, axis=0)))
+    scale = point_extent(curve.control_points)
     still = n2[:, 0] <= (1e-9 * scale) ** 2
     if np.any(still):
         for name, rows in (("right", still & ~side), ("left", still & side)):
