@@ -34,7 +34,6 @@ from ..errors import InvalidArgumentError, InvalidFeedError
 from ..feed import FeedLimit
 from ..machine import Machine
 from .. import units
-from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
 
 __all__ = ["path_axes", "load_run_contour", "join_run_chords", "programmed_feed", "run_feed",
            "feed_ratio", "FEED_GROUPS"]
@@ -135,11 +134,12 @@ def _polyline_check(machine: Machine, units: str | None):
     there): the path read in ``units`` (else the file's, else mm as the reader assumes)
     on ``machine``, joined at :data:`DEFAULT_PATH_TOLERANCE` as
     :func:`join_run_chords` joins it."""
-    from ..chords import polyline_corners
-    from ..paths import PATH_UNITS
-    from ..planning import check_corner_count, most_corners
-
     def check(rows, file_units: str | None) -> None:
+        from ..chords import polyline_corners
+        from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
+        from ..paths import PATH_UNITS
+        from ..planning import check_corner_count, most_corners
+
         unit = units or file_units or "mm"
         if unit not in PATH_UNITS:
             return  # the reader names it
@@ -167,6 +167,7 @@ def join_run_chords(contour, machine: Machine, path_tolerance=None):
         of its bounding box).
     """
     from ..chords import ChordJoin, join_chords
+    from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
 
     import math
 
