@@ -622,30 +622,102 @@ def test_a_large_path_file_of_too_many_spans_is_refused_before_it_is_parsed(
 
 def test_the_span_count_of_a_file_is_left_to_the_parser_where_it_may_change(
         tmp_path, capsys, monkeypatch):
-    """The text's count is used only where it is the count the planner sees: a path with
-    C0 joints (chord runs between them are joined into fewer spans) and a malformed knot
-    list are parsed first, and the planner's check (or the parser) speaks after."""
+    """The text's count is used only where it is the count the planner sees: a malformed
+    knot list, and a degree-1 file of CAM chords (every joint a chord joint: the run joins
+    them into fewer, smoother spans) are parsed first, and the planner's check (or the
+    parser) speaks after."""
     from nurbsmotion import planning
     from nurbsmotion.paths import files
 
     monkeypatch.setattr(planning, "MAX_GRID_POINTS", 1000)
     monkeypatch.setattr(files, "SIZE_SCAN_BYTES", 1000)
-    n = 400  # a degree-1 zigzag: every joint a C0 joint (and a corner)
-    zigzag = tmp_path / "zigzag.json"
-    zigzag.write_text(json.dumps({"units": "mm", "degree": 1, "knots": [0] + list(range(n)) +
-                                  [n - 1], "control_points": [[i, i % 2] for i in range(n)]}))
+    n = 400  # chords of 0.01 mm along a circle of radius 100 mm: each turns by 1e-4 rad
+    a = np.arange(n) * 1e-4
+    chords = tmp_path / "chords.json"
+    chords.write_text(json.dumps({"units": "mm", "degree": 1, "knots": [0] + list(range(n)) +
+                                  [n - 1], "control_points": np.column_stack(
+                                      [100 * np.sin(a), 100 * (1 - np.cos(a))]).tolist()}))
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"units": "mm", "degree": 3, "knots": ["a"] * 2000,
                                "control_points": [[i, 0] for i in range(1996)]}))
     calls = []
     parse = files.parse_json_or_toml
     monkeypatch.setattr(files, "parse_json_or_toml", lambda *a, **k: calls.append(1) or parse(*a, **k))
-    assert main(["bound", str(zigzag), "--feed", "1mm/s"]) == 2
-    line = _one_error_line(capsys)
-    assert calls and "398 sharp corners" in line and "planning.MAX_GRID_POINTS" in line, line
+    main(["bound", str(chords), "--feed", "1mm/s"])  # (the joined path's grid: the planner's)
+    assert len(calls) == 1 and "(in its first" not in capsys.readouterr().err
     assert main(["bound", str(bad), "--feed", "1mm/s"]) == 2
     line = _one_error_line(capsys)
     assert len(calls) == 2 and "knots" in line and str(bad) in line, line
+
+
+@pytest.mark.parametrize("suffix", [".json", ".toml"])
+def test_a_polyline_file_of_too_many_corners_is_refused_before_it_is_parsed(
+        tmp_path, capsys, monkeypatch, suffix):
+    """Issue 37: a degree-1 zigzag of a million points was refused for its corners after
+    its file was parsed and its curve built twice (3.3 s of CPU); its corners are now
+    counted from the first vertices of its text, as few as the planner's grid needs to
+    refuse it (MAX_GRID_POINTS lowered to 1,000: 19 corners need 51 x 20 = 1,020 grid
+    points). Exact where the text holds no more vertices than that; else "at least"."""
+    from nurbsmotion import planning
+    from nurbsmotion.paths import files, save_path
+
+    monkeypatch.setattr(planning, "MAX_GRID_POINTS", 1000)
+    monkeypatch.setattr(files, "SIZE_SCAN_BYTES", 100)
+
+    def no_parse(*args, **kwargs):
+        raise AssertionError("parsed before the corners were counted")
+
+    def zigzag(n):  # right-angle turns of 0.01 mm legs: no joint is a chord joint
+        points = np.column_stack([np.arange(n) * 0.01, (np.arange(n) % 2) * 0.01])
+        curve = NurbsCurve(1, np.r_[0.0, np.arange(n - 0.0), n - 1.0], points, units="mm")
+        return save_path(curve, tmp_path / f"zigzag{n}{suffix}")
+
+    exact, longer = zigzag(21), zigzag(400)
+    for n, file in ((19, exact), (398, longer)):  # the planner's own count, parsed
+        with pytest.raises(WorkLimitError, match=f"the path has {n} sharp corners"):
+            planning.check_profile_size(load_path(file))
+    monkeypatch.setattr(files, "parse_json_or_toml", no_parse)
+    for command in ("bound", "run"):
+        out = ["--out", str(tmp_path / "o")] if command == "run" else []
+        assert main([command, str(exact), "--feed", "1mm/s", *out]) == 2
+        line = _one_error_line(capsys)
+        assert f"{exact}: the path has 19 sharp corners; its 20 corner-free pieces need at " \
+               "least 1,020 grid points" in line, line
+        assert main([command, str(longer), "--feed", "1mm/s", *out]) == 2
+        line = _one_error_line(capsys)
+        assert f"{longer}: the path has at least 19 sharp corners (in its first 22 points)" \
+            in line and "more than the limit of 1,000" in line, line
+    assert not (tmp_path / "o").exists()
+
+
+def test_polyline_corners_counts_what_the_planner_counts_after_the_chord_join():
+    """chords.polyline_corners against the path a run plans (join_chords, then the
+    curve's sharp corners, scaled to pulses): exact where nothing is joined, a lower bound
+    where chord runs are (random polylines mixing chords, corners and collinear joints);
+    a prefix never counts more than the whole."""
+    from nurbsmotion.chords import join_chords, polyline_corners
+
+    rng = np.random.default_rng(int(os.environ.get("NURBSMOTION_SEED", "37")))
+    for trial in range(int(os.environ.get("NURBSMOTION_SWEEP", "40"))):
+        n = int(rng.integers(3, 120))
+        turn = rng.choice([0.0, 1e-4, 0.3, np.pi / 2, 2.5], size=n - 1,
+                          p=[0.2, 0.3, 0.2, 0.2, 0.1] if trial % 2 else [0, 0, 0.5, 0.4, 0.1])
+        heading = np.cumsum(turn)
+        step = rng.uniform(0.005, 0.05, size=n - 1)
+        P = np.vstack([[0.0, 0.0], np.cumsum(np.column_stack([step * np.cos(heading),
+                                                              step * np.sin(heading)]), axis=0)])
+        e, per_unit = 0.001, 1000.0  # 1 pulse of 1 um, in mm
+        curve = NurbsCurve(1, np.r_[0.0, np.arange(n - 0.0), n - 1.0], P)
+        planned = join_chords(curve, e).curve.scaled(per_unit)
+        truth = len(planned.sharp_corners())
+        count, exact = polyline_corners(P, e, per_unit)
+        if exact:
+            assert count == truth, trial
+        else:
+            assert count <= truth, trial
+        k = int(rng.integers(3, n + 1))
+        part, _ = polyline_corners(P[:k], e, per_unit, whole=k == n)
+        assert part <= truth, trial
 
 
 def test_a_drawing_of_too_many_pieces_is_refused_before_ezdxf_parses_it(

@@ -2,6 +2,8 @@
 
 import csv
 import json
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -644,3 +646,41 @@ def test_no_run_within_the_drive_limit_settles_below_the_sampled_bound(interpola
             f"{interpolator} on {name} at {feed}: settled at {metrics.settle_time_s} s, "
             f"below the sampled bound {bound} s")
     assert checked >= 3  # most of the cases stay within the drive limit
+
+
+def test_importing_the_cli_loads_no_compiled_or_plotting_module(tmp_path):
+    """Issue 37 (refusals within a second of CPU, start-up included): importing the
+    command line loads neither numba (so nor the control law, the plant, the loop or the
+    interpolators) nor scipy or matplotlib; its parser reads the values it needs from them
+    on first use (choices, defaults, help texts). A path refused by its size as it is read
+    (its machine loaded: numba) is refused before the interpolators, the loop, the report
+    and scipy's submodules are imported. Each in a fresh process (sys.modules)."""
+    import subprocess
+    import sys
+
+    from nurbsmotion.paths import save_path
+
+    heavy = ("numba", "scipy", "matplotlib", "nurbsmotion.control", "nurbsmotion.plant",
+             "nurbsmotion.loop", "nurbsmotion.interpolators", "nurbsmotion.report")
+    n = 303
+    x = np.arange(n) * 0.01
+    wave = save_path(nm.NurbsCurve(3, np.r_[[0.0] * 3, np.arange(n - 2.0), [n - 3.0] * 3],
+                                   np.column_stack([x, np.sin(x)]), units="mm"),
+                     tmp_path / "wave.json")
+    script = f"""
+import sys
+heavy = {heavy!r}
+import nurbsmotion.cli
+print(sorted(m for m in sys.modules if m in heavy))
+from nurbsmotion import planning
+from nurbsmotion.paths import files
+planning.MAX_GRID_POINTS, files.SIZE_SCAN_BYTES = 1000, 1000
+code = nurbsmotion.cli.main(["bound", {str(wave)!r}, "--feed", "1mm/s"])
+print(code, sorted(m for m in sys.modules if m in heavy[2:3] + heavy[5:] or m.startswith(
+    ("matplotlib.", "scipy.interpolate", "scipy.signal", "scipy.optimize", "scipy.sparse"))))
+"""
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(Path(nm.__file__).parents[1])})
+    lines = out.stdout.strip().splitlines()
+    assert lines == ["[]", "2 []"], (out.stdout, out.stderr)
+    assert "300 knot spans of degree 3" in out.stderr

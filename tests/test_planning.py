@@ -1651,12 +1651,20 @@ def test_the_profile_size_is_checked_from_the_corners_before_the_run(tmp_path, m
     with pytest.raises(WorkLimitError, match="99,999 sharp corners; its 100,000 corner-free "
                                              "pieces need at least 5,100,000 grid points"):
         check_profile_size(zigzag)
-    for command in (["bound", str(file), "--feed", "100mm/s"],
-                    ["run", str(file), "--feed", "100mm/s", "--out", str(tmp_path / "o")]):
-        assert main(command) == 2
-        err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and "99,999 sharp corners" in err[0], err
-        assert "planning.MAX_GRID_POINTS" in err[0]
+    from nurbsmotion.paths import files
+
+    # parsed (the text's corner count off): check_profile_size's exact count; from the
+    # text (the file is over SIZE_SCAN_BYTES): at least those of its first vertices
+    for scan, count in ((len(file.read_text()), "99,999 sharp corners"),
+                        (files.SIZE_SCAN_BYTES, "at least 98,039 sharp corners (in its first "
+                                                "98,042 points)")):
+        monkeypatch.setattr(files, "SIZE_SCAN_BYTES", scan)
+        for command in (["bound", str(file), "--feed", "100mm/s"],
+                        ["run", str(file), "--feed", "100mm/s", "--out", str(tmp_path / "o")]):
+            assert main(command) == 2
+            err = capsys.readouterr().err.strip().splitlines()
+            assert len(err) == 1 and count in err[0], err
+            assert "planning.MAX_GRID_POINTS" in err[0]
     assert not (tmp_path / "o").exists()
 
 

@@ -53,9 +53,10 @@ import numpy as np
 from .errors import InvalidArgumentError
 from .feed import FeedLimit
 from .joining import join_with_edges
-from .nurbs import NurbsCurve
+from .nurbs import NurbsCurve, point_extent
 
-__all__ = ["ChordJoin", "join_chords", "START_SPAN_CHORDS", "MAX_TURN", "CHECKS_PER_CHORD"]
+__all__ = ["ChordJoin", "join_chords", "polyline_corners", "START_SPAN_CHORDS", "MAX_TURN",
+           "CHECKS_PER_CHORD"]
 
 MAX_TURN = 0.5 * np.pi
 """A joint turning by this much or more [rad] is a corner, however short its chords."""
@@ -180,6 +181,71 @@ def join_chords(curve: NurbsCurve, tolerance: float, feed: FeedLimit | None = No
     return ChordJoin(new, new_feed, e, joined, fitted, worst)
 
 
+def polyline_corners(points: np.ndarray, tolerance: float, factor: float = 1.0, *,
+                     whole: bool = True, angle_tolerance: float = 1e-6) -> tuple[int, bool]:
+    """The sharp corners a degree-1 path through ``points`` keeps once its chord runs are
+    joined within ``tolerance`` (:func:`join_chords`), counted from its vertices alone,
+    before any curve is built: what a run's planner sees of a large polyline file
+    (:func:`nurbsmotion.study.run_input.load_run_contour`).
+
+    Where no joint is a chord joint, :func:`join_chords` returns the path as it is and the
+    count is exact: the joints whose turn exceeds ``angle_tolerance``, computed as
+    :meth:`NurbsCurve.sharp_corners` computes them on the path scaled by ``factor`` (the
+    path the planner reads, in pulses). Otherwise (or with ``whole`` false: the first
+    vertices of a longer path) it is a lower bound: the joints between two pieces that
+    stay chords (neither is in a run: the joint and its neighbours are no chord joints;
+    every such test needs only the two pieces of its joint, so a prefix decides them as
+    the whole path does), turning by more than twice ``angle_tolerance`` (the joined
+    path's corners are computed from its elevated pieces' tangents, which rounding moves
+    by far less than that).
+
+    Parameters
+    ----------
+    points : ndarray, shape (n_points, n_axes)
+        The vertices in order [path units].
+    tolerance : float
+        The chord join's tolerance [path units], >= 0 (0: nothing is joined).
+    factor : float
+        Pulses per path unit: the planner's path is ``points * factor``.
+    whole : bool
+        Whether ``points`` are all the path's vertices (else its first ones).
+    angle_tolerance : float
+        Smallest turn counted as a corner [rad] (:meth:`NurbsCurve.sharp_corners`).
+
+    Returns
+    -------
+    corners : int
+    exact : bool
+        Whether ``corners`` is the path's count (else at least that many).
+    """
+    P = np.asarray(points, dtype=float)
+    if P.shape[0] < 3:
+        return 0, whole
+    d = np.diff(P, axis=0)
+    length = np.linalg.norm(d, axis=1)
+    # the line test of _is_line: a prefix's extent is at most the whole path's, so a
+    # piece that is no line here is none there either (and its joints no chord joints)
+    size = point_extent(P) or 1.0
+    if tolerance > 0:
+        joint = _chord_joints(d, length, length > 1e-12 * size, np.ones(d.shape[0]),
+                              tolerance)
+    else:
+        joint = np.zeros(d.shape[0] - 1, dtype=bool)
+    scaled = P if factor == 1.0 else P * factor     # Scale.path: the same product
+    u = np.diff(scaled, axis=0)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    angle = np.arccos(np.clip(np.sum(u[:-1] * u[1:], axis=1), -1.0, 1.0))
+    if whole and not joint.any():
+        return int(np.count_nonzero(angle > angle_tolerance)), True
+    # vertex v (joint v - 1 here) keeps its turn where joints v - 1, v, v + 1 are no chord
+    # joints; the last vertex of a prefix has an unknown next piece
+    chord = np.concatenate([[False], joint, [False]])
+    kept = ~(chord[:-2] | chord[1:-1] | chord[2:])
+    if not whole:
+        kept[-1] = False
+    return int(np.count_nonzero(kept & (angle > 2.0 * angle_tolerance))), False
+
+
 def _pieces(curve: NurbsCurve):
     """The curve's pieces between its C0 joints (interior knots of multiplicity p):
     their parameter bounds, shape (n_pieces + 1,), and the index of the control point at
@@ -197,7 +263,7 @@ def _is_line(P: np.ndarray, first: np.ndarray) -> np.ndarray:
     """Whether each piece is a straight line traversed forward: all its control points on
     the segment between its end points (to 1e-12 of the path's size), in order, so that
     the curve (within their convex hull, variation diminishing) runs along it."""
-    size = float(np.max(np.ptp(P, axis=0))) or 1.0
+    size = point_extent(P) or 1.0
     A, B = P[first[:-1]], P[first[1:]]
     d = B - A
     L = np.linalg.norm(d, axis=1)

@@ -43,7 +43,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from .errors import InvalidCurveError
-from .nurbs import NurbsCurve
+from .nurbs import NurbsCurve, point_extent
 
 __all__ = ["elevate_degree", "bezier_segments", "join", "join_with_edges", "DEFAULT_JOIN_TOLERANCE"]
 
@@ -211,7 +211,7 @@ def join_with_edges(
     unit = units if units is not None else (piece_units.pop() if piece_units else None)
 
     all_points = np.vstack([c.control_points for c in pieces])
-    size = float(np.max(np.ptp(all_points, axis=0)))
+    size = point_extent(all_points)
     for i in range(len(pieces) - 1):
         end, start = pieces[i].control_points[-1], pieces[i + 1].control_points[0]
         gap = float(np.linalg.norm(end - start))

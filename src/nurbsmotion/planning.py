@@ -51,12 +51,13 @@ from numba import njit
 from .errors import InfeasibleError, InvalidArgumentError, InvalidFeedError, WorkLimitError
 from .feed import FeedLimit
 from .machine import Machine
-from .nurbs import NurbsCurve
+from .nurbs import NurbsCurve, point_extent
 from .servo import zoh_coefficients
 from .units import in_pulses
 
 __all__ = ["SpeedProfile", "speed_profile", "time_optimal_bound", "sampled_stop_bound",
-           "check_path_size", "check_span_count", "check_profile_size", "top_speed", "check_feed_reachable", "MAX_FEED_RATIO"]
+           "check_path_size", "check_span_count", "check_profile_size", "check_corner_count",
+           "most_corners", "top_speed", "check_feed_reachable", "MAX_FEED_RATIO"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -236,14 +237,45 @@ def check_profile_size(curve: NurbsCurve) -> None:
         Naming the spans (or the corners), the points they need and the limit.
     """
     check_path_size(curve)
-    corners = len(curve.sharp_corners())
+    check_corner_count(len(curve.sharp_corners()))
+
+
+def most_corners() -> int:
+    """The most sharp corners a path's speed profile can hold: ``PIECE_GRID_POINTS *
+    (corners + 1)`` grid points within :data:`MAX_GRID_POINTS` (:func:`check_corner_count`
+    refuses one more)."""
+    return MAX_GRID_POINTS // PIECE_GRID_POINTS - 1
+
+
+def check_corner_count(corners: int, counted_in: str | None = None) -> None:
+    """:func:`check_profile_size`'s corner check from the count alone: refuse a path of
+    ``corners`` sharp corners (more than :func:`most_corners`).
+
+    Parameters
+    ----------
+    corners : int
+        Sharp corners of the path as it is planned (at least that many, with
+        ``counted_in``).
+    counted_in : str, optional
+        Where a lower bound was counted (``"its first 98,042 points"``: a large path
+        file's, as it is read, :func:`nurbsmotion.study.run_input.load_run_contour`);
+        None for the path's exact count.
+
+    Raises
+    ------
+    WorkLimitError
+        Naming the corners, the points they need and the limit.
+    """
     least = PIECE_GRID_POINTS * (corners + 1)
     if least > MAX_GRID_POINTS:
+        many = f"{corners:,}" if counted_in is None else f"at least {corners:,}"
+        where = "" if counted_in is None else f" (in {counted_in})"
+        more = "" if counted_in is None else " or more"
         raise WorkLimitError(
-            f"the path has {corners:,} sharp corners; its {corners + 1:,} corner-free pieces "
-            f"need at least {least:,} grid points ({PIECE_GRID_POINTS} a piece), more than "
-            f"the limit of {MAX_GRID_POINTS:,} (planning.MAX_GRID_POINTS); smooth the path "
-            "or join its nearly collinear segments")
+            f"the path has {many} sharp corners{where}; its {corners + 1:,}{more} corner-free "
+            f"pieces need at least {least:,} grid points ({PIECE_GRID_POINTS} a piece), more "
+            f"than the limit of {MAX_GRID_POINTS:,} (planning.MAX_GRID_POINTS); smooth the "
+            "path or join its nearly collinear segments")
 
 
 def _span_points(curve: NurbsCurve, u0: float, u1: float, s: np.ndarray) -> np.ndarray:
@@ -293,7 +325,7 @@ def _arc_derivatives(curve: NurbsCurve, u: np.ndarray, side: np.ndarray):
         q2 = (d2 - np.sum(d2 * q1, axis=1, keepdims=True) * q1) / n2
     # At a zero-speed point (a piece's end, where the motion is at rest: _piece_bounds)
     # the direction is the limit tangent and the speed limit is zero anyway.
-    scale = float(np.max(np.ptp(curve.control_points, axis=0)))
+    scale = point_extent(curve.control_points)
     still = n2[:, 0] <= (1e-9 * scale) ** 2
     if np.any(still):
         for name, rows in (("right", still & ~side), ("left", still & side)):

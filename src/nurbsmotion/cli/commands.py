@@ -17,16 +17,17 @@ import sys
 import time
 from pathlib import Path
 
-from .. import units
+from typing import TYPE_CHECKING
+
 from .._runtime.forked import ForkedWorker, usable_cpus
 from .._runtime.io import OutputFolder
-from ..loop.budget import check_samples, estimate_samples
 from ..errors import InvalidArgumentError, InvalidFeedError, WorkLimitError
-from ..interpolators import make_open_loop
-from ..machine import Machine, load_machine
-from ..planning import (check_profile_size, check_span_count, sampled_stop_bound,
-                        time_optimal_bound)
 from .console import EXPORT_FILES, _outputs, _progress
+
+if TYPE_CHECKING:  # annotations only: the modules below load numba and the loop, which a
+    # command imports where it needs them (a path refused as it is read does not pay them)
+    from .. import units
+    from ..machine import Machine
 
 
 def _contour(args, machine: Machine | None = None, size_check=None):
@@ -116,6 +117,10 @@ def _cmd_contours(args) -> int:
 
 
 def _cmd_interpolate(args) -> int:
+    from .. import units
+    from ..interpolators import make_open_loop
+    from ..loop.budget import check_samples, estimate_samples
+    from ..machine import load_machine
     from ..report.export import SetpointArrays, save_csv_metadata, save_setpoints, setpoint_columns
     from ..loop import interpolate
     from ..plots import plot_setpoints
@@ -166,6 +171,7 @@ def _open_loop_feed(args, curve, machine: Machine) -> float:
     unit where it can be (a length unit on a path in a length unit); otherwise, with
     ``--machine`` given, through the machine's Scale (a feed in m/s on a path in pulses:
     the machine's pulse length); without it, refused as before."""
+    from .. import units
     try:
         return units.feed_in_path_units(args.feed, curve)
     except InvalidFeedError:
@@ -182,6 +188,7 @@ def _axis_names(n: int) -> list[str]:
 def _check_bound(bound: float, machine: Machine, curve, max_samples: int) -> None:
     """Refuse a time-optimal bound longer than ``max_samples`` samples: no run of the path
     could finish within them (``run`` and ``bound`` alike)."""
+    from ..loop.budget import check_samples
     check_samples(bound / machine.sample_period, limit=max_samples, n_axes=curve.n_axes,
                   what=f"the time-optimal bound ({bound:.4g} s at Ts = "
                        f"{machine.sample_period:g} s): a run", option="--max-samples")
@@ -201,11 +208,16 @@ def _settle_window(args, scale, path, source: str) -> float:
 
 
 def _cmd_bound(args) -> int:
-    from ..loop import check_run_arguments
+    from .. import units
+    from ..machine import load_machine
+    from ..planning import (check_profile_size, check_span_count, sampled_stop_bound,
+                            time_optimal_bound)
 
     machine = load_machine(args.machine)
     # the planner's size as the file is read (the sampled bound has no planner grid)
     contour = _contour(args, machine, None if args.sampled else check_span_count)
+    from ..loop import check_run_arguments  # (after the size checks: numba's loop modules)
+
     curve = contour.curve
     machine.check_path(curve.n_axes)
     scale = units.Scale.of(curve, machine)
@@ -235,6 +247,7 @@ def _cmd_bound(args) -> int:
 
 def _print_joined(contour, machine: Machine) -> None:
     """Say on stderr which chords the path's runs joined (nothing where none were)."""
+    from .. import units
     joined = contour.joined
     if joined is not None and joined.chords_joined:
         scale = units.Scale.of(contour.curve, machine)
@@ -248,20 +261,28 @@ make it smaller (``--trace-every``, ``--no-trace``)."""
 
 
 def _cmd_run(args) -> int:
+    from ..machine import load_machine
+    from ..planning import check_span_count
+    machine = load_machine(args.machine)
+    # the planner's size, as it is read: a path refused there is refused before the
+    # loop's modules load (and the cache is looked at, below)
+    contour = _contour(args, machine, check_span_count)
     from .._runtime.precompile import Precompiler
 
     # On an empty numba cache the closed loop compiles on the other core meanwhile.
     with Precompiler(args.interpolator) as precompiler:
-        return _run(args, precompiler)
+        return _run(args, precompiler, machine, contour)
 
 
-def _run(args, precompiler) -> int:
+def _run(args, precompiler, machine: Machine, contour) -> int:
+    from .. import units
+    from ..loop.budget import check_samples, estimate_samples
+    from ..machine import load_machine
+    from ..planning import check_profile_size
     from ..job import Job
     from ..loop import check_run_arguments
     from ..report import TRACE_FILES, write_json
 
-    machine = load_machine(args.machine)
-    contour = _contour(args, machine, check_span_count)  # the planner's size, as it is read
     curve = contour.curve
     machine.check_path(curve.n_axes)
     scale = units.Scale.of(curve, machine)  # the one conversion of this run's units
@@ -680,6 +701,7 @@ def _parse_columns(text: str) -> dict:
 
 
 def _cmd_identify(args) -> int:
+    from ..machine import load_machine
     from ..identify.plot import IDENTIFY_FIGURE
     from ..identify import identify, read_log
 
@@ -712,6 +734,8 @@ def _cmd_identify(args) -> int:
 
 
 def _cmd_excite(args) -> int:
+    from .. import units
+    from ..machine import load_machine
     from .._runtime.io import write_output
     from ..identify import excitation, excitation_gcode, write_excitation_csv
 

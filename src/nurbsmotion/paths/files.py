@@ -262,16 +262,18 @@ text, before it is parsed, when the command gives a ``size_check``
 million control points, a second), counting its knot vector's commas 0.5 ns."""
 
 
-def _read_json(path: Path, size_check=None) -> NurbsCurve:
+def _read_json(path: Path, size_check=None, polyline_check=None) -> NurbsCurve:
     text = read_text_file(path, MAX_PATH_FILE_BYTES)
     _scan_spans(text, False, size_check, path)
+    _scan_polyline(text, False, polyline_check, path)
     data = parse_json_or_toml(text, toml=False, source=str(path))
     return curve_from_dict(data, str(path), text, toml=False)
 
 
-def _read_toml(path: Path, size_check=None) -> NurbsCurve:
+def _read_toml(path: Path, size_check=None, polyline_check=None) -> NurbsCurve:
     text = read_text_file(path, MAX_PATH_FILE_BYTES)
     _scan_spans(text, True, size_check, path)
+    _scan_polyline(text, True, polyline_check, path)
     data = parse_json_or_toml(text, toml=True, source=str(path))
     return curve_from_dict(data, str(path), text, toml=True)
 
@@ -291,8 +293,8 @@ def _scan_spans(text: str, toml: bool, size_check, path: Path) -> None:
         return
     flags = re.MULTILINE
     if toml:
-        degree = re.findall(r"^\s*degree\s*=\s*(\d+)\s*$", text, flags)
-        knots = list(re.finditer(r"^\s*knots\s*=\s*\[", text, flags))
+        degree = re.findall(r"^[ \t]*degree[ \t]*=[ \t]*(\d+)[ \t]*$", text, flags)
+        knots = list(re.finditer(r"^[ \t]*knots[ \t]*=[ \t]*\[", text, flags))
     else:
         degree = re.findall(r'"degree"\s*:\s*(\d+)\s*[,}]', text)
         knots = list(re.finditer(r'"knots"\s*:\s*\[', text))
@@ -322,6 +324,85 @@ def _scan_spans(text: str, toml: bool, size_check, path: Path) -> None:
         return
     try:
         size_check(p, len(values) - 1)
+    except WorkLimitError as exc:
+        raise WorkLimitError(f"{path}: {exc}") from None
+
+
+_ROW_TEXT = re.compile(r"[^0-9eE+\-.,\[\]\s]")
+"""A character that no row of plain numbers holds."""
+
+
+def _scan_polyline(text: str, toml: bool, polyline_check, path: Path) -> None:
+    """Call ``polyline_check(rows, units)`` for a large degree-1 path file's text
+    (:data:`SIZE_SCAN_BYTES`), before it is parsed, and say which file a refusal is of:
+    ``rows(k)`` gives its first control points, at most ``k``, shape (m, n_axes), and
+    whether they are all of them (None where they are not rows of plain numbers of one
+    length); ``units`` is its ``units`` field (None where it has none).
+
+    Only for one ``degree`` field of 1, one ``control_points`` list and at most one
+    ``units`` string; anything else is left to the parser. The rows are read from the
+    text as numbers (Python's ``float``, as the parser reads them), only as many as asked.
+    """
+    if polyline_check is None or len(text) <= SIZE_SCAN_BYTES:
+        return
+    flags = re.MULTILINE
+    if toml:
+        degree = re.findall(r"^[ \t]*degree[ \t]*=[ \t]*(\d+)[ \t]*$", text, flags)
+        points = list(re.finditer(r"^[ \t]*control_points[ \t]*=[ \t]*\[", text, flags))
+        units = re.findall(r'^[ \t]*units[ \t]*=[ \t]*"([^"\\]*)"[ \t]*$', text, flags)
+        named = len(re.findall(r"^[ \t]*units[ \t]*=", text, flags))
+    else:
+        degree = re.findall(r'"degree"\s*:\s*(\d+)\s*[,}]', text)
+        points = list(re.finditer(r'"control_points"\s*:\s*\[', text))
+        units = re.findall(r'"units"\s*:\s*"([^"\\]*)"', text)
+        named = text.count('"units"')
+    if degree != ["1"] or len(points) != 1 or len(units) != named or named > 1:
+        return
+    start = points[0].end()
+
+    def rows(k: int):
+        """The first rows, at most ``k``, and whether they are all; or None."""
+        size = 64 * k + 4096
+        while True:
+            chunk = text[start:start + size]
+            b = np.frombuffer(chunk.encode("ascii", "replace"), dtype=np.uint8)
+            opens, closes = np.flatnonzero(b == 91), np.flatnonzero(b == 93)
+            m = min(opens.size, closes.size, k)
+            if m == 0:
+                return None
+            # rows alternate [ ... ]; the list's own ] follows a row's ] directly
+            paired = (opens[:m] < closes[:m]) & np.r_[True, closes[:m - 1] < opens[1:m]]
+            m = int(np.argmin(paired)) if not paired.all() else m
+            if m < k and closes.size > m and (opens.size <= m or closes[m] < opens[m]):
+                end, whole = (closes[m - 1] + 1 if m else 0), True   # the list ends
+                break
+            if m == k:
+                end = closes[k - 1] + 1
+                after = re.compile(r"\s*,?\s*\]").match(text, start + end)
+                whole = after is not None
+                break
+            if start + size >= len(text):
+                return None
+            size *= 2
+        if m == 0:
+            return None
+        row = chunk[:end]
+        if _ROW_TEXT.search(row):
+            return None
+        commas = np.flatnonzero(b[:end] == 44)
+        inside = np.searchsorted(commas, closes[:m]) - np.searchsorted(commas, opens[:m])
+        if np.any(inside != inside[0]):
+            return None
+        try:
+            values = np.array(row.translate({91: None, 93: None}).split(","), dtype=float)
+        except ValueError:
+            return None
+        if values.size != m * (inside[0] + 1) or not np.all(np.isfinite(values)):
+            return None
+        return values.reshape(m, inside[0] + 1), whole
+
+    try:
+        polyline_check(rows, units[0] if units else None)
     except WorkLimitError as exc:
         raise WorkLimitError(f"{path}: {exc}") from None
 
@@ -434,7 +515,7 @@ def load_path(file: str | os.PathLike, *, axes: str = "xy", units: str | None = 
 
 def load_contour(file: str | os.PathLike, *, axes: str = "xy", units: str | None = None,
                  project: bool = False, tool_table: str | os.PathLike | None = None,
-                 size_check=None) -> Contour:
+                 size_check=None, polyline_check=None) -> Contour:
     """:func:`load_path`, also returning the file's programmed feed (a :class:`Contour`)."""
     spec = os.fspath(file)
     index = None
@@ -442,14 +523,14 @@ def load_contour(file: str | os.PathLike, *, axes: str = "xy", units: str | None
     if match and not Path(spec).exists():
         spec, index = match.group("file"), int(match.group("index"))
     contours = load_contours(spec, axes=axes, units=units, project=project, tool_table=tool_table,
-                             size_check=size_check)
+                             size_check=size_check, polyline_check=polyline_check)
     chosen = _choose_contour([c.curve for c in contours], index, spec)
     return next(c for c in contours if c.curve is chosen)
 
 
 def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: str | None = None,
                   project: bool = False, tool_table: str | os.PathLike | None = None,
-                  size_check=None) -> list[Contour]:
+                  size_check=None, polyline_check=None) -> list[Contour]:
     """Every contour of a path file, with its programmed feed (see :func:`load_path`).
 
     ``axes=None`` reads a G-code or DXF file on every axis it moves (G-code: by a feed or
@@ -464,7 +545,10 @@ def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: st
     :func:`nurbsmotion.planning.check_span_count`): a large JSON or TOML file's spans are
     counted from its text and checked before it is parsed (:data:`SIZE_SCAN_BYTES`), so
     that a path beyond the limit is refused in a fraction of a second, with the file
-    named (:class:`~nurbsmotion.errors.WorkLimitError`)."""
+    named (:class:`~nurbsmotion.errors.WorkLimitError`). ``polyline_check(rows,
+    units)``, if given, is called likewise for a large degree-1 JSON or TOML file, whose
+    joints may all be corners (``run`` and ``bound``: their count from the vertices,
+    :func:`nurbsmotion.study.run_input.load_run_contour`); see :func:`_scan_polyline`."""
     path = Path(file)
     if units is not None and units not in PATH_UNITS:
         raise PathFileError(f"unit {units!r} is not one of {', '.join(PATH_UNITS)}", str(path))
@@ -475,8 +559,8 @@ def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: st
     if suffix in (".json", ".toml"):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            curve = _read_json(path, size_check) if suffix == ".json" else _read_toml(
-                path, size_check)
+            curve = (_read_json if suffix == ".json" else _read_toml)(
+                path, size_check, polyline_check)
         assumed = any(issubclass(w.category, PathWarning) for w in caught)
         for w in caught:  # the override makes the assumption moot
             if units is None or not issubclass(w.category, PathWarning):
@@ -563,9 +647,9 @@ def resolve_path(spec: str, *, axes: str = "xy", units: str | None = None) -> Nu
 
 def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None,
                     project: bool = False, tool_table: str | os.PathLike | None = None,
-                    size_check=None) -> Contour:
+                    size_check=None, polyline_check=None) -> Contour:
     """:func:`resolve_path`, also returning the file's programmed feed (a :class:`Contour`);
-    ``tool_table`` and ``size_check`` as for :func:`load_contours`."""
+    ``tool_table``, ``size_check`` and ``polyline_check`` as for :func:`load_contours`."""
     if spec in BUILTIN_PATHS and not Path(spec).exists():
         if tool_table is not None:
             raise InvalidArgumentError(f"a tool table ({os.fspath(tool_table)}) is read with a G-code "
@@ -582,4 +666,4 @@ def resolve_contour(spec: str, *, axes: str = "xy", units: str | None = None,
             f"name with an ending ({', '.join(PATH_FILE_SUFFIXES)})"
         )
     return load_contour(spec, axes=axes, units=units, project=project, tool_table=tool_table,
-                        size_check=size_check)
+                        size_check=size_check, polyline_check=polyline_check)

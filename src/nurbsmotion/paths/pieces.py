@@ -17,7 +17,7 @@ from itertools import chain
 import numpy as np
 
 from ..errors import InvalidCurveError
-from ..nurbs import NurbsCurve, make_arc
+from ..nurbs import NurbsCurve, make_arc, point_extent
 
 __all__ = ["with_end_point", "arc_by_center", "arc_sweep", "HELIX_TOLERANCE", "arc_by_bulge", "arc_by_radius", "PieceChain",
            "bezier_elevation", "arc_spans", "arc_angle_deviation", "spiral_segments"]
@@ -334,7 +334,7 @@ class PieceChain:
         p = max([1] + ([2] if len(arcs) else []) + ([3] if len(spirals) else [])
                 + [c.degree for c in self.curves])
 
-        size = float(np.max(np.ptp(np.vstack([starts[:1], ends]), axis=0)))
+        size = point_extent(np.vstack([starts[:1], ends]))
         for k, c in zip(curve_idx, self.curves):
             gap = float(np.linalg.norm(c.control_points[0] - starts[k]))
             if gap > tolerance * size:

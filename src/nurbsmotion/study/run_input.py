@@ -34,7 +34,6 @@ from ..errors import InvalidArgumentError, InvalidFeedError
 from ..feed import FeedLimit
 from ..machine import Machine
 from .. import units
-from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
 
 __all__ = ["path_axes", "load_run_contour", "join_run_chords", "programmed_feed", "run_feed",
            "feed_ratio", "FEED_GROUPS"]
@@ -84,7 +83,12 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
         pulse); 0 joins nothing.
     size_check : callable, optional
         ``size_check(degree, spans)``: what the command can plan, checked as a large file
-        is read (:func:`nurbsmotion.paths.load_contours`).
+        is read (:func:`nurbsmotion.paths.load_contours`). Given, a large degree-1 JSON or
+        TOML file also has its sharp corners as the run plans them (its chord runs joined
+        at the default ``path_tolerance``) counted from its first vertices against the
+        planner's grid (:func:`nurbsmotion.planning.check_corner_count`): exactly where
+        nothing is joined, else at least those between pieces that stay chords
+        (:func:`nurbsmotion.chords.polyline_corners`).
 
     Returns
     -------
@@ -106,8 +110,12 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
     if project is not None and project.lower() != axes:
         raise InvalidArgumentError(f"--project {project} must name the machine's axes ({axes}): "
                                    "the path is read as its projection on them")
+    polyline_check = None
+    if size_check is not None and machine is not None and path_tolerance is None:
+        polyline_check = _polyline_check(machine, units)
     contour = resolve_contour(spec, axes=axes, units=units, project=project is not None,
-                              tool_table=tool_table, size_check=size_check)
+                              tool_table=tool_table, size_check=size_check,
+                              polyline_check=polyline_check)
     rotary = [j for j, a in enumerate(contour.axes or "") if a in "ABC"]
     if rotary:
         contour = _on_rotary_axes(contour, machine, rotary, spec)
@@ -121,6 +129,33 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
     return join_run_chords(contour, machine, path_tolerance)
 
 
+def _polyline_check(machine: Machine, units: str | None):
+    """``polyline_check(rows, file_units)`` of :func:`load_run_contour` (see
+    there): the path read in ``units`` (else the file's, else mm as the reader assumes)
+    on ``machine``, joined at :data:`DEFAULT_PATH_TOLERANCE` as
+    :func:`join_run_chords` joins it."""
+    def check(rows, file_units: str | None) -> None:
+        from ..chords import polyline_corners
+        from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
+        from ..paths import PATH_UNITS
+        from ..planning import check_corner_count, most_corners
+
+        unit = units or file_units or "mm"
+        if unit not in PATH_UNITS:
+            return  # the reader names it
+        per_unit = machine.pulses_per_unit(unit)  # [pulse/path unit], as Scale.factor
+        # enough vertices to hold one corner more than the planner's grid can
+        read = rows(most_corners() + 4)  # the ends, and a last vertex whose next piece is unread
+        if read is None or read[0].shape[1] != machine.n_axes:
+            return  # the parser, or the machine's axis check, says what is wrong
+        points, whole = read
+        corners, exact = polyline_corners(points, DEFAULT_PATH_TOLERANCE / per_unit,
+                                          per_unit, whole=whole)
+        check_corner_count(corners, None if exact else f"its first {points.shape[0]:,} points")
+
+    return check
+
+
 def join_run_chords(contour, machine: Machine, path_tolerance=None):
     """``contour`` with its chord runs joined within ``path_tolerance`` (as
     :func:`load_run_contour`), its ``joined`` set.
@@ -132,6 +167,7 @@ def join_run_chords(contour, machine: Machine, path_tolerance=None):
         of its bounding box).
     """
     from ..chords import ChordJoin, join_chords
+    from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
 
     import math
 
