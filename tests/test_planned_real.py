@@ -242,3 +242,57 @@ def test_landing_has_no_describing_function_limit_cycle(changes):
                 loop = _rest_loop(m.tau[j], m.Kc[j], m.Ke[j], m.sample_period, gains,
                                   min(observer[1, j], 0.7), g, e)
                 assert np.max(np.abs(np.linalg.eigvals(loop))) < 1.0, (j, g, e)
+
+@pytest.mark.parametrize("disturbance", [0.5, -0.3])
+def test_disturbance_observer_reads_the_drive_the_plant_got(disturbance):
+    """The disturbance observer (:func:`nurbsmotion.interpolators.planned.disturbance._observe`)
+    on the die bonder's axes, read against an independent plant: the continuous axis
+    tau*dw/dt = -w + Kc*(u + d), dth/dt = Ke*w integrated by scipy's solve_ivp (rtol 1e-11)
+    under random drives held over each sample, with a drive d the model does not know (a
+    0.5 V load; Coulomb friction of 0.3 V on an axis sliding one way) from sample 40 on.
+    Before it the estimate stays exactly 0 (the reading is exact, every residual within
+    the rounding floor); from three samples after it the estimate is d to 1e-6 V
+    (deadbeat: the increment equation holds with a constant d over the last three
+    drives); and a residual within the dead zone (one count, 1 pulse) leaves it as it is."""
+    from scipy.integrate import solve_ivp
+
+    from nurbsmotion.interpolators.planned.disturbance import DOB_ROWS, _observe
+    from nurbsmotion.interpolators.planned.identify import HIST_ROWS, _drive_weights
+    from nurbsmotion.interpolators.planned.inverse import axis_zoh
+
+    m = die_bonder()
+    a, b0, c, b1 = axis_zoh(m)
+    Ts = m.sample_period
+    rng = np.random.default_rng(33)
+    for j in range(2):
+        tau, kc, ke = m.tau[j], m.Kc[j], m.Ke[j]
+        # drives that keep the axis sliding one way (positive speed), as friction needs
+        u = 2.0 + rng.uniform(-1.0, 1.0, 80)
+        d = np.where(np.arange(80) >= 40, disturbance, 0.0)
+        x = np.zeros(2)
+        theta = [0.0]
+        for k in range(80):
+            sol = solve_ivp(lambda t, s: [(-s[0] + kc * (u[k] + d[k])) / tau, ke * s[0]],
+                            (0.0, Ts), x, rtol=1e-11, atol=1e-12)
+            x = sol.y[:, -1]
+            theta.append(x[1])
+        p1, p2, p3 = _drive_weights(a[j], b0[j], c[j], b1[j], 0.0)
+        dob = np.zeros((DOB_ROWS, 2))
+        hist = np.zeros((HIST_ROWS, 2))
+        # the identification's memory (:func:`.identify._identify`): th[k-1], dth[k-1],
+        # u[k-1], u[k-2], u[k-3]; the axis starts at rest
+        hist[2, j], hist[4, j], hist[0, j] = theta[0], 1.0, u[0]
+        for k in range(1, 81):
+            _observe(dob, j, theta[k], hist, a[j], p1, p2, p3, 0.0)
+            hist[3, j], hist[2, j] = theta[k] - hist[2, j], theta[k]
+            hist[5, j], hist[1, j] = hist[1, j], hist[0, j]
+            hist[0, j] = u[k] if k < 80 else 0.0
+            if k <= 40:
+                assert dob[0, j] == 0.0, (j, k)
+            if 43 <= k < 80:
+                assert abs(dob[0, j] - disturbance) < 1e-6, (j, k, dob[0, j])
+        # a count's residual within the dead zone leaves the estimate as it is
+        before = dob[0, j]
+        _observe(dob, j, hist[2, j] + a[j] * hist[3, j] + (p1 * hist[0, j] + p2 * hist[1, j])
+                 + (p1 + p2) * before + 1.0, hist, a[j], p1, p2, p3, 1.5)
+        assert dob[0, j] == before
