@@ -1,13 +1,17 @@
-"""The online step's disturbance observer (:mod:`.step`, the tracking): the drive the axis
-gets besides the one asked for, estimated from every position increment on the identified
-plant (:func:`_observe`), kept per direction of the plan's motion so that Coulomb
-friction's sign is fed forward before the axis moves or reverses (:func:`_for_direction`).
-docs/model.md#planned-on-a-real-machine says why this design.
+"""The online step's disturbance observer (:mod:`.step`, the tracking; opt-in,
+``PlannedPlan.disturbance_observer``): the axis' speed, position and the drive d it gets
+besides the one asked for, estimated by a deadbeat current estimator on the model's plant
+(:func:`observer_gains`, :func:`_observe`), d fed forward per direction of the plan's
+motion so that Coulomb friction's sign is fed forward before the axis reverses
+(:func:`_for_direction`), and the deviation d made before it was estimated kept apart
+and rejected deadbeat (:func:`_made`, :func:`_rejected`).
+docs/model.md#planned-on-a-real-machine says why this design, and gives the lower bound of
+a load step's deviation.
 
 Glossary
 --------
 d : the input-equivalent disturbance [V] (a load, Coulomb friction while the axis moves one
-way), added to the drive u [V]; dth : position increment over a sample [pulse]; sigma : the
+way), added to the drive u [V]; nu : the reading's innovation [pulse]; sigma : the
 direction of the plan's motion of an axis (-1, 0 at rest, +1).
 """
 
@@ -15,13 +19,29 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
-DOB_ROWS = 9
+DOB_ROWS = 14
 """Rows of the observer's state per axis: 0 the estimate d [V] in force; 1 whether any
-increment has moved it (0: never, so it is exactly 0 and the step is the one without an
-observer); 2 the direction of the plan's motion it is the estimate of (-1, 0, +1); 3-5 the
-last estimate in each direction (-1, 0, +1) [V]; 6-8 whether each was observed."""
+reading has moved the observer off the model's prediction (0: never, so d is exactly 0
+and the step is the one without an observer); 2 the direction of the plan's motion d is
+the estimate of (-1, 0, +1); 3-5 the last estimate in each direction (-1, 0, +1) [V]; 6-8
+whether each was observed; 9 and 10 the plant's speed [rad/s] and position [pulse]
+estimated at this sample (:func:`_observe`); 11 and 12 the deviation the disturbance
+made before it was estimated, as the tracking sees it (at the state the next drive meets:
+position [pulse], speed [rad/s], plan minus plant), which the tracking rejects at
+:data:`REJECTION_POLE` (:func:`_made`, :func:`_rejected`); 13 1 once the observer has
+started (on the first reading, the axis at rest)."""
+
+REJECTION_POLE = 0.0
+"""The pole at which the tracking rejects the deviation a disturbance made before the
+observer had it (rows 11-12 of :data:`DOB_ROWS`): 0, deadbeat, two samples. That
+deviation is the observer's own record (its corrections times the model's response), not
+a reading, so no count or noise is in it; from the state a drive step delta made in one
+sample, the deadbeat drives of the model's form are -2*delta and +delta whatever the
+plant (a near-integrating axis: A ~ [[1, 0], [c, 1]], B ~ (b0, c*b0/2)), so it asks
+about twice the disturbance's step. The plan's own deviation keeps ``tracking_pole``."""
 
 ROUNDING_FLOOR = 1e-6
 """The observer's least dead zone [pulse]: a residual of a position increment within it
@@ -29,8 +49,6 @@ is the double's rounding of the plant's and the model's arithmetic (positions of
 1e8 pulses round to 1e-8), not a drive; on the die bonder 1e-6 pulse is 3e-8 V of
 disturbance. An exact reading of the model's own plant thus leaves the estimate at
 exactly 0 and the run bit for bit the one without an observer."""
-
-DOB_GAIN = 1.0
 
 REST_SPEED = 0.01
 """The plan rests an axis (sigma = 0) where its speed would move it less than this
@@ -41,36 +59,95 @@ move from rest passes it within its first sample (a drive of 0.01/b1 V, 1.6 mV o
 die bonder's x axis, does)."""
 
 
-@njit(cache=True)
-def _observe(dob, j, position, hist, a, p1, p2, p3, dead_zone):
-    """Update axis j's disturbance estimate from the position measured now, before the
-    identification takes it (:func:`.identify._identify`, whose memory ``hist`` and
-    estimate ``est`` it reads: th[k-1], dth[k-1], u[k-1], u[k-2], u[k-3] and the identified
-    (a, p1, p2, p3)).
+def observer_gains(a, b0, c, b1) -> np.ndarray:
+    """The deadbeat gains ``(L_w, L_th, L_d)`` of :func:`_observe` per axis, shape (3,
+    n_axes) [rad/s/pulse, 1, V/pulse]: the current estimator of the model's plant with a
+    constant unknown drive d, ``x = (w, th, d)``, ``x[k+1] = F x[k] + G u`` with ``F =
+    [[a, 0, b0], [c, 1, b1], [0, 0, 1]]`` and the position read, ``x+ = x- + L*(th -
+    th-)``, whose error ``(I - L*C)*F`` has all three poles at 0 (Ackermann's formula
+    for the dual, ``L = F^3 O^-1 e3`` with ``O = [C F; C F^2; C F^3]``): any error of the
+    model's form, a step of d included, is gone three samples after it arose. The drive's
+    known delay is an input, not in F: the gains are the undelayed plant's. ``L_th`` is 1
+    (the position estimated is the one read)."""
+    out = []
+    for v in zip(*(np.atleast_1d(np.asarray(x, dtype=float)) for x in (a, b0, c, b1))):
+        aj, b0j, cj, b1j = v
+        F = np.array([[aj, 0.0, b0j], [cj, 1.0, b1j], [0.0, 0.0, 1.0]])
+        C = np.array([0.0, 1.0, 0.0])
+        O = np.vstack([C @ F, C @ F @ F, C @ F @ F @ F])
+        out.append(np.linalg.matrix_power(F, 3) @ np.linalg.solve(O, np.array([0.0, 0.0, 1.0])))
+    return np.array(out).T.reshape(3, -1)
 
-    The increment of every plant of the model's form obeys ``dth[k] = a*dth[k-1] +
-    p1*(u[k-1] + d) + p2*(u[k-2] + d) + p3*(u[k-3] + d)`` for a drive d constant over the
-    last three samples (:func:`.identify._identify`); its residual with the estimate in
-    force, beyond the reading's ``dead_zone`` [pulse] (at least :data:`ROUNDING_FLOOR`),
-    is the disturbance's change times ``S = p1 + p2 + p3`` (the identified S, within
-    ``gain_range`` of the model's ``s_model``), and the estimate takes all of it: the
-    observer's pole is at 0 (deadbeat: the increment equation holds exactly with the new
-    estimate). A residual the reading alone can make leaves it as it is: one count cannot
-    throw it (the dead-zone update of bounded noise, as the identification's)."""
-    if hist[4, j] == 0.0:
-        return
-    dth = position - hist[2, j]
+
+@njit(cache=True)
+def _observe(dob, j, position, hist, a, b0, c, b1, g0w, g0th, g1w, g1th, gain, dead_zone):
+    """Update axis j's estimate of its speed, position and the drive d it gets besides u
+    (rows 9, 10, 0) from the position measured now, before the identification takes it
+    (:func:`.identify._identify`, whose memory ``hist`` it reads: u[k-1], u[k-2]; the
+    loop starts at rest, so on the first reading the estimate is that reading at rest).
+    Returns the correction's innovation [pulse] (0: none).
+
+    Prediction on the model's plant, the drives through its known delay (``g0w, g0th,
+    g1w, g1th``, :func:`.identify._delayed_zoh`) and d on the plant itself (``b0, b1``),
+    then the reading's innovation beyond the reading's ``dead_zone`` [pulse] (at least
+    :data:`ROUNDING_FLOOR`) corrects all three with the deadbeat ``gain`` (L_w, L_th, L_d)
+    (:func:`observer_gains`). An innovation the reading alone can make leaves the
+    prediction as it is: one count cannot throw the estimate (the dead-zone update of
+    bounded noise, as the identification's); on the model's own plant read exactly every
+    innovation is the double's rounding, so nothing moves. d is corrected only while the
+    axis moves (its increment beyond the dead zone): a still axis is held by friction with
+    whatever drive it has, up to the stiction, and d read there wound up like an integral
+    (stick-slip of a resting axis). Returns 0 then too (no deviation is recorded)."""
+    if dob[13, j] == 0.0:
+        dob[13, j] = 1.0
+        dob[9, j] = 0.0
+        dob[10, j] = position
+        return 0.0
+    w, th, d = dob[9, j], dob[10, j], dob[0, j]
+    u1, u2 = hist[0, j], hist[1, j]
+    th_p = th + c * w + g0th * u1 + g1th * u2 + b1 * d
+    w_p = a * w + g0w * u1 + g1w * u2 + b0 * d
+    nu = position - th_p
     zone = max(dead_zone, ROUNDING_FLOOR)
-    if dth * hist[3, j] <= 0.0 or abs(dth) <= zone:
-        return   # at rest, stopping or reversing: friction is no constant drive there
-    d = dob[0, j]
-    r = (position - hist[2, j] - a * hist[3, j] - p1 * (hist[0, j] + d)
-         - p2 * (hist[1, j] + d) - p3 * (hist[5, j] + d))
-    if abs(r) <= zone:
-        return
-    r -= math.copysign(zone, r)
-    dob[0, j] = d + DOB_GAIN * r / (p1 + p2 + p3)
-    dob[1, j] = 1.0
+    if abs(nu) <= zone:
+        nu = 0.0
+    else:
+        nu -= math.copysign(zone, nu)
+        dob[1, j] = 1.0
+    dob[9, j] = w_p + gain[0, j] * nu
+    dob[10, j] = th_p + gain[1, j] * nu
+    dth = position - hist[2, j]
+    if abs(dth) <= zone:
+        # at rest, stopping or reversing friction is no constant drive (it holds the axis
+        # with whatever the drive is, up to the stiction): the state follows the reading,
+        # d stays the one the axis slid with
+        return 0.0
+    dob[0, j] = d + gain[2, j] * nu
+    return nu
+
+
+@njit(cache=True)
+def _made(dob, j, nu, gain, a_h, b0_h, c_h, b1_h):
+    """Add to axis j's record of the deviation the disturbance made (rows 11-12, plan
+    minus plant) what the observer's correction by the innovation ``nu`` [pulse] found
+    (``gain``, :func:`observer_gains`), carried over the model's delay to the state the
+    next drive meets (the model's plant over the delay ``a_h, b0_h, c_h, b1_h``; 1, 0, 0,
+    0 without one: the estimate is fed forward from the next drive on)."""
+    dw, dth, dd = gain[0, j] * nu, gain[1, j] * nu, gain[2, j] * nu
+    dob[11, j] -= dth + c_h * dw + b1_h * dd
+    dob[12, j] -= a_h * dw + b0_h * dd
+
+
+@njit(cache=True)
+def _rejected(dob, j, a, b0, c, b1, k_th, k_w):
+    """Axis j's drive [V] that rejects the deviation the disturbance made (rows 11-12,
+    plan minus plant, gains ``k_th``, ``k_w`` at :data:`REJECTION_POLE`), and that record
+    advanced over the sample under it on the model's plant (a, b0, c, b1)."""
+    e_th, e_w = dob[11, j], dob[12, j]
+    v = k_th * e_th + k_w * e_w
+    dob[11, j] = e_th + c * e_w - b1 * v
+    dob[12, j] = a * e_w - b0 * v
+    return v
 
 
 @njit(cache=True)
