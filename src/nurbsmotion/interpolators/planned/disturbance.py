@@ -76,7 +76,8 @@ def observer_gains(a, b0, c, b1) -> np.ndarray:
         C = np.array([0.0, 1.0, 0.0])
         O = np.vstack([C @ F, C @ F @ F, C @ F @ F @ F])
         out.append(np.linalg.matrix_power(F, 3) @ np.linalg.solve(O, np.array([0.0, 0.0, 1.0])))
-    return np.array(out).T.reshape(3, -1)
+    # C order, as every other plan array (one compiled signature for the loop)
+    return np.ascontiguousarray(np.array(out, dtype=float).T.reshape(3, -1))
 
 
 @njit(cache=True)
