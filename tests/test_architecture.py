@@ -56,6 +56,7 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                        "interpolators.planned.landing", "interpolators.planned.shorten",
                        "interpolators.planned.identify", "interpolators.planned.governor",
                        "interpolators.planned.guards", "interpolators.planned.step",
+                       "interpolators.planned.disturbance",
                        "interpolators.planned.shaper", "interpolators.planned.mode_law",
                        "interpolators.planned.rest_observer",
                        "interpolators.planned.interpolator", "interpolators.replay"),

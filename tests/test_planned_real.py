@@ -242,3 +242,96 @@ def test_landing_has_no_describing_function_limit_cycle(changes):
                 loop = _rest_loop(m.tau[j], m.Kc[j], m.Ke[j], m.sample_period, gains,
                                   min(observer[1, j], 0.7), g, e)
                 assert np.max(np.abs(np.linalg.eigvals(loop))) < 1.0, (j, g, e)
+
+def _sampled_axis(m, j):
+    """The die bonder's axis j sampled by scipy (ZOH): a, b0, c, b1 of x[k+1] = [[a, 0],
+    [c, 1]] x[k] + [b0, b1] u[k], x = (w, theta)."""
+    from scipy.signal import cont2discrete
+
+    tau, kc, ke = m.tau[j], m.Kc[j], m.Ke[j]
+    Ad, Bd, *_ = cont2discrete((np.array([[-1 / tau, 0.0], [ke, 0.0]]),
+                                np.array([[kc / tau], [0.0]]), np.eye(2), np.zeros((2, 1))),
+                               m.sample_period)
+    return Ad[0, 0], Bd[0, 0], Ad[1, 0], Bd[1, 0]
+
+
+def test_disturbance_observer_gains_are_deadbeat():
+    """:func:`~nurbsmotion.interpolators.planned.disturbance.observer_gains` put every
+    pole of the current estimator's error (I - L*C)*F at 0: (I - L*C)*F cubed vanishes, F
+    built from the plant sampled by scipy; and the position estimated is the one read
+    (L_th = 1)."""
+    from nurbsmotion.interpolators.planned.disturbance import observer_gains
+
+    m = die_bonder()
+    for j in range(2):
+        a, b0, c, b1 = _sampled_axis(m, j)
+        L = observer_gains(a, b0, c, b1)[:, 0]
+        F = np.array([[a, 0.0, b0], [c, 1.0, b1], [0.0, 0.0, 1.0]])
+        M = (np.eye(3) - np.outer(L, [0.0, 1.0, 0.0])) @ F
+        np.testing.assert_allclose(np.linalg.matrix_power(M, 3), 0.0, atol=1e-9)
+        assert L[1] == pytest.approx(1.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("disturbance, phase", [(0.5, 0.0), (-0.3, 0.0), (0.5, 0.6)])
+def test_disturbance_observer_reads_the_drive_the_plant_got(disturbance, phase):
+    """The disturbance observer (:func:`nurbsmotion.interpolators.planned.disturbance._observe`)
+    on the die bonder's axes, read against an independent plant: the continuous axis
+    tau*dw/dt = -w + Kc*(u + d), dth/dt = Ke*w integrated by scipy's solve_ivp (rtol 1e-11)
+    under random drives held over each sample, with a drive d the model does not know (a
+    0.5 V load; Coulomb friction of -0.3 V on an axis sliding one way) from ``phase`` of a
+    sample after sample 40 on. Before it the estimate stays exactly 0 (the reading is
+    exact, every innovation within the rounding floor); three samples after it the
+    estimate is d to 1e-6 V and the speed estimate the plant's (deadbeat); an innovation
+    within the dead zone leaves the estimate as it is."""
+    from scipy.integrate import solve_ivp
+
+    from nurbsmotion.interpolators.planned.disturbance import (DOB_ROWS, _observe,
+                                                               observer_gains)
+    from nurbsmotion.interpolators.planned.identify import HIST_ROWS
+
+    m = die_bonder()
+    Ts = m.sample_period
+    rng = np.random.default_rng(33)
+    for j in range(2):
+        tau, kc, ke = m.tau[j], m.Kc[j], m.Ke[j]
+        a, b0, c, b1 = _sampled_axis(m, j)
+        gain = np.repeat(observer_gains(a, b0, c, b1), 2, axis=1)   # column j: this axis
+        u = 2.0 + rng.uniform(-1.0, 1.0, 80)   # the axis slides one way (friction's sign)
+
+        def rhs(t, s, v):
+            return [(-s[0] + kc * v) / tau, ke * s[0]]
+
+        x = np.zeros(2)
+        theta, speed = [0.0], [0.0]
+        for k in range(80):
+            if k == 40:
+                mid = solve_ivp(rhs, (0.0, phase * Ts), x, args=(u[k],), rtol=1e-11,
+                                atol=1e-12).y[:, -1] if phase else x
+                x = solve_ivp(rhs, (phase * Ts, Ts), mid, args=(u[k] + disturbance,),
+                              rtol=1e-11, atol=1e-12).y[:, -1]
+            else:
+                v = u[k] + (disturbance if k > 40 else 0.0)
+                x = solve_ivp(rhs, (0.0, Ts), x, args=(v,), rtol=1e-11, atol=1e-12).y[:, -1]
+            theta.append(x[1])
+            speed.append(x[0])
+        dob = np.zeros((DOB_ROWS, 2))
+        hist = np.zeros((HIST_ROWS, 2))
+        _observe(dob, j, theta[0], hist, a, b0, c, b1, b0, b1, 0.0, 0.0, gain, 0.0)
+        hist[2, j], hist[4, j] = theta[0], 1.0
+        for k in range(1, 81):
+            hist[1, j], hist[0, j] = hist[0, j], u[k - 1]
+            _observe(dob, j, theta[k], hist, a, b0, c, b1, b0, b1, 0.0, 0.0,
+                     gain, 0.0)
+            hist[3, j], hist[2, j] = theta[k] - hist[2, j], theta[k]
+            if k <= 40:
+                assert dob[0, j] == 0.0 and dob[1, j] == 0.0, (j, k)
+            if k >= 44:
+                assert abs(dob[0, j] - disturbance) < 1e-6, (j, k, dob[0, j])
+                assert abs(dob[9, j] - speed[k]) < 1e-5 * abs(speed[k]), (j, k)
+        # an innovation within the dead zone (one count) leaves the estimate as it is
+        before = dob[0, j]
+        hist[1, j], hist[0, j] = hist[0, j], u[-1]
+        predicted = (dob[10, j] + c * dob[9, j] + b1 * (u[-1] + before))
+        _observe(dob, j, predicted + 1.0, hist, a, b0, c, b1, b0, b1, 0.0, 0.0,
+                 gain, 1.5)
+        assert dob[0, j] == before

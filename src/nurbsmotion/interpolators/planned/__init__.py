@@ -77,7 +77,9 @@ tha : measured position [pulse]; w : motor speed [rad/s]; Ts : sample period [s]
 One module per idea: :mod:`.plan` (the offline plan, its steps 1-6 in its docstring) with
 :mod:`.blend` (steps 1-2), :mod:`.inverse` (3), :mod:`.landing` (5) and :mod:`.shorten`
 (6); the online step :mod:`.step` with :mod:`.identify` (its step 1), :mod:`.governor` (2)
-and :mod:`.guards` (3), :mod:`.mode_law` and :mod:`.rest_observer` (3'); :mod:`.interpolator`:
+and :mod:`.guards` (3), :mod:`.disturbance` (3, opt-in: a deadbeat disturbance observer fed
+forward, its deviation rejected deadbeat), :mod:`.mode_law` and :mod:`.rest_observer` (3');
+:mod:`.interpolator`:
 the plan and state the step reads, and the interpolator, which registers the step with the
 loop.
 """

@@ -17,6 +17,7 @@ from ...feed import FeedLimit
 from ...machine import Machine
 from ...nurbs import NurbsCurve
 from ..base import Interpolator, positive_feed
+from .disturbance import DOB_ROWS, observer_gains
 from .governor import RATE_BISECTIONS, RATE_WINDOW, SUPPORT_BLOCK, SUPPORT_DIRECTIONS, _support
 from .guards import _sample_extremes, _stop_guards
 from .identify import (EST_ROWS, GAIN_RANGE, HIST_ROWS, N_PARAMETERS, _drive_weights,
@@ -85,6 +86,11 @@ class PlannedPlan(NamedTuple):
     # (REST_OBSERVER_ROWS, n_axes): per rigid axis whose model's reading is not exact, 1 and
     # the pole of the landing's speed observer (.rest_observer.rest_observer); zeros: none
     rest_observer: np.ndarray = np.zeros((REST_OBSERVER_ROWS, 0))
+    # feed the disturbance observer's estimate forward in the tracking (.disturbance;
+    # opt-in, work in progress: docs/model.md#planned-on-a-real-machine)
+    disturbance_observer: bool = False
+    # (3, n_axes): the disturbance observer's deadbeat gains (.disturbance.observer_gains)
+    disturbance_gain: np.ndarray = np.zeros((3, 0))
 
 
 class PlannedState(NamedTuple):
@@ -104,6 +110,8 @@ class PlannedState(NamedTuple):
     support: np.ndarray
     gains: np.ndarray
     landing: np.ndarray
+    # (DOB_ROWS, n_axes): the disturbance observer's estimates (.disturbance)
+    disturbance: np.ndarray
 
 
 class PlannedInterpolator(Interpolator):
@@ -154,6 +162,15 @@ class PlannedInterpolator(Interpolator):
         gets its plan's *time law* shaped (:func:`.shaper.time_law_shaper`) and the
         model's twist taken off the reading (``PlannedPlan.twist``); with it the axes are
         shaped on top of that (docs/model.md#planned-on-a-real-machine).
+    disturbance_observer : bool
+        Estimate the axis' speed, position and the drive it gets besides the one asked for
+        (a load, Coulomb friction) with a deadbeat observer on the model's plant, feed
+        that drive forward in the tracking (per direction of the plan's motion), reject
+        the deviation it made before it was estimated deadbeat, and hand its resting part
+        to the landing's integral (:mod:`.disturbance`). Off by default: work in progress
+        (issue 33); on item 1 it cuts the friction's contour from 109-131 to 8-30 um and
+        the load's from 200-221 to 14-27 um, but lengthens the load's settle on the Pi and
+        its chatter at rest (docs/model.md#planned-on-a-real-machine).
 
     Raises
     ------
@@ -175,7 +192,8 @@ class PlannedInterpolator(Interpolator):
                  tracking_pole: float = DEFAULT_TRACKING_POLE,
                  drive_headroom: float = DEFAULT_DRIVE_HEADROOM, grid_size: int = 4000,
                  max_samples: int = 10_000_000, mode_shaper: bool = False,
-                 shorten_work: float = DEFAULT_SHORTEN_WORK):
+                 shorten_work: float = DEFAULT_SHORTEN_WORK,
+                 disturbance_observer: bool = False):
         machine.check_path(curve.n_axes)
         super().__init__(curve, machine.sample_period)
         feed = feed if isinstance(feed, FeedLimit) else positive_feed(feed)
@@ -240,7 +258,7 @@ class PlannedInterpolator(Interpolator):
             a=a, b0=b0, c=c, b1=b1, log_a=np.log(a), headroom=self.drive_headroom,
             # the clock's rate changes at most as fast as a deviation decays
             rate_gain=1.0 - self.tracking_pole, rest=rest, guards=guards,
-            guard_offsets=guard_offsets,
+            guard_offsets=guard_offsets, disturbance_observer=bool(disturbance_observer),
             **({} if twist is None else dict(twist=twist)),
             **machine_knowledge(machine, a, b0, c, b1, self.tracking_pole))
         release_freed_memory()  # the plan's temporaries, before a long run's peak
@@ -255,7 +273,7 @@ class PlannedInterpolator(Interpolator):
         return PlannedState(np.zeros(1), np.ones(1), np.zeros(1), _prior_estimate(self.plan, self.machine.max_drive),
                             np.zeros((HIST_ROWS, n)), np.empty(n), np.empty(n), np.empty(n),
                             np.empty((n, SUPPORT_DIRECTIONS)), np.empty((2, n)),
-                            np.zeros((LANDING_ROWS, n)))
+                            np.zeros((LANDING_ROWS, n)), np.zeros((DOB_ROWS, n)))
 
 
 def _example(n_axes: int):
@@ -269,7 +287,7 @@ def _example(n_axes: int):
                        np.zeros(2, np.int64), *(f(n) for _ in range(5)), 0.0, 0.0, 0,
                        f(1, 4), np.zeros(n + 1, np.int64))
     state = PlannedState(f(1), f(1), f(1), f(EST_ROWS, n), f(HIST_ROWS, n), f(n), f(n),
-                         f(n), f(n, d), f(2, n), f(LANDING_ROWS, n))
+                         f(n), f(n, d), f(2, n), f(LANDING_ROWS, n), f(DOB_ROWS, n))
     return plan, state
 
 
@@ -298,6 +316,8 @@ def machine_knowledge(machine: Machine, a, b0, c, b1, tracking_pole: float) -> d
       the mode, its delay and the model's tau, Kc and mode each +-10 % off
       (``mode_law``, :func:`.mode_law.mode_landing_law`); the rigid placement on the
       identified plant left the mode unplaced and limit-cycled at rest.
+    - ``disturbance_gain``: the opt-in disturbance observer's deadbeat gains on the
+      model's plant (:func:`.disturbance.observer_gains`).
     - On a rigid axis whose model's reading is not exact (counts, noise), the landing's
       speed comes from an observer whose poles are the machine's own loop's slowest
       (``rest_observer``, :func:`.rest_observer.rest_observer`): from one increment, a
@@ -306,7 +326,8 @@ def machine_knowledge(machine: Machine, a, b0, c, b1, tracking_pole: float) -> d
     return dict(known, delay=machine.delay / machine.sample_period,
                 landing_pole=float(tracking_pole),
                 mode_law=mode_landing_law(machine, tracking_pole),
-                rest_observer=rest_observer(machine, known["landing_band"]))
+                rest_observer=rest_observer(machine, known["landing_band"]),
+                disturbance_gain=observer_gains(a, b0, c, b1))
 
 
 def _path_steps(desired: np.ndarray) -> np.ndarray:

@@ -13,11 +13,14 @@ from numba import njit
 
 from ... import stepping
 from ...control import pid_affine, pid_output
+from .disturbance import (REJECTION_POLE, ROUNDING_FLOOR, _direction, _for_direction, _hold,
+                          _made, _observe, _rejected)
 from .governor import _demand, _rate_room, _support_at, _window_rate
 from .guards import _guarded, _short_of_stop
 from .shaper import twist_at
-from .identify import (LAW_ROWS, _delayed_zoh, _estimated_delayed_plant, _estimated_plant,
-                       _identify, _landing_law, _plant_part, _pole_gains)
+from .identify import (LAW_ROWS, _delayed_zoh, _estimated_delayed_plant,
+                       _estimated_plant, _identify, _landing_gains, _landing_law, _plant_part,
+                       _pole_gains)
 from .rest_observer import observer_gains
 
 __all__ = ["online_step", "planned_step", "LANDING_ROWS"]
@@ -131,7 +134,8 @@ def online_step(plan, state, position, umax, out_setpoint):
     phi, rate, excess_prev = state.phi[0], state.rate[0], state.excess[0]
     est, hist, support, gains = state.est, state.hist, state.support, state.gains
     slope, offset, out_drive = state.slope, state.offset, state.drive
-    landing = state.landing
+    landing, dob = state.landing, state.disturbance
+    observer = plan.disturbance_observer
     plan_position, plan_drive_speed = plan.position, plan.drive_speed
     plan_drive_accel = plan.drive_accel
     a, b0, c, b1, log_a = plan.a, plan.b0, plan.c, plan.b1, plan.log_a
@@ -144,6 +148,25 @@ def online_step(plan, state, position, umax, out_setpoint):
     i0 = min(int(phi), n - 1)
     i1 = min(i0 + 1, n - 1)
     f = phi - i0 if i1 > i0 else 0.0
+    # 1a'. with plan.disturbance_observer (opt-in), the disturbance observer first, on
+    # the model's plant (:func:`.disturbance._observe`; not on an axis whose model
+    # declares a mode)
+    d_most = 0.0
+    for j in range(n_axes):
+        if observer and plan.mode_law[0, j] == 0.0:
+            g0w, g0th, g1w, g1th = _delayed_zoh(a[j], b0[j], c[j], b1[j], delay)
+            nu = _observe(dob, j, position[j], hist, a[j], b0[j], c[j], b1[j], g0w, g0th,
+                          g1w, g1th, plan.disturbance_gain, dead_zone)
+            if nu != 0.0:
+                # the deviation the observer found, at the state the next drive meets
+                if delay > 0.0:
+                    ah, b0h, ch, b1h = _plant_part(a[j], b0[j], c[j], b1[j], delay)
+                else:
+                    ah, b0h, ch, b1h = 1.0, 0.0, 0.0, 0.0
+                _made(dob, j, nu, plan.disturbance_gain, ah, b0h, ch, b1h)
+            d_most = max(d_most, abs(dob[0, j]))
+    # the drive the governor may plan with: Umax less the largest disturbance fed forward
+    room = umax - d_most
     # 1a. identify the plant's exact sampled model from the measured positions and the
     # drives applied (recursive least squares, see :func:`_identify`)
     r_tail = 1.0
@@ -156,7 +179,7 @@ def online_step(plan, state, position, umax, out_setpoint):
         # from the window's end to the next stop: |ga*A*r^2 + gv*V*r| <= (1 - headroom)*Umax
         # at every sample there; the plan itself may use the full drive, the headroom
         # applies beyond the model
-        limit = max((1.0 - headroom) * umax, _demand(support, j, 1.0, 1.0))
+        limit = max((1.0 - headroom) * room, _demand(support, j, 1.0, 1.0))
         if _demand(support, j, ga, gv) > limit:
             lo, hi = 0.0, 1.0
             for _ in range(bisections):
@@ -168,7 +191,7 @@ def online_step(plan, state, position, umax, out_setpoint):
             r_tail = min(r_tail, lo)
     # 2b. sample by sample over the window, slowing down only as late as the drive can
     target = _window_rate(i0, r_tail, gains, a, plan_drive_speed, plan_drive_accel,
-                          headroom, umax, plan.rate_window)
+                          headroom, room, plan.rate_window)
     # 2c. governor: towards that rate, slower after a drive demand beyond Umax, changing
     # no faster than the drive left at the clock can change the plant's speed
     if excess_prev > 0.0:
@@ -179,7 +202,7 @@ def online_step(plan, state, position, umax, out_setpoint):
         V = plan_drive_speed[i0, j] * (1.0 - f) + plan_drive_speed[i1, j] * f
         cost = gains[0, j] * abs(V) / (1.0 - a[j])
         if cost > 0.0:
-            limit = max((1.0 - headroom) * umax, abs(A + V))
+            limit = max((1.0 - headroom) * room, abs(A + V))
             slow, fast = _rate_room(gains[0, j] * A * rate * rate + gains[1, j] * V * rate,
                                     V, limit)
             down = min(down, slow / cost)
@@ -201,6 +224,8 @@ def online_step(plan, state, position, umax, out_setpoint):
         # the axis moves one way: the regression's delta = (p1 + p2 + p3)*d [pulse])
         th = plan_position[i0, j] * (1.0 - f) + plan_position[i1, j] * f
         moded = plan.mode_law[0, j] != 0.0
+        # the disturbance observer acts in the tracking (the landing has its integral)
+        tracked = observer and not moded and phi < rest
         if moded:
             # a mode declared: the model's plant, the laws designed with its mode on it
             # (:func:`.mode_law.mode_landing_law`; a rigid regression reads the mode's
@@ -214,6 +239,10 @@ def online_step(plan, state, position, umax, out_setpoint):
             else:
                 ae, b0e, ce, b1e = _estimated_plant(est, j, b0[j], gains[0, j])
             d = est[4, j] / (b1e + ce * b0e - ae * b1e)
+            if tracked and dob[1, j] != 0.0:
+                # the observer's, once it has seen a disturbance: on the model's plant
+                ae, b0e, ce, b1e = a[j], b0[j], c[j], b1[j]
+                d = dob[0, j]
         u1, u2 = hist[0, j] + d, hist[1, j] + d
         g0w, g0th, g1w, g1th = _delayed_zoh(ae, b0e, ce, b1e, delay)
         # a mode declared: what the encoder reads of the model's twist under the plan's
@@ -226,6 +255,8 @@ def online_step(plan, state, position, umax, out_setpoint):
         w_last = (hist[3, j] - tw_step - g0th * u1 - g1th * u2) / ce
         w_now = ae * w_last + g0w * u1 + g1w * u2
         th_now = position[j] - tw_now
+        if tracked and dob[1, j] != 0.0:
+            w_now, th_now = dob[9, j], dob[10, j]   # the observer's state (.disturbance)
         if delay > 0.0:
             # the state this sample's drive will meet, `delay` samples on, the last
             # drive acting meanwhile: from there the drive acts for a whole sample, so the
@@ -260,6 +291,13 @@ def online_step(plan, state, position, umax, out_setpoint):
                 else:
                     _landing_law(ae, b0e, ce, b1e, delay, plan.landing_pole,
                                  landing[1:LAW_ROWS + 1, j])
+                    if observer and dob[1, j] != 0.0:
+                        # the observer's estimate for an axis at rest handed to the
+                        # integral (:func:`.disturbance._for_direction`: the part of d
+                        # that is no friction; at rest friction holds, it does not
+                        # push: handing over the sliding estimate, Coulomb included,
+                        # pushed the axis past the end, the Pi at 2 m/s 10 x the bound)
+                        landing[14, j] = -_for_direction(dob, j, 0.0) / landing[13, j]
                 if rested:
                     # the observer starts on the reading and the speed of the last
                     # increment and drives (the tracking's w_now), its gains on the
@@ -345,7 +383,31 @@ def online_step(plan, state, position, umax, out_setpoint):
                 kpe, kde = plan.mode_law[LAW_ROWS + 1, j], plan.mode_law[LAW_ROWS + 2, j]
             else:
                 kpe, kde = _pole_gains(ae, b0e, ce, b1e, 1.0 - rate_gain)
-            u = uf + kpe * e_th + kde * e_w
+            if observer and not moded:
+                # the deviation the disturbance made before the observer had it is
+                # rejected at REJECTION_POLE, the rest (the plan's) at the tracking pole
+                kf_th, kf_w = _pole_gains(a[j], b0[j], c[j], b1[j], REJECTION_POLE)
+                u = (uf + kpe * (e_th - dob[11, j]) + kde * (e_w - dob[12, j])
+                     + _rejected(dob, j, a[j], b0[j], c[j], b1[j], kf_th, kf_w))
+            else:
+                u = uf + kpe * e_th + kde * e_w
+            if observer and not moded:
+                # the disturbance fed forward (plan.disturbance_observer): the estimate
+                # for the direction the plan moves the axis in at the next clock, where
+                # the plan rests it the axis' own (friction acts until it stops), and at
+                # rest held short of the plan the error's integral
+                # (:mod:`.disturbance`)
+                ke_ts = b1[j] * (1.0 - a[j]) / b0[j] + c[j]   # Ke*Ts [pulse/(rad/s)]
+                sigma = _direction(w_next, ke_ts)
+                if sigma == 0.0:
+                    sigma = _direction(w_now, ke_ts)
+                d_ff = _for_direction(dob, j, sigma)
+                if sigma == 0.0:
+                    _hold(dob, j, e_th, hist[3, j],
+                          _landing_gains(a[j], b0[j], c[j], b1[j], 1.0 - rate_gain)[2],
+                          max(band, ROUNDING_FLOOR))
+                    d_ff = dob[0, j]
+                u -= d_ff
         if abs(u) > umax:
             excess = max(excess, abs(u) / umax - 1.0)
             u = umax if u > 0 else -umax
