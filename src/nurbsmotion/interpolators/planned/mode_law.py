@@ -14,6 +14,20 @@ continuous model :func:`nurbsmotion.plant.continuous_model`, the drive arriving 
 delay late) is formed at every corner of the model's uncertainty (:data:`MODEL_SPREAD`),
 and the gains minimise the largest pole radius over all corners (Nelder-Mead on the
 logarithms of the gains, from the rigid placement slowed along the pole's path).
+
+On a reading that is not exact (encoder counts, measurement noise: the landing's band > 0)
+the law's speed from the last position increment turns a count, or the noise, into a
+speed of a count per sample: on a fast sampled axis (Ts 0.1-0.5 ms) the designed law
+answered one count with 1-4.5 V and chattered at rest up to its drive limit (item 4 of
+issue 33: cases 12, 18, 81). There the landing takes its speed from the observer the rigid
+axes use (:mod:`.rest_observer`: the model's rigid plant advanced by the drives applied and
+corrected by a share of the reading's innovation), and the law's gains are designed with
+that observer inside the loop (:func:`observer_landing_loop`) on the same corners. An
+observer filters a count the more the slower it is, but its lag slows the landing the
+mode allows (on die-bonder-real, at 0.7 the best radius over the corners is 0.992, 0.914
+without): the slowest observer is taken whose law is no slower than the law without it
+or the machine's own loop, whichever is slower (:func:`_axis_law`); where none is, the
+law without it is kept (:func:`mode_rest_observer`).
 """
 
 from __future__ import annotations
@@ -26,11 +40,12 @@ import numpy as np
 from ...errors import InfeasibleError
 from ...machine import Machine
 from ...plant import continuous_model
-from ...plant.linear import split_sample
+from ...plant.linear import linear_loop_poles, split_sample
 from .identify import LAW_ROWS, _landing_law, _pole_gains
+from .rest_observer import QUANTISER_GAIN, REST_OBSERVER_ROWS, observer_gains
 
-__all__ = ["mode_landing_law", "landing_loop", "sampled_axis", "uncertainty_corners",
-           "MODEL_SPREAD", "MODE_LAW_ROWS"]
+__all__ = ["mode_landing_law", "landing_loop", "observer_landing_loop", "mode_rest_observer",
+           "sampled_axis", "uncertainty_corners", "MODEL_SPREAD", "MODE_LAW_ROWS"]
 
 MODEL_SPREAD = 0.10
 """How far the true axis may be off the model the law is designed on: tau and Kc within
@@ -131,6 +146,60 @@ def landing_loop(law: np.ndarray, axis, encoder_on: str = "motor",
     return T if integral else T[:nx + 3, :nx + 3]
 
 
+def observer_landing_loop(law: np.ndarray, axis, observer_pole: float,
+                          encoder_on: str = "motor", reading_gain: float = 1.0) -> np.ndarray:
+    """The transition matrix of the landing's linear closed loop with its speed from the
+    observer (:func:`.step.online_step` step 3' on a reading not exact,
+    :func:`.rest_observer.observer_gains` at ``observer_pole`` on the law's rigid plant
+    ``law[0:2]``), about the end, no band, clip or quantiser. With ``u1 = u[k-1]``,
+    ``u2 = u[k-2]`` and the reading ``y = theta_encoder[k]``:
+
+        th_p = th_hat + c*w_hat + g0th*u1 + g1th*u2,  w_p = a*w_hat + g0w*u1 + g1w*u2
+        w_hat' = w_p + m_w*(y - th_p),  th_hat' = th_p + m_theta*(y - th_p)
+        e = -(y + c_h*w_hat' + b1_h*u1),  u = k_theta*e - k_w*(a_h*w_hat' + b0_h*u1) + k_i*z
+        z' = z + e
+
+    State ``[x (nx), u1, u2, z, w_hat, th_hat]``; its eigenvalues are the loop's poles.
+    ``reading_gain`` N: the reading ``N*theta_encoder`` (a quantiser's describing-function
+    gain, :data:`.rest_observer.QUANTISER_GAIN`: a limit cycle through the counts needs
+    the loop unstable at some N the quantiser can have).
+
+    Returns
+    -------
+    ndarray, shape (nx + 5, nx + 5)
+    """
+    Phi, g1, g0 = axis
+    nx = Phi.shape[0]
+    al, cl, g0w, g0th, g1w, g1th, ah, b0h, ch, b1h, kt, kw, ki = law[:LAW_ROWS]
+    m_w, m_th = observer_gains(al, cl, observer_pole)
+    n = nx + 5
+    iu1, iu2, iz, iw, ith = nx, nx + 1, nx + 2, nx + 3, nx + 4
+    y = np.zeros(n)
+    y[1 if (nx == 2 or encoder_on == "motor") else 3] = reading_gain
+    th_p = np.zeros(n)
+    th_p[ith], th_p[iw], th_p[iu1], th_p[iu2] = 1.0, cl, g0th, g1th
+    w_p = np.zeros(n)
+    w_p[iw], w_p[iu1], w_p[iu2] = al, g0w, g1w
+    w_new = w_p + m_w * (y - th_p)
+    th_new = th_p + m_th * (y - th_p)
+    u1 = np.zeros(n)
+    u1[iu1] = 1.0
+    e = -(y + ch * w_new + b1h * u1)
+    z = np.zeros(n)
+    z[iz] = 1.0
+    u = kt * e - kw * (ah * w_new + b0h * u1) + ki * z
+    T = np.zeros((n, n))
+    T[:nx, :nx] = Phi
+    T[:nx, iu1] += g1
+    T[:nx] += np.outer(g0, u)
+    T[iu1] = u
+    T[iu2] = u1
+    T[iz] = z + e
+    T[iw] = w_new
+    T[ith] = th_new
+    return T
+
+
 def uncertainty_corners(tau, Kc, Ke, sample_period, delay, frequency, damping,
                         load_fraction, spread=MODEL_SPREAD) -> list:
     """The sampled axes (:func:`sampled_axis`) at every corner and centre of the model's
@@ -143,8 +212,11 @@ def uncertainty_corners(tau, Kc, Ke, sample_period, delay, frequency, damping,
             for ff in (1.0 / (1.0 + spread), 1.0, 1.0 / (1.0 - spread))]
 
 
-def _radius(law, corners, encoder_on, integral=True) -> float:
-    loops = [landing_loop(law, c, encoder_on, integral) for c in corners]
+def _radius(law, corners, encoder_on, integral=True, observer_pole=None) -> float:
+    if observer_pole is None:
+        loops = [landing_loop(law, c, encoder_on, integral) for c in corners]
+    else:
+        loops = [observer_landing_loop(law, c, observer_pole, encoder_on) for c in corners]
     if not all(np.isfinite(m).all() for m in loops):  # gains beyond a double: unstable
         return math.inf
     return max(float(np.max(np.abs(np.linalg.eigvals(m)))) for m in loops)
@@ -152,7 +224,7 @@ def _radius(law, corners, encoder_on, integral=True) -> float:
 
 @functools.lru_cache(maxsize=64)
 def _designed(tau, Kc, Ke, sample_period, delay, frequency, damping, load_fraction,
-              encoder_on, pole):
+              encoder_on, pole, observer_pole=None):
     from scipy.optimize import minimize
 
     a = math.exp(-sample_period / tau)
@@ -167,7 +239,7 @@ def _designed(tau, Kc, Ke, sample_period, delay, frequency, damping, load_fracti
 
     def radius(gains):
         law[10:13] = gains
-        return _radius(law, corners, encoder_on)
+        return _radius(law, corners, encoder_on, observer_pole=observer_pole)
 
     def descend(radius, rigid, powers):
         # in the gains' logarithms, each keeping the rigid placement's sign (a slow plant's
@@ -207,7 +279,102 @@ def _designed(tau, Kc, Ke, sample_period, delay, frequency, damping, load_fracti
     return tuple(out), worst, track_worst
 
 
-def mode_landing_law(machine: Machine, pole: float) -> np.ndarray:
+OBSERVER_HALVINGS = 4
+"""The observer's poles tried (:func:`_axis_law`): the step's own (``min(loop, pole)``)
+and that halved up to this many times less one, slowest first."""
+
+
+READING_GAINS = (1.0 / (1.0 + MODEL_SPREAD), QUANTISER_GAIN * (1.0 + MODEL_SPREAD))
+"""The reading's gains at which an observed landing must be stable on every corner as
+well (:func:`_axis_law`): a quantiser's describing-function gain is at most
+:data:`.rest_observer.QUANTISER_GAIN` (4/pi), with the model's spread either way (a limit
+cycle through the counts needs the loop unstable at some gain the quantiser can have)."""
+
+
+def _machine_loop_radius(machine: Machine, j: int) -> float:
+    """The largest pole radius of the machine's own rigid loop on axis ``j`` (its law,
+    plant and delay), as :func:`.rest_observer.rest_observer` computes it."""
+    ax, gains = machine.axes[j], machine.pid_gains[j]
+    poles = linear_loop_poles(gains, ax.time_constant, ax.electrical_gain,
+                              ax.mechanical_gain, machine.sample_period,
+                              machine.speed_measurement == "true", machine.delay)
+    return float(np.max(np.abs(poles)))
+
+
+@functools.lru_cache(maxsize=64)
+def _designed_or_none(*args):
+    """:func:`_designed`, or None where no law of its form is stable on every corner."""
+    try:
+        return _designed(*args)
+    except InfeasibleError:
+        return None
+
+
+def _axis_law(machine: Machine, j: int, pole: float, band: float):
+    """Axis ``j``'s designed laws (:func:`_designed`'s result) and the pole of its
+    landing's speed observer (None: the speed from the last increment).
+
+    On an exact reading (``band`` 0) no observer. Otherwise the slowest observer (the
+    most a count or the noise is filtered) whose law, designed with it in the loop, is
+    no slower on every corner than the law without it or the machine's own loop,
+    whichever is slower (the bandwidth the machine's maker gave the loop for this
+    reading: the observer must not cost the landing more), and stable on every corner at
+    the reading's gains :data:`READING_GAINS` too: from the pole the step would
+    take (the machine's loop's radius, no slower than ``pole``) halved up to
+    :data:`OBSERVER_HALVINGS` - 1 times; none where no such observer is found."""
+    ax = machine.axes[j]
+    Ts = machine.sample_period
+    args = (ax.time_constant, ax.electrical_gain, ax.mechanical_gain, Ts, machine.delay / Ts,
+            ax.resonance_frequency, ax.resonance_damping, ax.load_fraction, ax.encoder_on,
+            float(pole))
+    plain = _designed(*args)
+    if not band > 0.0:
+        return plain, None
+    loop = _machine_loop_radius(machine, j)
+    allowed = max(loop, plain[1])
+    start = min(loop, float(pole))
+    corners = uncertainty_corners(*args[:8])
+    for k in range(OBSERVER_HALVINGS):
+        observer_pole = start * 0.5 ** k
+        observed = _designed_or_none(*args, observer_pole)
+        if observed is None or observed[1] > allowed:
+            continue
+        law = np.asarray(observed[0][:LAW_ROWS])
+        if all(np.max(np.abs(np.linalg.eigvals(observer_landing_loop(
+                law, c, observer_pole, ax.encoder_on, gain)))) < 1.0
+               for gain in READING_GAINS for c in corners):
+            return observed, observer_pole
+    return plain, None
+
+
+def mode_rest_observer(machine: Machine, pole: float, band: float) -> np.ndarray:
+    """The plan's ``rest_observer`` rows (:data:`.rest_observer.REST_OBSERVER_ROWS`,
+    n_axes) of the axes whose model declares a mode: 1 and the observer's pole (at most
+    ``pole``, so the step, which takes the faster of it and ``pole``, uses it) where the
+    landing's law was designed with the observer (:func:`_axis_law`,
+    :func:`mode_landing_law` with the same ``band``); zeros elsewhere (rigid axes:
+    :func:`.rest_observer.rest_observer`'s rows).
+
+    Parameters
+    ----------
+    machine : Machine
+        The model machine.
+    pole : float
+        ``tracking_pole``.
+    band : float
+        The landing's band [pulse] (:func:`.identify.reading_knowledge`; 0: an exact
+        reading, no observer).
+    """
+    out = np.zeros((REST_OBSERVER_ROWS, machine.n_axes))
+    for j, ax in enumerate(machine.axes):
+        if ax.resonance_frequency > 0.0 and band > 0.0:
+            _, observer_pole = _axis_law(machine, j, pole, band)
+            if observer_pole is not None:
+                out[:, j] = (1.0, observer_pole)
+    return out
+
+
+def mode_landing_law(machine: Machine, pole: float, band: float = 0.0) -> np.ndarray:
     """The plan's ``mode_law`` (shape (:data:`MODE_LAW_ROWS`, n_axes)): per axis whose
     model declares a mode, 1 then the landing's law (:func:`_landing_law`'s rows: the
     model's rigid plant for the prediction, the gains designed with the mode, module
@@ -220,6 +387,10 @@ def mode_landing_law(machine: Machine, pole: float) -> np.ndarray:
         The model machine (its axes' tau, Kc, Ke, mode, encoder; its Ts and delay).
     pole : float
         The rigid placement's pole (``tracking_pole``), in [0, 1): the descent's start.
+    band : float
+        The landing's band [pulse] (:func:`.identify.reading_knowledge`): > 0 (a reading
+        not exact) designs the landing's gains with its speed observer in the loop
+        (:func:`observer_landing_loop`, :func:`mode_rest_observer`); 0 without.
 
     Raises
     ------
@@ -227,25 +398,19 @@ def mode_landing_law(machine: Machine, pole: float) -> np.ndarray:
         No gains of the law make every corner's loop stable (names the axis's mode and
         the best radius).
     """
-    Ts = machine.sample_period
-    delay = machine.delay / Ts
     out = np.zeros((MODE_LAW_ROWS, machine.n_axes))
     for j, ax in enumerate(machine.axes):
         if ax.resonance_frequency > 0.0:
-            law, *_ = _designed(ax.time_constant, ax.electrical_gain, ax.mechanical_gain, Ts,
-                               delay, ax.resonance_frequency, ax.resonance_damping,
-                               ax.load_fraction, ax.encoder_on, float(pole))
+            (law, *_), _ = _axis_law(machine, j, pole, band)
             out[0, j] = 1.0
             out[1:, j] = law
     return out
 
 
-def mode_landing_radius(machine: Machine, pole: float) -> list:
+def mode_landing_radius(machine: Machine, pole: float, band: float = 0.0) -> list:
     """Per axis with a declared mode, the designed landing's and tracking's largest pole
-    radii over the model's uncertainty corners (:func:`uncertainty_corners`); None for a
-    rigid axis."""
-    Ts = machine.sample_period
-    return [_designed(ax.time_constant, ax.electrical_gain, ax.mechanical_gain, Ts,
-                      machine.delay / Ts, ax.resonance_frequency, ax.resonance_damping,
-                      ax.load_fraction, ax.encoder_on, float(pole))[1:]
-            if ax.resonance_frequency > 0.0 else None for ax in machine.axes]
+    radii over the model's uncertainty corners (:func:`uncertainty_corners`; the landing's
+    with its observer where :func:`mode_landing_law` designs it so); None for a rigid
+    axis."""
+    return [_axis_law(machine, j, pole, band)[0][1:] if ax.resonance_frequency > 0.0
+            else None for j, ax in enumerate(machine.axes)]
