@@ -290,3 +290,61 @@ def test_a_fast_moded_axis_on_counts_lands_through_an_observer():
     assert np.all(mode_rest_observer(real, POLE, band) == 0.0)
     np.testing.assert_array_equal(mode_landing_law(real, POLE, band),
                                   mode_landing_law(real, POLE))
+
+
+def _share_radius(rows, axis, observer_pole, encoder_on, share):
+    """The observed landing's largest pole radius with ``share`` of the drive reaching the
+    plant (its drive weights scaled; the law and its observer still predict the whole),
+    its integral held (k_i 0, its state dropped)."""
+    from nurbsmotion.interpolators.planned.mode_law import observer_landing_loop
+
+    Phi, g1, g0 = axis
+    held = np.array(rows, dtype=float)
+    held[12] = 0.0
+    T = observer_landing_loop(held, (Phi, share * g1, share * g0), observer_pole, encoder_on)
+    iz = Phi.shape[0] + 2
+    T = np.delete(np.delete(T, iz, axis=0), iz, axis=1)
+    return float(np.max(np.abs(np.linalg.eigvals(T))))
+
+
+@pytest.mark.filterwarnings("ignore::nurbsmotion.machine.UnstableModeWarning")
+def test_an_observer_that_friction_destabilises_is_not_taken():
+    """Regression (issue 33's random real machines, case 183: Ts 2 ms, a 46 Hz mode on z
+    with 0.47 V of Coulomb friction and 0.72 V of stiction the model does not know): the
+    landing's observer at 0.7 was taken on z (its loop stable on every corner with the
+    whole drive and at the reading's gains) and its drive alternated +-0.77 V every sample
+    at rest. With a share of the drive reaching the plant, as friction passes (the
+    observer still predicting the whole), that loop has a pole beyond -1: at 10 % of the
+    drive, its integral held, the plant sampled by solve_ivp at the model's own axis. Now
+    the design asks stability at every share of :data:`DRIVE_SHARES` too (the integral
+    held: its slow conditional instability at small shares is the law's own), and z keeps
+    the law without an observer; every observer the case's other axes get is stable from 0.5 % to 100 % of
+    the drive, finer than the design's shares, on solve_ivp's plant."""
+    from nurbsmotion.interpolators.planned.identify import reading_knowledge
+    from nurbsmotion.interpolators.planned.inverse import axis_zoh
+    from nurbsmotion.interpolators.planned.mode_law import (_landing_design,
+                                                            mode_rest_observer)
+
+    model = _case_model(183)
+    band = reading_knowledge(model, *axis_zoh(model))["landing_band"]
+    Ts, D = model.sample_period, model.delay / model.sample_period
+    observer = mode_rest_observer(model, POLE, band)
+    j = 2
+    ax = model.axes[j]
+    assert ax.resonance_frequency > 0.0 and observer[0, j] == 0.0
+    sampled = (ax.time_constant, ax.electrical_gain, ax.mechanical_gain, Ts, D,
+               ax.resonance_frequency, ax.resonance_damping, ax.load_fraction)
+    axis = _ivp_sampled(*sampled)
+    rows, radius = _landing_design(*sampled, ax.encoder_on, POLE, POLE)
+    assert radius < 1.0 and _share_radius(rows, axis, POLE, ax.encoder_on, 1.0) < 1.0
+    assert _share_radius(rows, axis, POLE, ax.encoder_on, 0.1) > 1.05
+    for k, a in enumerate(model.axes):
+        if a.resonance_frequency > 0.0 and observer[0, k] == 1.0:
+            law = mode_landing_law(model, POLE, band)[1:LAW_ROWS + 1, k]
+            for ft, fk, ff in ((1.0, 1.0, 1.0), (0.9, 1.1, 1 / 1.1), (1.1, 0.9, 1 / 0.9)):
+                axis = _ivp_sampled(a.time_constant * ft, a.electrical_gain * fk,
+                                    a.mechanical_gain, Ts, D, a.resonance_frequency * ff,
+                                    a.resonance_damping, a.load_fraction)
+                for share in np.geomspace(0.005, 1.0, 40):
+                    assert _share_radius(law, axis, observer[1, k], a.encoder_on,
+                                         share) < 1.0
