@@ -26,8 +26,11 @@ that observer inside the loop (:func:`observer_landing_loop`) on the same corner
 observer filters a count the more the slower it is, but its lag slows the landing the
 mode allows (on die-bonder-real, at 0.7 the best radius over the corners is 0.992, 0.914
 without): the slowest observer is taken whose law is no slower than the law without it
-or the machine's own loop, whichever is slower (:func:`_axis_law`); where none is, the
-law without it is kept (:func:`mode_rest_observer`).
+or the machine's own loop, whichever is slower (:func:`_axis_law`), and stable too at
+the reading gains a quantiser can have and, its integral held, at every share of the
+drive that friction the model does not know lets through (:func:`observer_is_robust`);
+where none is, the law without it is kept (:func:`mode_rest_observer`). The corners are
+sampled once per model axis and every design evaluates their loops as one stack.
 """
 
 from __future__ import annotations
