@@ -46,7 +46,9 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    (:func:`.mode_law.mode_landing_law`). On a rigid axis whose model's reading is not
    exact (counts, noise), the landing's speed comes from an observer whose poles are the
    machine's own loop's slowest (:func:`.rest_observer.rest_observer`), not from one
-   increment. The drive is
+   increment; on an axis with a mode and such a reading, from an observer designed into
+   the mode law's loop where that law is no slower and stable through the counts
+   (:func:`.mode_law.mode_rest_observer`). The drive is
    clipped to +-Umax: *every drive is within the limit by construction*, whatever the
    true plant. Once the plan moves an axis only towards a stop (a stop corner or the
    end), the drive also leaves the identified plant able to stop before it, braking at
