@@ -278,6 +278,17 @@ def _read_toml(path: Path, size_check=None, polyline_check=None) -> NurbsCurve:
     return curve_from_dict(data, str(path), text, toml=True)
 
 
+def _degree_and_list(text: str, toml: bool, field: str) -> tuple[list[str], list]:
+    """A path file's text's ``degree`` values (as written) and the openings of its list
+    ``field`` (``re`` matches, each ending after the ``[``)."""
+    if toml:
+        flags = re.MULTILINE
+        return (re.findall(r"^[ \t]*degree[ \t]*=[ \t]*(\d+)[ \t]*$", text, flags),
+                list(re.finditer(rf"^[ \t]*{field}[ \t]*=[ \t]*\[", text, flags)))
+    return (re.findall(r'"degree"\s*:\s*(\d+)\s*[,}]', text),
+            list(re.finditer(rf'"{field}"\s*:\s*\[', text)))
+
+
 def _scan_spans(text: str, toml: bool, size_check, path: Path) -> None:
     """Call ``size_check(degree, spans)`` with the knot spans of a large path file's text
     (:data:`SIZE_SCAN_BYTES`), before it is parsed, and say which file a refusal is of.
@@ -291,13 +302,7 @@ def _scan_spans(text: str, toml: bool, size_check, path: Path) -> None:
     """
     if size_check is None or len(text) <= SIZE_SCAN_BYTES:
         return
-    flags = re.MULTILINE
-    if toml:
-        degree = re.findall(r"^[ \t]*degree[ \t]*=[ \t]*(\d+)[ \t]*$", text, flags)
-        knots = list(re.finditer(r"^[ \t]*knots[ \t]*=[ \t]*\[", text, flags))
-    else:
-        degree = re.findall(r'"degree"\s*:\s*(\d+)\s*[,}]', text)
-        knots = list(re.finditer(r'"knots"\s*:\s*\[', text))
+    degree, knots = _degree_and_list(text, toml, "knots")
     if len(degree) != 1 or len(knots) != 1 or not 1 <= int(degree[0]) <= 100:
         return
     p = int(degree[0])
@@ -345,15 +350,12 @@ def _scan_polyline(text: str, toml: bool, polyline_check, path: Path) -> None:
     """
     if polyline_check is None or len(text) <= SIZE_SCAN_BYTES:
         return
+    degree, points = _degree_and_list(text, toml, "control_points")
     flags = re.MULTILINE
     if toml:
-        degree = re.findall(r"^[ \t]*degree[ \t]*=[ \t]*(\d+)[ \t]*$", text, flags)
-        points = list(re.finditer(r"^[ \t]*control_points[ \t]*=[ \t]*\[", text, flags))
         units = re.findall(r'^[ \t]*units[ \t]*=[ \t]*"([^"\\]*)"[ \t]*$', text, flags)
         named = len(re.findall(r"^[ \t]*units[ \t]*=", text, flags))
     else:
-        degree = re.findall(r'"degree"\s*:\s*(\d+)\s*[,}]', text)
-        points = list(re.finditer(r'"control_points"\s*:\s*\[', text))
         units = re.findall(r'"units"\s*:\s*"([^"\\]*)"', text)
         named = text.count('"units"')
     if degree != ["1"] or len(points) != 1 or len(units) != named or named > 1:
