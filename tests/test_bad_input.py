@@ -750,6 +750,32 @@ def test_a_drawing_of_too_many_pieces_is_refused_before_ezdxf_parses_it(
     monkeypatch.setattr(dxf, "_read", read)
 
 
+def test_a_drawing_far_over_the_limit_is_refused_from_a_first_part_of_its_text(
+        tmp_path, capsys, monkeypatch):
+    """A drawing of many times paths.dxf.MAX_PIECES is refused from a first part of its
+    text (a million pieces: 0.5 -> 0.2 s of a refusal's CPU): the count said is at least
+    the limit and at most the drawing's; any first part of a drawing's text holds at most
+    its pieces (a polyline cut short counts its vertices there less one)."""
+    from nurbsmotion.paths import dxf
+
+    polyline = "".join(f"0\nVERTEX\n8\n0\n10\n{i}\n20\n{i % 2}\n30\n0\n" for i in range(500))
+    lines = "".join(f"0\nLINE\n8\n0\n10\n{i}\n20\n7\n30\n0\n11\n{i + 1}\n21\n7\n31\n0\n"
+                    for i in range(500))
+    text = ("0\nSECTION\n2\nENTITIES\n0\nPOLYLINE\n8\n0\n66\n1\n10\n0\n20\n0\n30\n0\n"
+            + polyline + "0\nSEQEND\n" + lines + "0\nENDSEC\n0\nEOF\n")
+    whole = dxf._pieces_in(text.encode())
+    assert whole == 499 + 500
+    for cut in range(0, len(text), 997):
+        assert dxf._pieces_in(text[:cut].encode()) <= whole
+    monkeypatch.setattr(dxf, "MAX_PIECES", 30)
+    big = tmp_path / "big.dxf"
+    big.write_text(text)
+    assert main(["contours", str(big)]) == 2
+    line = _one_error_line(capsys)
+    said = int(line.split("at least ")[1].split(" path pieces")[0].replace(",", ""))
+    assert 30 < said < whole, line   # from a first part, not the whole text
+
+
 @pytest.mark.parametrize("period", [1e-7, 9.9e-6])
 def test_a_sample_period_below_the_minimum_is_refused(tmp_path, capsys, period):
     with pytest.raises(InvalidMachineError, match="sample_period .* below the minimum"):

@@ -73,8 +73,8 @@ piece is a :class:`NurbsCurve` built and checked twice (as drawn, then on the ma
 axes and in its chain's direction) and a share of :func:`join`, 0.9 ms of CPU a piece
 measured at 10,000 and 100,000 (``benchmarks/size_limits.py``, a 2-core machine at load
 10; about 0.65 ms unloaded, by the old reader's ratio), where ezdxf's parsing is 7 % and
-the chaining 4 %. A drawing beyond it is refused from its text before ezdxf parses it, in
-about a second for a million pieces. Beyond it, join its segments (a SPLINE, or the
+the chaining 4 %. A drawing beyond it is refused from its text before ezdxf parses it
+(from a first part of it where that holds more: 0.2-0.3 s of CPU for a million). Beyond it, join its segments (a SPLINE, or the
 chords' G-code, which reads a million lines in seconds)."""
 
 _PIECE_ENTITY = re.compile(
@@ -90,17 +90,28 @@ def _check_piece_count(path: Path) -> None:
         data = f.read()
     if data.startswith(b"AutoCAD Binary DXF"):
         return
-    if sum(data.count(name) for name in (b"VERTEX", b"LINE", b"ARC")) <= MAX_PIECES:
+    names = sum(data.count(name) for name in (b"VERTEX", b"LINE", b"ARC"))
+    if names <= MAX_PIECES:
         return  # fewer names than the limit (a hundredth of the entity scan's time)
-    found = _PIECE_ENTITY.findall(data)
-    counts = Counter(found)
-    pieces = counts[b"LINE"] + counts[b"ARC"] + max(counts[b"VERTEX"] - counts[b"POLYLINE"], 0)
+    # The pieces of a first part of the text are at least as many as that part holds (a
+    # polyline cut short there counts its vertices in it less one, at most its segments):
+    # a part twice the share the names' count gives the limit is scanned first.
+    part = len(data) if 4 * (MAX_PIECES + 1) > names else 2 * (MAX_PIECES + 1) * len(data) // names
+    pieces = _pieces_in(data[:part])
+    if pieces <= MAX_PIECES and part < len(data):
+        pieces = _pieces_in(data)
     if pieces > MAX_PIECES:
         raise WorkLimitError(
             f"{path}: the drawing holds at least {pieces:,} path pieces (lines, arcs, "
             f"polyline segments), more than the {MAX_PIECES:,} the DXF reader builds in "
             "about a minute (paths.dxf.MAX_PIECES); join its segments into a SPLINE, or give "
             "the path as G-code")
+
+
+def _pieces_in(data: bytes) -> int:
+    """The path pieces a DXF text holds (see :func:`_check_piece_count`)."""
+    counts = Counter(_PIECE_ENTITY.findall(data))
+    return counts[b"LINE"] + counts[b"ARC"] + max(counts[b"VERTEX"] - counts[b"POLYLINE"], 0)
 
 
 class DxfWarning(UserWarning):
