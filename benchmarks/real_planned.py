@@ -31,10 +31,11 @@ max(5 %, 3 ms) of the bound (bound: the rigid time-optimal bound on the model).
     python benchmarks/real_planned.py item4 [--cases 1000] [--start 0] [--methods ...]
         [--rows FILE.jsonl]
 
-Writes markdown to stdout, and to ``benchmarks/real_planned_<item>.md`` only for a
-complete run (every interpolator; item 4: the 1,000 cases from case 0, or ``--report``
-of rows gathered in pieces), so a subset never replaces the committed table; ``--out
-FILE`` writes any run's tables there instead. ``--rows`` appends each case's rows as JSON
+Writes markdown to stdout (items 1 and 2 print each row to stderr as it is measured),
+and to ``benchmarks/real_planned_<item>.md`` only for a complete run (every
+interpolator; item 4: the 1,000 cases from case 0, or ``--report`` of rows gathered in
+pieces), so a subset never replaces the committed table; ``--out FILE`` writes any run's
+tables there instead. ``--rows`` appends each case's rows as JSON
 lines, and ``item4 --report FILE.jsonl`` writes the tables of rows gathered in pieces.
 """
 
@@ -43,6 +44,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import sys
 from pathlib import Path
 
 import _common  # noqa: F401  (puts src/ on the path)
@@ -175,7 +177,7 @@ def item1(methods):
                 _, interp = _interp(method, name, feed, model)
                 r = _run(interp, model, true(mid), path.end_points[0])
                 lines.append(_row(method, label, case, r, bound, climit, slimit))
-                print(lines[-1], flush=True)
+                print(lines[-1], file=sys.stderr, flush=True)  # progress; the table on stdout
     return "\n".join(lines)
 
 
@@ -204,7 +206,7 @@ def item2(methods):
                     r = _run_on(interp, model, plant)
                     lines.append(_row(method, f"{ft:g}, {fk:g}", case, r, bound, 25.0,
                                       1.15))
-                    print(lines[-1], flush=True)
+                    print(lines[-1], file=sys.stderr, flush=True)  # progress; the table on stdout
     return "\n".join(lines)
 
 
