@@ -204,6 +204,18 @@ def _case_model(case):
     return random_model(true, [33, case, 1])
 
 
+def _observed_case(case):
+    """Item 4's ``case`` model, its reading's landing band [pulse] and the observers
+    :func:`mode_rest_observer` gives its axes at the tracking pole ``POLE``."""
+    from nurbsmotion.interpolators.planned.identify import reading_knowledge
+    from nurbsmotion.interpolators.planned.inverse import axis_zoh
+    from nurbsmotion.interpolators.planned.mode_law import mode_rest_observer
+
+    model = _case_model(case)
+    band = reading_knowledge(model, *axis_zoh(model))["landing_band"]
+    return model, band, mode_rest_observer(model, POLE, band)
+
+
 @pytest.mark.filterwarnings("ignore::nurbsmotion.machine.UnstableModeWarning")
 def test_observer_landing_loop_is_the_sampled_law():
     """One step of :func:`observer_landing_loop` equals the plant sampled by solve_ivp
@@ -255,10 +267,8 @@ def test_a_fast_moded_axis_on_counts_lands_through_an_observer():
                                                             observer_landing_loop)
     from nurbsmotion.interpolators.planned.rest_observer import QUANTISER_GAIN
 
-    model = _case_model(12)
-    band = reading_knowledge(model, *axis_zoh(model))["landing_band"]
+    model, band, observer = _observed_case(12)
     assert band > 0.0
-    observer = mode_rest_observer(model, POLE, band)
     j = 1
     assert model.axes[0].resonance_frequency == 0.0 and observer[0, 0] == 0.0
     assert observer[0, j] == 1.0 and 0.0 < observer[1, j] <= POLE
@@ -320,15 +330,10 @@ def test_an_observer_that_friction_destabilises_is_not_taken():
     held: its slow conditional instability at small shares is the law's own), and z keeps
     the law without an observer; an observer taken (case 12's y) is stable from 0.5 % to
     100 % of the drive, finer than the design's shares, on solve_ivp's plant."""
-    from nurbsmotion.interpolators.planned.identify import reading_knowledge
-    from nurbsmotion.interpolators.planned.inverse import axis_zoh
-    from nurbsmotion.interpolators.planned.mode_law import (_landing_design,
-                                                            mode_rest_observer)
+    from nurbsmotion.interpolators.planned.mode_law import _landing_design
 
-    model = _case_model(183)
-    band = reading_knowledge(model, *axis_zoh(model))["landing_band"]
+    model, band, observer = _observed_case(183)
     Ts, D = model.sample_period, model.delay / model.sample_period
-    observer = mode_rest_observer(model, POLE, band)
     j = 2
     ax = model.axes[j]
     assert ax.resonance_frequency > 0.0 and observer[0, j] == 0.0
@@ -339,10 +344,8 @@ def test_an_observer_that_friction_destabilises_is_not_taken():
     assert radius < 1.0 and _share_radius(rows, axis, POLE, ax.encoder_on, 1.0) < 1.0
     assert _share_radius(rows, axis, POLE, ax.encoder_on, 0.1) > 1.05
     # an observer taken (case 12's y, at 0.35) is stable from 0.5 % to 100 % of the drive
-    model = _case_model(12)
-    band = reading_knowledge(model, *axis_zoh(model))["landing_band"]
+    model, band, observer = _observed_case(12)
     Ts, D = model.sample_period, model.delay / model.sample_period
-    observer = mode_rest_observer(model, POLE, band)
     k = 1
     a = model.axes[k]
     assert a.resonance_frequency > 0.0 and observer[0, k] == 1.0
