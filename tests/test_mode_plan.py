@@ -62,6 +62,7 @@ def test_shaped_time_law_on_the_path_within_umax_and_leaves_no_vibration():
     path = to_pulses(nm.builtin_path("die-bonder-pi"), real)
     shaped = plan_motion(path, real, 5e5)
     plain = plan_motion(path, rigid, 5e5)
+    assert (shaped.time_law, plain.time_law) == ("shaped", "rigid")
     assert float(np.max(contour_error(path, shaped.desired))) < 1e-3
     assert np.max(np.abs(shaped.drive)) <= real.max_drive * (1 + 1e-9)
     h = time_law_shaper(real)
@@ -76,6 +77,31 @@ def test_shaped_time_law_on_the_path_within_umax_and_leaves_no_vibration():
             # the Pi's transfer arc is not a straight piece: its centripetal drive is
             # not shaped exactly, so a little is left even at the model's mode
             assert ratio < zvd + 0.03, (j, r, ratio)
+
+
+def test_no_shaped_law_within_the_drive_is_said_not_silent(monkeypatch):
+    """Where no shaped time law stays within the drive limit, the plan is the rigid one
+    and both the plan and the interpolator's notes say so."""
+    from nurbsmotion.errors import InfeasibleError
+    from nurbsmotion.interpolators.planned import plan as plan_module
+
+    real = die_bonder_real()
+    path = to_pulses(nm.builtin_path("die-bonder-pi"), real)
+    rigid = plan_motion(path, real, 5e5)  # reference before patching: shaped
+    inner = plan_module._plan_motion
+
+    def unshapeable(*args, shape=True, **kwargs):
+        if shape:
+            raise InfeasibleError("no shaped profile within the drive (test)")
+        return inner(*args, shape=False, **kwargs)
+
+    monkeypatch.setattr(plan_module, "_plan_motion", unshapeable)
+    fallback = plan_motion(path, real, 5e5)
+    assert rigid.time_law == "shaped"
+    assert fallback.time_law == "rigid, no shaped law"
+    assert fallback.arrival < rigid.arrival  # the rigid plan, without the shaper's length
+    interp = nm.interpolators.PlannedInterpolator(path, real, 5e5)
+    assert any("no time law shaped" in note for note in interp.notes)
 
 
 def test_tool_lead_on_a_circle_is_the_quasi_static_lag_across_the_path():

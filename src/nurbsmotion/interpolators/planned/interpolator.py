@@ -226,6 +226,10 @@ class PlannedInterpolator(Interpolator):
         if corner_tolerance > 0 and p.stop_times.size:  # asked to round, but stops
             self.notes += ("the motion stops at the sharp corners: rounding them within the "
                            "corner tolerance would not arrive sooner",)
+        if p.time_law == "rigid, no shaped law":
+            self.notes += ("no time law shaped at the model's modes stays within the drive "
+                           "limit on this path: the plan is the rigid one, which may ring "
+                           "the mode",)
         if p.shorten_status == "work budget":
             self.notes += (f"the short move's search for its earliest arrival stopped at its "
                            f"work budget (shorten_work={shorten_work:g} pivot-rows a "

@@ -115,7 +115,7 @@ eps : corner tolerance [pulse].
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -180,6 +180,11 @@ class MotionPlan:
         ``"complete"``, or ``"work budget"`` (it stopped where its work budget ran out,
         ``shorten_work`` of :func:`plan_motion`: ``arrival`` is the earliest found before
         that, which a search without the budget may improve on).
+    time_law : str
+        ``"rigid"`` (the model declares no mode), ``"shaped"`` (the time law shaped at the
+        model's modes, :func:`.shaper.time_law_shaper`) or ``"rigid, no shaped law"`` (a
+        mode is declared, but no shaped profile stays within the drive limit, so the plan
+        is the rigid one, which may ring the mode).
     """
 
     position: np.ndarray
@@ -193,6 +198,7 @@ class MotionPlan:
     arrival: int
     corner_tolerance: float = 0.0
     shorten_status: str = "not run"
+    time_law: str = "rigid"
 
     @property
     def stop_times(self) -> np.ndarray:
@@ -283,7 +289,8 @@ def plan_motion(curve: NurbsCurve, machine: Machine, feed, *,
         except InfeasibleError:
             if time_law_shaper(machine) is None:
                 raise
-        return _plan_motion(curve, machine, feed, tolerance, shape=False, **options)
+        return replace(_plan_motion(curve, machine, feed, tolerance, shape=False, **options),
+                       time_law="rigid, no shaped law")
 
     def stopping_plan():
         return shaped_or_rigid(0.0)
@@ -461,4 +468,5 @@ def _plan_motion(curve: NurbsCurve, machine: Machine, feed, corner_tolerance: fl
     return MotionPlan(position=theta, speed=w, drive=u, parameter=param, desired=y,
                       drive_fraction=drive_fraction, corner_times=corners, sample_period=Ts,
                       arrival=landed, corner_tolerance=float(corner_tolerance),
-                      shorten_status=shorten_status)
+                      shorten_status=shorten_status,
+                      time_law="rigid" if shaper is None else "shaped")
