@@ -474,41 +474,11 @@ def test_a_knot_vector_short_at_an_unknown_end_is_refused_naming_the_entity(tmp_
 
 
 # ---------------------------------------------------------------- chaining (issue 37)
-def _chain_by_search(pieces, tol):
-    """The chaining as it was before the hash grid (every end searched at every step,
-    quadratic): the reference :func:`nurbsmotion.paths.dxf._chain` must equal."""
-    starts = np.array([c.control_points[0] for c in pieces])
-    ends = np.array([c.control_points[-1] for c in pieces])
-    used = np.zeros(len(pieces), bool)
-    chains = []
-    for first in range(len(pieces)):
-        if used[first]:
-            continue
-        used[first] = True
-        chain = [pieces[first]]
-        for at_tail in (True, False):
-            while True:
-                point = chain[-1].control_points[-1] if at_tail else chain[0].control_points[0]
-                near_s = ~used & (np.linalg.norm(starts - point, axis=1) <= tol)
-                near_e = ~used & (np.linalg.norm(ends - point, axis=1) <= tol)
-                hit = np.flatnonzero(near_s | near_e)
-                if hit.size == 0:
-                    break
-                i = int(hit[0])
-                used[i] = True
-                forward = near_s[i] if at_tail else near_e[i]
-                piece = pieces[i] if forward else pieces[i].reversed()
-                if at_tail:
-                    chain.append(piece)
-                else:
-                    chain.insert(0, piece)
-        chains.append(chain)
-    return chains
-
-
 def _chain_order_by_search(ends, tol):
-    """:func:`_chain_by_search` on end points, as :func:`nurbsmotion.paths.dxf._chain_order`
-    answers: per chain, (index, forward) from head to tail."""
+    """The chaining as it was before the hash grid (every end searched at every step,
+    quadratic), the reference :func:`nurbsmotion.paths.dxf._chain_order` must equal:
+    per chain, (index, forward) from head to tail; ``ends`` row ``2 i`` is piece i's
+    start, row ``2 i + 1`` its end."""
     starts, stops = ends[0::2], ends[1::2]
     used = np.zeros(len(starts), bool)
     chains = []
@@ -534,6 +504,14 @@ def _chain_order_by_search(ends, tol):
                     chain.insert(0, (i, bool(near_e[i])))
         chains.append(chain)
     return chains
+
+
+def _chain_by_search(pieces, tol):
+    """:func:`_chain_order_by_search` on the pieces' end control points, each chain's
+    pieces reversed where they run backwards."""
+    ends = np.array([c.control_points[k] for c in pieces for k in (0, -1)])
+    return [[pieces[i] if forward else pieces[i].reversed() for i, forward in chain]
+            for chain in _chain_order_by_search(ends, tol)]
 
 
 def _same_chains(a, b) -> bool:
