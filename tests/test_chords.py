@@ -18,6 +18,8 @@ from nurbsmotion.cli import main
 from nurbsmotion.errors import InvalidArgumentError
 from nurbsmotion.feed import FeedLimit
 
+from conftest import RANDOM_SWEEPS
+
 
 def cam_chords(points: np.ndarray, chord: float = 0.01, decimals: int = 4) -> np.ndarray:
     """Vertices every ``chord`` [mm] of arc length along the dense polyline ``points``,
@@ -80,6 +82,52 @@ def test_a_cam_wave_becomes_one_smooth_curve_within_the_tolerance(tol):
     assert curve.sharp_corners(1e-9).size == 0        # C2 inside: no corner left
     assert_within(curve, V, tol)
     assert curve.length == pytest.approx(chords.length, rel=1e-4)
+
+
+def test_the_fit_is_scipys_least_squares_spline():
+    """The joined curve of a CAM wave is the cubic least-squares spline of the module
+    docstring's points on the chords, as scipy's QR solve (``make_lsq_spline``) gives it on
+    the same knots, its end control points then set to the chords' ends."""
+    from scipy.interpolate import make_lsq_spline
+
+    V = wave(600)
+    joined = join_chords(nm.make_polyline(V, units="mm"), 1e-3)
+    c = np.linalg.norm(np.diff(V, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(c)])
+    q = np.clip(np.ceil(4.0 * c / np.median(c)), 4, 256).astype(int)
+    x = np.append(np.concatenate([s[k] + np.arange(n) / n * c[k] for k, n in enumerate(q)]),
+                  s[-1])
+    D = np.column_stack([np.interp(x, s, V[:, j]) for j in range(2)])
+    reference = make_lsq_spline(x, D, joined.curve.knots * s[-1], k=3).c
+    reference[[0, -1]] = V[[0, -1]]
+    np.testing.assert_allclose(joined.curve.control_points, reference, rtol=0, atol=1e-9)  # [mm]
+
+
+@pytest.mark.parametrize("seed", range(RANDOM_SWEEPS))
+def test_the_banded_solve_and_its_evaluation_match_scipy(seed):
+    """The fit's pieces on random uneven knots and points: the least-squares coefficients
+    against scipy's QR solve, the spline and its second derivative against ``BSpline``."""
+    from scipy.interpolate import BSpline, make_lsq_spline
+
+    from nurbsmotion.chords import _combine, _cubic_basis, _least_squares, _second_derivative
+
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(20, 400))
+    s = np.concatenate([[0.0], np.cumsum(rng.uniform(0.01, 1.0, m))])     # vertices
+    inner = np.unique(rng.choice(np.arange(1, m), m // 5, replace=False))  # knots at some
+    x = np.sort(np.concatenate([s, rng.uniform(0.0, s[-1], 8 * m)]))
+    owner = np.clip(np.searchsorted(s, x, side="right") - 1, 0, m - 1)
+    D = np.column_stack([np.sin(x), np.cos(2 * x)]) + 0.01 * rng.normal(size=(x.size, 2))
+    t = np.concatenate([[0.0] * 4, s[inner], [s[-1]] * 4])
+    first = np.searchsorted(inner, owner, side="right")
+    N = _cubic_basis(t, x, first + 3)
+    coef = _least_squares(N, first, D, t.size - 4)
+    np.testing.assert_allclose(coef, make_lsq_spline(x, D, t, k=3).c, rtol=0, atol=1e-9)
+    spline = BSpline(t, coef, 3)
+    np.testing.assert_allclose(_combine(N, first, coef), spline(x), rtol=0, atol=1e-12)
+    scale = np.max(np.abs(spline(x, 2)))
+    np.testing.assert_allclose(_second_derivative(t, coef, x), spline(x, 2), rtol=0,
+                               atol=1e-9 * scale)
 
 
 def test_real_corners_stay_corners():
