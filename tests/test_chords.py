@@ -274,3 +274,23 @@ def test_interpolate_reads_a_cam_program_as_run_does(tmp_path, capsys):
     kept = tmp_path / "kept"
     assert main(["interpolate", str(f), "--out", str(kept), "--path-tolerance", "0"]) == 0
     assert "joined" not in capsys.readouterr().err
+
+
+def test_the_sampled_bound_of_a_cam_program_ignores_its_feed(tmp_path, capsys):
+    """``benchmarks/cam_chords.md`` lists 0.169 s as the sampled bound of 1,000 mm of
+    chords at 100 mm/s, a run of 10 s: the bound is right, it ignores the feed (as
+    documented): on a wave of chords it is the sampled bound of the straight line between
+    its ends, the drive-limited rest-to-rest time of x (which a test checks against
+    scipy's linear programming), far below the feed's bound."""
+    from nurbsmotion.machine import die_bonder
+    from nurbsmotion.planning import sampled_stop_bound
+
+    f, V = _program(tmp_path, 3000)
+    assert main(["bound", str(f), "--sampled"]) == 0
+    sampled = float(capsys.readouterr().out)
+    machine = die_bonder()
+    line = nm.make_line(V[0] * 1000.0, V[-1] * 1000.0)            # [pulse]: 1 um each
+    assert sampled == pytest.approx(sampled_stop_bound(line, machine), abs=1e-9)
+    assert main(["bound", str(f)]) == 0
+    length = float(np.sum(np.linalg.norm(np.diff(V, axis=0), axis=1)))   # [mm]
+    assert float(capsys.readouterr().out) >= length / 100.0 > 10 * sampled
