@@ -18,6 +18,8 @@ from nurbsmotion.cli import main
 from nurbsmotion.errors import InvalidArgumentError
 from nurbsmotion.feed import FeedLimit
 
+from conftest import RANDOM_SWEEPS
+
 
 def cam_chords(points: np.ndarray, chord: float = 0.01, decimals: int = 4) -> np.ndarray:
     """Vertices every ``chord`` [mm] of arc length along the dense polyline ``points``,
@@ -80,6 +82,52 @@ def test_a_cam_wave_becomes_one_smooth_curve_within_the_tolerance(tol):
     assert curve.sharp_corners(1e-9).size == 0        # C2 inside: no corner left
     assert_within(curve, V, tol)
     assert curve.length == pytest.approx(chords.length, rel=1e-4)
+
+
+def test_the_fit_is_scipys_least_squares_spline():
+    """The joined curve of a CAM wave is the cubic least-squares spline of the module
+    docstring's points on the chords, as scipy's QR solve (``make_lsq_spline``) gives it on
+    the same knots, its end control points then set to the chords' ends."""
+    from scipy.interpolate import make_lsq_spline
+
+    V = wave(600)
+    joined = join_chords(nm.make_polyline(V, units="mm"), 1e-3)
+    c = np.linalg.norm(np.diff(V, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(c)])
+    q = np.clip(np.ceil(4.0 * c / np.median(c)), 4, 256).astype(int)
+    x = np.append(np.concatenate([s[k] + np.arange(n) / n * c[k] for k, n in enumerate(q)]),
+                  s[-1])
+    D = np.column_stack([np.interp(x, s, V[:, j]) for j in range(2)])
+    reference = make_lsq_spline(x, D, joined.curve.knots * s[-1], k=3).c
+    reference[[0, -1]] = V[[0, -1]]
+    np.testing.assert_allclose(joined.curve.control_points, reference, rtol=0, atol=1e-9)  # [mm]
+
+
+@pytest.mark.parametrize("seed", range(RANDOM_SWEEPS))
+def test_the_banded_solve_and_its_evaluation_match_scipy(seed):
+    """The fit's pieces on random uneven knots and points: the least-squares coefficients
+    against scipy's QR solve, the spline and its second derivative against ``BSpline``."""
+    from scipy.interpolate import BSpline, make_lsq_spline
+
+    from nurbsmotion.chords import _combine, _cubic_basis, _least_squares, _second_derivative
+
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(20, 400))
+    s = np.concatenate([[0.0], np.cumsum(rng.uniform(0.01, 1.0, m))])     # vertices
+    inner = np.unique(rng.choice(np.arange(1, m), m // 5, replace=False))  # knots at some
+    x = np.sort(np.concatenate([s, rng.uniform(0.0, s[-1], 8 * m)]))
+    owner = np.clip(np.searchsorted(s, x, side="right") - 1, 0, m - 1)
+    D = np.column_stack([np.sin(x), np.cos(2 * x)]) + 0.01 * rng.normal(size=(x.size, 2))
+    t = np.concatenate([[0.0] * 4, s[inner], [s[-1]] * 4])
+    first = np.searchsorted(inner, owner, side="right")
+    N = _cubic_basis(t, x, first + 3)
+    coef = _least_squares(N, first, D, t.size - 4)
+    np.testing.assert_allclose(coef, make_lsq_spline(x, D, t, k=3).c, rtol=0, atol=1e-9)
+    spline = BSpline(t, coef, 3)
+    np.testing.assert_allclose(_combine(N, first, coef), spline(x), rtol=0, atol=1e-12)
+    scale = np.max(np.abs(spline(x, 2)))
+    np.testing.assert_allclose(_second_derivative(t, coef, x), spline(x, 2), rtol=0,
+                               atol=1e-9 * scale)
 
 
 def test_real_corners_stay_corners():
@@ -226,3 +274,23 @@ def test_interpolate_reads_a_cam_program_as_run_does(tmp_path, capsys):
     kept = tmp_path / "kept"
     assert main(["interpolate", str(f), "--out", str(kept), "--path-tolerance", "0"]) == 0
     assert "joined" not in capsys.readouterr().err
+
+
+def test_the_sampled_bound_of_a_cam_program_ignores_its_feed(tmp_path, capsys):
+    """``benchmarks/cam_chords.md`` lists 0.169 s as the sampled bound of 1,000 mm of
+    chords at 100 mm/s, a run of 10 s: the bound is right, it ignores the feed (as
+    documented): on a wave of chords it is the sampled bound of the straight line between
+    its ends, the drive-limited rest-to-rest time of x (which a test checks against
+    scipy's linear programming), far below the feed's bound."""
+    from nurbsmotion.machine import die_bonder
+    from nurbsmotion.planning import sampled_stop_bound
+
+    f, V = _program(tmp_path, 3000)
+    assert main(["bound", str(f), "--sampled"]) == 0
+    sampled = float(capsys.readouterr().out)
+    machine = die_bonder()
+    line = nm.make_line(V[0] * 1000.0, V[-1] * 1000.0)            # [pulse]: 1 um each
+    assert sampled == pytest.approx(sampled_stop_bound(line, machine), abs=1e-9)
+    assert main(["bound", str(f)]) == 0
+    length = float(np.sum(np.linalg.norm(np.diff(V, axis=0), axis=1)))   # [mm]
+    assert float(capsys.readouterr().out) >= length / 100.0 > 10 * sampled

@@ -23,10 +23,12 @@ pieces joined by chord joints.
 
 Fit
 ---
-A cubic least-squares B-spline in the chords' arc length s (``scipy.interpolate.
-make_lsq_spline``) of points on the chords (each chord's start and at least three more, a
-quarter of the median chord apart), with knots at every :data:`START_SPAN_CHORDS`-th
-vertex; its end control points are then set to the run's end points, so the path stays
+A cubic least-squares B-spline in the chords' arc length s of points on the chords (each
+chord's start and at least three more, a quarter of the median chord apart), with knots at
+every :data:`START_SPAN_CHORDS`-th vertex: its banded normal equations solved by Cholesky
+(as ``scipy.interpolate.make_lsq_spline(method="norm-eq")`` solves them), in time linear in
+the number of points (the bound below is computed from the result, whatever the solve's
+rounding). Its end control points are then set to the run's end points, so the path stays
 continuous with its neighbours. Its distance from the chords is bounded by that of the point
 of equal arc length: ``e(s) = C(s) - P(s)``, with P the chords at s. Between two
 consecutive points (the knots are among them) P is linear, so ``|e|`` is at most its
@@ -349,7 +351,7 @@ def _fit(V: np.ndarray, e: float):
     """One cubic spline within ``e`` of the chords through ``V``: (NurbsCurve, its
     deviation bound, None), or (None, None, the vertex where it fails) when no spline
     with knots at the vertices does (module docstring)."""
-    from scipy.interpolate import make_lsq_spline
+    from scipy.linalg import LinAlgError
 
     c = np.linalg.norm(np.diff(V, axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(c)])
@@ -361,28 +363,30 @@ def _fit(V: np.ndarray, e: float):
     frac = (np.arange(owner.size) - np.repeat(np.cumsum(q) - q, q)) / q[owner]
     x = np.append(s[owner] + frac * c[owner], L)          # rising: vertices included
     D = _polyline(s, V, x)
+    delta = np.diff(x)
     vertex = np.arange(0, m + 1, START_SPAN_CHORDS)
     inner = np.unique(np.append(vertex, m))[1:-1]         # knots at these vertices
     worst = m // 2
     for _ in range(_MAX_REFINEMENTS):
         t = np.concatenate([[0.0] * 4, s[inner], [L] * 4])
+        # the knot span of each point: its chord's start vertex (a knot) or the last before
+        first = np.searchsorted(inner, np.append(owner, m - 1), side="right")  # [coef]
+        N = _cubic_basis(t, x, first + 3)
         try:
-            spl = make_lsq_spline(x, D, t, k=3)
-        except (ValueError, np.linalg.LinAlgError):
+            coef = _least_squares(N, first, D, t.size - 4)
+        except (ValueError, LinAlgError):
             break
-        coef = np.array(spl.c)
         coef[0], coef[-1] = V[0], V[-1]                   # the run's ends, exactly
-        spl.c = coef
-        err = np.linalg.norm(spl(x) - D, axis=1)
-        curv = np.linalg.norm(spl(x, 2), axis=1)
+        err = np.linalg.norm(_combine(N, first, coef) - D, axis=1)
+        curv = np.linalg.norm(_second_derivative(t, coef, x), axis=1)
         if not (np.all(np.isfinite(err)) and np.all(np.isfinite(curv))):
             break
-        delta = np.diff(x)
         bound = np.maximum(err[:-1], err[1:]) + delta ** 2 / 8.0 * np.maximum(curv[:-1],
                                                                              curv[1:])
         over = bound > e
         if not np.any(over):
-            return NurbsCurve(3, t / L, coef, np.ones(coef.shape[0])), float(np.max(bound)), None
+            return (NurbsCurve(3, t / L, coef, np.ones(coef.shape[0])),
+                    float(np.max(bound)), None)
         worst = int(owner[int(np.argmax(bound))])           # its chord's start vertex
         knots = np.concatenate([[0], inner, [m]])             # as vertex indices
         span = np.unique(np.searchsorted(knots, owner[over], side="right") - 1)
@@ -391,6 +395,68 @@ def _fit(V: np.ndarray, e: float):
             break
         inner = np.union1d(inner, (knots[span] + knots[span + 1]) // 2)
     return None, None, worst
+
+
+def _cubic_basis(t: np.ndarray, x: np.ndarray, span: np.ndarray) -> np.ndarray:
+    """The four cubic B-splines nonzero at each ``x``, shape (len(x), 4): column r is
+    that of coefficient ``span - 3 + r``, where ``t[span] <= x <= t[span + 1]`` (The NURBS
+    Book A2.2, vectorised over the points)."""
+    N = np.zeros((x.size, 4))
+    N[:, 0] = 1.0
+    left = np.empty((x.size, 4))
+    right = np.empty((x.size, 4))
+    for j in range(1, 4):
+        left[:, j] = x - t[span + 1 - j]
+        right[:, j] = t[span + j] - x
+        saved = np.zeros(x.size)
+        for r in range(j):
+            temp = N[:, r] / (right[:, r + 1] + left[:, j - r])
+            N[:, r] = saved + right[:, r + 1] * temp
+            saved = left[:, j - r] * temp
+        N[:, j] = saved
+    return N
+
+
+def _least_squares(N: np.ndarray, first: np.ndarray, D: np.ndarray, n: int) -> np.ndarray:
+    """The coefficients, shape (n, n_axes), of the cubic spline nearest ``D`` (shape
+    (len(N), n_axes)) in the least-squares sense, point i's basis ``N[i]`` belonging to
+    coefficients ``first[i] .. first[i] + 3``: the banded normal equations (bandwidth 3),
+    solved by Cholesky (``scipy.linalg.solveh_banded``), as ``scipy.interpolate.
+    make_lsq_spline(method="norm-eq")`` solves them, in O(len(N)).
+
+    Raises ``LinAlgError`` where they are singular (a span without points)."""
+    from scipy.linalg import solveh_banded
+
+    ab = np.zeros((4, n))                 # upper form: ab[3 - d, i + d] = A[i, i + d]
+    for d in range(4):
+        for r in range(4 - d):
+            ab[3 - d] += np.bincount(first + r + d, weights=N[:, r] * N[:, r + d],
+                                     minlength=n)
+    rhs = np.zeros((n, D.shape[1]))
+    for r in range(4):
+        for j in range(D.shape[1]):
+            rhs[:, j] += np.bincount(first + r, weights=N[:, r] * D[:, j], minlength=n)
+    return solveh_banded(ab, rhs, check_finite=False)
+
+
+def _combine(N: np.ndarray, first: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    """The spline at the points whose basis ``N`` belongs to coefficients ``first ..
+    first + 3`` (:func:`_least_squares`), shape (len(N), n_axes)."""
+    out = N[:, :1] * coef[first]
+    for r in range(1, 4):
+        out += N[:, r:r + 1] * coef[first + r]
+    return out
+
+
+def _second_derivative(t: np.ndarray, coef: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The second derivative of the cubic spline (knots ``t``, distinct inside,
+    coefficients ``coef``) at ``x``, shape (len(x), n_axes): a spline of degree 1 on the
+    same knots (The NURBS Book, Eq. 3.8 twice), the straight line between its values at
+    the knots, which are its coefficients."""
+    c1 = 3.0 * np.diff(coef, axis=0) / (t[4:-1] - t[1:-4])[:, None]
+    c2 = 2.0 * np.diff(c1, axis=0) / (t[4:-2] - t[2:-4])[:, None]
+    at = t[3:-3]                                    # its knots: 0, inner ones, L
+    return np.column_stack([np.interp(x, at, c2[:, j]) for j in range(c2.shape[1])])
 
 
 def _polyline(s: np.ndarray, V: np.ndarray, x: np.ndarray) -> np.ndarray:
