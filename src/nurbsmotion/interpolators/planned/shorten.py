@@ -231,24 +231,18 @@ class _WarmProgram:
             row_keys = np.arange(A.shape[0])
         if col_keys is None:
             col_keys = np.arange(A.shape[1])
-        lp = highspy.HighsLp()
-        lp.num_col_, lp.num_row_ = A.shape[1], A.shape[0]
-        lp.col_cost_ = np.asarray(cost, dtype=float)
-        lp.col_lower_ = np.ascontiguousarray(bounds[:, 0])
-        lp.col_upper_ = np.ascontiguousarray(bounds[:, 1])
         n_eq = A.shape[0] - len(b_ub)
-        lp.row_lower_ = np.concatenate([np.full(len(b_ub), -highspy.kHighsInf),
-                                        np.zeros(n_eq)])
-        lp.row_upper_ = np.concatenate([b_ub, np.zeros(n_eq)])
-        lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-        lp.a_matrix_.start_ = A.indptr
-        lp.a_matrix_.index_ = A.indices
-        lp.a_matrix_.value_ = A.data
-        lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = A.shape[1], A.shape[0]
         if self.highs is None:
             self.highs = _silent(Highs)
         h = self.highs
-        h.passModel(lp)
+        # the arrays handed over as they are (a HighsLp's fields would copy them element
+        # by element, about half a millisecond a program); every column continuous
+        h.passModel(A.shape[1], A.shape[0], A.nnz, int(highspy.MatrixFormat.kColwise),
+                    int(highspy.ObjSense.kMinimize), 0.0, np.asarray(cost, dtype=float),
+                    np.ascontiguousarray(bounds[:, 0]), np.ascontiguousarray(bounds[:, 1]),
+                    np.concatenate([np.full(len(b_ub), -highspy.kHighsInf), np.zeros(n_eq)]),
+                    np.concatenate([b_ub, np.zeros(n_eq)]), A.indptr, A.indices, A.data,
+                    np.zeros(A.shape[1], dtype=np.int32))
         basis = self._mapped_basis(highspy, row_keys, col_keys)
         h.setOptionValue("presolve", "off" if basis is not None else "choose")
         if basis is not None:
@@ -273,9 +267,9 @@ class _WarmProgram:
         if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
             self.basis = None
             return None
-        status = h.getBasis()
-        self.basis = (np.fromiter(map(int, status.row_status), np.int8, A.shape[0]),
-                      np.fromiter(map(int, status.col_status), np.int8, A.shape[1]))
+        # (read as arrays only where a next program starts from it: the last program of
+        # an arrival sample has none)
+        self.basis = h.getBasis()
         self.keys = (np.asarray(row_keys), np.asarray(col_keys))
         return np.array(h.getSolution().col_value)
 
@@ -284,6 +278,10 @@ class _WarmProgram:
         ``col_keys``, or None (no last basis, or it shares no row)."""
         if self.basis is None:
             return None
+        if isinstance(self.basis, highspy.HighsBasis):
+            self.basis = tuple(np.fromiter(map(int, status), np.int8, len(keys))
+                               for status, keys in ((self.basis.row_status, self.keys[0]),
+                                                    (self.basis.col_status, self.keys[1])))
         kinds = list(highspy.HighsBasisStatus.__members__.values())
         basic, lower = int(highspy.HighsBasisStatus.kBasic), int(highspy.HighsBasisStatus.kLower)
         status = []
