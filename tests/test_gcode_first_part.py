@@ -257,3 +257,13 @@ def test_a_refusal_from_the_first_part_is_one_the_whole_program_makes(tmp_path, 
     with pytest.raises(WorkLimitError, match="999 sharp corners"):
         planning.check_corner_count(truth)
     assert 18 < counted <= truth
+
+
+def test_sparse_moves_are_read_from_more_lines(tmp_path, lowered, no_whole_read, capsys):
+    """A program with three comments after every move needs about four times the lines
+    for the same pieces: its first lines are read again, at least twice as many."""
+    spec = _zigzag(tmp_path / "sparse.ngc", 2000, every="(a)\n(b)\n(c)\n")
+    part = read_first_part(spec, "xy", 22)
+    assert part.pieces >= 22 and part.lines == 2 * (22 + FIRST_PART_MARGIN)
+    assert main(["bound", spec, "--feed", "100mm/s"]) == 2
+    assert "the path has at least" in _one_error_line(capsys)

@@ -153,8 +153,9 @@ def read_first_part(file: str | os.PathLike, axes: str, pieces: int, *, contour:
     end), read by the reader itself; None where they are not provably a first part of the
     program's execution or would be more than half of it (module docstring).
 
-    Starts with ``pieces + FIRST_PART_MARGIN`` lines and doubles them while the contour
-    has fewer pieces, up to half the program.
+    Starts with ``pieces + FIRST_PART_MARGIN`` lines and, while the contour has fewer
+    pieces, reads again as many lines as the pieces per line read ask for (at least twice
+    as many), up to half the program.
 
     Parameters
     ----------
@@ -207,7 +208,9 @@ def read_first_part(file: str | os.PathLike, axes: str, pieces: int, *, contour:
             part = _read(path, head[:cut], axes, contour, project, tool_table, table_scale)
             if part is None or part.ended or part.pieces >= pieces or (contour or 1) < len(part.contours):
                 return part  # (a contour before the last is whole)
-            want *= 2
+            # as many more lines as the pieces read per line ask for (at least twice as
+            # many): one more read, or none where that is more than half the program
+            want = max(2 * want, want * pieces // max(part.pieces, 1) * 11 // 10 + 1)
 
 
 def _read(path: Path, data: bytes, axes: str, contour, project, tool_table, table_scale):
