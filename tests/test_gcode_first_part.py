@@ -180,14 +180,15 @@ _MOVE = st.tuples(st.sampled_from(["G1"] * 8 + ["G2", "G3", "G0", "comment", "bl
                   st.integers(-40, 40), st.integers(-40, 40), st.sampled_from([0.0, 0.3, 1.2, 2.0]))
 
 
-def _program(moves, comp: bool, sub: bool) -> str:
-    """A program of ``moves`` (kind, dx, dy in 0.01 mm, arc sweep [rad]) from (0, 0)."""
+def _program(moves, comp: str | None, sub: bool) -> str:
+    """A program of ``moves`` (kind, dx, dy in 0.01 mm, arc sweep [rad]) from (0, 0),
+    under cutter compensation ``comp`` (``"G41.1"``, ``"G42.1"``) where given."""
     out = ["G21 G90 G17\n"]
     if sub:
         out.append("o<leg> sub\nG1 X[#1] Y[#2]\no<leg> endsub\n")
     out.append("G0 X0 Y0\nF600\n")
     if comp:
-        out.append("G41.1 D0.004\nG1 X0.5 Y0\n")
+        out.append(f"{comp} D0.004\nG1 X0.5 Y0\n")
     x, y = (0.5, 0.0) if comp else (0.0, 0.0)
     for i, (kind, dx, dy, sweep) in enumerate(moves):
         if kind == "comment":
@@ -222,7 +223,7 @@ def _program(moves, comp: bool, sub: bool) -> str:
 
 @settings(max_examples=int(os.environ.get("NURBSMOTION_SWEEP", "60")), deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
-@given(moves=st.lists(_MOVE, min_size=60, max_size=240), comp=st.booleans(),
+@given(moves=st.lists(_MOVE, min_size=60, max_size=240), comp=st.sampled_from([None, "G41.1", "G42.1"]),
        sub=st.sampled_from([False, False, False, True]), pieces=st.integers(3, 40),
        contour=st.sampled_from([None, 1, 2]))
 def test_the_first_part_never_counts_more_than_the_whole_program(tmp_path_factory, moves, comp, sub,
