@@ -35,6 +35,7 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "paths": (("paths", "paths.files", "paths.dxf", "paths.gcode", "paths.gcode.ngc", "paths.gcode.program",
                "paths.gcode.codes", "paths.gcode.reader", "paths.gcode.frames", "paths.gcode.curves",
                "paths.gcode.cycles", "paths.gcode.bulk", "paths.gcode.writer", "paths.gcode.compensation",
+               "paths.gcode.first_part",
                "paths.ngc",
                "paths.pieces", "paths.random_paths"), ("base", "geometry")),
     # The servo side knows nothing of curves: machine does not import geometry.

@@ -42,9 +42,10 @@ import tomli_w
 
 from dataclasses import dataclass
 
-from .._runtime.io import parse_json_or_toml, read_text_file, write_output
+from .._runtime.io import check_input_file, parse_json_or_toml, read_text_file, write_output
 from ..feed import FeedLimit
-from ..errors import InvalidArgumentError, InvalidCurveError, PathFileError, WorkLimitError
+from ..errors import (InvalidArgumentError, InvalidCurveError, NurbsmotionError, PathFileError,
+                      WorkLimitError)
 from ..nurbs import BUILTIN_PATHS, MAX_CONTROL_POINTS, NurbsCurve, builtin_path
 
 if TYPE_CHECKING:  # (annotation only)
@@ -524,10 +525,43 @@ def load_contour(file: str | os.PathLike, *, axes: str = "xy", units: str | None
     match = _CONTOUR_SELECTOR.match(spec)
     if match and not Path(spec).exists():
         spec, index = match.group("file"), int(match.group("index"))
+    if polyline_check is not None and Path(spec).suffix.lower() in _GCODE_SUFFIXES:
+        _gcode_first_part(spec, index, axes, project, tool_table, polyline_check)
     contours = load_contours(spec, axes=axes, units=units, project=project, tool_table=tool_table,
                              size_check=size_check, polyline_check=polyline_check)
     chosen = _choose_contour([c.curve for c in contours], index, spec)
     return next(c for c in contours if c.curve is chosen)
+
+
+def _gcode_first_part(spec: str, index: int | None, axes, project: bool, tool_table,
+                      polyline_check) -> None:
+    """Call ``polyline_check(rows, None)`` for a G-code program, where ``rows(k)`` gives
+    the first lines that hold ``k`` pieces of contour ``index`` (None: its only one), read
+    by the reader itself (:func:`nurbsmotion.paths.gcode.first_part.read_first_part`: a
+    :class:`~nurbsmotion.paths.gcode.first_part.FirstPart`, or None where they are not
+    provably a first part of the program), and say which file a refusal is of. Nothing
+    is checked where the program, its axes or its tool table cannot be read here: the
+    whole program's read names what is wrong."""
+    from .gcode.compensation import read_tool_table
+    from .gcode.first_part import read_first_part
+
+    path = Path(spec)
+    if axes is None or not path.is_file():
+        return
+    tools = None
+    if tool_table is not None:
+        try:
+            tools = read_tool_table(check_input_file(tool_table), str(path))
+        except NurbsmotionError:
+            return
+
+    def rows(k: int):
+        return read_first_part(path, axes, k, contour=index, project=project, tool_table=tools)
+
+    try:
+        polyline_check(rows, None)
+    except WorkLimitError as exc:
+        raise WorkLimitError(f"{path}: {exc}") from None
 
 
 def load_contours(file: str | os.PathLike, *, axes: str | None = "xy", units: str | None = None,

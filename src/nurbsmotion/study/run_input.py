@@ -88,7 +88,9 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
         at the default ``path_tolerance``) counted from its first vertices against the
         planner's grid (:func:`nurbsmotion.planning.check_corner_count`): exactly where
         nothing is joined, else at least those between pieces that stay chords
-        (:func:`nurbsmotion.chords.polyline_corners`).
+        (:func:`nurbsmotion.chords.polyline_corners`); so has a G-code program, from its
+        first lines where they are provably the first part of its execution (at least
+        those its runs of lines keep, :mod:`nurbsmotion.paths.gcode.first_part`).
 
     Returns
     -------
@@ -140,14 +142,18 @@ def _polyline_check(machine: Machine, units: str | None):
         from ..paths import PATH_UNITS
         from ..planning import check_corner_count, most_corners
 
-        unit = units or file_units or "mm"
-        if unit not in PATH_UNITS:
-            return  # the reader names it
-        per_unit = machine.pulses_per_unit(unit)  # [pulse/path unit], as Scale.factor
         # enough vertices to hold one corner more than the planner's grid can
         read = rows(most_corners() + 4)  # the ends, and a last vertex whose next piece is unread
-        if read is None or read[0].shape[1] != machine.n_axes:
-            return  # the parser, or the machine's axis check, says what is wrong
+        if read is None:
+            return  # the parser says what is wrong
+        gcode = not isinstance(read, tuple)  # a G-code program's first part (FirstPart)
+        unit = units or (read.units if gcode else file_units) or "mm"
+        if unit not in PATH_UNITS or (read.n_axes if gcode else read[0].shape[1]) != machine.n_axes:
+            return  # the reader, or the machine's axis check, says what is wrong
+        per_unit = machine.pulses_per_unit(unit)  # [pulse/path unit], as Scale.factor
+        if gcode:
+            check_corner_count(*read.corners(DEFAULT_PATH_TOLERANCE / per_unit, per_unit))
+            return
         points, whole = read
         corners, exact = polyline_corners(points, DEFAULT_PATH_TOLERANCE / per_unit,
                                           per_unit, whole=whole)

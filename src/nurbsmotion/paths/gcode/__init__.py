@@ -15,6 +15,9 @@ Size
     no offsets): the same pieces, feeds, lines and errors as one line at a time. A move
     costs a few numbers until its contour is joined: a CAM program of a million lines
     loads in a few seconds and about half a gigabyte (``benchmarks/gcode_load.py``).
+    ``run`` and ``bound`` first read only a program's first lines (by the same reader,
+    :mod:`~nurbsmotion.paths.gcode.first_part`) and refuse, without reading the rest, a
+    program whose first lines already hold more sharp corners than the planner's grid.
 
 What is read
     The language (parameters, expressions, O-word subroutines and control flow) is
@@ -96,6 +99,7 @@ Modules
 ``curves``   G2/G3 arcs and helices, G5/G5.1, G5.2/G5.3 and G6.2 NURBS blocks
 ``cycles``   the canned cycles G73, G74, G81-G89
 ``bulk``     runs of plain lines applied in bulk
+``first_part``  a program's first lines read alone, for a size refusal before the whole
 ``writer``   save_gcode (G5.2 export) and number formatting
 """
 

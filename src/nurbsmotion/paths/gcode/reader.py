@@ -93,6 +93,7 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
         self.cycle_words: dict = {}  # R, depth, P, Q, I/J/K kept from the last cycle [input units]
         self.cycle_level: float | None = None  # the initial level of a series of cycles [output units]
         self.called: tuple = ()  # (first, end, file, first in the file) of each called file's lines
+        self.first_part = False  # reading a program's first lines only: keep each contour's pieces
 
     @property
     def position(self) -> np.ndarray:
@@ -267,6 +268,10 @@ class _Reader(_Frames, _Curves, _Cycles, _Bulk, _Compensation):
 
     def end_contour(self) -> None:
         if self.chain is None:
+            return
+        if self.first_part:  # the pieces as read, not joined (first_part.read_first_part)
+            self.contours.append(self.chain)
+            self.chain, self.piece_feeds, self.piece_lines = None, array("d"), array("q")
             return
         name = f"{Path(self.source).stem}#{len(self.contours) + 1}"
         lines = tuple(self.piece_lines)
