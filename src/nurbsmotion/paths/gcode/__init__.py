@@ -42,8 +42,9 @@ What is read
     dwell the end of one), ``G80``. Words that do not change the path are skipped, each
     kind reported once as a :class:`GcodeWarning` (one line). ``M2``/``M30`` end the
     program; ``G4`` (dwell) ends the contour. What would change the path but is not read
-    (cutter compensation, the G76 threading cycle, spindle-synchronised motion, probing, UVW
-    planes) is a :class:`PathFileError` naming the line.
+    (the G76 threading cycle, spindle-synchronised motion, probing, UVW planes, cutter
+    compensation in G19) is a :class:`PathFileError` naming the line. Cutter compensation
+    (G40-G42.1) is computed as LinuxCNC's interpreter does (:mod:`.compensation`).
 
 Contours
     The machine's axes decide which coordinates form the path (``axes``, default
