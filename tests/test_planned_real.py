@@ -409,3 +409,30 @@ def test_reading_pole_keeps_the_landing_where_the_reading_cannot_saturate_it():
     pole = reading_pole(a, b0, c, b1, 0.0, 0.7, 0.99, 1.0, 1e-9)
     assert _landing_gains(a, b0, c, b1, pole)[1] >= 0.0
     assert _landing_gains(a, b0, c, b1, pole + 1e-6)[1] < 0.0
+
+
+def test_fast_sampled_axis_read_in_counts_does_not_swing_at_rest():
+    """Regression (issue 33 item 4, mechanism 1 of docs/model.md#planned-on-a-real-machine):
+    item 4's case 130 machine (Ts 0.1 ms, counts with 0.21 count of noise, friction the
+    model does not know) on a short line. With the landing at the tracking pole its x
+    drive swung between +-Umax at rest (20 V RMS, ``limit_cycle``); with the pole
+    :func:`reading_pole` gives, no limit cycle, it settles, and the drive over the last
+    50 ms stays within the governor's headroom of Umax."""
+    from nurbsmotion.interpolators import make_interpolator
+    from nurbsmotion.interpolators.planned import DEFAULT_DRIVE_HEADROOM
+    from nurbsmotion.loop import simulate
+    from nurbsmotion.random_machines import random_machine, random_model
+    from nurbsmotion.servo import ServoPlant
+
+    true = random_machine([33, 130], 2, real=True)
+    model = random_model(true, [33, 130, 1])
+    line = make_line([0.0, 0.0], [300.0, 200.0])
+    interp = make_interpolator("planned", line, model,
+                               0.5 * float(np.min(model.max_axis_speed)))
+    tr = simulate(interp, model, plant=ServoPlant.of_machine(true, line(0.0)), hold=0.05,
+                  settle_window=2.0, settle_limit=0.5)
+    rest = tr.at_rest(window=500)
+    assert not any(rest.limit_cycle.values())
+    assert tr.metrics().settled
+    drive = np.asarray(tr.drive_applied)[-500:]
+    assert np.max(np.abs(drive)) < DEFAULT_DRIVE_HEADROOM * true.max_drive
