@@ -335,3 +335,104 @@ def test_disturbance_observer_reads_the_drive_the_plant_got(disturbance, phase):
         _observe(dob, j, predicted + 1.0, hist, a, b0, c, b1, b0, b1, 0.0, 0.0,
                  gain, 1.5)
         assert dob[0, j] == before
+
+
+def _sampled(tau, kc, ke, period):
+    """The axis tau*dw/dt = -w + Kc*u, dth/dt = Ke*w sampled by scipy (ZOH) over
+    ``period`` [s]: a, b0, c, b1 of x[k+1] = [[a, 0], [c, 1]] x[k] + [b0, b1] u[k]."""
+    from scipy.signal import cont2discrete
+
+    Ad, Bd, *_ = cont2discrete((np.array([[-1 / tau, 0.0], [ke, 0.0]]),
+                                np.array([[kc / tau], [0.0]]), np.eye(2), np.zeros((2, 1))),
+                               period)
+    return Ad[0, 0], Bd[0, 0], Ad[1, 0], Bd[1, 0]
+
+
+# item 4's case 130, axis x: Ts 0.1 ms against an axis whose own loop is at 50 rad/s
+FAST_AXIS = dict(tau=56.6e-3, kc=91.3, ke=144.0, period=1e-4)
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.2, 0.6])
+def test_reading_pole_bounds_the_drive_a_reading_moves(delay):
+    """:func:`reading_pole` on a fast sampled axis (item 4's case 130 x, built here and
+    sampled by scipy, over the sample and over the delay): the landing's drive at rest,
+    written out from its definition (the observer's correction by a reading step dy, the
+    predicted position dy + c_h*m_w*dy, the speed a_h*m_w*dy after the drive in flight),
+    moves by the room at the pole found (to 1e-6) and by more at a pole 1e-6 faster; at
+    the tracking pole it moved by 60-300 times the room. The loop at that pole is stable
+    at the quantiser's describing-function gains (no delay: :func:`_rest_loop`)."""
+    from nurbsmotion.interpolators.planned.rest_observer import (QUANTISER_GAIN,
+                                                                 observer_gains, reading_pole)
+
+    a, b0, c, b1 = _sampled(**FAST_AXIS)
+    a_h, _, c_h, _ = (_sampled(FAST_AXIS["tau"], FAST_AXIS["kc"], FAST_AXIS["ke"],
+                               delay * FAST_AXIS["period"]) if delay else (1.0, 0, 0.0, 0))
+    observer_pole, step, room = 0.995, 2 * 1.14, 1.93   # case 130: band 1.14, Umax 19.3 V
+
+    def moved(pole):
+        k_th, k_w, _ = _landing_gains(a, b0, c, b1, pole)
+        m_w = observer_gains(a, c, min(observer_pole, pole))[0]
+        return abs(k_th * -(step + c_h * m_w * step) - k_w * a_h * m_w * step)
+
+    pole = reading_pole(a, b0, c, b1, delay, 0.7, observer_pole, step, room)
+    assert 60 * room < moved(0.7) < 300 * room
+    assert moved(pole) == pytest.approx(room, rel=1e-6)
+    assert moved(pole - 1e-6) > room
+    assert 0.9 < pole < 0.99
+    if not delay:
+        gains = _landing_gains(a, b0, c, b1, pole)
+        for g in (1 / 1.1, 1.0, QUANTISER_GAIN * 1.1):
+            for e in (0.01, 0.5, 1.0):
+                loop = _rest_loop(FAST_AXIS["tau"], FAST_AXIS["kc"], FAST_AXIS["ke"],
+                                  FAST_AXIS["period"], gains, min(observer_pole, pole), g, e)
+                assert np.max(np.abs(np.linalg.eigvals(loop))) < 1.0, (g, e)
+
+
+def test_reading_pole_keeps_the_landing_where_the_reading_cannot_saturate_it():
+    """The die bonder read in 1-um counts or with 0.3 pulse of noise: a reading's change
+    moves the landing's drive by 1-5 % of the governor's headroom, so the landing keeps
+    the tracking pole exactly (its runs are bit for bit the same); and where the room is
+    too small for any pole (an axis whose speed pole a = 0.44, item 4's case 0 z), the
+    slowest pole whose speed gain k_w is not negative, no slower."""
+    from nurbsmotion.interpolators.planned.inverse import axis_zoh
+    from nurbsmotion.interpolators.planned.rest_observer import reading_pole, rest_observer
+
+    for changes, band in ((dict(encoder="counts"), 0.5), (dict(measurement_noise=0.3), 0.9)):
+        m = die_bonder(**changes)
+        observer = rest_observer(m, band)
+        a, b0, c, b1 = axis_zoh(m)
+        for j in range(m.n_axes):
+            assert reading_pole(a[j], b0[j], c[j], b1[j], 0.0, 0.7, observer[1, j],
+                                2 * band, 0.1 * m.max_drive) == 0.7
+    a, b0, c, b1 = _sampled(2.43e-3, 50.0, 100.0, 2e-3)
+    assert a == pytest.approx(0.44, abs=0.01)
+    pole = reading_pole(a, b0, c, b1, 0.0, 0.7, 0.99, 1.0, 1e-9)
+    assert _landing_gains(a, b0, c, b1, pole)[1] >= 0.0
+    assert _landing_gains(a, b0, c, b1, pole + 1e-6)[1] < 0.0
+
+
+def test_fast_sampled_axis_read_in_counts_does_not_swing_at_rest():
+    """Regression (issue 33 item 4, mechanism 1 of docs/model.md#planned-on-a-real-machine):
+    item 4's case 130 machine (Ts 0.1 ms, counts with 0.21 count of noise, friction the
+    model does not know) on a short line. With the landing at the tracking pole its x
+    drive swung between +-Umax at rest (20 V RMS, ``limit_cycle``); with the pole
+    :func:`reading_pole` gives, no limit cycle, it settles, and the drive over the last
+    50 ms stays within the governor's headroom of Umax."""
+    from nurbsmotion.interpolators import make_interpolator
+    from nurbsmotion.interpolators.planned import DEFAULT_DRIVE_HEADROOM
+    from nurbsmotion.loop import simulate
+    from nurbsmotion.random_machines import random_machine, random_model
+    from nurbsmotion.servo import ServoPlant
+
+    true = random_machine([33, 130], 2, real=True)
+    model = random_model(true, [33, 130, 1])
+    line = make_line([0.0, 0.0], [300.0, 200.0])
+    interp = make_interpolator("planned", line, model,
+                               0.5 * float(np.min(model.max_axis_speed)))
+    tr = simulate(interp, model, plant=ServoPlant.of_machine(true, line(0.0)), hold=0.05,
+                  settle_window=2.0, settle_limit=0.5)
+    rest = tr.at_rest(window=500)
+    assert not any(rest.limit_cycle.values())
+    assert tr.metrics().settled
+    drive = np.asarray(tr.drive_applied)[-500:]
+    assert np.max(np.abs(drive)) < DEFAULT_DRIVE_HEADROOM * true.max_drive

@@ -46,7 +46,9 @@ Online, every sample (:func:`online_step`, plain scalar/array code that numba co
    (:func:`.mode_law.mode_landing_law`). On a rigid axis whose model's reading is not
    exact (counts, noise), the landing's speed comes from an observer whose poles are the
    machine's own loop's slowest (:func:`.rest_observer.rest_observer`), not from one
-   increment; on an axis with a mode and such a reading, from an observer designed into
+   increment, and the landing's poles are slowed where the reading's own change between
+   two samples would otherwise move the drive by more than the governor's headroom
+   (:func:`.rest_observer.reading_pole`); on an axis with a mode and such a reading, from an observer designed into
    the mode law's loop where that law is no slower and stable through the counts
    (:func:`.mode_law.mode_rest_observer`). The drive is
    clipped to +-Umax: *every drive is within the limit by construction*, whatever the

@@ -312,7 +312,9 @@ def machine_knowledge(machine: Machine, a, b0, c, b1, tracking_pole: float) -> d
       tracking (the state the drive will meet, predicted over the delay, step 1b of
       :func:`.step.online_step`) and in the landing's law
       (:func:`.identify._landing_law`).
-    - The landing's poles are at ``tracking_pole``: deadbeat (poles at 0), as it once was,
+    - The landing's poles are at ``tracking_pole`` (on a rigid axis read inexactly, slower
+      where the reading's own change would move the drive beyond the headroom,
+      :func:`.rest_observer.reading_pole`): deadbeat (poles at 0), as it once was,
       closes what a plant unlike the model has left of the move in three samples, but
       on the same plant with a load, friction or a mode the model does not know it
       limit-cycled or never settled (benchmarks/real_planned_item1.md).

@@ -22,10 +22,18 @@ an observer slower than the law it feeds let the die bonder's nearly integrating
 swing +-3.5 pulses after the landing began on a noisy speed, and on random machines whose
 own loop is slow (a PID's integral, 0.99 and more) the landing ran away (1.4e5 pulses).
 
+The landing's own poles on such a reading (:func:`reading_pole`): ``tracking_pole`` (0.7
+a sample) unless the reading's own change between two samples would then move the drive
+by more than the governor's headroom, as on an axis sampled fast against its own loop
+(item 4's case 130: Ts 0.1 ms, 111 V a pulse at 0.7, Umax 19.3 V; a count flipped by the
+noise swung the drive between the limits); there the fastest slower poles for which it
+does not.
+
 Glossary
 --------
 a, c : the ZOH plant's speed pole and speed-to-position weight (:func:`.inverse.axis_zoh`);
-m_w, m_theta : the observer's gains on the innovation [(rad/s)/pulse, 1].
+m_w, m_theta : the observer's gains on the innovation [(rad/s)/pulse, 1];
+a_h, c_h : the plant over the delay (:func:`.identify._plant_part`).
 """
 
 from __future__ import annotations
@@ -37,12 +45,18 @@ from numba import njit
 
 from ...machine import Machine
 from ...plant.linear import linear_loop_poles
+from .identify import _landing_gains, _plant_part
 
-__all__ = ["rest_observer", "observer_gains", "REST_OBSERVER_ROWS", "QUANTISER_GAIN"]
+__all__ = ["rest_observer", "observer_gains", "reading_gain", "reading_pole",
+           "REST_OBSERVER_ROWS", "QUANTISER_GAIN", "POLE_BISECTIONS"]
 
 REST_OBSERVER_ROWS = 2
 """Rows per axis of the plan's ``rest_observer``: 1 where the landing's speed comes from
 the observer (0: from the last increment, as before), then the observer's pole."""
+
+POLE_BISECTIONS = 30
+"""Bisections of the landing's pole on a reading not exact (:func:`reading_pole`): to
+3e-10 of a pole on (``landing_pole``, 1)."""
 
 QUANTISER_GAIN = 4.0 / math.pi
 """The largest describing-function gain of a rounding quantiser of step q (one count):
@@ -65,6 +79,61 @@ def observer_gains(a, c, pole):
     l_th = a + 1.0 - 2.0 * pole
     l_w = (pole - a) ** 2 / c
     return l_w / a, l_th - c * l_w / a
+
+
+@njit(cache=True)
+def reading_gain(a, b0, c, b1, delay, pole, observer_pole):
+    """How much the landing's drive moves [V/pulse] for a change of the reading alone, at
+    once (the sample it is read): the law of :func:`.identify._landing_law` with its
+    three poles at ``pole`` on the ZOH plant ``(a, b0, c, b1)`` whose drive arrives
+    ``delay`` samples late, fed by this module's observer with both poles at
+    ``min(observer_pole, pole)`` (:func:`observer_gains`, as :func:`.step.online_step`
+    starts it). A reading dy moves the observer's speed by ``m_w*dy`` and the predicted
+    position ``y + c_h*w`` (``a_h, c_h``: the plant over the delay,
+    :func:`.identify._plant_part`) by ``(1 + c_h*m_w)*dy``; the drive
+    ``k_theta*e - k_w*a_h*w + ...`` by ``-(k_theta*(1 + c_h*m_w) + k_w*a_h*m_w)*dy``
+    (the band's dead zone on e left out: an upper bound of its position part).
+    Returns ``(gain, k_w)``, the latter to tell the law's speed gain's sign."""
+    k_theta, k_w, _ = _landing_gains(a, b0, c, b1, pole)
+    if delay > 0.0:
+        a_h, _, c_h, _ = _plant_part(a, b0, c, b1, delay)
+    else:
+        a_h, c_h = 1.0, 0.0
+    m_w = observer_gains(a, c, min(observer_pole, pole))[0]
+    return abs(k_theta * (1.0 + c_h * m_w) + k_w * a_h * m_w), k_w
+
+
+@njit(cache=True)
+def reading_pole(a, b0, c, b1, delay, pole, observer_pole, step, room):
+    """The landing's pole on a reading not exact (:func:`.step.online_step`, step 3'):
+    ``pole`` (the plan's ``landing_pole``) where a change of the reading by ``step``
+    [pulse] (what the reading alone can move between two samples: a count and the
+    noise's 3 sigma each side, twice the landing's band) moves the drive by at most
+    ``room`` [V] (the share of Umax the governor keeps for the feedback, the plan's
+    ``headroom``) (:func:`reading_gain`); else the fastest slower pole for which it does,
+    by :data:`POLE_BISECTIONS` bisections on (pole, 1), no slower than where the law's speed gain
+    k_w would turn negative (a law that pushes the axis along its own speed, which
+    friction the model does not know turns into stick-slip): there the reading still
+    moves the drive by more than ``room``. The gains fall with the pole, about as
+    (1 - pole)^2 (:func:`.identify._landing_gains`): on an axis sampled fast against its
+    own loop (Ts 0.1 ms, a law at ``pole`` 0.7 asking 111 V a pulse of an axis whose Umax
+    is 19.3 V) a count flipped by the noise otherwise swings the drive between the limits
+    while the axis stays within a pulse or two. On the plant's own bandwidth (the die
+    bonder read in 1-um counts: 0.025 V a pulse at 0.7, 10 V of Umax) ``pole`` itself,
+    bit for bit."""
+    if reading_gain(a, b0, c, b1, delay, pole, observer_pole)[0] * step <= room:
+        return pole
+    lo, hi = pole, 1.0
+    for _ in range(POLE_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        gain, k_w = reading_gain(a, b0, c, b1, delay, mid, observer_pole)
+        if k_w < 0.0 or gain * step <= room:
+            hi = mid
+        else:
+            lo = mid
+    if reading_gain(a, b0, c, b1, delay, hi, observer_pole)[1] < 0.0:
+        return lo    # k_w >= 0 at lo: the slowest pole the speed gain's sign allows
+    return hi
 
 
 def rest_observer(machine: Machine, band: float) -> np.ndarray:

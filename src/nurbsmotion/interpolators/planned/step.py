@@ -21,7 +21,7 @@ from .shaper import twist_at
 from .identify import (LAW_ROWS, _delayed_zoh, _estimated_delayed_plant,
                        _estimated_plant, _identify, _landing_gains, _landing_law, _plant_part,
                        _pole_gains)
-from .rest_observer import observer_gains
+from .rest_observer import observer_gains, reading_pole
 
 __all__ = ["online_step", "planned_step", "LANDING_ROWS"]
 
@@ -284,13 +284,22 @@ def online_step(plan, state, position, umax, out_setpoint):
             rested = plan.rest_observer.shape[1] > 0 and plan.rest_observer[0, j] != 0.0
             if landing[0, j] == 0.0:
                 landing[0, j] = 1.0
+                pole = plan.landing_pole
                 if moded:
                     # a mode declared: the law designed with it on the model
                     # (:func:`.mode_law.mode_landing_law`), not the identified plant's
                     landing[1:LAW_ROWS + 1, j] = plan.mode_law[1:LAW_ROWS + 1, j]
                 else:
-                    _landing_law(ae, b0e, ce, b1e, delay, plan.landing_pole,
-                                 landing[1:LAW_ROWS + 1, j])
+                    if rested:
+                        # a reading not exact: no faster than lets the reading's own
+                        # change between two samples (twice the band) move the drive
+                        # by the governor's headroom at most
+                        # (:func:`.rest_observer.reading_pole`; a count flipped by the
+                        # noise swung the drive of a fast sampled axis between the limits)
+                        pole = reading_pole(ae, b0e, ce, b1e, delay, pole,
+                                            plan.rest_observer[1, j], 2.0 * band,
+                                            headroom * umax)
+                    _landing_law(ae, b0e, ce, b1e, delay, pole, landing[1:LAW_ROWS + 1, j])
                     if observer and dob[1, j] != 0.0:
                         # the observer's estimate for an axis at rest handed to the
                         # integral (:func:`.disturbance._for_direction`: the part of d
@@ -311,8 +320,7 @@ def online_step(plan, state, position, umax, out_setpoint):
                     landing[OBSERVER_ROW, j] = w0
                     landing[OBSERVER_ROW + 1, j] = position[j]
                     m_w, m_th = observer_gains(landing[1, j], landing[2, j],
-                                               min(plan.rest_observer[1, j],
-                                                   plan.landing_pole))
+                                               min(plan.rest_observer[1, j], pole))
                     landing[OBSERVER_ROW + 2, j] = m_w
                     landing[OBSERVER_ROW + 3, j] = m_th
                     landing[OBSERVER_ROW + 4, j] = 1.0   # first sample: no prediction
