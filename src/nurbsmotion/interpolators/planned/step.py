@@ -271,11 +271,15 @@ def online_step(plan, state, position, umax, out_setpoint):
         # on the deviation from the model's own response, not on the twist it plans
         tw_now, tw_step = 0.0, 0.0
         if moded and plan.twist.shape[0] > 0:
-            # at the clock the reading's plant is at: the drive reaches it `delay`
-            # samples late (read at the plan's clock, on die-bonder-real the twist's
-            # half-sample lead left 278 um of contour on the Pi at 1 m/s)
-            tw_now = twist_at(plan.twist, phi - delay * rate_old, j)
-            tw_step = tw_now - twist_at(plan.twist, phi - (1.0 + delay) * rate_old, j)
+            # with plan.disturbance_observer (opt-in), at the clock the reading's plant
+            # is at: the drive reaches it `delay` samples late (read at the plan's clock,
+            # on die-bonder-real the twist's half-sample lead left 278 um of contour on
+            # the Pi at 1 m/s without friction; by default the plan's clock still: alone,
+            # on item 4's known modes it flipped as many runs to unsettled as to settled,
+            # docs/model.md#planned-on-a-real-machine)
+            lag = delay if observer else 0.0
+            tw_now = twist_at(plan.twist, phi - lag * rate_old, j)
+            tw_step = tw_now - twist_at(plan.twist, phi - (1.0 + lag) * rate_old, j)
         w_last = (hist[3, j] - tw_step - g0th * u1 - g1th * u2) / ce
         w_now = ae * w_last + g0w * u1 + g1w * u2
         th_now = position[j] - tw_now
