@@ -316,12 +316,13 @@ def test_disturbance_observer_reads_the_drive_the_plant_got(disturbance, phase):
             speed.append(x[0])
         dob = np.zeros((DOB_ROWS, 2))
         hist = np.zeros((HIST_ROWS, 2))
-        _observe(dob, j, theta[0], hist, a, b0, c, b1, b0, b1, 0.0, 0.0, gain, 0.0)
+        _observe(dob, j, theta[0], theta[0] - hist[2, j], hist, a, b0, c, b1, b0, b1, 0.0,
+                 0.0, gain, 0.0)
         hist[2, j], hist[4, j] = theta[0], 1.0
         for k in range(1, 81):
             hist[1, j], hist[0, j] = hist[0, j], u[k - 1]
-            _observe(dob, j, theta[k], hist, a, b0, c, b1, b0, b1, 0.0, 0.0,
-                     gain, 0.0)
+            _observe(dob, j, theta[k], theta[k] - hist[2, j], hist, a, b0, c, b1, b0, b1,
+                     0.0, 0.0, gain, 0.0)
             hist[3, j], hist[2, j] = theta[k] - hist[2, j], theta[k]
             if k <= 40:
                 assert dob[0, j] == 0.0 and dob[1, j] == 0.0, (j, k)
@@ -332,8 +333,8 @@ def test_disturbance_observer_reads_the_drive_the_plant_got(disturbance, phase):
         before = dob[0, j]
         hist[1, j], hist[0, j] = hist[0, j], u[-1]
         predicted = (dob[10, j] + c * dob[9, j] + b1 * (u[-1] + before))
-        _observe(dob, j, predicted + 1.0, hist, a, b0, c, b1, b0, b1, 0.0, 0.0,
-                 gain, 1.5)
+        _observe(dob, j, predicted + 1.0, predicted + 1.0 - hist[2, j], hist, a, b0, c, b1,
+                 b0, b1, 0.0, 0.0, gain, 1.5)
         assert dob[0, j] == before
 
 

@@ -59,29 +59,33 @@ move from rest passes it within its first sample (a drive of 0.01/b1 V, 1.6 mV o
 die bonder's x axis, does)."""
 
 
-def observer_gains(a, b0, c, b1) -> np.ndarray:
-    """The deadbeat gains ``(L_w, L_th, L_d)`` of :func:`_observe` per axis, shape (3,
-    n_axes) [rad/s/pulse, 1, V/pulse]: the current estimator of the model's plant with a
-    constant unknown drive d, ``x = (w, th, d)``, ``x[k+1] = F x[k] + G u`` with ``F =
-    [[a, 0, b0], [c, 1, b1], [0, 0, 1]]`` and the position read, ``x+ = x- + L*(th -
-    th-)``, whose error ``(I - L*C)*F`` has all three poles at 0 (Ackermann's formula
-    for the dual, ``L = F^3 O^-1 e3`` with ``O = [C F; C F^2; C F^3]``): any error of the
-    model's form, a step of d included, is gone three samples after it arose. The drive's
-    known delay is an input, not in F: the gains are the undelayed plant's. ``L_th`` is 1
-    (the position estimated is the one read)."""
+def observer_gains(a, b0, c, b1, pole: float = 0.0) -> np.ndarray:
+    """The gains ``(L_w, L_th, L_d)`` of :func:`_observe` per axis, shape (3, n_axes)
+    [rad/s/pulse, 1, V/pulse]: the current estimator of the model's plant with a constant
+    unknown drive d, ``x = (w, th, d)``, ``x[k+1] = F x[k] + G u`` with ``F = [[a, 0,
+    b0], [c, 1, b1], [0, 0, 1]]`` and the position read, ``x+ = x- + L*(th - th-)``, whose
+    error ``(I - L*C)*F`` has all three poles at ``pole`` (Ackermann's formula for the
+    dual, ``L = (F - pole*I)^3 O^-1 e3`` with ``O = [C F; C F^2; C F^3]``). At ``pole`` 0
+    (the default, the rigid axes' opt-in observer) deadbeat: any error of the model's
+    form, a step of d included, is gone three samples after it arose, and ``L_th`` is 1
+    (the position estimated is the one read); an axis with a mode takes the pole its
+    design allows (:func:`.mode_law.mode_disturbance_observer`). The drive's known delay
+    is an input, not in F: the gains are the undelayed plant's."""
     out = []
     for v in zip(*(np.atleast_1d(np.asarray(x, dtype=float)) for x in (a, b0, c, b1))):
         aj, b0j, cj, b1j = v
         F = np.array([[aj, 0.0, b0j], [cj, 1.0, b1j], [0.0, 0.0, 1.0]])
         C = np.array([0.0, 1.0, 0.0])
         O = np.vstack([C @ F, C @ F @ F, C @ F @ F @ F])
-        out.append(np.linalg.matrix_power(F, 3) @ np.linalg.solve(O, np.array([0.0, 0.0, 1.0])))
+        out.append(np.linalg.matrix_power(F - pole * np.eye(3), 3)
+                   @ np.linalg.solve(O, np.array([0.0, 0.0, 1.0])))
     # C order, as every other plan array (one compiled signature for the loop)
     return np.ascontiguousarray(np.array(out, dtype=float).T.reshape(3, -1))
 
 
 @njit(cache=True)
-def _observe(dob, j, position, hist, a, b0, c, b1, g0w, g0th, g1w, g1th, gain, dead_zone):
+def _observe(dob, j, position, increment, hist, a, b0, c, b1, g0w, g0th, g1w, g1th, gain,
+             dead_zone):
     """Update axis j's estimate of its speed, position and the drive d it gets besides u
     (rows 9, 10, 0) from the position measured now, before the identification takes it
     (:func:`.identify._identify`, whose memory ``hist`` it reads: u[k-1], u[k-2]; the
@@ -91,9 +95,11 @@ def _observe(dob, j, position, hist, a, b0, c, b1, g0w, g0th, g1w, g1th, gain, d
     Prediction on the model's plant, the drives through its known delay (``g0w, g0th,
     g1w, g1th``, :func:`.identify._delayed_zoh`) and d on the plant itself (``b0, b1``),
     then the reading's innovation beyond the reading's ``dead_zone`` [pulse] (at least
-    :data:`ROUNDING_FLOOR`) corrects all three with the deadbeat ``gain`` (L_w, L_th, L_d)
-    (:func:`observer_gains`). An innovation the reading alone can make leaves the
-    prediction as it is: one count cannot throw the estimate (the dead-zone update of
+    :data:`ROUNDING_FLOOR`) corrects all three with the ``gain`` (L_w, L_th, L_d)
+    (:func:`observer_gains`: deadbeat on a rigid axis); ``increment`` [pulse], the
+    reading's last increment (on an axis with a mode less the model's twist's,
+    :mod:`.shaper`). An innovation the reading alone can make leaves the prediction as it
+    is: one count cannot throw the estimate (the dead-zone update of
     bounded noise, as the identification's); on the model's own plant read exactly every
     innovation is the double's rounding, so nothing moves. d is corrected only while the
     axis moves (its increment beyond the dead zone): a still axis is held by friction with
@@ -117,8 +123,7 @@ def _observe(dob, j, position, hist, a, b0, c, b1, g0w, g0th, g1w, g1th, gain, d
         dob[1, j] = 1.0
     dob[9, j] = w_p + gain[0, j] * nu
     dob[10, j] = th_p + gain[1, j] * nu
-    dth = position - hist[2, j]
-    if abs(dth) <= zone:
+    if abs(increment) <= zone:
         # at rest, stopping or reversing friction is no constant drive (it holds the axis
         # with whatever the drive is, up to the stiction): the state follows the reading,
         # d stays the one the axis slid with

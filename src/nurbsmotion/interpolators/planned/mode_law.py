@@ -44,11 +44,13 @@ from ...errors import InfeasibleError
 from ...machine import Machine
 from ...plant import continuous_model
 from ...plant.linear import linear_loop_poles, split_sample
+from .disturbance import observer_gains as disturbance_gains
 from .identify import LAW_ROWS, _landing_law, _pole_gains
 from .rest_observer import QUANTISER_GAIN, REST_OBSERVER_ROWS, observer_gains
 
 __all__ = ["mode_landing_law", "landing_loop", "observer_landing_loop", "mode_rest_observer",
-           "observer_is_robust", "DRIVE_SHARES",
+           "observer_is_robust", "DRIVE_SHARES", "tracking_observer_loop",
+           "mode_disturbance_observer", "DOB_POLES", "DOB_ROW",
            "sampled_axis", "uncertainty_corners", "MODEL_SPREAD", "MODE_LAW_ROWS"]
 
 MODEL_SPREAD = 0.10
@@ -57,11 +59,17 @@ x[1 - s, 1 + s] of the model's, and the model's mode frequency within x[1 - s, 1
 the true one (issue 33: "known to the model within 10 %"), so the true frequency within
 [f/(1 + s), f/(1 - s)] of the model's f."""
 
-MODE_LAW_ROWS = 1 + LAW_ROWS + 2
+DOB_ROW = 1 + LAW_ROWS + 2
+"""The plan's ``mode_law`` row from which the tracking's disturbance observer designed
+with the mode is (:func:`mode_disturbance_observer`): 1 where it is (0: none), then its
+gains ``(L_w, L_th, L_d)`` (:func:`.disturbance.observer_gains` at the designed pole)."""
+
+MODE_LAW_ROWS = DOB_ROW + 4
 """Rows per axis of the plan's ``mode_law``: 1 where the laws below replace the landing's
 and the tracking's laws on the identified plant (0: both rigid, unchanged), then
 :func:`_landing_law`'s rows (the model's rigid plant, the landing's gains designed with the
-mode), then the tracking's gains ``(k_theta, k_w)`` designed with the mode."""
+mode), then the tracking's gains ``(k_theta, k_w)`` designed with the mode, then the
+tracking's disturbance observer (:data:`DOB_ROW`)."""
 
 SLOWING = np.geomspace(1e-3, 1.0, 13)
 """The starting point's search: the rigid placement's gains (k_theta, k_w, k_i) scaled by
@@ -205,6 +213,64 @@ def observer_landing_loop(law: np.ndarray, axis, observer_pole: float,
     T[..., iz, :] = z + e
     T[..., iw, :] = w_new
     T[..., ith, :] = th_new
+    return T
+
+
+def tracking_observer_loop(law: np.ndarray, plant, gains, axis,
+                           encoder_on: str = "motor") -> np.ndarray:
+    """The transition matrix of the tracking's linear closed loop about the plan with the
+    disturbance observer (:func:`.step.online_step` steps 1a' and 3 on an axis whose model
+    declares a mode; no dead zone, clip or quantiser; the reading less the model's twist
+    under the plan's drive, so about the plan the deviation of the encoder's own reading).
+    ``law``: :func:`_landing_law`'s rows with the tracking's gains in rows 10-11 (row 12
+    unused); ``plant``: the model's rigid ZOH plant ``(a, b0, c, b1)``; ``gains``: the
+    observer's ``(L_w, L_th, L_d)`` (:func:`.disturbance.observer_gains`). With ``u1 =
+    u[k-1]``, ``u2 = u[k-2]`` (the drives applied), the reading ``y = theta_encoder[k]``:
+
+        th_p = th_hat + c*w_hat + g0th*u1 + g1th*u2 + b1*d,  w_p = a*w_hat + g0w*u1
+               + g1w*u2 + b0*d,  nu = y - th_p
+        w_hat' = w_p + L_w*nu,  th_hat' = th_p + L_th*nu,  d' = d + L_d*nu
+        v1, v2 = u1 + d', u2 + d'   (the drives the plant got, the estimate in them)
+        w = a*(y - th[k-1] - g0th*v1 - g1th*v2)/c + g0w*v1 + g1w*v2
+        u = -k_theta*(y + c_h*w + b1_h*v1) - k_w*(a_h*w + b0_h*v1) - d'
+
+    (the tracking's speed from the last increment and the drives that made it, the state
+    after the drive in flight, the estimate fed forward). State ``[x (nx), th[k-1], u1,
+    u2, w_hat, th_hat, d]``; its eigenvalues are the loop's poles. ``axis`` may be a stack
+    of axes (:func:`landing_loop`).
+
+    Returns
+    -------
+    ndarray, shape (..., nx + 6, nx + 6)
+    """
+    Phi, g1, g0 = axis
+    nx = Phi.shape[-1]
+    al, cl, g0w, g0th, g1w, g1th, ah, b0h, ch, b1h, kt, kw = law[:12]
+    a, b0, c, b1 = plant
+    l_w, l_th, l_d = gains
+    n = nx + 6
+    ith1, iu1, iu2, iw, ith, i_d = range(nx, n)
+    eye = np.eye(n)
+    y = np.zeros(n)
+    y[1 if (nx == 2 or encoder_on == "motor") else 3] = 1.0
+    u1, u2 = eye[iu1], eye[iu2]
+    th_p = eye[ith] + c * eye[iw] + g0th * u1 + g1th * u2 + b1 * eye[i_d]
+    w_p = a * eye[iw] + g0w * u1 + g1w * u2 + b0 * eye[i_d]
+    nu = y - th_p
+    d_new = eye[i_d] + l_d * nu
+    v1, v2 = u1 + d_new, u2 + d_new
+    w = al * (y - eye[ith1] - g0th * v1 - g1th * v2) / cl + g0w * v1 + g1w * v2
+    u = -kt * (y + ch * w + b1h * v1) - kw * (ah * w + b0h * v1) - d_new
+    T = np.zeros(Phi.shape[:-2] + (n, n))
+    T[..., :nx, :nx] = Phi
+    T[..., :nx, iu1] += g1
+    T[..., :nx, :] += g0[..., :, None] * u
+    T[..., ith1, :] = y
+    T[..., iu1, :] = u
+    T[..., iu2, :] = u1
+    T[..., iw, :] = w_p + l_w * nu
+    T[..., ith, :] = th_p + l_th * nu
+    T[..., i_d, :] = d_new
     return T
 
 
@@ -509,11 +575,15 @@ def mode_landing_law(machine: Machine, pole: float, band: float = 0.0) -> np.nda
         the best radius).
     """
     out = np.zeros((MODE_LAW_ROWS, machine.n_axes))
+    observers = mode_disturbance_observer(machine, pole)
     for j, ax in enumerate(machine.axes):
         if ax.resonance_frequency > 0.0:
             (law, *_), _ = _axis_law(machine, j, pole, band)
             out[0, j] = 1.0
-            out[1:, j] = law
+            out[1:DOB_ROW, j] = law
+            if observers[j] is not None:
+                out[DOB_ROW, j] = 1.0
+                out[DOB_ROW + 1:DOB_ROW + 4, j] = observers[j][1]
     return out
 
 
@@ -524,3 +594,73 @@ def mode_landing_radius(machine: Machine, pole: float, band: float = 0.0) -> lis
     axis."""
     return [_axis_law(machine, j, pole, band)[0][1:] if ax.resonance_frequency > 0.0
             else None for j, ax in enumerate(machine.axes)]
+
+
+DOB_POLES = np.round(np.arange(0.50, 0.995, 0.01), 2)
+"""The disturbance observer's poles tried on an axis with a mode
+(:func:`mode_disturbance_observer`): 0.50 to 0.99 by 0.01. Below 0.5 the observer's
+corrections, read through the mode's twist, destabilise the tracking on die-bonder-real's
+corners (0.5: largest radius 1.05); the design takes the pole of the fastest loop over the
+corners, so the grid's step only bounds how near the best it lands."""
+
+
+@functools.lru_cache(maxsize=64)
+def _observer_design(tau, Kc, Ke, sample_period, delay, frequency, damping, load_fraction,
+                     encoder_on, pole):
+    """The tracking's disturbance observer designed with the mode: ``(observer pole,
+    gains (L_w, L_th, L_d), worst radius)``, or None where no pole of :data:`DOB_POLES`
+    keeps the tracking's loop (:func:`tracking_observer_loop`) stable on every corner."""
+    args = (tau, Kc, Ke, sample_period, delay, frequency, damping, load_fraction,
+            encoder_on, pole)
+    plant, law = _rigid_law(tau, Kc, Ke, sample_period, delay, pole)
+    gains, _ = _tracking_design(*args)
+    law = law.copy()
+    law[10:12] = gains
+    corners = _stacked_corners(*args[:8])
+    best = None
+    for rho in DOB_POLES:
+        g = disturbance_gains(*plant, float(rho))[:, 0]
+        loops = tracking_observer_loop(law, plant, g, corners, encoder_on)
+        if not np.isfinite(loops).all():
+            continue
+        worst = float(np.max(np.abs(np.linalg.eigvals(loops))))
+        if worst < 1.0 and (best is None or worst < best[2]):
+            best = (float(rho), tuple(float(v) for v in g), worst)
+    return best
+
+
+def mode_disturbance_observer(machine: Machine, pole: float):
+    """Per axis whose model declares a mode, the tracking's disturbance observer designed
+    with it: ``(observer pole, (L_w, L_th, L_d), worst radius)`` or None; None for a rigid
+    axis.
+
+    The tracking designed with the mode has no integral and a small position gain (the
+    mode's to give: 0.0021 / 0.00074 V/pulse on die-bonder-real's x / y), so a drive the
+    model does not know holds the axis d/k_theta off the plan (0.3 V of Coulomb friction:
+    144 / 407 pulses). The observer (:func:`.disturbance._observe`: the model's rigid
+    plant with a constant unknown drive d, read on the reading less the model's twist under
+    the plan's drive) estimates d and the tracking feeds it forward per direction of the
+    plan's motion (:func:`.disturbance._for_direction`). Its three poles are one pole
+    ``rho`` of :data:`DOB_POLES`: the one whose tracking loop with the observer
+    (:func:`tracking_observer_loop`), on every corner of the model's uncertainty
+    (tau, Kc, the mode each +-10 %, :data:`MODEL_SPREAD`), has the smallest largest pole
+    radius; none where every such loop has a pole on or outside the unit circle.
+
+    Parameters
+    ----------
+    machine : Machine
+        The model machine.
+    pole : float
+        ``tracking_pole`` (the tracking's design start, :func:`_tracking_design`).
+    """
+    Ts = machine.sample_period
+    out = []
+    for ax in machine.axes:
+        if not ax.resonance_frequency > 0.0:
+            out.append(None)
+            continue
+        out.append(_observer_design(ax.time_constant, ax.electrical_gain,
+                                    ax.mechanical_gain, Ts, machine.delay / Ts,
+                                    ax.resonance_frequency, ax.resonance_damping,
+                                    ax.load_fraction, ax.encoder_on, float(pole)))
+    return out

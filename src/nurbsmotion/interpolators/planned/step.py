@@ -17,6 +17,7 @@ from .disturbance import (REJECTION_POLE, ROUNDING_FLOOR, _direction, _for_direc
                           _made, _observe, _rejected)
 from .governor import _demand, _rate_room, _support_at, _window_rate
 from .guards import _guarded, _short_of_stop
+from .mode_law import DOB_ROW
 from .shaper import twist_at
 from .identify import (LAW_ROWS, _delayed_zoh, _estimated_delayed_plant,
                        _estimated_plant, _identify, _landing_gains, _landing_law, _plant_part,
@@ -149,14 +150,32 @@ def online_step(plan, state, position, umax, out_setpoint):
     i1 = min(i0 + 1, n - 1)
     f = phi - i0 if i1 > i0 else 0.0
     # 1a'. with plan.disturbance_observer (opt-in), the disturbance observer first, on
-    # the model's plant (:func:`.disturbance._observe`; not on an axis whose model
-    # declares a mode)
+    # the model's plant (:func:`.disturbance._observe`): on a rigid axis deadbeat; on an
+    # axis whose model declares a mode, where its design with the mode found one
+    # (:func:`.mode_law.mode_disturbance_observer`), at that design's pole, on the
+    # reading less the model's twist under the plan's drive, at the clock the reading's
+    # plant is at (the drive reaches it `delay` samples late)
     d_most = 0.0
+    has_twist = plan.twist.shape[0] > 0
     for j in range(n_axes):
-        if observer and plan.mode_law[0, j] == 0.0:
+        moded_dob = (observer and plan.mode_law[0, j] != 0.0
+                     and plan.mode_law[DOB_ROW, j] != 0.0)
+        if (observer and plan.mode_law[0, j] == 0.0) or moded_dob:
             g0w, g0th, g1w, g1th = _delayed_zoh(a[j], b0[j], c[j], b1[j], delay)
-            nu = _observe(dob, j, position[j], hist, a[j], b0[j], c[j], b1[j], g0w, g0th,
-                          g1w, g1th, plan.disturbance_gain, dead_zone)
+            if moded_dob:
+                tw_read, tw_last = 0.0, 0.0
+                if has_twist:
+                    tw_read = twist_at(plan.twist, phi - delay * rate, j)
+                    tw_last = twist_at(plan.twist, phi - (1.0 + delay) * rate, j)
+                nu = _observe(dob, j, position[j] - tw_read,
+                              position[j] - hist[2, j] - (tw_read - tw_last), hist, a[j],
+                              b0[j], c[j], b1[j], g0w, g0th, g1w, g1th,
+                              plan.mode_law[DOB_ROW + 1:DOB_ROW + 4], dead_zone)
+                d_most = max(d_most, abs(dob[0, j]))
+                continue   # no deadbeat rejection on a mode: it would ring it
+            nu = _observe(dob, j, position[j], position[j] - hist[2, j], hist, a[j], b0[j],
+                          c[j], b1[j], g0w, g0th, g1w, g1th, plan.disturbance_gain,
+                          dead_zone)
             if nu != 0.0:
                 # the deviation the observer found, at the state the next drive meets
                 if delay > 0.0:
@@ -224,14 +243,16 @@ def online_step(plan, state, position, umax, out_setpoint):
         # the axis moves one way: the regression's delta = (p1 + p2 + p3)*d [pulse])
         th = plan_position[i0, j] * (1.0 - f) + plan_position[i1, j] * f
         moded = plan.mode_law[0, j] != 0.0
+        moded_dob = observer and moded and plan.mode_law[DOB_ROW, j] != 0.0
         # the disturbance observer acts in the tracking (the landing has its integral)
         tracked = observer and not moded and phi < rest
         if moded:
             # a mode declared: the model's plant, the laws designed with its mode on it
             # (:func:`.mode_law.mode_landing_law`; a rigid regression reads the mode's
-            # twist as a plant that is none)
+            # twist as a plant that is none); the drive it gets besides the one asked
+            # for the observer's, where it has one (:func:`.mode_law.mode_disturbance_observer`)
             ae, b0e, ce, b1e = a[j], b0[j], c[j], b1[j]
-            d = 0.0
+            d = dob[0, j] if moded_dob else 0.0
         else:
             if delay > 0.0:
                 ae, b0e, ce, b1e = _estimated_delayed_plant(est, j, a[j], b0[j], c[j],
@@ -250,8 +271,15 @@ def online_step(plan, state, position, umax, out_setpoint):
         # on the deviation from the model's own response, not on the twist it plans
         tw_now, tw_step = 0.0, 0.0
         if moded and plan.twist.shape[0] > 0:
-            tw_now = twist_at(plan.twist, phi, j)
-            tw_step = tw_now - twist_at(plan.twist, phi - rate_old, j)
+            # with plan.disturbance_observer (opt-in), at the clock the reading's plant
+            # is at: the drive reaches it `delay` samples late (read at the plan's clock,
+            # on die-bonder-real the twist's half-sample lead left 278 um of contour on
+            # the Pi at 1 m/s without friction; by default the plan's clock still: alone,
+            # on item 4's known modes it flipped as many runs to unsettled as to settled,
+            # docs/model.md#planned-on-a-real-machine)
+            lag = delay if observer else 0.0
+            tw_now = twist_at(plan.twist, phi - lag * rate_old, j)
+            tw_step = tw_now - twist_at(plan.twist, phi - (1.0 + lag) * rate_old, j)
         w_last = (hist[3, j] - tw_step - g0th * u1 - g1th * u2) / ce
         w_now = ae * w_last + g0w * u1 + g1w * u2
         th_now = position[j] - tw_now
@@ -289,6 +317,10 @@ def online_step(plan, state, position, umax, out_setpoint):
                     # a mode declared: the law designed with it on the model
                     # (:func:`.mode_law.mode_landing_law`), not the identified plant's
                     landing[1:LAW_ROWS + 1, j] = plan.mode_law[1:LAW_ROWS + 1, j]
+                    if moded_dob and dob[1, j] != 0.0:
+                        # the observer's estimate for an axis at rest to the integral,
+                        # as on a rigid axis (below)
+                        landing[14, j] = -_for_direction(dob, j, 0.0) / landing[13, j]
                 else:
                     if rested:
                         # a reading not exact: no faster than lets the reading's own
@@ -399,8 +431,10 @@ def online_step(plan, state, position, umax, out_setpoint):
                      + _rejected(dob, j, a[j], b0[j], c[j], b1[j], kf_th, kf_w))
             else:
                 u = uf + kpe * e_th + kde * e_w
-            if observer and not moded:
-                # the disturbance fed forward (plan.disturbance_observer): the estimate
+            if (observer and not moded) or moded_dob:
+                # the disturbance fed forward (plan.disturbance_observer; on an axis with
+                # a mode its own observer's, the hold's integral at the mode law's
+                # landing gain): the estimate
                 # for the direction the plan moves the axis in at the next clock, where
                 # the plan rests it the axis' own (friction acts until it stops), and at
                 # rest held short of the plan the error's integral
@@ -411,9 +445,9 @@ def online_step(plan, state, position, umax, out_setpoint):
                     sigma = _direction(w_now, ke_ts)
                 d_ff = _for_direction(dob, j, sigma)
                 if sigma == 0.0:
-                    _hold(dob, j, e_th, hist[3, j],
-                          _landing_gains(a[j], b0[j], c[j], b1[j], 1.0 - rate_gain)[2],
-                          max(band, ROUNDING_FLOOR))
+                    k_i = (plan.mode_law[13, j] if moded else
+                           _landing_gains(a[j], b0[j], c[j], b1[j], 1.0 - rate_gain)[2])
+                    _hold(dob, j, e_th, hist[3, j], k_i, max(band, ROUNDING_FLOOR))
                     d_ff = dob[0, j]
                 u -= d_ff
         if abs(u) > umax:
