@@ -73,29 +73,96 @@ def _text_size(text, renderer) -> tuple[float, float]:
     return box.width / _DPI, box.height / _DPI
 
 
+def _ticks_in_view(axis) -> list:
+    """The major tick locations of ``axis`` inside its view (those a draw draws)."""
+    lo, hi = sorted(axis.get_view_interval())
+    return [x for x in axis.get_major_locator()() if lo - 1e-9 * (hi - lo) <= x
+            <= hi + 1e-9 * (hi - lo)]
+
+
+def _tick_label_size(axis) -> float:
+    """Font size of the tick labels of ``axis`` [pt]."""
+    import matplotlib as mpl
+    from matplotlib.font_manager import FontProperties
+
+    name = "xtick" if axis.axis_name == "x" else "ytick"
+    return FontProperties(size=mpl.rcParams[f"{name}.labelsize"]).get_size_in_points()
+
+
 def _tick_labels(axis) -> tuple[float, float, float]:
     """Widest and tallest major tick label [inch] of ``axis`` as it will be drawn (0 when
     its labels are hidden) and the height of its offset text ("1e-5", "+1000") [inch],
     from its locator and formatter: no tick artists are made."""
-    import matplotlib as mpl
-    from matplotlib.font_manager import FontProperties
-
     if not axis._major_tick_kw.get("label1On", True):
         return 0.0, 0.0, 0.0
-    lo, hi = sorted(axis.get_view_interval())
-    locs = [x for x in axis.get_major_locator()() if lo - 1e-9 * (hi - lo) <= x
-            <= hi + 1e-9 * (hi - lo)]
+    locs = _ticks_in_view(axis)
     if not locs:
         return 0.0, 0.0, 0.0
     formatter = axis.get_major_formatter()
     labels = formatter.format_ticks(locs)
-    name = "xtick" if axis.axis_name == "x" else "ytick"
-    size = FontProperties(size=mpl.rcParams[f"{name}.labelsize"]).get_size_in_points()
+    size = _tick_label_size(axis)
     width = max((_label_extent(label, size)[0] for label in labels if label), default=0.0)
     # a line of text is as tall as "lp" (ascent and descent) whatever it holds
     height = _label_extent("lp", size)[1] + 2.0 / 72
     offset = formatter.get_offset() if hasattr(formatter, "get_offset") else ""
     return width, height, (height if offset else 0.0)
+
+
+@functools.lru_cache(maxsize=4096)
+def _label_box(label: str, size: float) -> tuple[float, float]:
+    """Width and height [inch] of the box matplotlib draws one line of text (a tick
+    label) of ``size`` [pt] in: its extent as a Text artist, which adds the font's
+    ascent and descent to the glyphs' own."""
+    fig = _scratch_figure()
+    text = fig.text(0.0, 0.0, label, size=size)
+    box = text.get_window_extent(fig.canvas.get_renderer())
+    text.remove()
+    return box.width / _DPI, box.height / _DPI
+
+
+@functools.lru_cache(maxsize=1)
+def _scratch_figure():
+    """A figure that is never drawn, to measure text on (:func:`_label_box`)."""
+    return _figure(1.0, 1.0)
+
+
+def _place_axis_labels(ax) -> None:
+    """Fix the x and y labels of ``ax`` where matplotlib's draw would put them: beyond
+    the spine's ticks and the tick labels, ``axes.labelpad`` away (``Axis.
+    _update_label_position``), computed here once from the tick labels' sizes. Left to
+    itself, matplotlib would compute every axis's ticks twice more and measure each of
+    their labels again at every draw, about a sixth of a figure's drawing time.
+
+    Only a bottom x label and a left y label of a 2-D panel are placed; any other is
+    left to matplotlib.
+    """
+    if ax.name != "rectilinear":
+        return
+    for axis, default in ((ax.xaxis, "bottom"), (ax.yaxis, "left")):
+        if axis.label_position != default:
+            continue
+        out = 0.0  # [point] from the spine outwards
+        if axis.label.get_visible() and axis.label.get_text():  # else nothing to place
+            tick = axis.majorTicks[0]  # every major tick has the same size and pad
+            kw = axis._major_tick_kw
+            locs = _ticks_in_view(axis) if axis.get_visible() else []
+            if locs and kw.get("tick1On", True):  # the spine's extent holds its ticks
+                out = tick.get_tick_padding()
+            if locs and kw.get("label1On", True):
+                labels = axis.get_major_formatter().format_ticks(locs)
+                size = _tick_label_size(axis)
+                along = 0 if axis is ax.yaxis else 1  # a label's width, or its height
+                # an empty label is a point at the pad, as matplotlib measures it
+                extent = max((_label_box(text, size)[along] if text else 0.0
+                              for text in labels), default=0.0)
+                out = max(out, tick._pad + 72 * extent)
+            out += axis.labelpad  # [point]
+        box = ax.get_position()  # [figure fraction]
+        width, height = ax.figure.get_size_inches()
+        if axis is ax.xaxis:
+            axis.set_label_coords(0.5, -out / 72 / (box.height * height))
+        else:
+            axis.set_label_coords(-out / 72 / (box.width * width), 0.5)
 
 
 @functools.lru_cache(maxsize=4096)
@@ -182,6 +249,7 @@ def _arrange(fig) -> None:
         lift = deco[ax][4] / (ax.get_position().height * height)
         for t in (ax.title, ax._left_title, ax._right_title):
             t.set_y(1.0 + lift)
+        _place_axis_labels(ax)
 
 
 def _text_size_box(artist, renderer) -> float:
