@@ -73,29 +73,111 @@ def _text_size(text, renderer) -> tuple[float, float]:
     return box.width / _DPI, box.height / _DPI
 
 
-def _tick_labels(axis) -> tuple[float, float, float]:
-    """Widest and tallest major tick label [inch] of ``axis`` as it will be drawn (0 when
-    its labels are hidden) and the height of its offset text ("1e-5", "+1000") [inch],
-    from its locator and formatter: no tick artists are made."""
+def _ticks_in_view(axis) -> list:
+    """The major tick locations of ``axis`` inside its view (those a draw draws)."""
+    lo, hi = sorted(axis.get_view_interval())
+    return [x for x in axis.get_major_locator()() if lo - 1e-9 * (hi - lo) <= x
+            <= hi + 1e-9 * (hi - lo)]
+
+
+def _tick_texts(axis, memo: dict) -> tuple[list, list, str]:
+    """``(locations, labels, offset text)`` of the major ticks ``axis`` will draw, from
+    its locator and formatter (no tick artists are made); ``memo`` keeps them for one
+    :func:`_arrange`, where a panel that keeps its length keeps its ticks."""
+    lo, hi = sorted(axis.get_view_interval())
+    # what the locator and formatter read: the view and the ticks that fit along it
+    key = (axis, lo, hi, axis.get_tick_space())
+    if key not in memo:
+        locs = _ticks_in_view(axis)
+        formatter = axis.get_major_formatter()
+        labels = formatter.format_ticks(locs) if locs else []
+        offset = formatter.get_offset() if locs and hasattr(formatter, "get_offset") \
+            else ""
+        memo[key] = locs, labels, offset
+    return memo[key]
+
+
+def _tick_label_size(axis) -> float:
+    """Font size of the tick labels of ``axis`` [pt]."""
     import matplotlib as mpl
     from matplotlib.font_manager import FontProperties
 
+    name = "xtick" if axis.axis_name == "x" else "ytick"
+    return FontProperties(size=mpl.rcParams[f"{name}.labelsize"]).get_size_in_points()
+
+
+def _tick_labels(axis, memo: dict) -> tuple[float, float, float]:
+    """Widest and tallest major tick label [inch] of ``axis`` as it will be drawn (0 when
+    its labels are hidden) and the height of its offset text ("1e-5", "+1000") [inch]
+    (``memo`` as :func:`_tick_texts`)."""
     if not axis._major_tick_kw.get("label1On", True):
         return 0.0, 0.0, 0.0
-    lo, hi = sorted(axis.get_view_interval())
-    locs = [x for x in axis.get_major_locator()() if lo - 1e-9 * (hi - lo) <= x
-            <= hi + 1e-9 * (hi - lo)]
+    locs, labels, offset = _tick_texts(axis, memo)
     if not locs:
         return 0.0, 0.0, 0.0
-    formatter = axis.get_major_formatter()
-    labels = formatter.format_ticks(locs)
-    name = "xtick" if axis.axis_name == "x" else "ytick"
-    size = FontProperties(size=mpl.rcParams[f"{name}.labelsize"]).get_size_in_points()
+    size = _tick_label_size(axis)
     width = max((_label_extent(label, size)[0] for label in labels if label), default=0.0)
     # a line of text is as tall as "lp" (ascent and descent) whatever it holds
     height = _label_extent("lp", size)[1] + 2.0 / 72
-    offset = formatter.get_offset() if hasattr(formatter, "get_offset") else ""
     return width, height, (height if offset else 0.0)
+
+
+@functools.lru_cache(maxsize=4096)
+def _label_box(label: str, size: float) -> tuple[float, float]:
+    """Width and height [inch] of the box matplotlib draws one line of text (a tick
+    label) of ``size`` [pt] in: its extent as a Text artist, which adds the font's
+    ascent and descent to the glyphs' own."""
+    text, renderer = _scratch_text()
+    text.set_text(label)
+    text.set_fontsize(size)
+    box = text.get_window_extent(renderer)
+    return box.width / _DPI, box.height / _DPI
+
+
+@functools.lru_cache(maxsize=1)
+def _scratch_text():
+    """A Text artist on a figure that is never drawn, and its renderer: what
+    :func:`_label_box` measures with."""
+    fig = _figure(1.0, 1.0)
+    return fig.text(0.0, 0.0, ""), fig.canvas.get_renderer()
+
+
+def _place_axis_labels(ax, memo: dict) -> None:
+    """Fix the x and y labels of ``ax`` where matplotlib's draw would put them: beyond
+    the spine's ticks and the tick labels, ``axes.labelpad`` away (``Axis.
+    _update_label_position``), computed here once from the tick labels' sizes. Left to
+    itself, matplotlib would compute every axis's ticks twice more and measure each of
+    their labels again at every draw, about a sixth of a figure's drawing time.
+
+    Only a bottom x label and a left y label of a 2-D panel are placed; any other is
+    left to matplotlib. ``memo`` as :func:`_tick_texts`.
+    """
+    if ax.name != "rectilinear":
+        return
+    for axis, default in ((ax.xaxis, "bottom"), (ax.yaxis, "left")):
+        if axis.label_position != default:
+            continue
+        out = 0.0  # [point] from the spine outwards
+        if axis.label.get_visible() and axis.label.get_text():  # else nothing to place
+            tick = axis.majorTicks[0]  # every major tick has the same size and pad
+            kw = axis._major_tick_kw
+            locs, labels, _ = _tick_texts(axis, memo) if axis.get_visible() else ([], [], "")
+            if locs and kw.get("tick1On", True):  # the spine's extent holds its ticks
+                out = tick.get_tick_padding()
+            if locs and kw.get("label1On", True):
+                size = _tick_label_size(axis)
+                along = 0 if axis is ax.yaxis else 1  # a label's width, or its height
+                # an empty label is a point at the pad, as matplotlib measures it
+                extent = max((_label_box(text, size)[along] if text else 0.0
+                              for text in labels), default=0.0)
+                out = max(out, tick._pad + 72 * extent)
+            out += axis.labelpad  # [point]
+        box = ax.get_position()  # [figure fraction]
+        width, height = ax.figure.get_size_inches()
+        if axis is ax.xaxis:
+            axis.set_label_coords(0.5, -out / 72 / (box.height * height))
+        else:
+            axis.set_label_coords(-out / 72 / (box.width * width), 0.5)
 
 
 @functools.lru_cache(maxsize=4096)
@@ -112,24 +194,32 @@ def _label_extent(label: str, size: float) -> tuple[float, float]:
     return w / _DPI, h / _DPI
 
 
-def _decorations(ax, renderer) -> tuple[float, float, float, float, float]:
+def _fixed_text(ax, renderer) -> tuple[float, float, float]:
+    """Width of the y label, height of the x label and of the tallest title of ``ax``
+    [inch]: what does not change as :func:`_arrange` moves the panels."""
+    if ax.name == "3d":
+        return 0.0, 0.0, max(_text_size(t, renderer)[1] for t in (ax.title, ax._left_title))
+    return (_text_size(ax.yaxis.label, renderer)[0], _text_size(ax.xaxis.label, renderer)[1],
+            max(_text_size(t, renderer)[1] for t in (ax.title, ax._left_title,
+                                                      ax._right_title)))
+
+
+def _decorations(ax, fixed: tuple[float, float, float],
+                 memo: dict) -> tuple[float, float, float, float, float]:
     """Room [inch] the text of a panel takes outside its frame: left, right, bottom, top,
-    and the height of the y offset text above it (which the titles must clear)."""
+    and the height of the y offset text above it (which the titles must clear).
+    ``fixed`` is its :func:`_fixed_text`, ``memo`` as :func:`_tick_texts`."""
     import matplotlib as mpl
 
+    ylabel, xlabel, titles = fixed
     if ax.name == "3d":  # its labels lie inside its square box
-        top = max(_text_size(t, renderer)[1] for t in (ax.title, ax._left_title))
-        return 0.2, 0.2, 0.2, top + 6 / 72, 0.0
+        return 0.2, 0.2, 0.2, titles + 6 / 72, 0.0
     pad = (mpl.rcParams["xtick.major.size"] + mpl.rcParams["xtick.major.pad"]) / 72
-    xw, xh, xoff = _tick_labels(ax.xaxis)
-    yw, _, yoff = _tick_labels(ax.yaxis)
+    xw, xh, xoff = _tick_labels(ax.xaxis, memo)
+    yw, _, yoff = _tick_labels(ax.yaxis, memo)
     labelpad = mpl.rcParams["axes.labelpad"] / 72
-    ylabel = _text_size(ax.yaxis.label, renderer)[0]
-    xlabel = _text_size(ax.xaxis.label, renderer)[1]
     left = (yw + pad if yw else 0.0) + (ylabel + labelpad if ylabel else 0.0)
     bottom = (xh + pad if xh else 0.0) + (xlabel + labelpad if xlabel else 0.0) + xoff
-    titles = max(_text_size(t, renderer)[1] for t in (ax.title, ax._left_title,
-                                                       ax._right_title))
     top = max(titles + mpl.rcParams["axes.titlepad"] / 72 if titles else 0.0, yoff)
     if titles and yoff:
         top += yoff
@@ -156,8 +246,10 @@ def _arrange(fig) -> None:
         t.set_y(1.0 - _PAD / height)
         top_text = max(top_text, _text_size(t, renderer)[1] + _PAD)
     legend = sum(_text_size_box(lg, renderer) + _PAD for lg in fig.legends)
+    fixed = {ax: _fixed_text(ax, renderer) for ax in axes}
+    memo: dict = {}
     for _ in range(2):  # the tick labels depend on the panel sizes: once more
-        deco = {ax: _decorations(ax, renderer) for ax in axes}
+        deco = {ax: _decorations(ax, fixed[ax], memo) for ax in axes}
 
         def most(index, keep):
             return max([deco[ax][index] for ax in axes if keep(ax.get_subplotspec())],
@@ -182,6 +274,7 @@ def _arrange(fig) -> None:
         lift = deco[ax][4] / (ax.get_position().height * height)
         for t in (ax.title, ax._left_title, ax._right_title):
             t.set_y(1.0 + lift)
+        _place_axis_labels(ax, memo)
 
 
 def _text_size_box(artist, renderer) -> float:

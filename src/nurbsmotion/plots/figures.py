@@ -60,15 +60,18 @@ def _window_columns(fig, n_rows: int, n_events: int):
 
 
 _reused: dict | None = None
-"""Figures kept for reuse by layout while a :func:`_figure_reuse` block runs."""
+"""Figures kept for reuse by layout while a :func:`_figure_reuse` block runs, and the
+paths in the report unit (:func:`_in_report_unit`, :func:`_desired_of`)."""
 
 
 @contextlib.contextmanager
 def _figure_reuse():
     """Within this block the windowed figures of one layout (rows, events, size) are drawn
     on one Figure, its panels emptied between files (:func:`_windowed_figure`): making the
-    panels and their ticks was about a third of the time of such a figure. Nested blocks
-    share the outermost one's figures; they are dropped when it ends."""
+    panels and their ticks was about a third of the time of such a figure; and a path
+    drawn again (at another feed) is scaled to the report unit once, its geometry and
+    nearest-point grid with it. Nested blocks share the outermost one's figures and
+    paths; they are dropped when it ends."""
     global _reused
     outer = _reused
     if outer is None:
@@ -90,10 +93,15 @@ def _windowed_figure(n_rows: int, events: list[_Event]):
     """A figure and its :func:`_window_columns` grid, shape (n_rows, 1 + len(events)):
     inside :func:`_figure_reuse` the one of this layout, emptied, else one made ahead
     (:func:`prepare_trace`) or a new one."""
-    key = ("windowed", n_rows, len(events))
+    return _reusable(("windowed", n_rows, len(events)))
+
+
+def _reusable(key: tuple):
+    """The figure of layout ``key`` and its panels: inside :func:`_figure_reuse` the one
+    of this layout, emptied, else one made ahead (:func:`prepare_trace`) or a new one."""
     if _reused is not None and key in _reused:
         fig, axes = _reused[key]
-        _empty(fig, axes.ravel())
+        _empty(fig, fig.axes)
         return fig, axes
     fig, axes = _blank(key)
     if _reused is not None:
@@ -285,12 +293,20 @@ def _contour_figure(curve, runs: list[_Run], title: str, path: Path, names, unit
     from matplotlib.colors import to_rgba
     from matplotlib.ticker import MaxNLocator
 
-    nearest = [nearest_parameter(curve, r.position) for r in runs]
+    # Searched on the path in pulses, whose nearest-point grid the run's metrics made
+    # (kept on it), and scaled: the contour error in the report unit.
+    pulses = runs[0].trace.curve
+    nearest = [(u, d / per_unit) for u, d in (nearest_parameter(pulses, r.trace.position)
+                                              for r in runs)]
     n_axes = curve.n_axes
     planar = n_axes == 2
     zooms = (_zoom_windows(curve, runs, nearest, _MIN_ZOOM_HALF_WIDTH_PULSES / per_unit)
              if planar else [])
-    fig, (ax_path, projections, ax_err, zoom_axes) = _blank(("contour", n_axes, len(zooms)))
+    key = ("contour", n_axes, len(zooms))
+    # a planar layout is reused (its panels emptied) like the windowed ones; a 3-D one not
+    fig, (ax_path, projections, ax_err, zoom_axes) = _reusable(key) if planar else _blank(key)
+    if ax_err.get_yscale() != "linear":  # a reused panel: the last figure's log scale
+        ax_err.set_yscale("linear")
     desired_u, desired = _desired_of(curve)
 
     if n_axes >= 3:
@@ -521,18 +537,33 @@ def _in_report_unit(curve, machine, length_unit: str | None):
     if _ahead is not None and _ahead[0] is curve and _ahead[1] is machine \
             and _ahead[2] == length_unit:
         return _ahead[3:6]
+    # Inside a _figure_reuse block (reproduce's comparisons: one path at several feeds)
+    # the scaled path is kept, and with it its geometry and nearest-point grid.
+    key = ("path", id(curve), id(machine), length_unit)
+    if _reused is not None and key in _reused:
+        return _reused[key][2:]
     units = OutputUnits.of(machine, curve.units, length_unit or None)
     unit, per_unit = units.unit, units.pulses_per_unit
-    return unit, per_unit, curve.scaled(1.0 / per_unit, units=unit)
+    result = unit, per_unit, curve.scaled(1.0 / per_unit, units=unit)
+    if _reused is not None:  # the objects are kept with it: their ids stay theirs
+        _reused[key] = (curve, machine, *result)
+    return result
 
 
 def _desired_of(curve) -> tuple[np.ndarray, np.ndarray]:
     """The desired path as drawn: :func:`_desired_parameters` of ``curve`` [L] and its
-    points, shape (m, n_axes) [L] (made ahead for the curve of :func:`prepare_trace`)."""
+    points, shape (m, n_axes) [L] (made ahead for the curve of :func:`prepare_trace`, kept
+    for a curve :func:`_in_report_unit` kept)."""
     if _ahead is not None and _ahead[5] is curve:
         return _ahead[6:8]
+    key = ("desired", id(curve))
+    if _reused is not None and key in _reused:
+        return _reused[key][1:]
     desired_u = _desired_parameters(curve)
-    return desired_u, curve(desired_u)
+    result = desired_u, curve(desired_u)
+    if _reused is not None:
+        _reused[key] = (curve, *result)
+    return result
 
 
 def prepare_trace(curve, machine, *, length_unit: str | None = None) -> None:
@@ -581,7 +612,8 @@ def prepare_trace_steps(curve, machine, *, length_unit: str | None = None):
     desired_u = _desired_parameters(scaled)
     _ahead = (curve, machine, length_unit, unit, per_unit, scaled, desired_u,
               scaled(desired_u))
-    nearest_parameter(scaled, _ahead[7][:1])  # its grid, kept on the curve
+    # the grid of the path in pulses, kept on it, as _contour_figure searches it
+    nearest_parameter(curve, np.asarray(curve.end_points)[:1])
     n_axes = curve.n_axes
     n_corners = len(curve.sharp_corners())
     scaled.sharp_corners()
