@@ -29,7 +29,7 @@ PACKAGE = "nurbsmotion"
 
 LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     # layer: (its modules, relative to the package; the lower layers it may import)
-    "base": (("errors", "_runtime", "_runtime.io", "_kernels", "_runtime.jit_cache",
+    "base": (("errors", "limits", "_runtime", "_runtime.io", "_kernels", "_runtime.jit_cache",
               "_runtime.memory", "_runtime.lazy", "_runtime.forked"), ()),
     "geometry": (("nurbs", "geometry", "joining", "feed", "chords"), ("base",)),
     "paths": (("paths", "paths.files", "paths.dxf", "paths.gcode", "paths.gcode.ngc", "paths.gcode.program",
