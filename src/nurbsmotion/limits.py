@@ -28,7 +28,7 @@ multiplies the samples of every move."""
 DEFAULT_PATH_TOLERANCE = 1.0
 """How far [pulse] from the path step 6 of ``planned`` may take a short move's motion by
 default: one pulse, the encoder's resolution (the plan it replaces is held within a
-quarter of it, :data:`nurbsmotion.interpolators.planned.shorten.PRECOMPENSATION_TOLERANCE`,
+quarter of it, :data:`nurbsmotion.interpolators.planned.inverse.PRECOMPENSATION_TOLERANCE`,
 where the drive allows); also the tolerance within which runs of short chords are joined."""
 
 SHORT_MOVE_SAMPLES = 128

@@ -35,7 +35,7 @@ from .control import PidGains, loop_poles, pid_law
 from ._runtime.io import parse_json_or_toml, read_text_file
 from .errors import InvalidMachineError, PathFileError
 from .limits import MIN_SAMPLE_PERIOD
-from .plant import linear_loop_poles
+from .plant.linear import linear_loop_poles
 from .servo import ServoPlant, zoh_matrices
 
 class UnstableModeWarning(UserWarning):

@@ -1,7 +1,8 @@
 """Step 6 of the plan (:mod:`.plan`): short moves re-timed from stop to stop by sequential
 linear programming over the drives and the plant's sampled states (:func:`_shorten_pieces`,
 :func:`_shorten`, :func:`_shorten_at`; HiGHS warm-started through :class:`_WarmProgram`), and
-the path tolerance it may use (:data:`DEFAULT_PATH_TOLERANCE`, :func:`move_tolerance`).
+the path tolerance it may use (:data:`nurbsmotion.limits.DEFAULT_PATH_TOLERANCE`,
+:func:`move_tolerance`).
 """
 
 from __future__ import annotations
@@ -11,7 +12,6 @@ import math
 import numpy as np
 
 from ...feed import FeedLimit
-from ...limits import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
 from ...machine import Machine
 from ...nurbs import NurbsCurve
 from ...servo import ServoPlant, zoh_coefficients
@@ -602,7 +602,7 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
              work: "_Work | None" = None):
     """Step 6 (module docstring): the plan ``theta`` (n, n_axes) of a move along the
     ``span`` of the curve that does not stop on the way, from rest on its start at
-    sample 0 to rest on its end at ``arrival`` (<= :data:`SHORT_MOVE_SAMPLES`),
+    sample 0 to rest on its end at ``arrival`` (<= :data:`nurbsmotion.limits.SHORT_MOVE_SAMPLES`),
     replaced by one at rest there at the earliest sample N at which a drive within
     ``limit`` [V] keeps the plant within ``tolerance`` [pulse] of the curve all along its
     motion (failing that, as near as ``theta`` is), its nearest path point moving forward
