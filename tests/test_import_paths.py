@@ -114,8 +114,8 @@ def test_motion_plan():
     p = "nurbsmotion.interpolators.planned."
     _same_each("nurbsmotion.motion_plan", {
         "plan_motion": p + "plan", "MotionPlan": p + "plan", "axis_zoh": p + "inverse",
-        "move_tolerance": p + "shorten", "DEFAULT_PATH_TOLERANCE": p + "shorten",
-        "SHORT_MOVE_SAMPLES": p + "shorten", "PRECOMPENSATION_TOLERANCE": p + "inverse",
+        "move_tolerance": p + "shorten", "DEFAULT_PATH_TOLERANCE": "nurbsmotion.limits",
+        "SHORT_MOVE_SAMPLES": "nurbsmotion.limits", "PRECOMPENSATION_TOLERANCE": p + "inverse",
         "LEAD": p + "inverse", "FEED_SLACK": p + "landing", "OVERSAMPLE": p + "blend"})
     import nurbsmotion.motion_plan as old
     assert set(old.__all__) <= set(dir(old))

@@ -269,6 +269,10 @@ def _cmd_run(args) -> int:
     # the planner's size, as it is read: a path refused there is refused before the
     # loop's modules load (and the cache is looked at, below)
     contour = _contour(args, machine, check_span_count)
+    # The loop's modules (numba) load here, before the second process starts, as they did
+    # when the machine loaded them: a Ctrl-C while numba loads beside a compiling second
+    # process ended the command by SIGINT (exit -2) instead of 130 after its message.
+    from .. import job  # noqa: F401
     from .._runtime.precompile import Precompiler
 
     # On an empty numba cache the closed loop compiles on the other core meanwhile.

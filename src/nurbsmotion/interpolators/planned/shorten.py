@@ -12,6 +12,8 @@ import math
 import numpy as np
 
 from ...feed import FeedLimit
+from ...limits import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES  # noqa: F401  (step 6's
+# default path tolerance and short-move length, read here as before; defined in limits)
 from ...machine import Machine
 from ...nurbs import NurbsCurve
 from ...servo import ServoPlant, zoh_coefficients
