@@ -29,7 +29,7 @@ PACKAGE = "nurbsmotion"
 
 LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     # layer: (its modules, relative to the package; the lower layers it may import)
-    "base": (("errors", "_runtime", "_runtime.io", "_kernels", "_runtime.jit_cache",
+    "base": (("errors", "limits", "_runtime", "_runtime.io", "_kernels", "_runtime.jit_cache",
               "_runtime.memory", "_runtime.lazy", "_runtime.forked"), ()),
     "geometry": (("nurbs", "geometry", "joining", "feed", "chords"), ("base",)),
     "paths": (("paths", "paths.files", "paths.dxf", "paths.gcode", "paths.gcode.ngc", "paths.gcode.program",
@@ -39,8 +39,8 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                "paths.ngc",
                "paths.pieces", "paths.random_paths"), ("base", "geometry")),
     # The servo side knows nothing of curves: machine does not import geometry.
-    "machine": (("control", "servo", "plant", "plant.two_mass", "plant.friction", "plant.stage",
-                 "plant.step", "plant.measure", "plant.linear", "machine", "random_machines"),
+    "machine": (("control", "control.step", "servo", "servo.step", "plant", "plant.two_mass", "plant.friction", "plant.stage",
+                 "plant.step", "plant.sensor", "plant.linear", "machine", "random_machines"),
                 ("base",)),
     # A machine from its own log (the fit's model is the plant of section 11, written for
     # the fit): it knows machines, nothing of paths.
@@ -49,7 +49,7 @@ LAYERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
                        ("base", "machine")),
     # Where a path meets a machine: units (a path's lengths and feeds in the machine's
     # pulses) and the drive-limited speed along the path.
-    "planning": (("units", "planning"), ("base", "geometry", "machine")),
+    "planning": (("units", "planning", "phase_plane"), ("base", "geometry", "machine")),
     "interpolators": (("stepping", "motion_plan", "interpolators", "interpolators.base",
                        "interpolators.taylor", "interpolators.paper",
                        "interpolators.planned", "interpolators.planned.plan",

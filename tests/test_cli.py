@@ -648,39 +648,74 @@ def test_no_run_within_the_drive_limit_settles_below_the_sampled_bound(interpola
     assert checked >= 3  # most of the cases stay within the drive limit
 
 
-def test_importing_the_cli_loads_no_compiled_or_plotting_module(tmp_path):
+def test_a_refusal_as_the_input_is_read_loads_no_compiled_or_plotting_module(tmp_path):
     """Issue 37 (refusals within a second of CPU, start-up included): importing the
-    command line loads neither numba (so nor the control law, the plant, the loop or the
-    interpolators) nor scipy or matplotlib; its parser reads the values it needs from them
-    on first use (choices, defaults, help texts). A path refused by its size as it is read
-    (its machine loaded: numba) is refused before the interpolators, the loop, the report
-    and scipy's submodules are imported. Each in a fresh process (sys.modules)."""
+    command line loads neither numpy nor numba, scipy or matplotlib (its choices,
+    defaults and help texts come from nurbsmotion.limits); ``run`` and ``bound`` read and
+    check the machine (numba-free value objects: control, servo, plant.linear) and the
+    path up to a size refusal (planner grid, corners, DXF pieces) or a machine refused
+    for its sample period, without numba, scipy, matplotlib or any compiled module of the
+    package. One fresh process (sys.modules), the limits lowered so the files are small."""
     import subprocess
     import sys
 
     from nurbsmotion.paths import save_path
 
-    heavy = ("numba", "scipy", "matplotlib", "nurbsmotion.control", "nurbsmotion.plant",
-             "nurbsmotion.loop", "nurbsmotion.interpolators", "nurbsmotion.report")
     n = 303
     x = np.arange(n) * 0.01
     wave = save_path(nm.NurbsCurve(3, np.r_[[0.0] * 3, np.arange(n - 2.0), [n - 3.0] * 3],
                                    np.column_stack([x, np.sin(x)]), units="mm"),
                      tmp_path / "wave.json")
+    zigzag = save_path(nm.NurbsCurve(1, np.r_[0.0, np.arange(n + 0.0), n - 1.0],
+                                     np.column_stack([x, (np.arange(n) % 2) * 0.01]),
+                                     units="mm"), tmp_path / "zigzag.json")
+    dxf = tmp_path / "lines.dxf"
+    dxf.write_text("0\nSECTION\n2\nENTITIES\n" + "".join(
+        f"0\nLINE\n8\n0\n10\n{k}\n20\n0\n30\n0\n11\n{k + 1}\n21\n0\n31\n0\n"
+        for k in range(40)) + "0\nENDSEC\n0\nEOF\n")
+    machine = tmp_path / "fast.toml"
+    machine.write_text((Path(__file__).parents[1] / "examples" / "die_bonder.toml").read_text()
+                       .replace("sample_period = 0.001", "sample_period = 1e-9"))
+    out = str(tmp_path / "out")
+    commands = [["run", str(wave), "--feed", "1mm/s", "--out", out],
+                ["bound", str(wave), "--feed", "1mm/s"],
+                ["run", str(zigzag), "--feed", "1mm/s", "--out", out],
+                ["run", str(dxf), "--feed", "1mm/s", "--out", out],
+                ["interpolate", str(dxf), "--feed", "1mm/s", "--out", out],
+                ["run", "die-bonder-pi", "--feed", "1mm/s", "--machine", str(machine),
+                 "--out", out],
+                ["interpolate", "die-bonder-pi", "--feed", "1mm/s", "--sample-period",
+                 "1e-9", "--out", out]]
     script = f"""
 import sys
-heavy = {heavy!r}
+
+def heavy():
+    return sorted(m for m in sys.modules if m.split(".")[0] in ("numba", "scipy",
+                  "matplotlib") or m.startswith(("nurbsmotion.control.step",
+                  "nurbsmotion.servo.step", "nurbsmotion.plant.", "nurbsmotion.phase_plane",
+                  "nurbsmotion._kernels", "nurbsmotion.stepping", "nurbsmotion.loop",
+                  "nurbsmotion.interpolators", "nurbsmotion.report", "nurbsmotion.plots"))
+                  and m != "nurbsmotion.plant.linear")
+
 import nurbsmotion.cli
-print(sorted(m for m in sys.modules if m in heavy))
+print(heavy(), "numpy" in sys.modules)
 from nurbsmotion import planning
-from nurbsmotion.paths import files
-planning.MAX_GRID_POINTS, files.SIZE_SCAN_BYTES = 1000, 1000
-code = nurbsmotion.cli.main(["bound", {str(wave)!r}, "--feed", "1mm/s"])
-print(code, sorted(m for m in sys.modules if m in heavy[2:3] + heavy[5:] or m.startswith(
-    ("matplotlib.", "scipy.interpolate", "scipy.signal", "scipy.optimize", "scipy.sparse"))))
+from nurbsmotion.paths import dxf, files
+planning.MAX_GRID_POINTS, files.SIZE_SCAN_BYTES, dxf.MAX_PIECES = 1000, 1000, 10
+for argv in {commands!r}:
+    try:
+        code = nurbsmotion.cli.main(argv)
+    except SystemExit as exc:  # argparse's refusal
+        code = exc.code
+    print(code, heavy())
 """
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         env={**os.environ, "PYTHONPATH": str(Path(nm.__file__).parents[1])})
-    lines = out.stdout.strip().splitlines()
-    assert lines == ["[]", "2 []"], (out.stdout, out.stderr)
-    assert "300 knot spans of degree 3" in out.stderr
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(Path(nm.__file__).parents[1])})
+    lines = done.stdout.strip().splitlines()
+    assert lines == ["[] False"] + ["2 []"] * len(commands), (done.stdout, done.stderr)
+    errors = done.stderr.strip().splitlines()
+    assert len(errors) == len(commands), done.stderr
+    for text, error in zip(["300 knot spans of degree 3", "300 knot spans of degree 3",
+                            "sharp corners", "path pieces", "path pieces",
+                            "below the minimum of 1e-05 s", "minimum sample period"], errors):
+        assert text in error, (text, error)

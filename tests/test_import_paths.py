@@ -114,8 +114,8 @@ def test_motion_plan():
     p = "nurbsmotion.interpolators.planned."
     _same_each("nurbsmotion.motion_plan", {
         "plan_motion": p + "plan", "MotionPlan": p + "plan", "axis_zoh": p + "inverse",
-        "move_tolerance": p + "shorten", "DEFAULT_PATH_TOLERANCE": p + "shorten",
-        "SHORT_MOVE_SAMPLES": p + "shorten", "PRECOMPENSATION_TOLERANCE": p + "inverse",
+        "move_tolerance": p + "shorten", "DEFAULT_PATH_TOLERANCE": "nurbsmotion.limits",
+        "SHORT_MOVE_SAMPLES": "nurbsmotion.limits", "PRECOMPENSATION_TOLERANCE": p + "inverse",
         "LEAD": p + "inverse", "FEED_SLACK": p + "landing", "OVERSAMPLE": p + "blend"})
     import nurbsmotion.motion_plan as old
     assert set(old.__all__) <= set(dir(old))
@@ -172,7 +172,7 @@ def test_plant():
     # is still at nurbsmotion.plant, the very object of its new home.
     _same_each("nurbsmotion.plant", {
         "oscillator": "nurbsmotion.plant.two_mass",
-        "x_minus_one_minus_exp": "nurbsmotion.plant.two_mass",
+        "x_minus_one_minus_exp": "nurbsmotion.plant.linear",
         "N_PARAM": "nurbsmotion.plant.two_mass", "N_COEF": "nurbsmotion.plant.two_mass",
         "MAX_EVENTS": "nurbsmotion.plant.friction",
         "TAYLOR_TERMS": "nurbsmotion.plant.friction", "SCRATCH": "nurbsmotion.plant.friction",
@@ -182,7 +182,7 @@ def test_plant():
         "new_plant_state": "nurbsmotion.plant.stage",
         "sample_step": "nurbsmotion.plant.step", "stage_arrays": "nurbsmotion.plant.step",
         "stage_response": "nurbsmotion.plant.step",
-        "measure": "nurbsmotion.plant.measure", "noise_draw": "nurbsmotion.plant.measure",
-        "positions": "nurbsmotion.plant.measure",
+        "measure": "nurbsmotion.plant.sensor", "noise_draw": "nurbsmotion.plant.sensor",
+        "positions": "nurbsmotion.plant.sensor",
         "continuous_model": "nurbsmotion.plant.linear",
         "linear_loop_poles": "nurbsmotion.plant.linear"})

@@ -19,9 +19,12 @@ from nurbsmotion.machine import die_bonder
 
 
 def test_the_names_come_from_the_registrations():
+    """The names the command offers (nurbsmotion.limits, which loads no interpolator) are
+    the registered ones, in their order."""
     assert LOOP_METHODS == ("taylor1", "taylor2", "paper", "planned")
     assert OPEN_LOOP_METHODS == ("uniform", "taylor1", "taylor2")
     assert stepping.interpolator_names() == LOOP_METHODS
+    assert stepping.interpolator_names(open_loop=True) == OPEN_LOOP_METHODS
     for name in LOOP_METHODS:
         named = stepping.named(name)
         assert named.example is not None, name  # a cold first run compiles its loop

@@ -34,7 +34,8 @@ import numpy as np
 from .control import PidGains, loop_poles, pid_law
 from ._runtime.io import parse_json_or_toml, read_text_file
 from .errors import InvalidMachineError, PathFileError
-from .plant import linear_loop_poles
+from .limits import MIN_SAMPLE_PERIOD
+from .plant.linear import linear_loop_poles
 from .servo import ServoPlant, zoh_matrices
 
 class UnstableModeWarning(UserWarning):
@@ -262,12 +263,6 @@ MAX_DRIVE_ACCELERATION = 1e150
 """Largest full-drive acceleration of an axis, ``max_drive * Kc * Ke / tau`` [pulse/s^2]:
 the planner squares speeds and accelerations (1.8e308 is the largest double). Real
 machines are below 1e12."""
-
-MIN_SAMPLE_PERIOD = 1e-5
-"""Shortest sample period Ts a machine may have [s] (100 kHz). Position loops of servo
-drives and motion controllers run at 1-32 kHz (LinuxCNC's servo thread at 1 kHz); a
-shorter period is most likely a unit slip (microseconds written as seconds), and it
-multiplies the samples of every move."""
 
 @dataclass(frozen=True)
 class Machine:

@@ -13,9 +13,9 @@ from .interpolators.planned.inverse import (END_REST, INVERSE_REACH, LEAD,
 from .interpolators.planned.landing import FEED_SLACK, LANDING_SAMPLES
 from .interpolators.planned.plan import (DRIVE_FIT_ROUNDS, MAX_GRID_REFINEMENT, MotionPlan,
                                          plan_motion)
-from .interpolators.planned.shorten import (CHECK_POINTS, DEFAULT_PATH_TOLERANCE,
-                                            SHORT_MOVE_SAMPLES, SHORTEN_ROUNDS,
-                                            SHORTEN_STALL, SHORTEN_START, move_tolerance)
+from .interpolators.planned.shorten import (CHECK_POINTS, SHORTEN_ROUNDS, SHORTEN_STALL,
+                                            SHORTEN_START, move_tolerance)
+from .limits import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
 
 __all__ = ["MotionPlan", "plan_motion", "axis_zoh", "move_tolerance",
            "DEFAULT_PATH_TOLERANCE", "SHORT_MOVE_SAMPLES", "PRECOMPENSATION_TOLERANCE",

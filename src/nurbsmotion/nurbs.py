@@ -53,6 +53,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InvalidArgumentError, InvalidCurveError
+from .limits import PATH_UNITS
 
 __all__ = [
     "NurbsCurve",
@@ -108,10 +109,6 @@ are converted or checked: the arc-length tables and the zero-speed check grow wi
 spans (a million control points took 106 s and 3.4 GB before the planner refused them;
 within this limit, :func:`nurbsmotion.planning.check_path_size` refuses from the knots
 alone a path whose planner grid would not fit)."""
-
-PATH_UNITS = ("pulse", "um", "mm", "cm", "m", "in", "inch")
-"""Length units a curve may be drawn in (``units``); ``None`` means unspecified (pulses
-on a machine)."""
 
 
 def _as_float_array(value: Any, name: str, ndim: int) -> np.ndarray:

@@ -118,15 +118,17 @@ def _cmd_contours(args) -> int:
 
 def _cmd_interpolate(args) -> int:
     from .. import units
-    from ..interpolators import make_open_loop
-    from ..loop.budget import check_samples, estimate_samples
     from ..machine import load_machine
-    from ..report.export import SetpointArrays, save_csv_metadata, save_setpoints, setpoint_columns
-    from ..loop import interpolate
-    from ..plots import plot_setpoints
 
     machine = load_machine(args.machine or "die-bonder")
     contour = _contour(args, machine)  # as run reads it: chord runs joined
+    # (after the path is read: a path refused there does not load numba's modules)
+    from ..interpolators import make_open_loop
+    from ..loop import interpolate
+    from ..loop.budget import check_samples, estimate_samples
+    from ..plots import plot_setpoints
+    from ..report.export import SetpointArrays, save_csv_metadata, save_setpoints, setpoint_columns
+
     curve = contour.curve
     cap = None if args.feed is None else _open_loop_feed(args, curve, machine)
     feed, note = _feed_used(args, contour, cap, 1.0, f"{curve.units}/s")
@@ -267,6 +269,10 @@ def _cmd_run(args) -> int:
     # the planner's size, as it is read: a path refused there is refused before the
     # loop's modules load (and the cache is looked at, below)
     contour = _contour(args, machine, check_span_count)
+    # The loop's modules (numba) load here, before the second process starts, as they did
+    # when the machine loaded them: a Ctrl-C while numba loads beside a compiling second
+    # process ended the command by SIGINT (exit -2) instead of 130 after its message.
+    from .. import job  # noqa: F401
     from .._runtime.precompile import Precompiler
 
     # On an empty numba cache the closed loop compiles on the other core meanwhile.

@@ -8,85 +8,14 @@
 from __future__ import annotations
 
 import argparse
-import importlib
 import math
 
+from ..limits import (DEFAULT_INTERPOLATOR, DEFAULT_PATH_TOLERANCE, LOOP_METHODS, MAX_SAMPLES,
+                      MIN_SAMPLE_PERIOD, OPEN_LOOP_METHODS, PATH_UNITS, SHORT_MOVE_SAMPLES,
+                      TRACE_FORMATS)
 from .commands import (_cmd_bound, _cmd_campaign, _cmd_contours, _cmd_excite, _cmd_identify,
                        _cmd_interpolate, _cmd_reproduce, _cmd_run, _parse_columns)
 from .console import EXPORT_FILES, _one_line
-
-# The values below come from modules that load numba, the interpolators and the loop
-# (half a second of CPU): the parser reads them on first use (a value given as a default,
-# a choice checked or listed, a help text shown), so that a command refused as its path
-# is read, and ``--help``, load only what they use. (The modules are named here as text;
-# tests/test_architecture.py reads the imports of the functions that use them.)
-
-
-def _value(module: str, name: str):
-    """``name`` of ``nurbsmotion.<module>``, imported now."""
-    if module == "loop.budget":
-        from ..loop.budget import MAX_SAMPLES as value  # noqa: F401
-    elif module == "interpolators":
-        from .. import interpolators as mod
-
-        value = getattr(mod, name)
-    elif module == "interpolators.planned.shorten":
-        from ..interpolators.planned import shorten as mod
-
-        value = getattr(mod, name)
-    elif module == "machine":
-        from ..machine import MIN_SAMPLE_PERIOD as value  # noqa: F401
-    elif module == "report":
-        from ..report import TRACE_FORMATS as value  # noqa: F401
-    else:
-        value = getattr(importlib.import_module(f"..{module}", __package__), name)
-    return value
-
-
-class _Deferred:
-    """A default read on first use: ``str()`` (a help text) and the parsed namespace's
-    attribute (:class:`_Namespace`) give the value."""
-
-    def __init__(self, module: str, name: str):
-        self.module, self.name = module, name
-
-    def value(self):
-        return _value(self.module, self.name)
-
-    def __str__(self) -> str:
-        return str(self.value())
-
-
-class _Choices:
-    """argparse choices read on first use (a value checked, or the choices listed)."""
-
-    def __init__(self, module: str, name: str):
-        self.module, self.name = module, name
-
-    def __contains__(self, item) -> bool:
-        return item in _value(self.module, self.name)
-
-    def __iter__(self):
-        return iter(_value(self.module, self.name))
-
-
-def _choices(action: argparse.Action, module: str, name: str) -> None:
-    """Give ``action`` its :class:`_Choices` once it is added (argparse formats a new
-    option's choices to check its metavar, which would read them)."""
-    action.choices = _Choices(module, name)
-
-
-class _Namespace(argparse.Namespace):
-    """The parsed arguments; a default not yet read (:class:`_Deferred`) is read when the
-    command first asks for it."""
-
-    def __getattribute__(self, name: str):
-        value = super().__getattribute__(name)
-        if isinstance(value, _Deferred):
-            value = value.value()
-            setattr(self, name, value)
-        return value
-
 
 def parse_feed(text: str) -> tuple[float, str | None]:
     """argparse type of ``--feed``: :func:`nurbsmotion.units.parse_feed`, its error as an
@@ -101,29 +30,7 @@ def parse_feed(text: str) -> tuple[float, str | None]:
 
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """Shows ``(default: ...)`` for options that have a default worth showing (not for
-    required options, flags, or options without a default); a help text's
-    ``%(path_tolerance)g``, ``%(short_move_samples)d`` and ``%(min_sample_period)g`` are
-    read when it is shown."""
-
-    _LATER = {"path_tolerance": ("interpolators.planned.shorten", "DEFAULT_PATH_TOLERANCE"),
-              "short_move_samples": ("interpolators.planned.shorten", "SHORT_MOVE_SAMPLES"),
-              "min_sample_period": ("machine", "MIN_SAMPLE_PERIOD")}
-
-    def _expand_help(self, action):
-        text = self._get_help_string(action)
-        params = dict(vars(action), prog=self._prog)
-        for key, (module, name) in self._LATER.items():
-            if f"%({key})" in text:
-                params[key] = _value(module, name)
-        for name in list(params):
-            if params[name] is argparse.SUPPRESS:
-                del params[name]
-        for name in list(params):
-            if hasattr(params[name], "__name__"):
-                params[name] = params[name].__name__
-        if params.get("choices") is not None:
-            params["choices"] = ", ".join(map(str, params["choices"]))
-        return text % params
+    required options, flags, or options without a default)."""
 
     def _get_help_string(self, action):
         if action.required or action.default in (None, False) or isinstance(
@@ -141,6 +48,15 @@ def _version() -> str:
         from .. import __version__
 
         return __version__
+
+
+class _VersionAction(argparse._VersionAction):
+    """``--version``: the installed version, looked up when asked for (importlib.metadata
+    costs a twentieth of a second of every start-up otherwise)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        self.version = f"%(prog)s {_version()}"
+        super().__call__(parser, namespace, values, option_string)
 
 
 def _float_above(low: float, inclusive: bool):
@@ -163,8 +79,6 @@ _non_negative_float = _float_above(0.0, inclusive=True)
 
 def _sample_period(text: str) -> float:
     """argparse type: a sample period [s] of at least the machines' minimum."""
-    from ..machine import MIN_SAMPLE_PERIOD
-
     value = _positive_float(text)
     if value < MIN_SAMPLE_PERIOD:
         raise argparse.ArgumentTypeError(
@@ -194,9 +108,6 @@ _positive_int = _int_at_least(1)
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (no usage block)."""
 
-    def parse_known_args(self, args=None, namespace=None):
-        return super().parse_known_args(args, _Namespace() if namespace is None else namespace)
-
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {_one_line(message)}{_did_you_mean(message)} "
                      f"(see {self.prog} --help)\n")
@@ -224,14 +135,12 @@ def _parser() -> argparse.ArgumentParser:
         "metric: docs/model.md.",
         formatter_class=_HelpFormatter,
     )
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    p.add_argument("--version", action=_VersionAction)
     sub = p.add_subparsers(dest="command", required=True)
     feed_help = ("commanded feed: a bare number in the path's units per second (pulse/s for "
                  "a path in pulses), or a speed with a unit: 0.5m/s, 100mm/s, 600mm/min, "
                  "2in/s, 1e6pulse/s; optional where the file gives a feed (G-code F), which "
                  "it then caps piece by piece")
-    from ..paths import PATH_UNITS
-
     units_help = (f"read the path's numbers in this unit ({', '.join(PATH_UNITS)}), whatever "
                   "the file says (default: the file's unit; mm, with a warning, if it has none)")
     path_help = ("path: a built-in name (die-bonder-pi, butterfly) or a file .json, .toml, "
@@ -241,7 +150,7 @@ def _parser() -> argparse.ArgumentParser:
         "how far the path run may leave the programmed one: runs of short chords (CAM "
         "output) whose joints turn by small angles are joined into one smooth curve within "
         "it, real corners kept (0: the chords as programmed); a length (2um) or a number of "
-        "pulses (default: %(path_tolerance)g pulse)")
+        f"pulses (default: {DEFAULT_PATH_TOLERANCE:g} pulse)")
 
     def command(name: str, help: str) -> argparse.ArgumentParser:
         return sub.add_parser(name, help=help, description=help,
@@ -289,13 +198,12 @@ def _parser() -> argparse.ArgumentParser:
                    "converts a --feed with a length unit on a path in pulses (its pulse "
                    "length)")
     i.add_argument("--path-tolerance", help=path_tolerance_help)
-    _choices(i.add_argument("--method", default="taylor2",
-                   help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order"),
-             "interpolators", "OPEN_LOOP_METHODS")
+    i.add_argument("--method", default="taylor2", choices=OPEN_LOOP_METHODS,
+                   help="interpolation: uniform parameter steps, or Taylor of 1st/2nd order")
     i.add_argument("--sample-period", type=_sample_period, default=1e-3,
-                   help="Ts [s], at least %(min_sample_period)g")
+                   help=f"Ts [s], at least {MIN_SAMPLE_PERIOD:g}")
     i.add_argument("--max-samples", type=_positive_int,
-                   default=_Deferred("loop.budget", "MAX_SAMPLES"),
+                   default=MAX_SAMPLES,
                    help="refuse, before any work, a move estimated to take more samples "
                    "than this (about 2.8 h at 1 ms)")
     common(i, progress=False)  # open loop: done in a moment
@@ -303,11 +211,10 @@ def _parser() -> argparse.ArgumentParser:
 
     r = command("run", "closed-loop servo simulation of a path on a machine")
     path_input(r)
-    _choices(r.add_argument("--interpolator",
-                   default=_Deferred("interpolators", "DEFAULT_INTERPOLATOR"),
+    r.add_argument("--interpolator", default=DEFAULT_INTERPOLATOR, choices=LOOP_METHODS,
                    help="planned: plans the actual motion within ±Umax and steers the plant "
                    "along it; paper: Yeh & Sun (2008), saturation-aware one step ahead; "
-                   "taylor1/taylor2: constant feed"), "interpolators", "LOOP_METHODS")
+                   "taylor1/taylor2: constant feed")
     r.add_argument("--plant", metavar="MACHINE",
                    help="simulate a true plant whose tau, Kc, Ke per axis and effects "
                    "(encoder counts, noise, delay, DAC, friction, load steps, a two-mass "
@@ -321,7 +228,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="planned: how far the motion may leave a sharp corner instead of "
                    "stopping there, a length (0.5mm, 10um) or a number in the path's units")
     r.add_argument("--path-tolerance", help=path_tolerance_help + "; planned: also how far "
-                   "from the path a short move (a plan of at most %(short_move_samples)d "
+                   f"from the path a short move (a plan of at most {SHORT_MOVE_SAMPLES:d} "
                    "samples; with stops, planned from stop to stop) may go where that lets "
                    "it arrive sooner")
     settle_window_help = ("the motion has settled once it stays within this distance of "
@@ -336,9 +243,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--trace-every", type=_positive_int, default=1, metavar="N",
                    help="keep one trace row in N (and the rows where the end is reached and "
                    "the last)")
-    _choices(r.add_argument("--trace-format", default="csv",
-                   help="trace.csv or trace.parquet (smaller, faster to read)"),
-             "report", "TRACE_FORMATS")
+    r.add_argument("--trace-format", default="csv", choices=TRACE_FORMATS,
+                   help="trace.csv or trace.parquet (smaller, faster to read)")
     r.add_argument("--export", action="append", choices=sorted(EXPORT_FILES),
                    help="also write the commanded setpoints (up to the end point, in the "
                    "path's units, to a thousandth of a pulse): csv, npz, pvt "
@@ -348,7 +254,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--pvt-period", type=_positive_float, default=0.01,
                    help="period of the PVT table [s]")
     r.add_argument("--max-samples", type=_positive_int,
-                   default=_Deferred("loop.budget", "MAX_SAMPLES"),
+                   default=MAX_SAMPLES,
                    help="refuse, before any work, a move estimated to take more samples "
                    "than this (about 2.8 h at 1 ms)")
     r.set_defaults(func=_cmd_run)
@@ -366,7 +272,7 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--settle-window", default="1", help=settle_window_help + "; a path "
                    "that stays within it of its end is refused, as run refuses it")
     b.add_argument("--max-samples", type=_positive_int,
-                   default=_Deferred("loop.budget", "MAX_SAMPLES"),
+                   default=MAX_SAMPLES,
                    help="refuse, as run does, a move estimated (or bounded) to take more "
                    "samples than this")
     b.set_defaults(func=_cmd_bound)

@@ -1,8 +1,11 @@
 """Interpolators: one module each; a plan (data) and a compiled step each, registered by
 name with :func:`nurbsmotion.stepping.register`. Adding one means one module (imported
-here): its registration gives :func:`make_interpolator` (or :func:`make_open_loop`), the
-names :data:`LOOP_METHODS` (the command's ``--interpolator`` choices) and
-:data:`OPEN_LOOP_METHODS`, and the made-up plan a cold first run compiles from.
+here): its registration gives :func:`make_interpolator` (or :func:`make_open_loop`) and
+the made-up plan a cold first run compiles from; its name goes into
+:data:`LOOP_METHODS` (the command's ``--interpolator`` choices) or
+:data:`OPEN_LOOP_METHODS`, declared in :mod:`nurbsmotion.limits` so that the command
+shows them without loading the compiled interpolators (tests/test_registry.py checks that
+they are the registered names, in their order).
 
 - ``uniform``: fixed parameter step (eq. 1.1);
 - ``taylor1`` / ``taylor2``: constant (or parameter-dependent) feed, eq. 3.2 / 3.1;
@@ -13,6 +16,7 @@ names :data:`LOOP_METHODS` (the command's ``--interpolator`` choices) and
 
 from .. import stepping
 from ..errors import InvalidArgumentError
+from ..limits import DEFAULT_INTERPOLATOR, LOOP_METHODS, OPEN_LOOP_METHODS
 from ..units import in_pulses
 from .base import Interpolator, Status, taylor_increment
 # registered in this order (the order of the names): taylor's, paper, planned
@@ -25,20 +29,6 @@ __all__ = ["Interpolator", "Status", "taylor_increment", "PaperInterpolator", "P
            "ReplayInterpolator", "TaylorInterpolator", "UniformInterpolator",
            "OPEN_LOOP_METHODS", "LOOP_METHODS", "make_open_loop", "make_interpolator",
            "DEFAULT_INTERPOLATOR"]
-
-OPEN_LOOP_METHODS = stepping.interpolator_names(open_loop=True)
-"""Interpolators that need no loop state: ``uniform``, ``taylor1``, ``taylor2``."""
-
-LOOP_METHODS = stepping.interpolator_names()
-"""Interpolators offered in the servo loop (``nurbsmotion run --interpolator``):
-``taylor1``, ``taylor2``, ``paper``, ``planned``."""
-
-DEFAULT_INTERPOLATOR = "planned"
-"""The interpolator a run uses when none is named: :func:`nurbsmotion.loop.run`,
-:func:`~nurbsmotion.loop.run_streamed` and ``nurbsmotion run``. The look-ahead planner,
-the one that keeps every drive within ±Umax; ``paper`` (the library's default until
-issue 31) is one argument away. A study file names its interpolators itself (its own
-default, ``["paper"]``, is kept for the digests of existing studies)."""
 
 
 def make_open_loop(method: str, curve, sample_period: float, feed) -> Interpolator:

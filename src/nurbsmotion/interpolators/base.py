@@ -30,7 +30,7 @@ from numba import njit
 
 from .. import stepping
 from .._kernels import horner
-from ..control import pid_affine
+from ..control.step import pid_affine
 from ..errors import InvalidArgumentError, InvalidCurveError, InvalidFeedError
 from ..nurbs import NurbsCurve
 from ..stepping import Status

@@ -16,12 +16,9 @@ from __future__ import annotations
 import math
 
 from ..errors import WorkLimitError
+from ..limits import MAX_SAMPLES
 
 __all__ = ["MAX_SAMPLES", "bytes_per_sample", "estimate_samples", "check_samples"]
-
-MAX_SAMPLES = 10_000_000
-"""Default limit on the samples of one run or one setpoint table (about 2.8 hours at
-Ts = 1 ms; a 2-axis trace of that many samples holds 1.4 GB)."""
 
 
 def bytes_per_sample(n_axes: int) -> int:

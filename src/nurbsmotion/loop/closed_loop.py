@@ -40,9 +40,11 @@ import numpy as np
 from numba import njit
 
 from .. import stepping
-from ..control import pid_commit, pid_output
-from ..plant import is_active, measure, new_plant_state, positions, sample_step
-from ..servo import plant_step
+from ..control.step import pid_commit, pid_output
+from ..plant.sensor import measure, positions
+from ..plant.stage import is_active, new_plant_state
+from ..plant.step import sample_step
+from ..servo.step import plant_step
 
 __all__ = ["Rows", "Settling", "LoopState", "AxisState", "Controller", "TruePlant", "Block",
            "Scratch", "DONE", "FULL", "FAILED",

@@ -46,6 +46,7 @@ from .._runtime.io import check_input_file, parse_json_or_toml, read_text_file, 
 from ..feed import FeedLimit
 from ..errors import (InvalidArgumentError, InvalidCurveError, NurbsmotionError, PathFileError,
                       WorkLimitError)
+from ..limits import PATH_UNITS
 from ..nurbs import BUILTIN_PATHS, MAX_CONTROL_POINTS, NurbsCurve, builtin_path
 
 if TYPE_CHECKING:  # (annotation only)
@@ -71,10 +72,6 @@ MAX_PATH_FILE_BYTES = 32_000_000
 _GCODE_SUFFIXES = (".ngc", ".nc", ".gcode", ".tap", ".cnc")
 PATH_FILE_SUFFIXES = (".json", ".toml", ".dxf") + _GCODE_SUFFIXES
 """File name endings :func:`load_path` and :func:`resolve_path` understand."""
-
-PATH_UNITS = ("mm", "cm", "m", "um", "in", "inch", "pulse")
-"""Units a path may be given in (``--units``): lengths of :data:`nurbsmotion.machine.
-LENGTH_UNITS_UM` and ``pulse`` (the machine's encoder pulse)."""
 
 
 class PathWarning(UserWarning):

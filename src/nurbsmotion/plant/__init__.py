@@ -63,22 +63,33 @@ The modules:
 - :mod:`.stage`: the stage and its state as data, made from a machine's effect keys;
 - :mod:`.step`: one sample of every axis (DAC, delay line, load steps) for the loop,
   and the stage open loop;
-- :mod:`.measure`: what the controller reads (noise, counts);
+- :mod:`.sensor`: what the controller reads (noise, counts);
 - :mod:`.linear`: the linear model and the closed loop's poles with delay and mode.
 """
 
 from __future__ import annotations
 
-from .friction import MAX_EVENTS, SCRATCH, TAYLOR_TERMS
-from .linear import continuous_model, linear_loop_poles
-from .measure import measure, noise_draw, positions
-from .stage import (IdleStage, PlantStage, PlantState, inactive_stage, is_active, make_stage,
-                    new_plant_state)
-from .step import sample_step, stage_arrays, stage_response
-from .two_mass import N_COEF, N_PARAM, oscillator, x_minus_one_minus_exp
+from .._runtime.lazy import lazy_names
+
+_LAZY = {
+    "MAX_EVENTS": "friction", "SCRATCH": "friction", "TAYLOR_TERMS": "friction",
+    "continuous_model": "linear", "linear_loop_poles": "linear",
+    "x_minus_one_minus_exp": "linear",
+    "measure": "sensor", "noise_draw": "sensor", "positions": "sensor",
+    "IdleStage": "stage", "PlantStage": "stage", "PlantState": "stage",
+    "inactive_stage": "stage", "is_active": "stage", "make_stage": "stage",
+    "new_plant_state": "stage",
+    "sample_step": "step", "stage_arrays": "step", "stage_response": "step",
+    "N_COEF": "two_mass", "N_PARAM": "two_mass", "oscillator": "two_mass",
+}
+"""Public name -> the module of this package that holds it, loaded on first use (PEP 562):
+a machine is checked with :mod:`.linear` alone, without numba, which the other modules
+load."""
 
 __all__ = ["oscillator", "PlantStage", "IdleStage", "is_active", "PlantState", "make_stage",
            "inactive_stage", "new_plant_state", "linear_loop_poles", "continuous_model",
            "stage_response", "stage_arrays", "sample_step", "measure", "noise_draw",
            "positions", "x_minus_one_minus_exp", "MAX_EVENTS", "SCRATCH", "TAYLOR_TERMS",
            "N_PARAM", "N_COEF"]
+
+__getattr__, __dir__ = lazy_names(__name__, _LAZY)

@@ -13,9 +13,30 @@ import math
 
 import numpy as np
 
-from .two_mass import _mode
+__all__ = ["continuous_model", "linear_loop_poles", "split_sample", "x_minus_one_minus_exp"]
 
-__all__ = ["continuous_model", "linear_loop_poles", "split_sample"]
+
+def x_minus_one_minus_exp(x: float) -> float:
+    """``x - (1 - exp(-x))`` for x > 0, accurate to rounding: the series
+    ``sum_{n>=2} (-1)^n x^n / n!`` below 0.5 (where the difference cancels), else direct."""
+    if x >= 0.5:
+        return x + math.expm1(-x)
+    term = x * x / 2.0
+    total = 0.0
+    n = 2
+    while abs(term) > 1e-17 * x * x:
+        total += term
+        n += 1
+        term *= -x / n
+    return total
+
+
+def _mode(tau: float, lam: float, frequency: float, damping: float):
+    """``(sig, w2, c)``: the mode's decay rate zeta*wn [1/s], wn^2 [1/s^2] and the
+    damper ``c = mu*(2*zeta*wn - 1/tau)`` (normalised so that viscous damping is 1)."""
+    wn = 2.0 * math.pi * frequency
+    mu = lam * (1.0 - lam) * tau
+    return damping * wn, wn * wn, mu * (2.0 * damping * wn - 1.0 / tau), mu
 
 
 def split_delay(delay: float, sample_period: float) -> tuple[int, float]:

@@ -18,9 +18,9 @@ from numba.extending import overload
 from ..errors import InvalidMachineError
 from .two_mass import (CDMP, CHECK_SLIDE, CHECK_STUCK, CSC, CSS, ENC, FC, FS, GAIN, KC,
                        KE, KSPR, LAM, N_COEF, N_PARAM, SA0, SA1, SIG, TAU, TOOL, W2,
-                       _coefficients, _mode, oscillator)
+                       _coefficients, oscillator)
 from .friction import SCRATCH
-from .linear import split_delay
+from .linear import _mode, split_delay
 
 __all__ = ["PlantStage", "IdleStage", "is_active", "PlantState", "make_stage",
            "inactive_stage", "new_plant_state"]

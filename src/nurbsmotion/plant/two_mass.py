@@ -15,6 +15,8 @@ import math
 
 from numba import njit
 
+from .linear import x_minus_one_minus_exp
+
 __all__ = ["oscillator", "x_minus_one_minus_exp", "N_PARAM", "N_COEF"]
 
 # Columns of PlantStage.param
@@ -24,21 +26,6 @@ TAU, KC, KE, LAM, SIG, W2, GAIN, SA1, SA0, KSPR, CDMP, FC, FS, ENC, TOOL, CHECK_
 CA, CKT, CB0, CB1, CEC, CES, CSC, CSS, N_COEF = range(9)
 # (CSC, CSS: the stuck motor's load oscillator, ``oscillator(SA1, SA0, h)``, set by
 # :func:`make_stage` for the two fixed intervals only)
-
-
-def x_minus_one_minus_exp(x: float) -> float:
-    """``x - (1 - exp(-x))`` for x > 0, accurate to rounding: the series
-    ``sum_{n>=2} (-1)^n x^n / n!`` below 0.5 (where the difference cancels), else direct."""
-    if x >= 0.5:
-        return x + math.expm1(-x)
-    term = x * x / 2.0
-    total = 0.0
-    n = 2
-    while abs(term) > 1e-17 * x * x:
-        total += term
-        n += 1
-        term *= -x / n
-    return total
 
 
 _x_minus_g = njit(cache=True)(x_minus_one_minus_exp)
@@ -222,11 +209,3 @@ def _rest_coefficients(p, ch, ct, r):
         es = 0.0
     return (1.0 - g, p[KE] * p[TAU] * g, p[KC] * g,
             p[KE] * p[KC] * p[TAU] * _x_minus_g(x), ec, es, 0.0, 0.0)
-
-
-def _mode(tau: float, lam: float, frequency: float, damping: float):
-    """``(sig, w2, c)``: the mode's decay rate zeta*wn [1/s], wn^2 [1/s^2] and the
-    damper ``c = mu*(2*zeta*wn - 1/tau)`` (normalised so that viscous damping is 1)."""
-    wn = 2.0 * math.pi * frequency
-    mu = lam * (1.0 - lam) * tau
-    return damping * wn, wn * wn, mu * (2.0 * damping * wn - 1.0 / tau), mu

@@ -22,15 +22,13 @@ import numpy as np
 
 from .._runtime.io import atomic_output
 from ..errors import InvalidArgumentError
+from ..limits import TRACE_FORMATS
 
 if TYPE_CHECKING:
     from ..units import OutputUnits
 
 __all__ = ["TRACE_FORMATS", "TRACE_FILES", "TRACE_CHUNK_ROWS", "trace_columns", "TraceWriter",
            "write_trace", "write_trace_csv", "estimate_trace_bytes", "trace_rows"]
-
-TRACE_FORMATS = ("csv", "parquet")
-"""Formats of the trace file."""
 
 TRACE_FILES = {fmt: f"trace.{fmt}" for fmt in TRACE_FORMATS}
 """Trace format -> file name."""

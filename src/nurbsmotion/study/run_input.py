@@ -79,7 +79,7 @@ def load_run_contour(spec: str, machine: Machine | None = None, *, units: str | 
         compensation takes its tools' diameters from (in the program's units).
     path_tolerance : str or float, optional
         ``--path-tolerance`` as given: a length (``"2um"``) or a bare number of pulses;
-        default :data:`nurbsmotion.motion_plan.DEFAULT_PATH_TOLERANCE` (one
+        default :data:`nurbsmotion.limits.DEFAULT_PATH_TOLERANCE` (one
         pulse); 0 joins nothing.
     size_check : callable, optional
         ``size_check(degree, spans)``: what the command can plan, checked as a large file
@@ -138,8 +138,7 @@ def _polyline_check(machine: Machine, units: str | None):
     :func:`join_run_chords` joins it."""
     def check(rows, file_units: str | None) -> None:
         from ..chords import polyline_corners
-        from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
-        from ..paths import PATH_UNITS
+        from ..limits import DEFAULT_PATH_TOLERANCE, PATH_UNITS
         from ..planning import check_corner_count, most_corners
 
         # enough vertices to hold one corner more than the planner's grid can
@@ -173,7 +172,7 @@ def join_run_chords(contour, machine: Machine, path_tolerance=None):
         of its bounding box).
     """
     from ..chords import ChordJoin, join_chords
-    from ..interpolators.planned.shorten import DEFAULT_PATH_TOLERANCE
+    from ..limits import DEFAULT_PATH_TOLERANCE
 
     import math
 

@@ -27,7 +27,8 @@ from .mode_law import MODE_LAW_ROWS, mode_landing_law, mode_rest_observer
 from .plan import plan_motion
 from .rest_observer import REST_OBSERVER_ROWS, rest_observer
 from .shaper import encoder_offset, shape_plan
-from .shorten import DEFAULT_PATH_TOLERANCE, DEFAULT_SHORTEN_WORK
+from ...limits import DEFAULT_PATH_TOLERANCE
+from .shorten import DEFAULT_SHORTEN_WORK
 from .step import DRIVE_MATCH, LANDING_ROWS, planned_step
 
 __all__ = ["PlannedInterpolator", "PlannedPlan", "PlannedState", "DEFAULT_TRACKING_POLE",
@@ -134,10 +135,10 @@ class PlannedInterpolator(Interpolator):
         :attr:`notes` (so the run's message) says so.
     path_tolerance : float
         [pulse], >= 0: how far from the path a short move (a plan of at most
-        :data:`~.shorten.SHORT_MOVE_SAMPLES` samples; with stops, planned
+        :data:`~nurbsmotion.limits.SHORT_MOVE_SAMPLES` samples; with stops, planned
         from stop to stop) may go where that lets it arrive sooner, or as far as the
         speed profile's plan does if
-        that is farther (:data:`~.shorten.DEFAULT_PATH_TOLERANCE`: one
+        that is farther (:data:`~nurbsmotion.limits.DEFAULT_PATH_TOLERANCE`: one
         pulse).
     drive_fraction : float
         Fraction of Umax, in (0, 1], the plan's feedforward may use; the rest is left to

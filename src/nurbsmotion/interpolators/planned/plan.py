@@ -120,6 +120,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ...errors import InfeasibleError, InvalidArgumentError
+from ...limits import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES
 from ...machine import Machine
 from ...nurbs import NurbsCurve
 from ...planning import speed_profile
@@ -128,8 +129,7 @@ from .inverse import (END_REST, INVERSE_REACH, LEAD, PRECOMPENSATION_ROUNDS,
                       PRECOMPENSATION_TOLERANCE, _drive_sequence, axis_zoh)
 from .landing import _arrival, _land_on_end
 from .shaper import time_law_shaper, tool_lead
-from .shorten import (DEFAULT_PATH_TOLERANCE, DEFAULT_SHORTEN_WORK, SHORT_MOVE_SAMPLES,
-                      SHORTEN_START, _shorten_pieces, _unit, move_tolerance)
+from .shorten import DEFAULT_SHORTEN_WORK, SHORTEN_START, _shorten_pieces, _unit, move_tolerance
 
 __all__ = ["MotionPlan", "plan_motion", "axis_zoh", "move_tolerance"]
 

@@ -1,7 +1,8 @@
 """Step 6 of the plan (:mod:`.plan`): short moves re-timed from stop to stop by sequential
 linear programming over the drives and the plant's sampled states (:func:`_shorten_pieces`,
 :func:`_shorten`, :func:`_shorten_at`; HiGHS warm-started through :class:`_WarmProgram`), and
-the path tolerance it may use (:data:`DEFAULT_PATH_TOLERANCE`, :func:`move_tolerance`).
+the path tolerance it may use (:data:`nurbsmotion.limits.DEFAULT_PATH_TOLERANCE`,
+:func:`move_tolerance`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ import math
 import numpy as np
 
 from ...feed import FeedLimit
+from ...limits import DEFAULT_PATH_TOLERANCE, SHORT_MOVE_SAMPLES  # noqa: F401  (step 6's
+# default path tolerance and short-move length, read here as before; defined in limits)
 from ...machine import Machine
 from ...nurbs import NurbsCurve
 from ...servo import ServoPlant, zoh_coefficients
@@ -30,16 +33,6 @@ at the motion's nearest points)."""
 SHORTEN_STALL = 8
 """Step 6 gives up an arrival sample when this many rounds in a row bring the motion's
 farthest point from the path no nearer than the nearest it has been."""
-
-SHORT_MOVE_SAMPLES = 128
-"""Step 6 plans the moves that rest on the end within this many samples. Its linear
-programs grow with the piece (0.05-0.5 s each at 50-120 samples cold, a tenth of that
-warm-started, and a move takes some tens of them): on the first 99 random paths of
-``benchmarks/planner_sweep.py`` (PLANNER_SWEEP_PLAN_ONLY=1) planning takes a median
-0.15 s of CPU, 1.5 s at the 95th percentile and 29 s at most (before the warm starts and
-the search from the estimate: 0.17, 2.6 and 19 s); the slow ones are 3-axis moves of
-60-120 samples whose programs grow by the points found off the path round after round
-and, at the earliest arrival, never come within the tolerance."""
 
 SHORTEN_START = 1
 """Step 6 starts its search for a piece's arrival this many samples after the piece's
@@ -79,11 +72,6 @@ The default keeps a 3-axis move of 60-120 samples, whose programs have 2,400-8,0
 to about 1-2 s of CPU: on cases 0-119 of the sweep the largest planning time falls from
 10.3 to 2.0 s and 10 plans meet the budget, 4 of them arriving later (1, 1, 2 and 5
 samples); benchmarks/planner_sweep_plan_only.md has the 20 slowest cases."""
-
-DEFAULT_PATH_TOLERANCE = 1.0
-"""How far [pulse] from the path step 6 may take a short move's motion by default: one
-pulse, the encoder's resolution (the plan it replaces is held within a quarter of it,
-:data:`PRECOMPENSATION_TOLERANCE`, where the drive allows)."""
 
 
 def move_tolerance(path_tolerance: float) -> float:
@@ -614,7 +602,7 @@ def _shorten(curve: NurbsCurve, span: _Span, theta: np.ndarray, param: np.ndarra
              work: "_Work | None" = None):
     """Step 6 (module docstring): the plan ``theta`` (n, n_axes) of a move along the
     ``span`` of the curve that does not stop on the way, from rest on its start at
-    sample 0 to rest on its end at ``arrival`` (<= :data:`SHORT_MOVE_SAMPLES`),
+    sample 0 to rest on its end at ``arrival`` (<= :data:`nurbsmotion.limits.SHORT_MOVE_SAMPLES`),
     replaced by one at rest there at the earliest sample N at which a drive within
     ``limit`` [V] keeps the plant within ``tolerance`` [pulse] of the curve all along its
     motion (failing that, as near as ``theta`` is), its nearest path point moving forward

@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from ... import stepping
-from ...control import pid_affine, pid_output
+from ...control.step import pid_affine, pid_output
 from .disturbance import (REJECTION_POLE, ROUNDING_FLOOR, _direction, _for_direction, _hold,
                           _made, _observe, _rejected)
 from .governor import _demand, _rate_room, _support_at, _window_rate

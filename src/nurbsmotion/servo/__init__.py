@@ -7,7 +7,8 @@ Each axis follows docs/model.md#servo-axis (eq. 2.1-2.2 with b = [Kc/tau, 0]^T):
 The drive is clipped to ``[-Umax, Umax]`` and held over each sample, so one step is the
 exact discretisation ``x[k+1] = Ad x[k] + Bd u[k]`` with ``[Ad Bd] = expm([[A, b], [0, 0]]*Ts)``
 (never Euler), here in its closed form (:func:`zoh_matrices`). The plant knows nothing of
-paths or controllers.
+paths or controllers. Its one step, compiled (:func:`plant_step`), is in :mod:`.step`,
+loaded with numba on first use.
 
 Glossary
 --------
@@ -20,12 +21,18 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
-from .errors import InvalidMachineError
-from .plant import x_minus_one_minus_exp
+from .._runtime.lazy import lazy_names
+from ..errors import InvalidMachineError
+from ..plant.linear import x_minus_one_minus_exp
+
+_LAZY = {"plant_step": "step"}
+"""The compiled step (:mod:`.step`), loaded with numba on first use: a machine's plant is
+made and checked without it."""
 
 __all__ = ["ServoPlant", "zoh_matrices", "zoh_coefficients", "plant_step"]
+
+__getattr__, __dir__ = lazy_names(__name__, _LAZY)
 
 
 def zoh_matrices(time_constant: float, electrical_gain: float, mechanical_gain: float,
@@ -167,7 +174,7 @@ class ServoPlant:
         """The plant stage of :mod:`nurbsmotion.plant` (inactive for an ideal plant),
         made once."""
         if "stage" not in self._cache:
-            from .plant import inactive_stage, make_stage
+            from ..plant import inactive_stage, make_stage
 
             self._cache["stage"] = (
                 inactive_stage(self.n_axes) if self.effects is None else
@@ -206,32 +213,8 @@ class ServoPlant:
         w = np.zeros((drive.shape[0] + 1, self.n_axes))
         th = np.zeros_like(w)
         th[0] = 0.0 if start is None else start
+        from .step import _respond
+
         _respond(self.Ad, self.Bd, np.ascontiguousarray(drive.reshape(-1, self.n_axes)),
                  self.max_drive, w, th)
         return w, th
-
-
-@njit(cache=True)
-def _respond(Ad, Bd, drive, max_drive, w, th):
-    """:meth:`ServoPlant.response`'s loop, compiled: ``w[k + 1]``, ``th[k + 1]`` (each
-    (n_samples + 1, n_axes), row 0 the start) from row k under ``drive[k]`` clipped to
-    +-``max_drive`` (as :meth:`ServoPlant.saturate`), sample by sample."""
-    for k in range(drive.shape[0]):
-        for j in range(drive.shape[1]):
-            applied = drive[k, j]
-            if applied > max_drive:
-                applied = max_drive
-            elif applied < -max_drive:
-                applied = -max_drive
-            w[k + 1, j], th[k + 1, j] = plant_step(Ad, Bd, j, w[k, j], th[k, j], applied)
-
-
-@njit(cache=True, inline="always")
-def plant_step(Ad, Bd, j, speed, position, drive_applied):
-    """One exact ZOH step of axis ``j``: ``(speed, position)`` one sample later.
-
-    ``Ad``, ``Bd`` of shapes (n_axes, 2, 2) and (n_axes, 2); speed w [rad/s], position
-    theta [pulse], the (clipped) drive held over the sample [V]."""
-    w = Ad[j, 0, 0] * speed + Ad[j, 0, 1] * position + Bd[j, 0] * drive_applied
-    th = Ad[j, 1, 0] * speed + Ad[j, 1, 1] * position + Bd[j, 1] * drive_applied
-    return w, th
