@@ -131,6 +131,9 @@ def test_what_is_not_provably_a_first_part_is_read_whole(tmp_path, capsys, lower
     assert main(["bound", str(sub), "--feed", "100mm/s"]) == 2
     line = _one_error_line(capsys)
     assert "MAX_GRID_POINTS" in line and "at least" not in line, line  # the planner's own
+    assert line.startswith(f"nurbsmotion bound: error: {sub}#1: "), line  # its file, contour
+    assert main(["run", str(sub), "--feed", "100mm/s", "--out", str(tmp_path / "o")]) == 2
+    assert _one_error_line(capsys).startswith(f"nurbsmotion run: error: {sub}#1: ")
 
 
 def test_cutter_compensation_keeps_the_count_a_lower_bound(tmp_path, monkeypatch, capsys):

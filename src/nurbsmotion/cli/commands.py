@@ -209,11 +209,21 @@ def _settle_window(args, scale, path, source: str) -> float:
     return window
 
 
+def _check_profile_size(path, source: str) -> None:
+    """The planner's size (:func:`nurbsmotion.planning.check_profile_size`), before any
+    arc length (issue 37), its refusal naming the path's file (or built-in name)."""
+    from ..planning import check_profile_size
+
+    try:
+        check_profile_size(path)
+    except WorkLimitError as exc:
+        raise WorkLimitError(f"{source}: {exc}") from None
+
+
 def _cmd_bound(args) -> int:
     from .. import units
     from ..machine import load_machine
-    from ..planning import (check_profile_size, check_span_count, sampled_stop_bound,
-                            time_optimal_bound)
+    from ..planning import check_span_count, sampled_stop_bound, time_optimal_bound
 
     machine = load_machine(args.machine)
     # the planner's size as the file is read (the sampled bound has no planner grid)
@@ -231,7 +241,7 @@ def _cmd_bound(args) -> int:
         print(f"{bound:.6g}")
         _print_joined(contour, machine)
         return 0
-    check_profile_size(path)  # the planner's size, before any arc length (issue 37)
+    _check_profile_size(path, contour.source)
     cap = None if args.feed is None else scale.feed(args.feed)
     feed, note = _feed_used(args, contour, cap, scale.factor, "pulse/s", shown=scale.output)
     # What `run` refuses, `bound` refuses: the same checks, and a bound no run could
@@ -284,7 +294,6 @@ def _run(args, precompiler, machine: Machine, contour) -> int:
     from .. import units
     from ..loop.budget import check_samples, estimate_samples
     from ..machine import load_machine
-    from ..planning import check_profile_size
     from ..job import Job
     from ..loop import check_run_arguments
     from ..report import TRACE_FILES, write_json
@@ -299,7 +308,7 @@ def _run(args, precompiler, machine: Machine, contour) -> int:
     job = Job(curve, machine, (feed, "pulse"), args.interpolator, name=args.path,
               max_samples=args.max_samples)
     path = job.pulses
-    check_profile_size(path)  # the planner's size, before any arc length (issue 37)
+    _check_profile_size(path, contour.source)
     try:
         check_run_arguments(path, machine, feed, args.max_samples, option="--max-samples")
     except WorkLimitError:  # too many samples: a bare feed number in the wrong unit?
