@@ -244,6 +244,7 @@ def online_step(plan, state, position, umax, out_setpoint):
         th = plan_position[i0, j] * (1.0 - f) + plan_position[i1, j] * f
         moded = plan.mode_law[0, j] != 0.0
         moded_dob = observer and moded and plan.mode_law[DOB_ROW, j] != 0.0
+        estimated = (observer and not moded) or moded_dob   # the observer's d serves it
         # the disturbance observer acts in the tracking (the landing has its integral)
         tracked = observer and not moded and phi < rest
         if moded:
@@ -317,10 +318,6 @@ def online_step(plan, state, position, umax, out_setpoint):
                     # a mode declared: the law designed with it on the model
                     # (:func:`.mode_law.mode_landing_law`), not the identified plant's
                     landing[1:LAW_ROWS + 1, j] = plan.mode_law[1:LAW_ROWS + 1, j]
-                    if moded_dob and dob[1, j] != 0.0:
-                        # the observer's estimate for an axis at rest to the integral,
-                        # as on a rigid axis (below)
-                        landing[14, j] = -_for_direction(dob, j, 0.0) / landing[13, j]
                 else:
                     if rested:
                         # a reading not exact: no faster than lets the reading's own
@@ -332,13 +329,13 @@ def online_step(plan, state, position, umax, out_setpoint):
                                             plan.rest_observer[1, j], 2.0 * band,
                                             headroom * umax)
                     _landing_law(ae, b0e, ce, b1e, delay, pole, landing[1:LAW_ROWS + 1, j])
-                    if observer and dob[1, j] != 0.0:
-                        # the observer's estimate for an axis at rest handed to the
-                        # integral (:func:`.disturbance._for_direction`: the part of d
-                        # that is no friction; at rest friction holds, it does not
-                        # push: handing over the sliding estimate, Coulomb included,
-                        # pushed the axis past the end, the Pi at 2 m/s 10 x the bound)
-                        landing[14, j] = -_for_direction(dob, j, 0.0) / landing[13, j]
+                if estimated and dob[1, j] != 0.0:
+                    # the observer's estimate for an axis at rest handed to the
+                    # integral (:func:`.disturbance._for_direction`: the part of d
+                    # that is no friction; at rest friction holds, it does not
+                    # push: handing over the sliding estimate, Coulomb included,
+                    # pushed the axis past the end, the Pi at 2 m/s 10 x the bound)
+                    landing[14, j] = -_for_direction(dob, j, 0.0) / landing[13, j]
                 if rested:
                     # the observer starts on the reading and the speed of the last
                     # increment and drives (the tracking's w_now), its gains on the
@@ -431,7 +428,7 @@ def online_step(plan, state, position, umax, out_setpoint):
                      + _rejected(dob, j, a[j], b0[j], c[j], b1[j], kf_th, kf_w))
             else:
                 u = uf + kpe * e_th + kde * e_w
-            if (observer and not moded) or moded_dob:
+            if estimated:
                 # the disturbance fed forward (plan.disturbance_observer; on an axis with
                 # a mode its own observer's, the hold's integral at the mode law's
                 # landing gain): the estimate
